@@ -27,7 +27,7 @@ if [[ $need_configure -eq 1 ]]; then
 fi
 
 echo "build: make -j$JOBS"
-make -C "$BUILD" -j"$JOBS"
+make --no-print-directory -C "$BUILD" -j"$JOBS"
 echo "build: make -j$JOBS tests"
-make -C "$BUILD" -j"$JOBS" tests
+make --no-print-directory -C "$BUILD" -j"$JOBS" tests
 echo "build: ok"

@@ -14,11 +14,11 @@ MAIN_JOB=("$BUILD/devel/lib/nursing_bed/paper_reproduction" --out doc/reproducti
 
 mkdir -p "$BUILD"
 echo "run_sim: installing dependencies (log: build/install_deps.log)"
-if ! "$ROOT/scripts/install_deps.sh" >"$BUILD/install_deps.log" 2>&1 </dev/null; then
+if ! bash "$ROOT/scripts/install_deps.sh" >"$BUILD/install_deps.log" 2>&1 </dev/null; then
   tail -n 80 "$BUILD/install_deps.log"; echo "run_sim: installing dependencies failed" >&2; exit 1
 fi
 echo "run_sim: building (log: build/build.log)"
-if ! "$ROOT/scripts/build.sh" >"$BUILD/build.log" 2>&1 </dev/null; then
+if ! bash "$ROOT/scripts/build.sh" >"$BUILD/build.log" 2>&1 </dev/null; then
   tail -n 80 "$BUILD/build.log"; echo "run_sim: build failed" >&2; exit 1
 fi
 

@@ -15,7 +15,7 @@ export PATH="/usr/bin:$PATH"
 make_failed=0
 if [[ "${NB_SKIP_BUILD:-0}" != 1 ]]; then
   mkdir -p "$BUILD"
-  if ! "$ROOT/scripts/build.sh" >"$BUILD/build.log" 2>&1; then
+  if ! bash "$ROOT/scripts/build.sh" >"$BUILD/build.log" 2>&1; then
     tail -n 60 "$BUILD/build.log"
     echo "run_tests: build failed (full log: $BUILD/build.log)"
     make_failed=1
@@ -99,7 +99,9 @@ def count_file(path, rel):
             continue
         if bad is not None:
             failed += 1
-            msg = bad.get("message") or bad.text or ""
+            # gtest: "file:line\nexpected ..." in the message; Python: first line of the text.
+            msg = bad.get("message") or next(
+                (l for l in (bad.text or "").splitlines() if l.strip()), "")
             if rel.startswith("MISSING-"):
                 msg = "no result file: the test crashed, timed out or did not run. " + msg
                 if rel in crashed_in:

@@ -9,7 +9,12 @@ export PATH="/usr/bin:$PATH"
 mkdir -p "$BUILD"
 
 fail() {  # <step> <log>
-  tail -n 80 "$2"
+  if grep -qE 'error:|Error [0-9]|CMake Error' "$2"; then
+    echo "--- errors in $2:"
+    grep -E -A3 'error:|CMake Error' "$2" | head -n 60
+    echo "--- end of $2:"
+  fi
+  tail -n 30 "$2"
   echo "test: $1 failed (full log: $2)"
   echo
   echo "0 passed, 1 failed"
@@ -17,13 +22,13 @@ fail() {  # <step> <log>
 }
 
 echo "test: installing dependencies (log: build/install_deps.log)"
-"$ROOT/scripts/install_deps.sh" >"$BUILD/install_deps.log" 2>&1 </dev/null \
+bash "$ROOT/scripts/install_deps.sh" >"$BUILD/install_deps.log" 2>&1 </dev/null \
   || fail "installing dependencies" "$BUILD/install_deps.log"
 tail -n 1 "$BUILD/install_deps.log"
 
 echo "test: building (log: build/build.log)"
 start=$SECONDS
-"$ROOT/scripts/build.sh" >"$BUILD/build.log" 2>&1 </dev/null || fail "build" "$BUILD/build.log"
+bash "$ROOT/scripts/build.sh" >"$BUILD/build.log" 2>&1 </dev/null || fail "build" "$BUILD/build.log"
 echo "test: build ok in $((SECONDS - start)) s"
 
-NB_SKIP_BUILD=1 exec "$ROOT/scripts/run_tests.sh" </dev/null
+NB_SKIP_BUILD=1 exec bash "$ROOT/scripts/run_tests.sh" </dev/null

@@ -55,6 +55,7 @@ std::vector<CellParamField> makeFields() {
       NB_FIELD("structure/film_thickness_m", "TPU film thickness [m]", p.structure.film_thickness_m),
       NB_FIELD("structure/dead_volume_m3", "gas volume of the flat cell: inlet fitting, tube stub, folds [m^3]", p.structure.dead_volume_m3),
       NB_FIELD("structure/film_relaxation_time_s", "viscous time scale of the film shape [s]", p.structure.film_relaxation_time_s),
+      NB_FIELD("structure/max_film_stretch", "largest film stretch trusted before rupture [-]", p.structure.max_film_stretch),
       NB_FIELD("material/c10_pa", "Yeoh constant C10 (paper eq. 7) [Pa]", p.structure.material.c10_pa),
       NB_FIELD("material/c20_pa", "Yeoh constant C20 [Pa]", p.structure.material.c20_pa),
       NB_FIELD("material/c30_pa", "Yeoh constant C30 [Pa]", p.structure.material.c30_pa),

@@ -27,7 +27,7 @@ std::array<double, kMaxShapeDofs> CellStructure::relaxedShape(double height_m, d
   if (initial_shape) std::copy(initial_shape, initial_shape + n, q.begin());
   // Damped Newton with a finite-difference Jacobian; the film balance is smooth and, from the
   // rest shape, reaches the first (stable) root.
-  for (int iter = 0; iter < 60; ++iter) {
+  for (int iter = 0; iter < 200; ++iter) {
     const ShapeVector r = shapeResidual(*this, height_m, gauge_pressure_pa, q.data());
     ShapeMatrix jac(n, n);
     for (int j = 0; j < n; ++j) {
@@ -80,10 +80,11 @@ StructureEquilibrium CellStructure::equilibriumAtPressure(double gauge_pressure_
       h_hi = h_mid;
     }
   }
-  out.converged = true;
   out.height_m = 0.5 * (h_lo + h_hi);
   out.shape = relaxedShape(out.height_m, gauge_pressure_pa, q_lo.data());
   out.eval = evaluate(out.height_m, out.shape.data());
+  out.converged = withinLimits(out.height_m, out.shape.data()) &&
+                  std::fabs(gauge_pressure_pa * out.eval.effective_area_m2 - load_n) <= 1e-6 * (1.0 + load_n);
   return out;
 }
 
@@ -100,16 +101,17 @@ StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double 
   while (excess_force(p_hi) < 0.0) {
     p_lo = p_hi;
     p_hi *= 2.0;
-    if (p_hi > 1e7) return out;  // height out of reach: no pressure holds the plate there
+    // Height out of reach: no pressure holds the plate there within the film's limits.
+    if (p_hi > 1e7 || !withinLimits(height_m, q.data())) return out;
   }
   for (int iter = 0; iter < 100 && p_hi - p_lo > 1e-9 * p_hi; ++iter) {
     const double p_mid = 0.5 * (p_lo + p_hi);
     (excess_force(p_mid) > 0.0 ? p_hi : p_lo) = p_mid;
   }
-  out.converged = true;
   out.gauge_pressure_pa = 0.5 * (p_lo + p_hi);
   out.shape = relaxedShape(height_m, out.gauge_pressure_pa, q.data());
   out.eval = evaluate(height_m, out.shape.data());
+  out.converged = withinLimits(height_m, out.shape.data());
   return out;
 }
 

@@ -18,11 +18,11 @@ TimeSeries paperShapedInflow(double total_mass_kg, double peak_time_s, double en
   const double a = 1.5;
   const double b = a * (end_time_s - peak_time_s) / peak_time_s;
   std::vector<double> t, f;
-  for (double ti = 0.0; ti < end_time_s + 0.5 * sample_s; ti += sample_s) {
-    const double tc = std::min(ti, end_time_s);
+  const int n = static_cast<int>(std::ceil(end_time_s / sample_s - 1e-9));
+  for (int i = 0; i <= n; ++i) {
+    const double tc = i == n ? end_time_s : i * sample_s;
     t.push_back(tc);
-    f.push_back(std::pow(tc / end_time_s, a) * std::pow(1.0 - tc / end_time_s, b));
-    if (tc >= end_time_s) break;
+    f.push_back(std::pow(tc / end_time_s, a) * std::pow(std::max(0.0, 1.0 - tc / end_time_s), b));
   }
   const TimeSeries raw(t, f);
   const double scale = total_mass_kg / raw.integral();

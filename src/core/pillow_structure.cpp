@@ -22,6 +22,8 @@ std::string PillowParams::validate() const {
   positive("film_thickness_m", film_thickness_m);
   positive("dead_volume_m3", dead_volume_m3);
   positive("film_relaxation_time_s", film_relaxation_time_s);
+  if (!(max_film_stretch > 1.0) || !std::isfinite(max_film_stretch))
+    err << "max_film_stretch must be > 1, got " << max_film_stretch << "; ";
   if (!(gusset_height_m >= 0.0) || !std::isfinite(gusset_height_m))
     err << "gusset_height_m must be >= 0, got " << gusset_height_m << "; ";
   if (chambers < 1 || chambers > 8) err << "chambers must be 1..8, got " << chambers << "; ";
@@ -70,6 +72,12 @@ StructureEval PillowStructure::evaluate(double height_m, const double* shape) co
   // Nominal stress per direction is half of dW/dl; tension per current length divides by l.
   e.film_tension_n_m = params_.film_thickness_m * 0.5 * energy_slope / stretch;
   return e;
+}
+
+bool PillowStructure::withinLimits(double height_m, const double* shape) const {
+  // The contact flat must exist (w >= 0) and the film stay below its rupture margin.
+  const double w = 0.5 * shape[0] * loop_length_m_ - 0.5 * kPi * std::max(height_m, 0.0) / params_.chambers;
+  return shape[0] <= params_.max_film_stretch && w >= 0.0;
 }
 
 double PillowStructure::heightLimit(const double* shape) const {

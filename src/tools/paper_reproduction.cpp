@@ -213,7 +213,7 @@ int main(int argc, char** argv) {
     std::ofstream f(out / "summary.json");
     f << "{\n  \"source\": \"Xiao et al., Med. Biol. Eng. Comput. 2022 (paper_reproduction)\",\n"
       << "  \"inflow_mode\": \"" << (opt.paper_curve ? "paper_curve" : "valve") << "\",\n"
-      << "  \"eq24_x_unit\": \"bar (0.1 MPa); the paper's MPa reading gives h < -790 mm\",\n"
+      << "  \"eq24_x_unit\": \"bar (0.1 MPa); the paper's MPa reading gives h of -790 to -600 mm\",\n"
       << "  \"eq24_range_pa\": [10000, 28000],\n"
       << "  \"eq24_rms_mm\": " << jsonNumber(pooled) << ",\n"
       << "  \"loads\": [\n" << loads_json.str() << "\n  ]\n}\n";

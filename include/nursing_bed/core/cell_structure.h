@@ -50,6 +50,9 @@ class CellStructure {
   virtual StructureEval evaluate(double height_m, const double* shape) const = 0;
   /// Height above which the model is no longer meaningful (film taken as fully round) [m].
   virtual double heightLimit(const double* shape) const = 0;
+  /// False when the configuration lies outside what the model or the film can take (past the
+  /// film's rupture stretch, or a height its geometry cannot describe).
+  virtual bool withinLimits(double /*height_m*/, const double* /*shape*/) const { return true; }
   /// Short description for logs and reports.
   virtual std::string describe() const = 0;
 
@@ -57,7 +60,8 @@ class CellStructure {
   std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
                                                  const double* initial_shape = nullptr) const;
   /// Height and shape at which pressure p carries the load (plate at rest): the cell's
-  /// h(p, load) characteristic (the paper's section 5 relation, from our model).
+  /// h(p, load) characteristic (the paper's section 5 relation, from our model). Not converged
+  /// when the film would have to leave its limits.
   StructureEquilibrium equilibriumAtPressure(double gauge_pressure_pa, double load_n) const;
   /// Pressure and shape that hold the plate at height h under the load.
   StructureEquilibrium equilibriumAtHeight(double height_m, double load_n) const;

@@ -11,7 +11,7 @@
 namespace nursing_bed {
 
 /// The paper's eq. 24-29 quartic h = p1 x^4 + ... + p5 [mm]. The paper says x is in MPa, but
-/// then h < -790 mm over its whole pressure range; read with x in bar (0.1 MPa) it gives
+/// then h lies between -790 and -600 mm over its 10-22 kPa range; read with x in bar it gives
 /// h = 0 at 10 kPa and ~92 mm at 28 kPa, matching its fig. 4. We use the bar reading.
 constexpr std::array<double, 5> kPaperQuarticMmVsBar{-4.603e5, 4.099e5, -1.349e5, 1.955e4, -9.741e2};
 /// Paper eq. 24 height [m] at gauge pressure [Pa] (x read as bar).

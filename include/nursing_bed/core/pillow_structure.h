@@ -18,6 +18,7 @@ struct PillowParams {
   double film_thickness_m = 0.50e-3;   ///< TPU film thickness
   double dead_volume_m3 = 5.0e-6;      ///< inlet fitting, tube stub and folds at zero height
   double film_relaxation_time_s = 2.0e-3;  ///< viscous time scale of the film shape at rest
+  double max_film_stretch = 2.0;       ///< largest equibiaxial stretch the film is trusted to (rupture margin)
   YeohMaterial material;               ///< film constitutive law (paper eq. 7)
 
   /// Empty when valid, else what is wrong.
@@ -46,6 +47,7 @@ class PillowStructure : public CellStructure {
   std::array<double, kMaxShapeDofs> restShape() const override;
   StructureEval evaluate(double height_m, const double* shape) const override;
   double heightLimit(const double* shape) const override;
+  bool withinLimits(double height_m, const double* shape) const override;
   std::string describe() const override;
 
   const PillowParams& params() const { return params_; }
