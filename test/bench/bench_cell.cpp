@@ -28,11 +28,11 @@ void BM_InflationPerCellSecond(benchmark::State& state) {
 }
 BENCHMARK(BM_InflationPerCellSecond)->Arg(0)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond);
 
-// One simulated second of a pressurised cell holding height with the vent ajar (the state a
-// bed spends most of its time in).
-void BM_HoldPerCellSecond(benchmark::State& state) {
-  nb::CellParams params;
-  nb::CellModel model(params);
+// One simulated second of a pressurised cell holding height with the valves ajar (the state a
+// bed spends most of its time in), optionally with effects plugged in.
+void runHold(benchmark::State& state, const std::vector<nb::CellEffectPtr>& effects) {
+  nb::CellModel model{nb::CellParams{}};
+  for (const auto& e : effects) model.addEffect(e);
   model.resetToEquilibrium(0.10, 15.6);
   nb::CellInputs in;
   in.load_n = 15.6;
@@ -43,23 +43,13 @@ void BM_HoldPerCellSecond(benchmark::State& state) {
     benchmark::DoNotOptimize(model.variables().height_m);
   }
 }
+
+void BM_HoldPerCellSecond(benchmark::State& state) { runHold(state, {}); }
 BENCHMARK(BM_HoldPerCellSecond)->Unit(benchmark::kMicrosecond);
 
 // The same with two effects plugged in (heat exchange and a leak).
 void BM_HoldWithEffectsPerCellSecond(benchmark::State& state) {
-  nb::CellParams params;
-  nb::CellModel model(params);
-  model.addEffect(std::make_shared<nb::HeatTransferEffect>(10.0));
-  model.addEffect(std::make_shared<nb::LeakEffect>(2e-9));
-  model.resetToEquilibrium(0.10, 15.6);
-  nb::CellInputs in;
-  in.load_n = 15.6;
-  in.vent_opening = 0.01;
-  in.inlet_opening = 0.02;
-  for (auto _ : state) {
-    model.advance(1.0, in);
-    benchmark::DoNotOptimize(model.variables().height_m);
-  }
+  runHold(state, {std::make_shared<nb::HeatTransferEffect>(10.0), std::make_shared<nb::LeakEffect>(2e-9)});
 }
 BENCHMARK(BM_HoldWithEffectsPerCellSecond)->Unit(benchmark::kMicrosecond);
 
