@@ -104,11 +104,27 @@ StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double 
     // Height out of reach: no pressure holds the plate there within the film's limits.
     if (p_hi > 1e7 || !withinLimits(height_m, q.data())) return out;
   }
-  for (int iter = 0; iter < 100 && p_hi - p_lo > 1e-9 * p_hi; ++iter) {
-    const double p_mid = 0.5 * (p_lo + p_hi);
-    (excess_force(p_mid) > 0.0 ? p_hi : p_lo) = p_mid;
+  // Illinois regula falsi on the bracket: superlinear, and never leaves the bracket.
+  double f_lo = -load_n, f_hi = excess_force(p_hi);
+  int side = 0;
+  double p_new = p_hi;
+  for (int iter = 0; iter < 100 && p_hi - p_lo > 1e-10 * p_hi; ++iter) {
+    p_new = (p_lo * f_hi - p_hi * f_lo) / (f_hi - f_lo);
+    const double f_new = excess_force(p_new);
+    if (std::fabs(f_new) < 1e-10 * (1.0 + load_n)) break;
+    if (f_new > 0.0) {
+      p_hi = p_new;
+      f_hi = f_new;
+      if (side == 1) f_lo *= 0.5;
+      side = 1;
+    } else {
+      p_lo = p_new;
+      f_lo = f_new;
+      if (side == -1) f_hi *= 0.5;
+      side = -1;
+    }
   }
-  out.gauge_pressure_pa = 0.5 * (p_lo + p_hi);
+  out.gauge_pressure_pa = p_new;
   out.shape = relaxedShape(height_m, out.gauge_pressure_pa, q.data());
   out.eval = evaluate(height_m, out.shape.data());
   out.converged = withinLimits(height_m, out.shape.data());
