@@ -15,7 +15,8 @@ PACKAGES=(
   libvisualization-msgs-dev libgeometry-msgs-dev librosbag-dev
   # ROS command-line and Python tools
   python3-rosbag python3-rosservice python3-rostopic python3-rosnode python3-roslaunch
-  python3-rospy rosbash
+  python3-rospy rosbash python3-nodelet python3-std-msgs python3-sensor-msgs python3-geometry-msgs
+  python3-diagnostic-msgs python3-visualization-msgs
   # numerics, config, tests, benchmarks
   libceres-dev libeigen3-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
   # plotting for the reproduction figures

@@ -1,7 +1,5 @@
 #include "nursing_bed/core/cell_params_io.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -13,30 +11,9 @@
 namespace nursing_bed {
 namespace {
 
-template <typename Member>
-CellParamField field(const std::string& key, const std::string& description, Member member) {
-  CellParamField f;
-  f.key = key;
-  f.description = description;
-  f.get = [member](const CellParams& p) { return static_cast<double>(member(const_cast<CellParams&>(p))); };
-  f.set = [member](CellParams& p, double v) { member(p) = v; };
-  return f;
-}
+#define NB_FIELD(key, desc, expr) realField<CellParams>(key, desc, [](CellParams& p) -> double& { return expr; })
 
-CellParamField integerField(const std::string& key, const std::string& description,
-                            std::function<int&(CellParams&)> member) {
-  CellParamField f;
-  f.key = key;
-  f.description = description;
-  f.integer = true;
-  f.get = [member](const CellParams& p) { return static_cast<double>(member(const_cast<CellParams&>(p))); };
-  f.set = [member](CellParams& p, double v) { member(p) = static_cast<int>(std::lround(v)); };
-  return f;
-}
-
-#define NB_FIELD(key, desc, expr) field(key, desc, [](CellParams& p) -> double& { return expr; })
-
-std::vector<CellParamField> makeFields() {
+ParamTable<CellParams> makeFields() {
   return {
       NB_FIELD("gas/gas_constant_j_kg_k", "specific gas constant R of the fill gas [J/(kg K)]", p.gas.gas_constant_j_kg_k),
       NB_FIELD("gas/heat_capacity_ratio", "cp/cv of the fill gas [-]", p.gas.heat_capacity_ratio),
@@ -51,7 +28,7 @@ std::vector<CellParamField> makeFields() {
       NB_FIELD("valves/orifice_linear_band_pa", "pressure difference below which orifice flow is smoothed [Pa]", p.orifice_linear_band_pa),
       NB_FIELD("structure/face_side_m", "side of the square cell faces (deflated footprint) [m]", p.structure.face_side_m),
       NB_FIELD("structure/gusset_height_m", "unstretched side-gusset height of one chamber [m]", p.structure.gusset_height_m),
-      integerField("structure/chambers", "stacked chambers sharing one gas volume [-]", [](CellParams& p) -> int& { return p.structure.chambers; }),
+      integerField<CellParams>("structure/chambers", "stacked chambers sharing one gas volume [-]", [](CellParams& p) -> int& { return p.structure.chambers; }),
       NB_FIELD("structure/film_thickness_m", "TPU film thickness [m]", p.structure.film_thickness_m),
       NB_FIELD("structure/dead_volume_m3", "gas volume of the flat cell: inlet fitting, tube stub, folds [m^3]", p.structure.dead_volume_m3),
       NB_FIELD("structure/film_relaxation_time_s", "viscous time scale of the film shape [s]", p.structure.film_relaxation_time_s),
@@ -64,7 +41,7 @@ std::vector<CellParamField> makeFields() {
       NB_FIELD("plate/bed_contact_stiffness_n_m", "stiffness of the film stack under a bottomed plate [N/m]", p.bed_contact_stiffness_n_m),
       NB_FIELD("plate/bed_contact_damping_n_s_m", "damping of that contact [N s/m]", p.bed_contact_damping_n_s_m),
       NB_FIELD("integration/time_step_s", "default and largest integration step [s]", p.time_step_s),
-      integerField("integration/jacobian_refresh_steps", "accepted steps between Jacobian updates [-]", [](CellParams& p) -> int& { return p.jacobian_refresh_steps; }),
+      integerField<CellParams>("integration/jacobian_refresh_steps", "accepted steps between Jacobian updates [-]", [](CellParams& p) -> int& { return p.jacobian_refresh_steps; }),
       NB_FIELD("integration/relative_tolerance", "local error tolerance of the sub-steps [-]", p.relative_tolerance),
   };
 }
@@ -72,73 +49,28 @@ std::vector<CellParamField> makeFields() {
 
 }  // namespace
 
-const std::vector<CellParamField>& cellParamFields() {
-  static const std::vector<CellParamField> fields = makeFields();
+const ParamTable<CellParams>& cellParamFields() {
+  static const ParamTable<CellParams> fields = makeFields();
   return fields;
 }
 
 CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& source,
                                const CellParams& defaults) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(source + ": YAML syntax error: " + e.what());
-  }
   CellParams params = defaults;
-  if (root.IsNull()) return params;
-  if (!root.IsMap()) throw std::runtime_error(source + ": expected a map of parameter groups at the top level");
-
-  std::map<std::string, const CellParamField*> by_key;
-  for (const auto& f : cellParamFields()) by_key[f.key] = &f;
-  for (const auto& group : root) {
-    const std::string group_name = group.first.as<std::string>();
-    if (!group.second.IsMap())
-      throw std::runtime_error(source + ": '" + group_name + "' must be a map of parameters");
-    for (const auto& entry : group.second) {
-      const std::string key = group_name + "/" + entry.first.as<std::string>();
-      const auto it = by_key.find(key);
-      if (it == by_key.end()) throw std::runtime_error(source + ": unknown parameter '" + key + "'");
-      double value = 0.0;
-      try {
-        value = entry.second.as<double>();
-      } catch (const YAML::Exception&) {
-        throw std::runtime_error(source + ": parameter '" + key + "' must be a number, got '" +
-                                 (entry.second.IsScalar() ? entry.second.Scalar() : std::string("a non-scalar")) + "'");
-      }
-      if (!std::isfinite(value)) throw std::runtime_error(source + ": parameter '" + key + "' is not finite");
-      if (it->second->integer && value != std::floor(value))
-        throw std::runtime_error(source + ": parameter '" + key + "' must be a whole number");
-      it->second->set(params, value);
-    }
-  }
+  applyFlatParams(flattenYamlText(yaml_text, source), source, cellParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(source + ": invalid parameters: " + error);
   return params;
 }
 
 CellParams loadCellParamsYaml(const std::string& path, const CellParams& defaults) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open cell parameter file");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parseCellParamsYaml(text.str(), path, defaults);
+  CellParams params = defaults;
+  applyFlatParams(flattenYamlFile(path), path, cellParamFields(), &params);
+  const std::string error = params.validate();
+  if (!error.empty()) throw std::runtime_error(path + ": invalid parameters: " + error);
+  return params;
 }
 
-std::string cellParamsToYaml(const CellParams& params) {
-  std::ostringstream out;
-  out << std::setprecision(10);
-  std::string current_group;
-  for (const auto& f : cellParamFields()) {
-    const auto slash = f.key.find('/');
-    const std::string group = f.key.substr(0, slash);
-    if (group != current_group) {
-      out << group << ":\n";
-      current_group = group;
-    }
-    out << "  " << f.key.substr(slash + 1) << ": " << f.get(params) << "  # " << f.description << "\n";
-  }
-  return out.str();
-}
+std::string cellParamsToYaml(const CellParams& params) { return paramsToYaml(params, cellParamFields()); }
 
 }  // namespace nursing_bed

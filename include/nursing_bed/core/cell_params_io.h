@@ -2,25 +2,18 @@
 // YAML loader here and by the ROS wrappers' loadParams(), so both accept exactly the same keys.
 #pragma once
 
-#include <functional>
 #include <string>
 #include <vector>
 
 #include "nursing_bed/core/cell_model.h"
+#include "nursing_bed/core/param_table.h"
 
 namespace nursing_bed {
 
-/// One scalar parameter of CellParams, addressed by a "group/name_unit" key.
-struct CellParamField {
-  std::string key;           ///< e.g. "structure/film_thickness_m"
-  std::string description;   ///< meaning and unit, for docs and error messages
-  bool integer = false;      ///< must be a whole number
-  std::function<double(const CellParams&)> get;
-  std::function<void(CellParams&, double)> set;
-};
+using CellParamField = ParamField<CellParams>;
 
 /// Every scalar parameter of a cell, in documentation order.
-const std::vector<CellParamField>& cellParamFields();
+const ParamTable<CellParams>& cellParamFields();
 
 /**
  * Reads a YAML file of cell parameters (layout: config/airbag_tpu_double_100.yaml) on top of

@@ -21,7 +21,7 @@ struct HeightControllerParams {
   double integral_rate_per_s = 2.0;       ///< rate at which a resting height error is integrated out [1/s]
   double integral_limit_m = 0.02;         ///< bound of that correction [m]
   double move_threshold_m = 0.003;        ///< predicted error above which a move uses the shaped full-flow law [m]
-  double damping_band_m = 0.002;          ///< plate swing about its rest height that opens a valve fully (active damping) [m]
+  double damping_band_m = 0.01;           ///< plate swing about its rest height that opens a valve fully (active damping) [m]
 
   /// Empty when valid, else every problem found.
   std::string validate() const;

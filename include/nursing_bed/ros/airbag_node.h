@@ -1,0 +1,70 @@
+// The airbag node: one cell's plant, controller and safety layer (core AirbagCell) behind ROS
+// topics and services. The same class runs as a node (src/nodes/airbag_node.cpp) and as a
+// nodelet (nursing_bed/AirbagNodelet). Interface: doc/airbag_node.md.
+#pragma once
+
+#include <ros/ros.h>
+
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "nursing_bed/AirbagState.h"
+#include "nursing_bed/SetHeight.h"
+#include "nursing_bed/core/airbag_cell.h"
+#include "nursing_bed/ros/bed_layout.h"
+#include <std_msgs/Empty.h>
+#include <std_msgs/Float64.h>
+#include <std_msgs/Float64MultiArray.h>
+
+namespace nursing_bed {
+
+/// Everything the airbag node reads from the parameter server, validated in one place.
+struct AirbagNodeParams {
+  int row = -1;                       ///< ~row: the cell's row in the bed (required)
+  int col = -1;                       ///< ~col: the cell's column (required)
+  std::string defaults_ns = "/airbag_defaults";  ///< ~defaults_ns: shared parameters
+  std::string robot_description = "robot_description";  ///< ~robot_description_param
+  double update_rate_hz = 100.0;      ///< ~update_rate_hz: how often the simulation catches up with the clock
+  double publish_rate_hz = 50.0;      ///< ~publish_rate_hz: AirbagState rate
+  double load_n = 0.6;                ///< ~load_n: external load until a load topic says otherwise [N]
+  double initial_height_m = 0.0;      ///< ~initial_height_m: start at rest at this height [m]
+  double supply_pressure_pa = -1.0;   ///< ~supply_pressure_pa: regulator setting; < 0 keeps cell/supply/pressure_pa
+  AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
+
+  /// Empty when valid, else every problem found.
+  std::string validate() const;
+};
+
+class AirbagNode {
+ public:
+  /// Reads parameters and the bed layout; throws std::runtime_error with a clear message
+  /// when they are wrong (unknown key, cell not in the URDF, bad value, ...).
+  AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh);
+
+  static AirbagNodeParams loadParams(const ros::NodeHandle& private_nh);
+
+ private:
+  void update(const ros::TimerEvent& event);
+  bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
+  void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
+  void onLoad(const std_msgs::Float64::ConstPtr& msg);
+  void onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
+  void onVent(const std_msgs::Empty::ConstPtr& msg);
+  void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
+  void publishState(const ros::Time& stamp);
+  double elapsed(const ros::Time& now) const { return (now - start_).toSec(); }
+
+  ros::NodeHandle nh_, private_nh_;
+  AirbagNodeParams params_;
+  CellLayout layout_;
+  std::unique_ptr<AirbagCell> cell_;
+  std::mutex mutex_;  // callbacks may run on several nodelet worker threads
+  ros::Time start_, last_publish_;
+  ros::Publisher state_pub_, pressure_pub_;
+  ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_;
+  ros::ServiceServer set_height_srv_;
+  ros::Timer timer_;
+};
+
+}  // namespace nursing_bed

@@ -1,0 +1,14 @@
+// One airbag cell as its own process (the same class also runs as nursing_bed/AirbagNodelet).
+#include "nursing_bed/ros/airbag_node.h"
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "airbag");
+  try {
+    nursing_bed::AirbagNode node(ros::NodeHandle(), ros::NodeHandle("~"));
+    ros::spin();
+  } catch (const std::exception& e) {
+    ROS_FATAL("%s", e.what());
+    return 1;
+  }
+  return 0;
+}

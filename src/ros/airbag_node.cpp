@@ -1,0 +1,180 @@
+#include "nursing_bed/ros/airbag_node.h"
+
+#include <sensor_msgs/FluidPressure.h>
+
+#include <cmath>
+#include <sstream>
+
+#include "nursing_bed/core/airbag_params_io.h"
+#include "nursing_bed/ros/names.h"
+#include "nursing_bed/ros/ros_params.h"
+
+namespace nursing_bed {
+
+std::string AirbagNodeParams::validate() const {
+  std::ostringstream err;
+  if (row < 0 || col < 0) err << "~row and ~col must be set to the cell's place in the bed (>= 0); ";
+  if (!(update_rate_hz > 0.0 && update_rate_hz <= 1000.0)) err << "~update_rate_hz must lie in (0, 1000]; ";
+  if (!(publish_rate_hz > 0.0 && publish_rate_hz <= update_rate_hz))
+    err << "~publish_rate_hz must lie in (0, update_rate_hz]; ";
+  if (!(load_n >= 0.0 && std::isfinite(load_n))) err << "~load_n must be >= 0 N; ";
+  if (!(initial_height_m >= 0.0 && initial_height_m <= airbag.controller.max_height_m))
+    err << "~initial_height_m must lie in [0, controller/max_height_m]; ";
+  if (!std::isfinite(supply_pressure_pa)) err << "~supply_pressure_pa must be finite; ";
+  const std::string airbag_error = airbag.validate();
+  if (!airbag_error.empty()) err << airbag_error << "; ";
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
+  AirbagNodeParams p;
+  pnh.param("row", p.row, p.row);
+  pnh.param("col", p.col, p.col);
+  pnh.param("defaults_ns", p.defaults_ns, p.defaults_ns);
+  pnh.param("robot_description_param", p.robot_description, p.robot_description);
+  pnh.param("update_rate_hz", p.update_rate_hz, p.update_rate_hz);
+  pnh.param("publish_rate_hz", p.publish_rate_hz, p.publish_rate_hz);
+  pnh.param("load_n", p.load_n, p.load_n);
+  pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
+  pnh.param("supply_pressure_pa", p.supply_pressure_pa, p.supply_pressure_pa);
+  const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors"});
+  p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
+  return p;
+}
+
+AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), private_nh_(private_nh) {
+  params_ = loadParams(private_nh_);
+  std::string urdf;
+  if (!nh_.getParam(params_.robot_description, urdf))
+    throw std::runtime_error("airbag: no bed description on parameter '" + nh_.resolveName(params_.robot_description) +
+                             "' (load it from scripts/make_bed_urdf.py, as sim.launch does)");
+  const BedLayout layout = BedLayout::fromUrdf(urdf);
+  const CellLayout* cell = layout.find(params_.row, params_.col);
+  if (!cell) {
+    std::ostringstream msg;
+    msg << "airbag: cell (row " << params_.row << ", col " << params_.col << ") is not in the bed's URDF ("
+        << layout.rows() << " x " << layout.cols() << ")";
+    throw std::runtime_error(msg.str());
+  }
+  layout_ = *cell;
+  // The URDF joint limits bound the setpoints too.
+  params_.airbag.controller.max_height_m = std::min(params_.airbag.controller.max_height_m, layout_.max_height_m);
+  params_.airbag.controller.min_height_m = std::max(params_.airbag.controller.min_height_m, layout_.min_height_m);
+  params_.airbag.noise_seed += layout_.id;
+  const std::string error = params_.validate();
+  if (!error.empty()) throw std::runtime_error("airbag " + names::airbagName(params_.row, params_.col) + ": " + error);
+
+  cell_ = std::make_unique<AirbagCell>(params_.airbag);
+  if (params_.initial_height_m > 0.0) {
+    cell_->resetToHeight(params_.initial_height_m, params_.load_n);
+  } else {
+    cell_->reset(params_.load_n);
+  }
+  if (params_.supply_pressure_pa >= 0.0) cell_->setSupplyPressure(params_.supply_pressure_pa);
+
+  state_pub_ = private_nh_.advertise<AirbagState>(names::kState, 10);
+  pressure_pub_ = private_nh_.advertise<sensor_msgs::FluidPressure>(names::kPressure, 10);
+  set_height_srv_ = private_nh_.advertiseService(names::kSetHeight, &AirbagNode::setHeight, this);
+  setpoint_sub_ = private_nh_.subscribe(names::kHeightSetpoint, 10, &AirbagNode::onSetpoint, this);
+  load_sub_ = private_nh_.subscribe(names::kLoad, 10, &AirbagNode::onLoad, this);
+  cell_loads_sub_ = nh_.subscribe(names::kCellLoads, 2, &AirbagNode::onCellLoads, this,
+                                  ros::TransportHints().tcpNoDelay());
+  vent_sub_ = private_nh_.subscribe(names::kVent, 10, &AirbagNode::onVent, this);
+  heartbeat_sub_ = private_nh_.subscribe(names::kHeartbeat, 10, &AirbagNode::onHeartbeat, this);
+  start_ = ros::Time::now();
+  last_publish_ = start_;
+  timer_ = nh_.createTimer(ros::Duration(1.0 / params_.update_rate_hz), &AirbagNode::update, this);
+  ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->model().structure().describe().c_str());
+}
+
+void AirbagNode::update(const ros::TimerEvent&) {
+  const ros::Time now = ros::Time::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  cell_->advanceTo(elapsed(now));
+  if ((now - last_publish_).toSec() >= 1.0 / params_.publish_rate_hz - 0.5 / params_.update_rate_hz) {
+    publishState(now);
+    last_publish_ = now;
+  }
+}
+
+void AirbagNode::publishState(const ros::Time& stamp) {
+  const CellVariables& v = cell_->variables();
+  const Measurement& m = cell_->measurement();
+  AirbagState msg;
+  msg.header.stamp = stamp;
+  msg.header.frame_id = layout_.link_name;
+  msg.cell_id = layout_.id;
+  msg.row = layout_.row;
+  msg.col = layout_.col;
+  msg.gauge_pressure_pa = m.gauge_pressure_pa;
+  msg.height_m = m.height_m;
+  msg.volume_m3 = v.structure.volume_m3;
+  msg.gas_mass_kg = v.mass_kg;
+  msg.gas_temperature_k = v.temperature_k;
+  msg.inflow_kg_s = m.inflow_kg_s;
+  msg.external_load_n = cell_->load();
+  msg.inlet_valve_cmd = cell_->valves().inlet;
+  msg.vent_valve_cmd = cell_->valves().vent;
+  msg.height_setpoint_m = cell_->setpoint();
+  msg.mode = static_cast<uint8_t>(cell_->mode());
+  msg.faults = cell_->faults();
+  state_pub_.publish(msg);
+  if (pressure_pub_.getNumSubscribers() > 0) {
+    sensor_msgs::FluidPressure p;
+    p.header = msg.header;
+    p.fluid_pressure = cell_->params().cell.ambient_pressure_pa + m.gauge_pressure_pa;  // absolute, per the message
+    pressure_pub_.publish(p);
+  }
+}
+
+bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (req.cell_id != layout_.id) {
+    std::ostringstream msg;
+    msg << "cell " << req.cell_id << " is not served here: this is " << layout_.link_name << ", cell " << layout_.id;
+    res.success = false;
+    res.message = msg.str();
+    return true;
+  }
+  const std::string error = cell_->requestHeight(req.height_m, elapsed(ros::Time::now()));
+  res.success = error.empty();
+  res.message = error.empty() ? "height setpoint " + std::to_string(req.height_m) + " m accepted" : error;
+  return true;
+}
+
+void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::string error = cell_->requestHeight(msg->data, elapsed(ros::Time::now()));
+  if (!error.empty()) ROS_WARN_THROTTLE(1.0, "%s: setpoint refused: %s", layout_.link_name.c_str(), error.c_str());
+}
+
+void AirbagNode::onLoad(const std_msgs::Float64::ConstPtr& msg) {
+  if (!(std::isfinite(msg->data) && msg->data >= 0.0)) {
+    ROS_WARN_THROTTLE(1.0, "%s: load %f N refused: must be finite and >= 0", layout_.link_name.c_str(), msg->data);
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  cell_->setLoad(msg->data);
+}
+
+void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
+  if (msg->data.size() <= layout_.id) return;
+  const double load = msg->data[layout_.id];
+  if (!(std::isfinite(load) && load >= 0.0)) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  cell_->setLoad(load);
+}
+
+void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  cell_->requestVent(elapsed(ros::Time::now()));
+}
+
+void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  cell_->heartbeat(elapsed(ros::Time::now()));
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,225 @@
+#include "nursing_bed/ros/bed_layout.h"
+
+#include <console_bridge/console.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <regex>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+namespace nursing_bed {
+
+namespace {
+
+// Generated URDFs print positions to 12 decimals; 1 um also covers hand-written ones.
+constexpr double kPositionTolerance_m = 1e-6;
+constexpr double kAxisTolerance = 1e-6;
+
+/**
+ * Collects what urdfdom logs through console_bridge while it parses, so that a parse failure
+ * can say why (urdfdom itself only returns a null model). Restores the previous handler on
+ * destruction. The handler is process-global: a console_bridge message from another thread
+ * during the parse would land here too, which only adds a line to an error message.
+ */
+class ConsoleCapture : public console_bridge::OutputHandler {
+ public:
+  ConsoleCapture() : previous_(console_bridge::getOutputHandler()) { console_bridge::useOutputHandler(this); }
+  ~ConsoleCapture() override { console_bridge::useOutputHandler(previous_); }
+  ConsoleCapture(const ConsoleCapture&) = delete;
+  ConsoleCapture& operator=(const ConsoleCapture&) = delete;
+
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR) {
+      text_ += text_.empty() ? text : "; " + text;
+    }
+  }
+  const std::string& text() const { return text_; }
+
+ private:
+  console_bridge::OutputHandler* previous_;
+  std::string text_;
+};
+
+std::string formatM(double value_m) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", value_m);
+  return buffer;
+}
+
+std::string cellJointName(int row, int col) {
+  return "airbag_" + std::to_string(row) + "_" + std::to_string(col) + "_joint";
+}
+
+const char* jointTypeName(int type) {
+  switch (type) {
+    case urdf::Joint::REVOLUTE: return "revolute";
+    case urdf::Joint::CONTINUOUS: return "continuous";
+    case urdf::Joint::PRISMATIC: return "prismatic";
+    case urdf::Joint::FLOATING: return "floating";
+    case urdf::Joint::PLANAR: return "planar";
+    case urdf::Joint::FIXED: return "fixed";
+    default: return "unknown";
+  }
+}
+
+[[noreturn]] void fail(const std::string& what) { throw std::runtime_error("bed URDF: " + what); }
+
+/// Pitch of a single-cell bed, which positions cannot give: from bed_link's visual box.
+double pitchFromBedBox(const urdf::ModelInterface& model) {
+  const urdf::LinkConstSharedPtr bed = model.getLink(BedLayout::kBedLink);
+  if (bed->visual && bed->visual->geometry && bed->visual->geometry->type == urdf::Geometry::BOX) {
+    const double length_m = std::static_pointer_cast<urdf::Box>(bed->visual->geometry)->dim.x;
+    if (std::isfinite(length_m) && length_m > 0.0) {
+      return length_m;
+    }
+  }
+  fail("a 1 x 1 grid has no neighbours to give the pitch, and bed_link has no visual box to give it");
+}
+
+}  // namespace
+
+BedLayout BedLayout::fromUrdf(const std::string& urdf_xml) {
+  urdf::ModelInterfaceSharedPtr model;
+  {
+    ConsoleCapture capture;
+    model = urdf::parseURDF(urdf_xml);
+    if (!model) {
+      fail("the XML does not parse as URDF" + (capture.text().empty() ? std::string() : ": " + capture.text()));
+    }
+  }
+  if (!model->getLink(kBedLink)) {
+    fail("there is no link '" + std::string(kBedLink) + "' (the bed frame) in robot '" + model->getName() + "'");
+  }
+
+  // Canonical decimal indices only, so that a cell has exactly one possible joint name.
+  static const std::regex kCellJoint("airbag_(0|[1-9][0-9]{0,5})_(0|[1-9][0-9]{0,5})_joint");
+  std::map<std::pair<int, int>, CellLayout> found;
+  int rows = 0;
+  int cols = 0;
+  for (const auto& entry : model->joints_) {
+    std::smatch match;
+    if (!std::regex_match(entry.first, match, kCellJoint)) {
+      continue;
+    }
+    const urdf::Joint& joint = *entry.second;
+    const std::string& name = entry.first;
+    if (joint.type != urdf::Joint::PRISMATIC) {
+      fail("cell joint " + name + " is " + jointTypeName(joint.type) + ", expected prismatic");
+    }
+    if (!joint.limits) {
+      fail("cell joint " + name + " has no limits");
+    }
+    if (!(std::isfinite(joint.limits->lower) && std::isfinite(joint.limits->upper) &&
+          joint.limits->upper > joint.limits->lower)) {
+      fail("cell joint " + name + " has no travel: limits lower " + formatM(joint.limits->lower) +
+           " m, upper " + formatM(joint.limits->upper) + " m");
+    }
+    if (joint.parent_link_name != kBedLink) {
+      fail("cell joint " + name + " has parent " + joint.parent_link_name + ", expected " + kBedLink);
+    }
+    // Heights are along the bed's z: the axis as seen from bed_link must be +z.
+    const urdf::Vector3 axis = joint.parent_to_joint_origin_transform.rotation * joint.axis;
+    if (std::abs(axis.x) > kAxisTolerance || std::abs(axis.y) > kAxisTolerance ||
+        std::abs(axis.z - 1.0) > kAxisTolerance) {
+      fail("cell joint " + name + " moves along (" + formatM(axis.x) + ", " + formatM(axis.y) + ", " +
+           formatM(axis.z) + ") in bed_link, expected +z (0 0 1)");
+    }
+    CellLayout cell;
+    cell.row = std::stoi(match[1].str());
+    cell.col = std::stoi(match[2].str());
+    cell.joint_name = name;
+    cell.link_name = joint.child_link_name;
+    cell.x_m = joint.parent_to_joint_origin_transform.position.x;
+    cell.y_m = joint.parent_to_joint_origin_transform.position.y;
+    cell.min_height_m = joint.limits->lower;
+    cell.max_height_m = joint.limits->upper;
+    rows = std::max(rows, cell.row + 1);
+    cols = std::max(cols, cell.col + 1);
+    found.emplace(std::make_pair(cell.row, cell.col), std::move(cell));
+  }
+  if (found.empty()) {
+    fail("there are no airbag_<row>_<col>_joint joints");
+  }
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      if (found.find({r, c}) == found.end()) {
+        fail("cells do not form a full " + std::to_string(rows) + " x " + std::to_string(cols) +
+             " grid: cell row " + std::to_string(r) + " col " + std::to_string(c) + " (" +
+             cellJointName(r, c) + ") is missing");
+      }
+    }
+  }
+
+  // Pitch from the first neighbours; rows must step towards -x (head first), cols towards +y.
+  const CellLayout& origin = found.at({0, 0});
+  double pitch_m = 0.0;
+  if (rows > 1) {
+    pitch_m = origin.x_m - found.at({1, 0}).x_m;
+  } else if (cols > 1) {
+    pitch_m = found.at({0, 1}).y_m - origin.y_m;
+  } else {
+    pitch_m = pitchFromBedBox(*model);
+  }
+  if (!(pitch_m > kPositionTolerance_m)) {
+    fail("pitch is not positive (" + formatM(pitch_m) + " m between " + origin.joint_name + " and " +
+         (rows > 1 ? cellJointName(1, 0) : cellJointName(0, 1)) +
+         "): row 0 must be at the head (+x) and col 0 on the right (-y)");
+  }
+  for (const auto& entry : found) {
+    const CellLayout& cell = entry.second;
+    const double expected_x_m = origin.x_m - cell.row * pitch_m;
+    const double expected_y_m = origin.y_m + cell.col * pitch_m;
+    if (std::abs(cell.x_m - expected_x_m) > kPositionTolerance_m ||
+        std::abs(cell.y_m - expected_y_m) > kPositionTolerance_m) {
+      fail("pitch is not uniform: " + cell.joint_name + " is at (" + formatM(cell.x_m) + ", " +
+           formatM(cell.y_m) + ") m, but a pitch of " + formatM(pitch_m) + " m from " + origin.joint_name +
+           " puts it at (" + formatM(expected_x_m) + ", " + formatM(expected_y_m) + ") m");
+    }
+  }
+
+  BedLayout layout;
+  layout.rows_ = rows;
+  layout.cols_ = cols;
+  layout.pitch_m_ = pitch_m;
+  layout.cells_.reserve(found.size());
+  for (auto& entry : found) {  // std::map order (row, col) is id order
+    entry.second.id = static_cast<uint32_t>(entry.second.row * cols + entry.second.col);
+    layout.cells_.push_back(std::move(entry.second));
+  }
+  return layout;
+}
+
+const CellLayout* BedLayout::find(int row, int col) const {
+  if (row < 0 || row >= rows_ || col < 0 || col >= cols_) {
+    return nullptr;
+  }
+  return &cells_[static_cast<size_t>(row * cols_ + col)];
+}
+
+const CellLayout* BedLayout::findId(uint32_t id) const {
+  return id < cells_.size() ? &cells_[id] : nullptr;
+}
+
+std::string BedLayout::describe() const {
+  if (cells_.empty()) {
+    return "bed layout: empty";
+  }
+  double min_height_m = cells_.front().min_height_m;
+  double max_height_m = cells_.front().max_height_m;
+  for (const CellLayout& cell : cells_) {
+    min_height_m = std::min(min_height_m, cell.min_height_m);
+    max_height_m = std::max(max_height_m, cell.max_height_m);
+  }
+  std::ostringstream out;
+  out << "bed layout: " << rows_ << " x " << cols_ << " cells (rows along x, row 0 at the head), pitch "
+      << formatM(pitch_m_) << " m, bed " << formatM(rows_ * pitch_m_) << " x " << formatM(cols_ * pitch_m_)
+      << " m, heights " << formatM(min_height_m) << " .. " << formatM(max_height_m) << " m";
+  return out.str();
+}
+
+}  // namespace nursing_bed

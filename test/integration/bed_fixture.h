@@ -1,0 +1,92 @@
+// Shared fixture of the rostests: watches the cells' AirbagState topics and calls services.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+
+#include <functional>
+#include <map>
+#include <string>
+
+#include "nursing_bed/AirbagState.h"
+#include "nursing_bed/SetHeight.h"
+#include "nursing_bed/SetHeights.h"
+
+namespace nursing_bed {
+namespace test {
+
+class BedFixture : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ros::NodeHandle pnh("~");
+    pnh.param("rows", rows_, 2);
+    pnh.param("cols", cols_, 3);
+    for (int r = 0; r < rows_; ++r)
+      for (int c = 0; c < cols_; ++c) {
+        const std::string ns = "/airbag_" + std::to_string(r) + "_" + std::to_string(c);
+        const boost::function<void(const AirbagState::ConstPtr&)> on_state = [this](const AirbagState::ConstPtr& m) {
+          states_[m->cell_id] = *m;
+          ++counts_[m->cell_id];
+        };
+        subs_.push_back(nh_.subscribe<AirbagState>(ns + "/state", 10, on_state));
+      }
+    ASSERT_TRUE(waitFor([this] { return static_cast<int>(states_.size()) == rows_ * cols_; }, 30.0))
+        << "not every cell is publishing its state";
+  }
+
+  /// Spins until `condition` holds or `timeout_s` passes; returns whether it held.
+  bool waitFor(const std::function<bool()>& condition, double timeout_s) {
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+    ros::WallRate rate(200.0);
+    while (ros::ok() && ros::WallTime::now() < deadline) {
+      ros::spinOnce();
+      if (condition()) return true;
+      rate.sleep();
+    }
+    ros::spinOnce();
+    return condition();
+  }
+
+  /// Holds when every cell in `targets` (id -> height) has been within tol of it for `hold_s`.
+  bool settle(const std::map<uint32_t, double>& targets, double tol_m, double hold_s, double timeout_s) {
+    ros::WallTime inside_since;
+    return waitFor(
+        [&] {
+          for (const auto& [id, h] : targets)
+            if (!states_.count(id) || std::fabs(states_[id].height_m - h) > tol_m) {
+              inside_since = ros::WallTime();
+              return false;
+            }
+          if (inside_since.isZero()) inside_since = ros::WallTime::now();
+          return (ros::WallTime::now() - inside_since).toSec() >= hold_s;
+        },
+        timeout_s);
+  }
+
+  SetHeight::Response callCell(const std::string& cell_ns, uint32_t id, double height) {
+    SetHeight srv;
+    srv.request.cell_id = id;
+    srv.request.height_m = height;
+    EXPECT_TRUE(ros::service::waitForService(cell_ns + "/set_height", ros::Duration(10.0)));
+    EXPECT_TRUE(ros::service::call(cell_ns + "/set_height", srv));
+    return srv.response;
+  }
+
+  SetHeights::Response callBed(const std::vector<uint32_t>& ids, const std::vector<double>& heights) {
+    SetHeights srv;
+    srv.request.cell_ids = ids;
+    srv.request.heights_m = heights;
+    EXPECT_TRUE(ros::service::waitForService("/bed_manager/set_airbag_heights", ros::Duration(10.0)));
+    EXPECT_TRUE(ros::service::call("/bed_manager/set_airbag_heights", srv));
+    return srv.response;
+  }
+
+  ros::NodeHandle nh_;
+  int rows_ = 2, cols_ = 3;
+  std::vector<ros::Subscriber> subs_;
+  std::map<uint32_t, AirbagState> states_;
+  std::map<uint32_t, int> counts_;
+};
+
+}  // namespace test
+}  // namespace nursing_bed
