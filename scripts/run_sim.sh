@@ -8,9 +8,9 @@ BUILD="$ROOT/build"
 export PATH="/usr/bin:$PATH"
 cd "$ROOT"
 
-# The main job (run from the repository root). Switch to the simulator with:
-#   MAIN_JOB=(roslaunch nursing_bed sim.launch)
-MAIN_JOB=("$BUILD/devel/lib/nursing_bed/paper_reproduction" --out doc/reproduction)
+# The main job: the simulated bed (launch args such as rows:=4 cols:=3 rviz:=true pass through).
+# The paper reproduction is build/devel/lib/nursing_bed/paper_reproduction --out DIR.
+MAIN_JOB=(roslaunch nursing_bed sim.launch)
 
 mkdir -p "$BUILD"
 echo "run_sim: installing dependencies (log: build/install_deps.log)"

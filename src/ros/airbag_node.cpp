@@ -2,10 +2,12 @@
 
 #include <sensor_msgs/FluidPressure.h>
 
+#include <boost/make_shared.hpp>
 #include <cmath>
 #include <sstream>
 
 #include "nursing_bed/core/airbag_params_io.h"
+#include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"
 
@@ -85,12 +87,20 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   heartbeat_sub_ = private_nh_.subscribe(names::kHeartbeat, 10, &AirbagNode::onHeartbeat, this);
   start_ = ros::Time::now();
   last_publish_ = start_;
-  timer_ = nh_.createTimer(ros::Duration(1.0 / params_.update_rate_hz), &AirbagNode::update, this);
+  CellTicker& ticker = CellTicker::instance(params_.update_rate_hz);
+  if (ticker.rateHz() != params_.update_rate_hz)
+    ROS_WARN("%s: ~update_rate_hz %g ignored: this process's airbags tick at %g Hz (the first one's rate)",
+             layout_.link_name.c_str(), params_.update_rate_hz, ticker.rateHz());
+  params_.update_rate_hz = ticker.rateHz();
+  ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); });
   ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->model().structure().describe().c_str());
 }
 
-void AirbagNode::update(const ros::TimerEvent&) {
-  const ros::Time now = ros::Time::now();
+AirbagNode::~AirbagNode() {
+  if (ticker_handle_ >= 0) CellTicker::instance(params_.update_rate_hz).remove(ticker_handle_);
+}
+
+void AirbagNode::update(const ros::Time& now) {
   std::lock_guard<std::mutex> lock(mutex_);
   cell_->advanceTo(elapsed(now));
   if ((now - last_publish_).toSec() >= 1.0 / params_.publish_rate_hz - 0.5 / params_.update_rate_hz) {
@@ -102,7 +112,9 @@ void AirbagNode::update(const ros::TimerEvent&) {
 void AirbagNode::publishState(const ros::Time& stamp) {
   const CellVariables& v = cell_->variables();
   const Measurement& m = cell_->measurement();
-  AirbagState msg;
+  // Published as a shared pointer: the bed manager nodelet in the same manager gets it without a copy.
+  const boost::shared_ptr<AirbagState> out = boost::make_shared<AirbagState>();
+  AirbagState& msg = *out;
   msg.header.stamp = stamp;
   msg.header.frame_id = layout_.link_name;
   msg.cell_id = layout_.id;
@@ -120,7 +132,7 @@ void AirbagNode::publishState(const ros::Time& stamp) {
   msg.height_setpoint_m = cell_->setpoint();
   msg.mode = static_cast<uint8_t>(cell_->mode());
   msg.faults = cell_->faults();
-  state_pub_.publish(msg);
+  state_pub_.publish(out);
   if (pressure_pub_.getNumSubscribers() > 0) {
     sensor_msgs::FluidPressure p;
     p.header = msg.header;

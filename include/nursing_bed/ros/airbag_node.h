@@ -25,7 +25,7 @@ struct AirbagNodeParams {
   int col = -1;                       ///< ~col: the cell's column (required)
   std::string defaults_ns = "/airbag_defaults";  ///< ~defaults_ns: shared parameters
   std::string robot_description = "robot_description";  ///< ~robot_description_param
-  double update_rate_hz = 100.0;      ///< ~update_rate_hz: how often the simulation catches up with the clock
+  double update_rate_hz = 50.0;       ///< ~update_rate_hz: how often the simulation catches up with the clock
   double publish_rate_hz = 50.0;      ///< ~publish_rate_hz: AirbagState rate
   double load_n = 0.6;                ///< ~load_n: external load until a load topic says otherwise [N]
   double initial_height_m = 0.0;      ///< ~initial_height_m: start at rest at this height [m]
@@ -41,11 +41,13 @@ class AirbagNode {
   /// Reads parameters and the bed layout; throws std::runtime_error with a clear message
   /// when they are wrong (unknown key, cell not in the URDF, bad value, ...).
   AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh);
+  ~AirbagNode();
 
   static AirbagNodeParams loadParams(const ros::NodeHandle& private_nh);
 
  private:
-  void update(const ros::TimerEvent& event);
+  /// Advances the cell to `now` and publishes its state (called by the process's CellTicker).
+  void update(const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
@@ -64,7 +66,7 @@ class AirbagNode {
   ros::Publisher state_pub_, pressure_pub_;
   ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_;
   ros::ServiceServer set_height_srv_;
-  ros::Timer timer_;
+  int ticker_handle_ = -1;
 };
 
 }  // namespace nursing_bed
