@@ -1,5 +1,6 @@
 #include "nursing_bed/ros/bed_manager.h"
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64.h>
 
@@ -15,6 +16,7 @@ std::string BedManagerParams::validate() const {
   std::ostringstream err;
   if (!(joint_state_rate_hz > 0.0 && joint_state_rate_hz <= 200.0)) err << "~joint_state_rate_hz must lie in (0, 200]; ";
   if (!(cell_timeout_s > 0.0)) err << "~cell_timeout_s must be positive; ";
+  if (!(diagnostics_rate_hz > 0.0 && diagnostics_rate_hz <= 50.0)) err << "~diagnostics_rate_hz must lie in (0, 50]; ";
   if (!(max_height_m > min_height_m)) err << "max height must exceed min height; ";
   std::string s = err.str();
   if (s.size() >= 2) s.resize(s.size() - 2);
@@ -28,6 +30,7 @@ BedManagerParams BedManager::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("cells_ns", p.cells_ns, p.cells_ns);
   pnh.param("joint_state_rate_hz", p.joint_state_rate_hz, p.joint_state_rate_hz);
   pnh.param("cell_timeout_s", p.cell_timeout_s, p.cell_timeout_s);
+  pnh.param("diagnostics_rate_hz", p.diagnostics_rate_hz, p.diagnostics_rate_hz);
   // The cells refuse setpoints outside their controller limits: check the same limits here.
   pnh.param(p.defaults_ns + "/controller/min_height_m", p.min_height_m, p.min_height_m);
   pnh.param(p.defaults_ns + "/controller/max_height_m", p.max_height_m, p.max_height_m);
@@ -58,6 +61,9 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   set_heights_srv_ = private_nh_.advertiseService("set_airbag_heights", &BedManager::setHeights, this);
   joint_state_timer_ =
       nh_.createTimer(ros::Duration(1.0 / params_.joint_state_rate_hz), &BedManager::publishJointStates, this);
+  diagnostics_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 2);
+  diagnostics_timer_ =
+      nh_.createTimer(ros::Duration(1.0 / params_.diagnostics_rate_hz), &BedManager::publishDiagnostics, this);
   ROS_INFO("bed_manager: %s", layout_.describe().c_str());
 }
 
@@ -79,6 +85,60 @@ void BedManager::publishJointStates(const ros::TimerEvent&) {
     js.position.push_back(std::isfinite(h) ? std::clamp(h, c.min_height_m, c.max_height_m) : 0.0);
   }
   joint_state_pub_.publish(js);
+}
+
+void BedManager::publishDiagnostics(const ros::TimerEvent&) {
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  int dead = 0, faulty = 0;
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const CellLayout& c : layout_.cells()) {
+    diagnostic_msgs::DiagnosticStatus s;
+    s.name = "bed/" + names::airbagName(c.row, c.col);
+    s.hardware_id = "cell " + std::to_string(c.id);
+    const AirbagState& st = last_state_[c.id];
+    const double age = last_seen_[c.id].isZero() ? INFINITY : (array.header.stamp - last_seen_[c.id]).toSec();
+    std::ostringstream msg;
+    if (age > params_.cell_timeout_s) {
+      s.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+      msg << (std::isinf(age) ? std::string("no state received") : "no state for " + std::to_string(age) + " s");
+      ++dead;
+    } else if (st.faults != AirbagState::FAULT_NONE) {
+      s.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      msg << "faults:" << ((st.faults & AirbagState::FAULT_SENSOR) ? " sensor" : "")
+          << ((st.faults & AirbagState::FAULT_OVERPRESSURE) ? " overpressure" : "")
+          << ((st.faults & AirbagState::FAULT_COMMAND_TIMEOUT) ? " command-timeout" : "")
+          << ((st.faults & AirbagState::FAULT_LOW_PRESSURE) ? " low-pressure" : "");
+      ++faulty;
+    } else {
+      s.level = diagnostic_msgs::DiagnosticStatus::OK;
+      msg << "ok";
+    }
+    s.message = msg.str();
+    if (!last_seen_[c.id].isZero()) {
+      auto kv = [&s](const std::string& k, double v) {
+        diagnostic_msgs::KeyValue pair;
+        pair.key = k;
+        pair.value = std::to_string(v);
+        s.values.push_back(pair);
+      };
+      kv("height_m", st.height_m);
+      kv("gauge_pressure_pa", st.gauge_pressure_pa);
+      kv("height_setpoint_m", st.height_setpoint_m);
+      kv("external_load_n", st.external_load_n);
+      kv("faults", st.faults);
+    }
+    array.status.push_back(s);
+  }
+  diagnostic_msgs::DiagnosticStatus bed;
+  bed.name = "bed";
+  bed.hardware_id = "nursing_bed";
+  bed.level = dead ? diagnostic_msgs::DiagnosticStatus::ERROR
+                   : (faulty ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK);
+  bed.message = std::to_string(layout_.cells().size()) + " cells, " + std::to_string(dead) + " not reporting, " +
+                std::to_string(faulty) + " with faults";
+  array.status.insert(array.status.begin(), bed);
+  diagnostics_pub_.publish(array);
 }
 
 std::string BedManager::checkRequest(const std::vector<uint32_t>& ids, const std::vector<double>& heights) const {

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
+
 #include "bed_fixture.h"
 
 namespace nursing_bed {
@@ -98,6 +100,18 @@ TEST_F(BedFixture, EveryCellPublishesAtItsRate) {
   const double seconds = (ros::WallTime::now() - start).toSec();
   for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id)
     EXPECT_GE(counts_[id] / seconds, 45.0) << "cell " << id;
+}
+
+TEST_F(BedFixture, DiagnosticsReportEveryCell) {
+  diagnostic_msgs::DiagnosticArray last;
+  const boost::function<void(const diagnostic_msgs::DiagnosticArray::ConstPtr&)> on_diag =
+      [&last](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) { last = *m; };
+  ros::Subscriber sub = nh_.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5, on_diag);
+  ASSERT_TRUE(waitFor([&] { return !last.status.empty(); }, 10.0));
+  ASSERT_EQ(last.status.size(), static_cast<std::size_t>(rows_ * cols_ + 1));
+  EXPECT_EQ(last.status[0].name, "bed");
+  for (const auto& s : last.status) EXPECT_EQ(s.level, diagnostic_msgs::DiagnosticStatus::OK) << s.name << ": " << s.message;
+  EXPECT_EQ(last.status[2].name, "bed/airbag_0_1");
 }
 
 }  // namespace test

@@ -24,6 +24,7 @@ struct BedManagerParams {
   std::string cells_ns = "/";                            ///< ~cells_ns: where the airbag_<r>_<c> nodes live
   double joint_state_rate_hz = 30.0;                     ///< ~joint_state_rate_hz
   double cell_timeout_s = 1.0;                           ///< ~cell_timeout_s: a cell silent this long is dead
+  double diagnostics_rate_hz = 2.0;                      ///< ~diagnostics_rate_hz: /diagnostics rate
   double min_height_m = 0.0;                             ///< setpoints below are refused (cells' controller/min_height_m)
   double max_height_m = 0.150;                           ///< and above (cells' controller/max_height_m, URDF limit)
   std::string validate() const;
@@ -41,6 +42,7 @@ class BedManager {
  private:
   void onState(const AirbagState::ConstPtr& msg);
   void publishJointStates(const ros::TimerEvent&);
+  void publishDiagnostics(const ros::TimerEvent&);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   bool setHeights(SetHeights::Request& req, SetHeights::Response& res);
   /// Validates and sends; the response text says what happened.
@@ -54,9 +56,9 @@ class BedManager {
   std::vector<ros::Time> last_seen_;           // by cell id (zero: never)
   std::vector<ros::Subscriber> state_subs_;
   std::vector<ros::Publisher> setpoint_pubs_;  // by cell id
-  ros::Publisher joint_state_pub_;
+  ros::Publisher joint_state_pub_, diagnostics_pub_;
   ros::ServiceServer set_height_srv_, set_heights_srv_;
-  ros::Timer joint_state_timer_;
+  ros::Timer joint_state_timer_, diagnostics_timer_;
 };
 
 }  // namespace nursing_bed
