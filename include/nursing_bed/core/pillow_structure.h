@@ -51,6 +51,8 @@ class PillowStructure : public CellStructure {
   std::string describe() const override;
 
   const PillowParams& params() const { return params_; }
+  /// Reference volume of all film (n A0 t) [m^3]: film energy = this * W_yeoh per unit volume.
+  double filmVolume() const { return film_volume_m3_; }
 
  private:
   PillowParams params_;

@@ -1,12 +1,12 @@
-// The bed manager: the bed-level entry point. It validates height requests for any cell against
-// the bed's layout and the cells' limits and routes them to the cells (all-or-nothing for many
-// cells), and publishes the cell heights as joint_states for robot_state_publisher.
-// Same class as node and nodelet. Interface: doc/bed_manager.md.
+// The bed manager: turns a nurse's intent (posture plans, single or many cell heights) into
+// setpoints for every cell, safely; watches every cell's heartbeat and health; publishes the
+// cell heights as joint_states, its own state and /diagnostics. Same class as node and nodelet.
+// Interface: doc/bed_manager.md.
 #pragma once
 
 #include <ros/ros.h>
 
-#include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -14,6 +14,8 @@
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetHeights.h"
+#include "nursing_bed/SetPosture.h"
+#include "nursing_bed/core/posture_plans.h"
 #include "nursing_bed/ros/bed_layout.h"
 
 namespace nursing_bed {
@@ -23,10 +25,15 @@ struct BedManagerParams {
   std::string defaults_ns = "/airbag_defaults";          ///< ~defaults_ns: the cells' shared parameters
   std::string cells_ns = "/";                            ///< ~cells_ns: where the airbag_<r>_<c> nodes live
   double joint_state_rate_hz = 30.0;                     ///< ~joint_state_rate_hz
-  double cell_timeout_s = 1.0;                           ///< ~cell_timeout_s: a cell silent this long is dead
-  double diagnostics_rate_hz = 2.0;                      ///< ~diagnostics_rate_hz: /diagnostics rate
-  double min_height_m = 0.0;                             ///< setpoints below are refused (cells' controller/min_height_m)
-  double max_height_m = 0.150;                           ///< and above (cells' controller/max_height_m, URDF limit)
+  double plan_rate_hz = 10.0;                            ///< ~plan_rate_hz: plan evaluation and ~state rate
+  double cell_timeout_s = 0.3;                           ///< ~cell_timeout_s: a cell silent this long is dead
+  double diagnostics_rate_hz = 5.0;                      ///< ~diagnostics_rate_hz: /diagnostics rate
+  double resend_s = 1.0;                                 ///< ~resend_s: setpoints and vents are repeated this often
+  double leak_alarm_error_m = 0.01;                      ///< ~leak_alarm_error_m: a cell this far below its target ...
+  double leak_alarm_s = 15.0;                            ///< ~leak_alarm_s: ... for this long raises the leak alarm
+  std::string initial_plan;                              ///< ~initial_plan: plan started at launch ("": none)
+  PlanConfig plans;                                      ///< ~plans/...
+  BodyFootprint body;                                    ///< ~body/first_row, last_row, center_y_m
   std::string validate() const;
 };
 
@@ -35,30 +42,50 @@ class BedManager {
   BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh);
   static BedManagerParams loadParams(const ros::NodeHandle& private_nh);
 
-  /// Empty when setting `heights` on `ids` is valid right now (all cells exist, are alive and
-  /// connected, values finite and in range, no id twice), else why not. Changes nothing.
-  std::string checkRequest(const std::vector<uint32_t>& ids, const std::vector<double>& heights) const;
-
  private:
+  struct Running {
+    std::shared_ptr<PosturePlan> plan;
+    ros::Time start;
+  };
+
   void onState(const AirbagState::ConstPtr& msg);
   void publishJointStates(const ros::TimerEvent&);
   void publishDiagnostics(const ros::TimerEvent&);
+  void step(const ros::TimerEvent&);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   bool setHeights(SetHeights::Request& req, SetHeights::Response& res);
-  /// Validates and sends; the response text says what happened.
-  bool apply(const std::vector<uint32_t>& ids, const std::vector<double>& heights, std::string* message);
+  bool setPosture(SetPosture::Request& req, SetPosture::Response& res);
+
+  /// Empty when setting `heights` on `ids` is valid now, else why not. Call with mutex_ held.
+  std::string checkCells(const std::vector<uint32_t>& ids, const std::vector<double>& heights) const;
+  /// Manual heights: the current targets with these cells changed, as a custom plan.
+  bool applyHeights(const std::vector<uint32_t>& ids, const std::vector<double>& heights, std::string* message);
+  /// Starts a plan (mutex_ held); max_inflate keeps the plan it interrupts to revert to.
+  void start(std::shared_ptr<PosturePlan> plan, const ros::Time& now);
+  /// Cells that stopped reporting or report faults; moves the bed to its safe level (mutex_ held).
+  void watchCells(const ros::Time& now);
+  void sendTargets(const PlanTargets& targets, const ros::Time& now);
+  BedGrid grid() const;
 
   ros::NodeHandle nh_, private_nh_;
   BedManagerParams params_;
   BedLayout layout_;
   mutable std::mutex mutex_;
-  std::vector<AirbagState> last_state_;        // by cell id
-  std::vector<ros::Time> last_seen_;           // by cell id (zero: never)
+  std::vector<AirbagState> last_state_;       // by cell id
+  std::vector<ros::Time> last_seen_;          // by cell id (zero: never)
+  std::vector<double> sent_height_m_;         // last setpoint sent, by cell id (NaN: none)
+  std::vector<ros::Time> sent_at_;            // when it was sent
+  std::vector<ros::Time> below_target_since_; // leak watch, by cell id
+  std::vector<bool> dead_, faulty_;
+  std::vector<std::string> alarms_;
+  Running running_, interrupted_;
+  ros::Time started_;
+  PlanTargets last_targets_;
   std::vector<ros::Subscriber> state_subs_;
-  std::vector<ros::Publisher> setpoint_pubs_;  // by cell id
-  ros::Publisher joint_state_pub_, diagnostics_pub_;
-  ros::ServiceServer set_height_srv_, set_heights_srv_;
-  ros::Timer joint_state_timer_, diagnostics_timer_;
+  std::vector<ros::Publisher> setpoint_pubs_, vent_pubs_;  // by cell id
+  ros::Publisher joint_state_pub_, diagnostics_pub_, state_pub_;
+  ros::ServiceServer set_height_srv_, set_heights_srv_, set_posture_srv_;
+  ros::Timer joint_state_timer_, diagnostics_timer_, step_timer_;
 };
 
 }  // namespace nursing_bed
