@@ -1,0 +1,241 @@
+// bed_study --out DIR: what the posture plans do to the default patient, simulated offline in
+// simulated time (the same pieces as sim.launch, without ROS): 180 AirbagCells with their
+// controllers, the bed manager's plans, and the body model coupled to the cells the way the
+// simulator node couples them. Writes DIR/bed_study.json and prints the tables of
+// doc/bed_study.md: peak interface pressures on the flat bed, the share of time each region
+// spends above 32 mmHg under alternating 1-in-2 and 1-in-3, the body roll per requested turn
+// angle, and the CPR time from every plan.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/airbag_cell.h"
+#include "nursing_bed/core/body_model.h"
+#include "nursing_bed/core/posture_plans.h"
+#include "nursing_bed/core/units.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+constexpr double kCapillaryClosingPa = 32.0 * nb::kPaPerMmHg;  // 4.27 kPa
+constexpr double kPlateWeightN = 0.6;
+constexpr double kBodyStepS = 0.02;       // the simulator node's rate (50 Hz)
+constexpr double kPlanStepS = 0.1;        // the bed manager's rate (10 Hz)
+constexpr double kLoadFilterS = 0.1;      // the simulator node's load filter
+
+// The bed: cells, body and the running plan, stepped together in simulated time.
+class Bed {
+ public:
+  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa)
+      : grid_(grid), config_(config), body_(nb::PatientParams{}, grid) {
+    nb::AirbagCellParams p;
+    p.cell.supply_pressure_pa = supply_pa;
+    for (int i = 0; i < grid.cells(); ++i) {
+      cells_.push_back(std::make_unique<nb::AirbagCell>(p));
+      cells_.back()->resetToHeight(config.nominal_height_m, kPlateWeightN);
+    }
+    loads_.assign(grid.cells(), 0.0);
+    const auto rows = body_.footprintRows();
+    footprint_.first_row = rows.front();
+    footprint_.last_row = rows.back();
+  }
+
+  const nb::BodyFootprint& footprint() const { return footprint_; }
+
+  void start(const nb::PlanRequest& request) {
+    std::string why;
+    plan_ = nb::makePlan(request, config_, grid_, footprint_, &why);
+    if (!plan_) throw std::runtime_error(why);
+    plan_start_ = t_;
+    vented_ = false;
+    last_sent_.assign(grid_.cells(), NAN);
+  }
+
+  /// Runs `duration` seconds; calls `observe` after every body step.
+  template <typename Observe>
+  void run(double duration, Observe observe) {
+    const double end = t_ + duration;
+    while (t_ < end - 1e-9) {
+      if (plan_ && std::fmod(t_ + 1e-9, kPlanStepS) < kBodyStepS) applyPlan();
+      t_ += kBodyStepS;
+      std::vector<double> heights(grid_.cells());
+      for (int i = 0; i < grid_.cells(); ++i) {
+        cells_[i]->advanceTo(t_);
+        heights[i] = std::max(0.0, cells_[i]->variables().height_m);
+      }
+      state_ = body_.solve(heights);
+      const double a = kBodyStepS / kLoadFilterS;
+      for (int i = 0; i < grid_.cells(); ++i) {
+        loads_[i] += a * (state_.cell_load_n[i] - loads_[i]);
+        cells_[i]->setLoad(kPlateWeightN + loads_[i]);
+      }
+      observe(t_);
+    }
+  }
+  void run(double duration) {
+    run(duration, [](double) {});
+  }
+
+  const nb::BodyState& body() const { return state_; }
+  double maxHeight() const {
+    double h = 0.0;
+    for (const auto& c : cells_) h = std::max(h, c->variables().height_m);
+    return h;
+  }
+  double time() const { return t_; }
+
+ private:
+  void applyPlan() {
+    const nb::PlanTargets tg = plan_->targets(t_ - plan_start_);
+    for (int i = 0; i < grid_.cells(); ++i) {
+      if (tg.vent_all) {
+        if (!vented_) cells_[i]->requestVent(t_);
+      } else if (!(std::fabs(tg.heights_m[i] - last_sent_[i]) < 1e-6)) {
+        cells_[i]->requestHeight(tg.heights_m[i], t_);
+        last_sent_[i] = tg.heights_m[i];
+      }
+    }
+    vented_ = tg.vent_all;
+  }
+
+  nb::BedGrid grid_;
+  nb::PlanConfig config_;
+  nb::BodyModel body_;
+  nb::BodyFootprint footprint_;
+  std::vector<std::unique_ptr<nb::AirbagCell>> cells_;
+  std::vector<double> loads_, last_sent_;
+  std::unique_ptr<nb::PosturePlan> plan_;
+  nb::BodyState state_;
+  double t_ = 0.0, plan_start_ = 0.0;
+  bool vented_ = false;
+};
+
+double mmhg(double pa) { return nb::paToMmHg(pa); }
+
+std::string json(double v) {
+  if (!std::isfinite(v)) return "null";
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out_dir;
+  double period_s = 600.0, supply_pa = 30000.0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--out" && i + 1 < argc) out_dir = argv[++i];
+    else if (a == "--period" && i + 1 < argc) period_s = std::stod(argv[++i]);
+    else {
+      std::cerr << "usage: bed_study --out DIR [--period S]\n"
+                   "Simulates the default patient on the 20 x 9 bed under every plan (several minutes).\n";
+      return 2;
+    }
+  }
+  if (out_dir.empty()) {
+    std::cerr << "bed_study: --out DIR is required\n";
+    return 2;
+  }
+  std::filesystem::create_directories(out_dir);
+  const nb::BedGrid grid;
+  const nb::PlanConfig config;
+  std::ostringstream js;
+  js << "{\n";
+
+  // 1. Flat bed: peaks after settling.
+  {
+    Bed bed(grid, config, supply_pa);
+    bed.start({"flat", {}, {}});
+    bed.run(15.0);
+    const nb::BodyState& s = bed.body();
+    std::printf("flat bed (%.2f m): peak point pressure sacrum %.1f, heels %.1f, occiput %.1f mmHg; "
+                "cell-averaged %.1f, %.1f, %.1f mmHg\n", config.nominal_height_m,
+                mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels), mmhg(s.peak_pressure_pa.occiput),
+                mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
+                mmhg(s.peak_cell_pressure_pa.occiput));
+    js << "  \"flat\": {\"peak_mmhg\": {\"sacrum\": " << json(mmhg(s.peak_pressure_pa.sacrum)) << ", \"heels\": "
+       << json(mmhg(s.peak_pressure_pa.heels)) << ", \"occiput\": " << json(mmhg(s.peak_pressure_pa.occiput))
+       << "}, \"cell_peak_mmhg\": {\"sacrum\": " << json(mmhg(s.peak_cell_pressure_pa.sacrum)) << ", \"heels\": "
+       << json(mmhg(s.peak_cell_pressure_pa.heels)) << ", \"occiput\": " << json(mmhg(s.peak_cell_pressure_pa.occiput))
+       << "}},\n";
+  }
+
+  // 2. Alternating: share of one full period each region spends above 32 mmHg (point peaks).
+  js << "  \"alternating\": {";
+  for (const std::string pattern : {"1in2", "1in3"}) {
+    Bed bed(grid, config, supply_pa);
+    bed.start({"flat", {{"height_m", "0.12"}}, {}});
+    bed.run(15.0);
+    bed.start({"alternating", {{"pattern", pattern}, {"period_s", std::to_string(period_s)}}, {}});
+    double above[3] = {0, 0, 0};
+    int samples = 0;
+    bed.run(period_s, [&](double) {
+      const nb::RegionPressures& p = bed.body().peak_pressure_pa;
+      const double v[3] = {p.sacrum, p.heels, p.occiput};
+      for (int k = 0; k < 3; ++k) above[k] += v[k] > kCapillaryClosingPa;
+      ++samples;
+    });
+    std::printf("alternating %s, period %.0f s: share of time above 32 mmHg: sacrum %.0f %%, heels %.0f %%, occiput %.0f %%\n",
+                pattern.c_str(), period_s, 100.0 * above[0] / samples, 100.0 * above[1] / samples,
+                100.0 * above[2] / samples);
+    js << (pattern == "1in2" ? "" : ", ") << "\"" << pattern << "\": {\"period_s\": " << json(period_s)
+       << ", \"share_above_32mmhg\": {\"sacrum\": " << json(above[0] / samples) << ", \"heels\": "
+       << json(above[1] / samples) << ", \"occiput\": " << json(above[2] / samples) << "}}";
+  }
+  js << "},\n";
+
+  // 3. Lateral turn: body roll at the end of the ramp (+ 10 s) per requested angle.
+  js << "  \"lateral_turn\": [";
+  for (int angle = 5; angle <= 30; angle += 5) {
+    Bed bed(grid, config, supply_pa);
+    bed.start({"flat", {}, {}});
+    bed.run(10.0);
+    const double ramp = std::max(config.turn_ramp_s, angle / config.max_tilt_rate_deg_s);
+    bed.start({"lateral_turn", {{"side", "left"}, {"angle_deg", std::to_string(angle)}, {"ramp_s", std::to_string(ramp)}}, {}});
+    bed.run(ramp + 10.0);
+    const double roll_deg = bed.body().roll_rad * 180.0 / nb::kPi;
+    std::printf("lateral turn left %2d deg: body roll %.1f deg (after the %.0f s ramp + 10 s)\n", angle, roll_deg, ramp);
+    js << (angle == 5 ? "" : ", ") << "{\"requested_deg\": " << angle << ", \"body_roll_deg\": " << json(roll_deg) << "}";
+  }
+  js << "],\n";
+
+  // 4. CPR from every plan: time until every cell is below 10 mm.
+  js << "  \"cpr_seconds\": {";
+  const std::vector<std::pair<std::string, nb::PlanRequest>> from = {
+      {"flat", {"flat", {}, {}}},
+      {"max_inflate", {"max_inflate", {}, {}}},
+      {"alternating_1in2", {"alternating", {{"pattern", "1in2"}}, {}}},
+      {"lateral_turn_30", {"lateral_turn", {{"side", "right"}, {"angle_deg", "30"}}, {}}},
+  };
+  bool first = true;
+  for (const auto& [label, request] : from) {
+    Bed bed(grid, config, supply_pa);
+    bed.start(request);
+    bed.run(label == "lateral_turn_30" ? 40.0 : 15.0);
+    bed.start({"cpr", {}, {}});
+    double below_at = NAN;
+    bed.run(20.0, [&](double t) {
+      if (std::isnan(below_at) && bed.maxHeight() < 0.010) below_at = t;
+    });
+    const double seconds = below_at - (bed.time() - 20.0);
+    std::printf("CPR from %s: every cell below 10 mm after %.2f s\n", label.c_str(), seconds);
+    js << (first ? "" : ", ") << "\"" << label << "\": " << json(seconds);
+    first = false;
+  }
+  js << "}\n}\n";
+  std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << js.str();
+  std::cout << "wrote " << out_dir << "/bed_study.json\n";
+  return 0;
+}
