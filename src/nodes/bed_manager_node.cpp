@@ -3,8 +3,10 @@
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "bed_manager");
+  // The handles outlive a failed construction, so that the fatal message still gets logged.
+  ros::NodeHandle nh, private_nh("~");
   try {
-    nursing_bed::BedManager manager(ros::NodeHandle(), ros::NodeHandle("~"));
+    nursing_bed::BedManager manager(nh, private_nh);
     ros::spin();
   } catch (const std::exception& e) {
     ROS_FATAL("%s", e.what());

@@ -1,6 +1,7 @@
 // rostest node for the bed manager's posture plans and safety watch, against a small bed.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/NodeletUnload.h>
+#include <std_msgs/Float64.h>
 
 #include <cmath>
 
@@ -163,6 +164,25 @@ TEST_F(PlanFixture, ADeadCellIsReportedWithin1sAndTheBedStaysLevel) {
   for (double h : bed_.target_heights_m) EXPECT_NEAR(h, bed_.target_heights_m[0], 1e-9);
   EXPECT_NEAR(bed_.target_heights_m[0], 0.09, 2e-3);
   EXPECT_EQ(bed_.dead_cells, std::vector<uint32_t>{static_cast<uint32_t>(1 * cols_ + 1)});
+}
+
+TEST_F(PlanFixture, LateralTurnRollsTheBodyByTheRequestedAngle) {
+  double roll_rad = NAN;
+  const boost::function<void(const std_msgs::Float64::ConstPtr&)> on_roll =
+      [&roll_rad](const std_msgs::Float64::ConstPtr& m) { roll_rad = m->data; };
+  ros::Subscriber sub = nh_.subscribe<std_msgs::Float64>("/simulator/body_roll", 5, on_roll);
+  ASSERT_TRUE(posture("flat").success);
+  ASSERT_TRUE(waitFor([&] { return std::isfinite(roll_rad); }, 15.0)) << "no body roll from the simulator";
+  waitFor([] { return false; }, 5.0);  // the body settles on the flat bed
+  EXPECT_NEAR(roll_rad, 0.0, 1.0 * M_PI / 180.0);
+  const double ramp_s = 20.0;
+  ASSERT_TRUE(posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"left", "20", "20", "120"}).success);
+  waitFor([] { return false; }, ramp_s + 5.0);
+  EXPECT_EQ(bed_.phase, "dwell");
+  // A left turn lowers the patient's left side; the body model's roll is + when the right side
+  // goes down, so the left turn shows as a negative roll.
+  EXPECT_NEAR(-roll_rad * 180.0 / M_PI, 20.0, 2.0);
+  std::printf("lateral turn left 20 deg: body roll %.2f deg\n", -roll_rad * 180.0 / M_PI);
 }
 
 }  // namespace test

@@ -1,0 +1,102 @@
+// The simulator: a patient lying on the bed (core BodyModel) coupled to the airbag nodes. Each
+// step it reads every cell's height from its AirbagState, rests the body on the cells, and
+// publishes each cell's load on /airbag_loads, the interface pressure, the body's roll, rviz
+// markers and tf frames of the body. Optionally it is the clock (/clock, faster than real time)
+// for tests. Same class as node (simulator_node) and nodelet (nursing_bed/SimulatorNodelet).
+// Interface, model and coupling: doc/simulator.md.
+#pragma once
+
+#include <ros/ros.h>
+#include <std_msgs/ColorRGBA.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "nursing_bed/AirbagState.h"
+#include "nursing_bed/core/body_model.h"
+#include "nursing_bed/ros/bed_layout.h"
+
+namespace nursing_bed {
+
+namespace sim_names {
+constexpr const char* kBedMarkers = "/bed_markers";              // visualization_msgs/MarkerArray, bed_link
+constexpr const char* kBodyRoll = "body_roll";                   // ~body_roll: std_msgs/Float64 [rad]
+constexpr const char* kInterfacePressure = "interface_pressure"; // ~interface_pressure: nursing_bed/InterfacePressure
+constexpr const char* kBodyLink = "body_link";                   // tf frame at the pelvis
+}  // namespace sim_names
+
+/// Everything the simulator reads from the parameter server, validated in one place.
+struct SimulatorParams {
+  PatientParams patient;                 ///< ~patient/...: mass_kg, height_m, head_clearance_m, ...
+  std::string robot_description = "robot_description";  ///< ~robot_description_param
+  std::string cells_ns = "/";            ///< ~cells_ns: where the airbag_<r>_<c> nodes live
+  double rate_hz = 50.0;                 ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
+  double load_filter_time_s = 0.1;       ///< ~load_filter_time_s: first-order filter on the published loads [s]
+  double plate_weight_n = 0.6;           ///< ~plate_weight_n: added to every cell's load [N]
+  double marker_rate_hz = 10.0;          ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
+  double cell_timeout_s = 1.0;           ///< ~cell_timeout_s: warn when a cell is silent this long [s]
+  double startup_wait_s = 5.0;           ///< ~startup_wait_s: wait this long for every cell's first state [s]
+  bool publish_clock = false;            ///< ~publish_clock: publish /clock (for use_sim_time runs)
+  double clock_speed = 1.0;              ///< ~clock_speed: simulated seconds per wall second
+  double clock_step_s = 0.005;           ///< ~clock_step_s: /clock increment [s]
+
+  /// Empty when valid, else every problem found.
+  std::string validate() const;
+};
+
+/// Colour of an interface pressure [mmHg]: grey without contact, green below the capillary
+/// closing pressure (32 mmHg, darker to lighter), then a jump to yellow at 32 running to red at
+/// 60 and dark red above.
+std_msgs::ColorRGBA pressureColour(double mmhg);
+
+class Simulator {
+ public:
+  /// Reads parameters, the bed layout and builds the body; throws std::runtime_error with a
+  /// clear message when something is wrong.
+  Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh);
+  ~Simulator();
+
+  static SimulatorParams loadParams(const ros::NodeHandle& private_nh);
+
+ private:
+  void onState(const AirbagState::ConstPtr& msg);
+  void onTimer(const ros::TimerEvent& event);
+  void clockLoop();
+  /// One step at time `now`: solve, filter, publish.
+  void step(const ros::Time& now);
+  void publishPressure(const BodyState& state, const ros::Time& now);
+  void publishMarkers(const BodyState& state, const std::vector<double>& heights, const ros::Time& now);
+  void publishTf(const BodyState& state, const ros::Time& now);
+
+  ros::NodeHandle nh_, private_nh_;
+  SimulatorParams params_;
+  BedLayout layout_;
+  std::unique_ptr<BodyModel> body_;
+
+  std::mutex state_mutex_;               // guards the cells' last states (callbacks on any thread)
+  std::vector<double> heights_m_;        // by cell id
+  std::vector<double> reported_load_n_;  // by cell id, the load the cell says it carries
+  std::vector<ros::Time> last_seen_;     // by cell id (zero: never)
+
+  std::mutex step_mutex_;                // one step at a time
+  std::vector<double> filtered_load_n_;  // by cell id, plate included: what /airbag_loads says
+  bool started_ = false;
+  ros::Time start_, last_step_, last_markers_;
+  double step_time_sum_s_ = 0.0, step_time_max_s_ = 0.0;
+  long steps_ = 0;
+
+  std::vector<ros::Subscriber> state_subs_;
+  ros::Publisher loads_pub_, roll_pub_, pressure_pub_, markers_pub_, clock_pub_;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
+  ros::Timer timer_;
+  std::thread clock_thread_;
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace nursing_bed

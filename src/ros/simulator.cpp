@@ -1,0 +1,497 @@
+#include "nursing_bed/ros/simulator.h"
+
+#include <geometry_msgs/TransformStamped.h>
+#include <rosgraph_msgs/Clock.h>
+#include <std_msgs/Float64.h>
+#include <std_msgs/Float64MultiArray.h>
+#include <tf2/LinearMath/Quaternion.h>
+#include <tf2/LinearMath/Transform.h>
+#include <XmlRpcValue.h>
+
+#include <algorithm>
+#include <boost/make_shared.hpp>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include "nursing_bed/InterfacePressure.h"
+#include "nursing_bed/core/units.h"
+#include "nursing_bed/ros/names.h"
+
+namespace nursing_bed {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// The ~patient/ keys (PatientParams fields); anything else there is a typo and refused.
+const std::set<std::string> kPatientKeys = {"mass_kg",          "height_m",   "head_clearance_m",
+                                            "tissue_stiffness_pa_m", "lateral_offset_m",
+                                            "contact_resolution_m",  "smooth_cover", "max_roll_rad"};
+
+/// Reads `key` when it is set; throws naming it when it has the wrong type.
+template <typename T>
+void readParam(const ros::NodeHandle& nh, const std::string& key, T* value) {
+  if (!nh.hasParam(key)) return;
+  if (!nh.getParam(key, *value))
+    throw std::runtime_error("simulator: parameter " + nh.resolveName(key) + " has the wrong type");
+}
+
+std_msgs::ColorRGBA rgba(double r, double g, double b, double a = 1.0) {
+  std_msgs::ColorRGBA c;
+  c.r = static_cast<float>(r);
+  c.g = static_cast<float>(g);
+  c.b = static_cast<float>(b);
+  c.a = static_cast<float>(a);
+  return c;
+}
+
+std_msgs::ColorRGBA mix(const std_msgs::ColorRGBA& a, const std_msgs::ColorRGBA& b, double f) {
+  f = std::clamp(f, 0.0, 1.0);
+  return rgba(a.r + f * (b.r - a.r), a.g + f * (b.g - a.g), a.b + f * (b.b - a.b), a.a + f * (b.a - a.a));
+}
+
+geometry_msgs::Quaternion toMsg(const tf2::Quaternion& q) {
+  geometry_msgs::Quaternion m;
+  m.x = q.x();
+  m.y = q.y();
+  m.z = q.z();
+  m.w = q.w();
+  return m;
+}
+
+/// A segment's frame: at the centre of its cross-section (depth/2 above the underside apex,
+/// along the rolled normal), x along the body towards the head, z out of the back.
+tf2::Transform segmentFrame(const SegmentPose& s) {
+  tf2::Quaternion q;
+  q.setRPY(s.roll_rad, 0.0, 0.0);
+  const double half = 0.5 * s.depth_m;
+  return tf2::Transform(q, tf2::Vector3(s.x_c_m, s.y_c_m - half * std::sin(s.roll_rad), s.z_m + half * std::cos(s.roll_rad)));
+}
+
+}  // namespace
+
+std_msgs::ColorRGBA pressureColour(double mmhg) {
+  if (!(mmhg >= 1.0)) return rgba(0.42, 0.45, 0.50);  // no contact (or NaN)
+  if (mmhg < 32.0) return mix(rgba(0.05, 0.38, 0.14), rgba(0.50, 0.88, 0.28), mmhg / 32.0);
+  if (mmhg < 60.0) return mix(rgba(1.0, 0.92, 0.0), rgba(0.92, 0.05, 0.03), (mmhg - 32.0) / 28.0);
+  return mix(rgba(0.92, 0.05, 0.03), rgba(0.45, 0.0, 0.12), (mmhg - 60.0) / 40.0);
+}
+
+std::string SimulatorParams::validate() const {
+  std::ostringstream err;
+  const std::string patient_error = patient.validate();
+  if (!patient_error.empty()) err << "~patient/: " << patient_error << "; ";
+  if (!(rate_hz > 0.0 && rate_hz <= 500.0)) err << "~rate_hz must lie in (0, 500]; ";
+  if (!(load_filter_time_s >= 0.0 && load_filter_time_s <= 10.0)) err << "~load_filter_time_s must lie in [0, 10] s; ";
+  if (!(plate_weight_n >= 0.0 && std::isfinite(plate_weight_n))) err << "~plate_weight_n must be >= 0 N; ";
+  if (!(marker_rate_hz > 0.0 && marker_rate_hz <= rate_hz)) err << "~marker_rate_hz must lie in (0, rate_hz]; ";
+  if (!(cell_timeout_s > 0.0)) err << "~cell_timeout_s must be positive; ";
+  if (!(startup_wait_s >= 0.0)) err << "~startup_wait_s must be >= 0; ";
+  if (!(clock_speed > 0.0 && clock_speed <= 100.0)) err << "~clock_speed must lie in (0, 100]; ";
+  if (!(clock_step_s > 0.0 && clock_step_s <= 1.0 / rate_hz)) err << "~clock_step_s must lie in (0, 1 / rate_hz]; ";
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
+  SimulatorParams p;
+  readParam(pnh, "robot_description_param", &p.robot_description);
+  readParam(pnh, "cells_ns", &p.cells_ns);
+  readParam(pnh, "rate_hz", &p.rate_hz);
+  readParam(pnh, "load_filter_time_s", &p.load_filter_time_s);
+  readParam(pnh, "plate_weight_n", &p.plate_weight_n);
+  readParam(pnh, "marker_rate_hz", &p.marker_rate_hz);
+  readParam(pnh, "cell_timeout_s", &p.cell_timeout_s);
+  readParam(pnh, "startup_wait_s", &p.startup_wait_s);
+  readParam(pnh, "publish_clock", &p.publish_clock);
+  readParam(pnh, "clock_speed", &p.clock_speed);
+  readParam(pnh, "clock_step_s", &p.clock_step_s);
+  XmlRpc::XmlRpcValue patient;
+  if (pnh.getParam("patient", patient)) {
+    if (patient.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+      throw std::runtime_error("simulator: " + pnh.resolveName("patient") + " must be a map of parameters");
+    for (auto it = patient.begin(); it != patient.end(); ++it) {
+      if (kPatientKeys.count(it->first)) continue;
+      std::string known;
+      for (const std::string& k : kPatientKeys) known += (known.empty() ? "" : ", ") + k;
+      throw std::runtime_error("simulator: unknown parameter " + pnh.resolveName("patient/" + it->first) +
+                               " (known: " + known + ")");
+    }
+  }
+  readParam(pnh, "patient/mass_kg", &p.patient.mass_kg);
+  readParam(pnh, "patient/height_m", &p.patient.height_m);
+  readParam(pnh, "patient/head_clearance_m", &p.patient.head_clearance_m);
+  readParam(pnh, "patient/tissue_stiffness_pa_m", &p.patient.tissue_stiffness_pa_m);
+  readParam(pnh, "patient/lateral_offset_m", &p.patient.lateral_offset_m);
+  readParam(pnh, "patient/contact_resolution_m", &p.patient.contact_resolution_m);
+  readParam(pnh, "patient/smooth_cover", &p.patient.smooth_cover);
+  readParam(pnh, "patient/max_roll_rad", &p.patient.max_roll_rad);
+  return p;
+}
+
+Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), private_nh_(private_nh) {
+  params_ = loadParams(private_nh_);
+  const std::string error = params_.validate();
+  if (!error.empty()) throw std::runtime_error("simulator: " + error);
+  std::string urdf;
+  if (!nh_.getParam(params_.robot_description, urdf))
+    throw std::runtime_error("simulator: no bed description on parameter '" + nh_.resolveName(params_.robot_description) +
+                             "' (load it from scripts/make_bed_urdf.py, as sim.launch does)");
+  layout_ = BedLayout::fromUrdf(urdf);
+  BedGrid grid;
+  grid.rows = layout_.rows();
+  grid.cols = layout_.cols();
+  grid.pitch_m = layout_.pitchM();
+  grid.min_height_m = layout_.cells().front().min_height_m;
+  grid.max_height_m = layout_.cells().front().max_height_m;
+  for (const CellLayout& c : layout_.cells()) {
+    if (std::abs(c.x_m - grid.x(c.row)) > 1e-3 || std::abs(c.y_m - grid.y(c.col)) > 1e-3) {
+      std::ostringstream m;
+      m << "simulator: cell " << c.link_name << " is at (" << c.x_m << ", " << c.y_m << ") m in the URDF, not at the grid's ("
+        << grid.x(c.row) << ", " << grid.y(c.col) << ") m: the bed is not centred on bed_link";
+      throw std::runtime_error(m.str());
+    }
+  }
+  try {
+    body_ = std::make_unique<BodyModel>(params_.patient, grid);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("simulator: ") + e.what() +
+                             " (no patient on this bed: start sim.launch with simulator:=false)");
+  }
+  // Loop gain of the coupling (doc/simulator.md): a fully covered cell's tissue stiffness
+  // against the softest cell (~1000 N/m, held gas at 120 mm under a light load).
+  const double tissue_n_m = params_.patient.tissue_stiffness_pa_m * grid.cellAreaM2();
+  if (tissue_n_m > 3000.0)
+    ROS_WARN("simulator: ~patient/tissue_stiffness_pa_m %g Pa/m makes a cell's tissue stiffness %.0f N/m, several times "
+             "the softest cells' (~1000 N/m): the load loop may ring; keep ~load_filter_time_s >= 0.1 s",
+             params_.patient.tissue_stiffness_pa_m, tissue_n_m);
+  if (params_.load_filter_time_s < 0.5 / params_.rate_hz)
+    ROS_WARN("simulator: ~load_filter_time_s %g s is shorter than half a step: the loads are not under-relaxed and the "
+             "loop through the cells may ring (doc/simulator.md)", params_.load_filter_time_s);
+
+  const std::size_t n = layout_.cells().size();
+  heights_m_.assign(n, grid.min_height_m);
+  reported_load_n_.assign(n, kNaN);
+  last_seen_.assign(n, ros::Time());
+  std::string prefix = params_.cells_ns;
+  if (prefix.empty() || prefix.back() != '/') prefix += '/';
+  for (const CellLayout& c : layout_.cells())
+    state_subs_.push_back(nh_.subscribe(prefix + names::airbagName(c.row, c.col) + "/" + names::kState, 2,
+                                        &Simulator::onState, this, ros::TransportHints().tcpNoDelay()));
+  loads_pub_ = nh_.advertise<std_msgs::Float64MultiArray>(names::kCellLoads, 2);
+  roll_pub_ = private_nh_.advertise<std_msgs::Float64>(sim_names::kBodyRoll, 2);
+  pressure_pub_ = private_nh_.advertise<InterfacePressure>(sim_names::kInterfacePressure, 2);
+  markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>(sim_names::kBedMarkers, 2);
+  tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+
+  const std::vector<int> rows = body_->footprintRows();
+  ROS_INFO("simulator: %.1f kg, %.2f m patient on %s; body over rows %d..%d (trunk %d..%d), k_w %.3g Pa/m, %s",
+           params_.patient.mass_kg, params_.patient.height_m, layout_.describe().c_str(), rows.front(), rows.back(),
+           body_->trunkRows().front(), body_->trunkRows().back(), params_.patient.tissue_stiffness_pa_m,
+           params_.publish_clock ? "publishing /clock" : "following ROS time");
+  if (params_.publish_clock) {
+    bool sim_time = false;
+    ros::param::get("/use_sim_time", sim_time);
+    if (!sim_time)
+      ROS_WARN("simulator: ~publish_clock is true but /use_sim_time is not: the cells follow the wall clock, not this "
+               "/clock (set /use_sim_time true before any node starts)");
+    clock_pub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
+    clock_thread_ = std::thread(&Simulator::clockLoop, this);
+  } else {
+    timer_ = nh_.createTimer(ros::Duration(1.0 / params_.rate_hz), &Simulator::onTimer, this);
+  }
+}
+
+Simulator::~Simulator() {
+  stop_ = true;
+  timer_.stop();
+  if (clock_thread_.joinable()) clock_thread_.join();
+}
+
+void Simulator::onState(const AirbagState::ConstPtr& msg) {
+  if (msg->cell_id >= heights_m_.size() || !std::isfinite(msg->height_m)) return;
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  heights_m_[msg->cell_id] = msg->height_m;
+  reported_load_n_[msg->cell_id] = msg->external_load_n;
+  last_seen_[msg->cell_id] = ros::Time::now();
+}
+
+void Simulator::onTimer(const ros::TimerEvent&) { step(ros::Time::now()); }
+
+void Simulator::clockLoop() {
+  // Simulated time starts at 0 (the cells' CellTicker waits for a valid time) and advances by
+  // clock_step_s every clock_step_s / clock_speed of wall time; the body steps every
+  // 1 / rate_hz of simulated time. When the machine cannot keep up, simulated time slows
+  // down instead of jumping (the cells would see one long step).
+  const double period = 1.0 / params_.rate_hz;
+  double sim = 0.0, next_step = 0.0;
+  ros::WallTime wall_next = ros::WallTime::now();
+  while (!stop_ && ros::ok()) {
+    sim += params_.clock_step_s;
+    rosgraph_msgs::Clock clock;
+    clock.clock = ros::Time(sim);
+    clock_pub_.publish(clock);
+    if (sim + 1e-9 >= next_step) {
+      step(ros::Time(sim));
+      next_step += period;
+      if (next_step <= sim) next_step = sim + period;
+    }
+    wall_next += ros::WallDuration(params_.clock_step_s / params_.clock_speed);
+    const ros::WallTime wall_now = ros::WallTime::now();
+    if (wall_next > wall_now) {
+      (wall_next - wall_now).sleep();
+    } else if ((wall_now - wall_next).toSec() > 0.2) {
+      ROS_WARN_THROTTLE(10.0, "simulator: /clock runs slower than ~clock_speed %g: the machine cannot keep up",
+                        params_.clock_speed);
+      wall_next = wall_now;
+    }
+  }
+}
+
+void Simulator::step(const ros::Time& now) {
+  std::lock_guard<std::mutex> step_lock(step_mutex_);
+  const ros::WallTime wall_start = ros::WallTime::now();
+  const std::size_t n = heights_m_.size();
+  std::vector<double> heights, reported;
+  int unseen = 0, stale = 0;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    heights = heights_m_;
+    reported = reported_load_n_;
+    const ros::Time ros_now = ros::Time::now();
+    for (const ros::Time& seen : last_seen_) {
+      if (seen.isZero()) ++unseen;
+      else if ((ros_now - seen).toSec() > params_.cell_timeout_s) ++stale;
+    }
+  }
+  if (!started_) {
+    if (start_.isZero()) start_ = now;
+    if (unseen > 0 && (now - start_).toSec() < params_.startup_wait_s) return;  // wait for the cells' first states
+    if (unseen > 0)
+      ROS_WARN("simulator: %d of %zu cells never reported; the body rests on them at %.3f m", unseen, n,
+               body_->grid().min_height_m);
+    ROS_INFO("simulator: coupling the body to the cells (loads through %s)", names::kCellLoads);
+    started_ = true;
+  }
+  if (stale > 0)
+    ROS_WARN_THROTTLE(10.0, "simulator: %d cells silent for more than %g s; the body rests on their last heights", stale,
+                      params_.cell_timeout_s);
+
+  BodyState state;
+  try {
+    state = body_->solve(heights);
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE(5.0, "simulator: %s", e.what());
+    return;
+  }
+  if (!state.converged)
+    ROS_WARN_THROTTLE(10.0, "simulator: the body's equilibrium did not converge (%d iterations)", state.iterations);
+
+  // Loads under-relaxed by a first-order filter (the loop gain per step stays below 1; see
+  // doc/simulator.md, "Coupling"). It starts from what the cells carry now, so the handover
+  // from the launch's uniform load is smooth.
+  if (filtered_load_n_.empty()) {
+    filtered_load_n_.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      filtered_load_n_[i] = std::isfinite(reported[i]) ? reported[i] : params_.plate_weight_n + state.cell_load_n[i];
+    last_step_ = now;
+  }
+  const double dt = std::clamp((now - last_step_).toSec(), 0.0, 1.0);
+  last_step_ = now;
+  const double alpha = params_.load_filter_time_s > 0.0 ? 1.0 - std::exp(-dt / params_.load_filter_time_s) : 1.0;
+  const boost::shared_ptr<std_msgs::Float64MultiArray> loads = boost::make_shared<std_msgs::Float64MultiArray>();
+  loads->layout.dim.resize(1);
+  loads->layout.dim[0].label = "cell_id";
+  loads->layout.dim[0].size = static_cast<uint32_t>(n);
+  loads->layout.dim[0].stride = static_cast<uint32_t>(n);
+  loads->data.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    filtered_load_n_[i] += alpha * (params_.plate_weight_n + state.cell_load_n[i] - filtered_load_n_[i]);
+    loads->data[i] = filtered_load_n_[i];
+  }
+  loads_pub_.publish(loads);
+
+  const boost::shared_ptr<std_msgs::Float64> roll = boost::make_shared<std_msgs::Float64>();
+  roll->data = state.roll_rad;
+  roll_pub_.publish(roll);
+  if (pressure_pub_.getNumSubscribers() > 0) publishPressure(state, now);
+  if (last_markers_.isZero() || now < last_markers_ ||
+      (now - last_markers_).toSec() >= 1.0 / params_.marker_rate_hz - 0.5 / params_.rate_hz) {
+    if (markers_pub_.getNumSubscribers() > 0) publishMarkers(state, heights, now);
+    publishTf(state, now);
+    last_markers_ = now;
+  }
+
+  const double took = (ros::WallTime::now() - wall_start).toSec();
+  step_time_sum_s_ += took;
+  step_time_max_s_ = std::max(step_time_max_s_, took);
+  if (++steps_ % static_cast<long>(std::max(1.0, 30.0 * params_.rate_hz)) == 0) {
+    ROS_DEBUG("simulator: step %.3f ms mean, %.3f ms max over %ld steps (%d Newton iterations now)",
+              1e3 * step_time_sum_s_ / steps_, 1e3 * step_time_max_s_, steps_, state.iterations);
+  }
+  if (took > 1.0 / params_.rate_hz)
+    ROS_WARN_THROTTLE(10.0, "simulator: a step took %.1f ms, longer than the %.1f ms period (~rate_hz %g)", 1e3 * took,
+                      1e3 / params_.rate_hz, params_.rate_hz);
+}
+
+void Simulator::publishPressure(const BodyState& s, const ros::Time& now) {
+  const boost::shared_ptr<InterfacePressure> out = boost::make_shared<InterfacePressure>();
+  InterfacePressure& m = *out;
+  m.header.stamp = now;
+  m.header.frame_id = BedLayout::kBedLink;
+  m.rows = static_cast<uint32_t>(layout_.rows());
+  m.cols = static_cast<uint32_t>(layout_.cols());
+  m.cell_load_n = s.cell_load_n;
+  m.cell_pressure_pa = s.cell_pressure_pa;
+  m.cell_peak_pressure_pa = s.cell_peak_pressure_pa;
+  m.cell_pressure_mmhg.resize(s.cell_pressure_pa.size());
+  m.cell_peak_pressure_mmhg.resize(s.cell_peak_pressure_pa.size());
+  double peak = 0.0;
+  uint32_t over = 0;
+  for (std::size_t i = 0; i < s.cell_pressure_pa.size(); ++i) {
+    m.cell_pressure_mmhg[i] = paToMmHg(s.cell_pressure_pa[i]);
+    m.cell_peak_pressure_mmhg[i] = paToMmHg(s.cell_peak_pressure_pa[i]);
+    peak = std::max(peak, m.cell_peak_pressure_mmhg[i]);
+    if (m.cell_peak_pressure_mmhg[i] > InterfacePressure::CAPILLARY_CLOSING_MMHG) ++over;
+  }
+  m.peak_sacrum_mmhg = paToMmHg(s.peak_pressure_pa.sacrum);
+  m.peak_heels_mmhg = paToMmHg(s.peak_pressure_pa.heels);
+  m.peak_occiput_mmhg = paToMmHg(s.peak_pressure_pa.occiput);
+  m.peak_cell_sacrum_mmhg = paToMmHg(s.peak_cell_pressure_pa.sacrum);
+  m.peak_cell_heels_mmhg = paToMmHg(s.peak_cell_pressure_pa.heels);
+  m.peak_cell_occiput_mmhg = paToMmHg(s.peak_cell_pressure_pa.occiput);
+  m.peak_mmhg = peak;
+  m.cells_over_threshold = over;
+  m.body_roll_rad = s.roll_rad;
+  m.total_load_n = s.total_load_n;
+  pressure_pub_.publish(out);
+}
+
+void Simulator::publishMarkers(const BodyState& s, const std::vector<double>& heights, const ros::Time& now) {
+  const boost::shared_ptr<visualization_msgs::MarkerArray> out = boost::make_shared<visualization_msgs::MarkerArray>();
+  auto base = [&](const std::string& ns, int id, int type) {
+    visualization_msgs::Marker m;
+    m.header.stamp = now;
+    m.header.frame_id = BedLayout::kBedLink;
+    m.ns = ns;
+    m.id = id;
+    m.type = type;
+    m.action = visualization_msgs::Marker::ADD;
+    m.pose.orientation.w = 1.0;
+    m.lifetime = ros::Duration(2.0);  // gone soon after the simulator stops
+    return m;
+  };
+  // Plates coloured by the highest point pressure over each cell's face, drawn just above the
+  // URDF's plates (top 1 mm above the cell height) so that they win the depth test.
+  const double pitch = layout_.pitchM();
+  visualization_msgs::Marker plates = base("plates", 0, visualization_msgs::Marker::CUBE_LIST);
+  plates.scale.x = plates.scale.y = 0.96 * pitch;
+  plates.scale.z = 0.006;
+  for (const CellLayout& c : layout_.cells()) {
+    geometry_msgs::Point p;
+    p.x = c.x_m;
+    p.y = c.y_m;
+    p.z = heights[c.id] + 0.001 - 0.5 * plates.scale.z;
+    plates.points.push_back(p);
+    plates.colors.push_back(pressureColour(paToMmHg(s.cell_peak_pressure_pa[c.id])));
+  }
+  out->markers.push_back(plates);
+
+  // Body segments: limbs and trunk as cylinders along the body, head as an ellipsoid, feet as
+  // boxes standing up from the heel; translucent so the pressure under them shows.
+  const std_msgs::ColorRGBA skin = rgba(0.95, 0.78, 0.66, 0.55);
+  tf2::Quaternion along_x;
+  along_x.setRPY(0.0, kPi / 2.0, 0.0);  // a cylinder's axis (z) along the body (x)
+  for (std::size_t i = 0; i < s.segments.size(); ++i) {
+    const SegmentPose& seg = s.segments[i];
+    const bool head = seg.name == "head_neck";
+    const bool foot = seg.name.size() > 5 && seg.name.compare(seg.name.size() - 5, 5, "_foot") == 0;
+    visualization_msgs::Marker m = base("body", static_cast<int>(i),
+                                        head ? visualization_msgs::Marker::SPHERE
+                                             : (foot ? visualization_msgs::Marker::CUBE : visualization_msgs::Marker::CYLINDER));
+    const tf2::Transform frame = segmentFrame(seg);
+    m.pose.position.x = frame.getOrigin().x();
+    m.pose.position.y = frame.getOrigin().y();
+    m.pose.position.z = frame.getOrigin().z();
+    if (head || foot) {
+      m.pose.orientation = toMsg(frame.getRotation());
+      m.scale.x = seg.footprint_length_m;
+      m.scale.y = seg.width_m;
+      m.scale.z = seg.depth_m;
+    } else {
+      m.pose.orientation = toMsg(frame.getRotation() * along_x);
+      m.scale.x = seg.depth_m;  // along the rolled normal
+      m.scale.y = seg.width_m;
+      m.scale.z = seg.footprint_length_m;
+    }
+    m.color = skin;
+    out->markers.push_back(m);
+  }
+  // The neck, between the head and the thorax (touches nothing, drawn for the picture).
+  const int head_i = BodyModel::segmentIndex("head_neck"), thorax_i = BodyModel::segmentIndex("thorax");
+  if (head_i >= 0 && thorax_i >= 0) {
+    const SegmentPose& h = s.segments[head_i];
+    const SegmentPose& t = s.segments[thorax_i];
+    const tf2::Transform fh = segmentFrame(h), ft = segmentFrame(t);
+    const double x0 = h.x_c_m - 0.5 * h.footprint_length_m, x1 = t.x_c_m + 0.5 * t.footprint_length_m;
+    visualization_msgs::Marker neck = base("body", static_cast<int>(s.segments.size()), visualization_msgs::Marker::CYLINDER);
+    neck.pose.position.x = 0.5 * (x0 + x1) + 0.01;
+    neck.pose.position.y = 0.5 * (fh.getOrigin().y() + ft.getOrigin().y());
+    neck.pose.position.z = 0.5 * (fh.getOrigin().z() + ft.getOrigin().z());
+    neck.pose.orientation = toMsg(ft.getRotation() * along_x);
+    neck.scale.x = neck.scale.y = 0.6 * h.width_m;
+    neck.scale.z = std::max(0.02, x0 - x1 + 0.04);
+    neck.color = skin;
+    out->markers.push_back(neck);
+  }
+  // Peak labels over the head, the pelvis and the heels.
+  auto label = [&](int id, const std::string& text, double x, double y, double z) {
+    visualization_msgs::Marker m = base("labels", id, visualization_msgs::Marker::TEXT_VIEW_FACING);
+    m.pose.position.x = x;
+    m.pose.position.y = y;
+    m.pose.position.z = z;
+    m.scale.z = 0.05;
+    m.color = rgba(1.0, 1.0, 1.0, 0.95);
+    m.text = text;
+    out->markers.push_back(m);
+  };
+  auto mmhg = [](double pa) {
+    std::ostringstream o;
+    o.precision(0);
+    o << std::fixed << paToMmHg(pa) << " mmHg";
+    return o.str();
+  };
+  const SegmentPose& pelvis = s.segments[BodyModel::segmentIndex("pelvis")];
+  const SegmentPose& head = s.segments[head_i];
+  const SegmentPose& foot = s.segments[BodyModel::segmentIndex("left_foot")];
+  label(0, "occiput " + mmhg(s.peak_pressure_pa.occiput), head.x_c_m, head.y_c_m, head.z_m + head.depth_m + 0.06);
+  label(1, "sacrum " + mmhg(s.peak_pressure_pa.sacrum), pelvis.x_c_m, pelvis.y_c_m, pelvis.z_m + pelvis.depth_m + 0.06);
+  label(2, "heels " + mmhg(s.peak_pressure_pa.heels), foot.x_c_m, 0.0, foot.z_m + foot.depth_m + 0.06);
+  markers_pub_.publish(out);
+}
+
+void Simulator::publishTf(const BodyState& s, const ros::Time& now) {
+  const SegmentPose& pelvis = s.segments[BodyModel::segmentIndex("pelvis")];
+  const tf2::Transform body = segmentFrame(pelvis);
+  const tf2::Transform body_inv = body.inverse();
+  std::vector<geometry_msgs::TransformStamped> out;
+  auto add = [&](const std::string& parent, const std::string& child, const tf2::Transform& t) {
+    geometry_msgs::TransformStamped m;
+    m.header.stamp = now;
+    m.header.frame_id = parent;
+    m.child_frame_id = child;
+    m.transform.translation.x = t.getOrigin().x();
+    m.transform.translation.y = t.getOrigin().y();
+    m.transform.translation.z = t.getOrigin().z();
+    m.transform.rotation = toMsg(t.getRotation());
+    out.push_back(m);
+  };
+  add(BedLayout::kBedLink, sim_names::kBodyLink, body);
+  for (const SegmentPose& seg : s.segments) add(sim_names::kBodyLink, "body_" + seg.name + "_link", body_inv * segmentFrame(seg));
+  tf_->sendTransform(out);
+}
+
+}  // namespace nursing_bed
