@@ -26,6 +26,8 @@ std::string AirbagCellParams::validate() const {
     if (!e.empty()) err << e << "; ";
   if (!(control_period_s > 0.0 && control_period_s <= 0.1)) err << "control_period_s must lie in (0, 0.1] s; ";
   if (!(pressure_noise_pa >= 0.0) || !(height_noise_m >= 0.0)) err << "sensor noise must be >= 0; ";
+  if (!(cpr_vacuum_pa <= 0.0 && cpr_vacuum_pa > -0.5 * cell.ambient_pressure_pa))
+    err << "cpr/vacuum_pa must lie in (-half an atmosphere, 0] Pa; ";
   if (controller.max_pressure_pa >= safety.relief_pressure_pa)
     err << "controller max_pressure_pa must be below the relief pressure; ";
   std::string s = err.str();
@@ -115,6 +117,7 @@ void AirbagCell::advanceTo(double now_s) {
     in.supply_pressure_pa = supply_pressure_pa_;
     in.inlet_opening = valves_.inlet;
     in.vent_opening = valves_.vent;
+    in.vent_back_pressure_pa = mode_ == AirbagMode::kVent ? params_.cpr_vacuum_pa : 0.0;
     model_.advance(period, in);
   }
 }

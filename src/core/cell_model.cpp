@@ -176,7 +176,10 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
                                       params_.orifice_linear_band_pa);
     return f;
   };
-  const OrificeFlow vent = outflow(std::clamp(in.vent_opening, 0.0, 1.0) * params_.vent_area_m2);
+  const OrificeFlow vent =
+      orificeFlow(gas, std::clamp(in.vent_opening, 0.0, 1.0) * params_.vent_area_m2, v.pressure_pa, v.temperature_k,
+                  params_.ambient_pressure_pa + in.vent_back_pressure_pa, params_.ambient_temperature_k,
+                  params_.orifice_linear_band_pa);
   const OrificeFlow leak = outflow(params_.leak_area_m2);
   v.vent_flow_kg_s = vent.mass_flow_kg_s;
   v.leak_flow_kg_s = leak.mass_flow_kg_s;
@@ -345,6 +348,7 @@ void CellModel::refreshVariables(const CellInputs& in) { rate_at_state_ = rate(t
 bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
   auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };
   return same(a.inlet_opening, b.inlet_opening) && same(a.vent_opening, b.vent_opening) &&
+         same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) &&
          same(a.load_n, b.load_n) && same(a.supply_pressure_pa, b.supply_pressure_pa) &&
          a.prescribed_inflow == b.prescribed_inflow;
 }

@@ -41,7 +41,7 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("load_n", p.load_n, p.load_n);
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
   pnh.param("supply_pressure_pa", p.supply_pressure_pa, p.supply_pressure_pa);
-  const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors"});
+  const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
   return p;
 }

@@ -183,6 +183,23 @@ TEST(AirbagCell, VentEmptiesTheCell) {
   EXPECT_EQ(cell.valves().vent, 1.0);
 }
 
+TEST(AirbagCell, CprVacuumEmptiesAnUnloadedCellWithinSeconds) {
+  // A cell carrying only its plate has almost no pressure to push its air out: to ambient it
+  // takes half a minute; the vacuum of CPR mode empties it in a couple of seconds.
+  auto time_to_10mm = [](double vacuum_pa) {
+    nb::AirbagCellParams p;
+    p.cpr_vacuum_pa = vacuum_pa;
+    nb::AirbagCell cell(p);
+    cell.resetToHeight(0.12, 0.6);
+    cell.requestVent(0.0);
+    double t = 0.0;
+    while (t < 60.0 && cell.variables().height_m >= 0.010) cell.advanceTo(t += 0.01);
+    return t;
+  };
+  EXPECT_LT(time_to_10mm(-5000.0), 3.0);
+  EXPECT_GT(time_to_10mm(0.0), 10.0);
+}
+
 TEST(AirbagCell, InvalidParametersAreRefusedByName) {
   nb::AirbagCellParams params;
   params.controller.max_pressure_pa = 40000.0;  // above the 35 kPa relief

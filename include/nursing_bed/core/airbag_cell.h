@@ -28,6 +28,9 @@ struct AirbagCellParams {
   HeightControllerParams controller;
   AirbagSafetyParams safety;
   double control_period_s = 0.005;        ///< controller and safety period [s]
+  /// Gauge pressure the vents see while venting for CPR (vent mode): a vacuum source empties a
+  /// cell that carries only its plate in seconds instead of half a minute; 0: vent to ambient.
+  double cpr_vacuum_pa = -5000.0;
   double pressure_noise_pa = 0.0;         ///< sd of the pressure sensor's noise [Pa]
   double height_noise_m = 0.0;            ///< sd of the height sensor's noise [m]
   std::uint32_t noise_seed = 1;

@@ -50,6 +50,9 @@ struct CellParams {
 struct CellInputs {
   double inlet_opening = 0.0;   ///< inlet valve opening 0 (closed) .. 1 (open); proportional
   double vent_opening = 0.0;    ///< vent valve opening 0 .. 1
+  /// Gauge pressure at the vent's outlet: 0 vents to ambient; < 0 is a vacuum source (the
+  /// vacuum-assisted rapid deflation of CPR mattresses).
+  double vent_back_pressure_pa = 0.0;
   double load_n = 0.6;          ///< external vertical load on the plate, plate weight included
   /// Pressure-reducing valve setting (gauge); NaN uses CellParams::supply_pressure_pa.
   double supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
