@@ -1,0 +1,67 @@
+// Replaying recorded runs through the cell model, and where model and data part (the first of
+// the gap diagnosis' three answers; gap-report.md). ROS-free.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/cell_model.h"
+#include "nursing_bed/core/run_data.h"
+
+namespace nursing_bed {
+
+/// Phase of a run at one sample (gap-report.md): bag unfolding, bag pressurising, inlet closed,
+/// venting; `landed` marks vent samples after the plate has come down on the bed, where a
+/// replay is ill-conditioned (a few mL of gas left) and which the diagnosis leaves out.
+enum class RunPhase { kDeploy, kPressurize, kHold, kVent, kLanded };
+const char* phaseName(RunPhase phase);
+
+/// Per-sample phases from the measured signals: inflating while the inflow exceeds 2 % of its
+/// peak (deploy while the pressure is below a quarter of the inflation's peak pressure, then
+/// pressurize), venting from the first clearly negative inflow, hold in between; landed once
+/// the measured height is below 3 mm during the vent.
+std::vector<RunPhase> classifyPhases(const RunData& run);
+
+/// A run replayed through a model: the simulated readings at the measured times.
+struct Replay {
+  std::vector<double> p_gauge_pa;  ///< simulated pressure reading (sensor effects applied) [Pa]
+  std::vector<double> h_m;         ///< simulated height reading [m]
+  std::vector<RunPhase> phases;
+  bool ok = true;                  ///< false: the model failed (the message says why)
+  std::string message;
+};
+
+/**
+ * Replays `run` through a cell with `params` and `effects`: the measured inflow is the input
+ * (the paper's way), the load follows the run's load (column or constant), and the cell starts
+ * flat at ambient (or at rest at the first measured height if that is above 3 mm). Samples
+ * after landing are still simulated but marked kLanded.
+ */
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects);
+
+/// Noise of a measured signal: robust (median absolute deviation) estimate from second
+/// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.
+double estimateNoise(const std::vector<double>& signal);
+
+/// Residual statistics of one run against its replay (samples not landed).
+struct RunResidual {
+  double range_p_pa = 0.0, range_h_m = 0.0;  ///< measured ranges (the nrmse denominators)
+  double nrmse_p = 0.0, nrmse_h = 0.0;       ///< RMS(measured - simulated) / range
+  double nrmse() const { return 0.5 * (nrmse_p + nrmse_h); }
+  int samples = 0;
+};
+RunResidual runResidual(const RunData& run, const Replay& replay);
+
+/// One line of "where it lies": a share of the total squared normalised residual.
+struct GapShare {
+  std::string signal;  ///< "pressure" or "height"
+  std::string phase;   ///< deploy, pressurize, hold, vent
+  double load_n = 0.0;
+  double share = 0.0;
+  double t_start_s = 0.0, t_end_s = 0.0;  ///< where that phase lies in those runs
+};
+/// Splits the squared residual, normalised per run and signal by the measured range, by
+/// signal, phase and load; largest first.
+std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::vector<Replay>& replays);
+
+}  // namespace nursing_bed
