@@ -12,20 +12,14 @@
 #include "nursing_bed/core/gap_effects.h"
 #include "nursing_bed/core/gap_synth.h"
 
+#include "../test_helpers.h"
+
 namespace nb = nursing_bed;
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path tmpDir(const std::string& name) {
-#ifdef NURSING_BED_TEST_TMP_DIR
-  fs::path dir = fs::path(NURSING_BED_TEST_TMP_DIR) / "gap_synth" / name;
-#else
-  fs::path dir = fs::temp_directory_path() / "nursing_bed_gap_synth" / name;
-#endif
-  fs::remove_all(dir);
-  return dir;
-}
+fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("gap_synth", name, false); }
 
 std::string slurp(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);

@@ -9,21 +9,14 @@
 
 #include "nursing_bed/core/run_data.h"
 
+#include "../test_helpers.h"
+
 namespace nb = nursing_bed;
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path tmpDir(const std::string& name) {
-#ifdef NURSING_BED_TEST_TMP_DIR
-  fs::path dir = fs::path(NURSING_BED_TEST_TMP_DIR) / "run_data" / name;
-#else
-  fs::path dir = fs::temp_directory_path() / "nursing_bed_run_data" / name;
-#endif
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("run_data", name, true); }
 
 std::string writeFile(const fs::path& path, const std::string& text) {
   std::ofstream(path) << text;
@@ -52,10 +45,7 @@ std::string readError(const std::string& text, const std::string& name = "bad.cs
   return "";
 }
 
-void expectContains(const std::string& message, const std::vector<std::string>& fragments) {
-  EXPECT_FALSE(message.empty()) << "no error";
-  for (const auto& f : fragments) EXPECT_NE(message.find(f), std::string::npos) << "'" << f << "' not in: " << message;
-}
+using nursing_bed::test::expectContains;
 
 TEST(RunData, ReadsTheSpecExample) {
   const std::string path = writeFile(tmpDir("good") / "a.csv", kGood);

@@ -12,6 +12,8 @@
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/ros/bag_runs.h"
 
+#include "../test_helpers.h"
+
 namespace nb = nursing_bed;
 namespace fs = std::filesystem;
 
@@ -60,10 +62,7 @@ std::string readError(const fs::path& bag) {
   return "";
 }
 
-void expectContains(const std::string& message, const std::vector<std::string>& fragments) {
-  EXPECT_FALSE(message.empty()) << "no error";
-  for (const auto& f : fragments) EXPECT_NE(message.find(f), std::string::npos) << "'" << f << "' not in: " << message;
-}
+using nursing_bed::test::expectContains;
 
 TEST(BagRuns, OneRunPerAirbagStateTopic) {
   const fs::path path = tmpBag("rig1.bag");

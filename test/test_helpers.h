@@ -1,0 +1,32 @@
+// Small helpers shared by the gtest files (unit and unit_ros).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace nursing_bed {
+namespace test {
+
+/// An empty scratch directory <tmp>/<group>/<name> (under the build's test_tmp when defined).
+inline std::filesystem::path freshTestDir(const std::string& group, const std::string& name, bool create = true) {
+#ifdef NURSING_BED_TEST_TMP_DIR
+  std::filesystem::path dir = std::filesystem::path(NURSING_BED_TEST_TMP_DIR) / group / name;
+#else
+  std::filesystem::path dir = std::filesystem::temp_directory_path() / ("nursing_bed_" + group) / name;
+#endif
+  std::filesystem::remove_all(dir);
+  if (create) std::filesystem::create_directories(dir);
+  return dir;
+}
+
+/// Expects an error message that contains every fragment.
+inline void expectContains(const std::string& message, const std::vector<std::string>& fragments) {
+  EXPECT_FALSE(message.empty()) << "no error";
+  for (const auto& f : fragments) EXPECT_NE(message.find(f), std::string::npos) << "'" << f << "' not in: " << message;
+}
+
+}  // namespace test
+}  // namespace nursing_bed
