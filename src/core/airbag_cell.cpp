@@ -119,6 +119,8 @@ void AirbagCell::advanceTo(double now_s) {
     in.vent_opening = valves_.vent;
     in.vent_back_pressure_pa = mode_ == AirbagMode::kVent ? params_.cpr_vacuum_pa : 0.0;
     model_.advance(period, in);
+    // The valve holds over the period: its end flow stands for the period.
+    metered_inlet_mass_kg_ += model_.measure().inflow_kg_s * period;
   }
 }
 

@@ -103,7 +103,7 @@ void CellModel::reset(double load_n) {
   substep_s_ = 0.0;
 }
 
-void CellModel::resetToEquilibrium(double height_m, double load_n) {
+void CellModel::resetToEquilibrium(double height_m, double load_n, double gas_temperature_k) {
   reset(load_n);
   const StructureEquilibrium eq = structure_->equilibriumAtHeight(height_m, load_n);
   if (!eq.converged) {
@@ -112,9 +112,10 @@ void CellModel::resetToEquilibrium(double height_m, double load_n) {
     throw std::invalid_argument(msg.str());
   }
   const double p = params_.ambient_pressure_pa + eq.gauge_pressure_pa;
-  const double mass = massFromState(params_.gas, p, params_.ambient_temperature_k, eq.eval.volume_m3);
+  const double temperature = std::isfinite(gas_temperature_k) ? gas_temperature_k : params_.ambient_temperature_k;
+  const double mass = massFromState(params_.gas, p, temperature, eq.eval.volume_m3);
   state_[kMass] = mass;
-  state_[kEnergy] = mass * params_.gas.cv() * params_.ambient_temperature_k;
+  state_[kEnergy] = mass * params_.gas.cv() * temperature;
   state_[kHeight] = height_m;
   state_[kVelocity] = 0.0;
   state_[kRegulator] = params_.supply_pressure_pa;
@@ -304,6 +305,9 @@ void CellModel::step(double dt, const CellInputs& in) {
       time_ += h;
       refreshVariables(in);
       remaining -= h;
+      if (++substeps_ > substep_budget_ && substep_budget_ > 0)
+        throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +
+                                 " integration steps (too stiff)");
       jacobian_fresh_ = false;
       ++steps_since_jacobian_;
       // Grow towards the default step when the error allows.

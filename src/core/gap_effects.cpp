@@ -62,7 +62,7 @@ std::vector<EffectSpec> makeCatalog() {
     e.description = "extra leak to ambient through an orifice (seams, film, valve seat)";
     e.signature = "pressure and height keep falling during hold";
     e.switch_param = "leak_area_m2";
-    e.params = {param("leak_area_m2", "m^2", "effective leak area Cd*A", 0.0, 1e-10, 5e-8, true, 0.0, 1e-5)};
+    e.params = {param("leak_area_m2", "m^2", "effective leak area Cd*A", 0.0, 3e-9, 5e-8, true, 0.0, 1e-5)};
     c.push_back(e);
   }
   {
@@ -72,8 +72,8 @@ std::vector<EffectSpec> makeCatalog() {
     e.signature = "height creeps at constant mass; loading/unloading loops differ";
     e.switch_param = "relative_stiffness";
     e.params = {param("relaxation_time_s", "s", "relaxation time tau of the branch (any value is off when g = 0)", 10.0,
-                      1.0, 60.0, true, 0.01, 3600.0),
-                param("relative_stiffness", "-", "branch stiffness g relative to the film's elastic law", 0.0, 0.05,
+                      3.0, 60.0, true, 0.01, 3600.0),
+                param("relative_stiffness", "-", "branch stiffness g relative to the film's elastic law", 0.0, 0.1,
                       0.5, true, 0.0, 5.0)};
     c.push_back(e);
   }
@@ -115,7 +115,7 @@ std::vector<EffectSpec> makeCatalog() {
     e.description = "Coulomb friction in the plate guide, F = -F_c tanh(v / 1 mm/s)";
     e.signature = "pressure offset +-F_c/A_eff that flips sign with the motion; h(p) loop widens";
     e.switch_param = "friction_force_n";
-    e.params = {param("friction_force_n", "N", "Coulomb friction force F_c", 0.0, 0.2, 3.0, true, 0.0, 50.0)};
+    e.params = {param("friction_force_n", "N", "Coulomb friction force F_c", 0.0, 0.6, 3.0, true, 0.0, 50.0)};
     c.push_back(e);
   }
   {
@@ -280,6 +280,9 @@ void InflowBiasEffect::contribute(const CellParams& params, const CellVariables&
   if (off() || cell.inflow_prescribed != 1.0) return;
   // The prescribed series is what the meter read; the cell receives the true flow.
   const double metered = cell.metered_inflow_kg_s;
+  // A reading of exactly zero is a closed inlet (the diagnosis' replay zeroes the meter's noise
+  // there, zeroClosedInletFlow): no gas flows, whatever the meter's error.
+  if (metered == 0.0) return;
   const double truth = (metered - offset_kg_s_) / (1.0 + scale_error_);
   const double cp = params.gas.cp();
   terms->mass_flow_kg_s = truth - metered;

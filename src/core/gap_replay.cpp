@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <stdexcept>
 #include <tuple>
 
@@ -54,7 +55,8 @@ std::vector<RunPhase> classifyPhases(const RunData& run) {
   return phases;
 }
 
-Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects) {
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps) {
   Replay out;
   out.phases = classifyPhases(run);
   const std::size_t n = run.size();
@@ -72,21 +74,34 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
     CellModel model(params);
     for (const auto& e : effects) model.addEffect(e);
     const double load0 = run.loadAt(0);
-    if (std::isfinite(run.h_m[0]) && run.h_m[0] > kLandedHeightM) model.resetToEquilibrium(run.h_m[0], load0);
+    // At rest at the first measured height, with the measured gas temperature if there is one.
+    const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
+    if (std::isfinite(run.h_m[0]) && run.h_m[0] > kLandedHeightM) model.resetToEquilibrium(run.h_m[0], load0, t_gas0);
     else model.reset(load0);
     // Model time starts at the run's first sample.
     model.setState(run.t_s[0], model.state());
     CellInputs in;
     in.prescribed_inflow = &inflow;
+    const bool vent_valve = ventsThroughUnmeteredValve(run);
+    // A default budget that only a runaway (a model pushed far from the data) exhausts.
+    const double duration = run.t_s.back() - run.t_s.front();
+    model.setSubstepBudget(max_substeps > 0 ? max_substeps
+                                            : static_cast<long>(50.0 * duration / params.time_step_s) + 10000);
     for (std::size_t i = 0; i < n; ++i) {
+      // After the plate has landed in the vent the few mL left make the replay ill-conditioned
+      // (and a metered outflow may exceed what is left): not simulated, left NaN.
+      if (out.phases[i] == RunPhase::kLanded) break;
       if (i > 0) {
         in.load_n = run.loadAt(i - 1);
+        // A bed's cell vents through its own valve, which the inlet's meter does not see.
+        in.vent_opening = vent_valve && run.valve_cmd[i - 1] < 0.0 ? std::min(1.0, -run.valve_cmd[i - 1]) : 0.0;
         model.advance(run.t_s[i] - run.t_s[i - 1], in);
       }
       const Measurement m = model.measure();
       out.p_gauge_pa[i] = m.gauge_pressure_pa;
       out.h_m[i] = m.height_m;
     }
+    out.substeps = model.substeps();
   } catch (const std::exception& e) {
     out.ok = false;
     out.message = run.name + ": replay failed: " + e.what();
@@ -105,20 +120,130 @@ double estimateNoise(const std::vector<double>& x) {
   return 1.4826 * d[d.size() / 2] / std::sqrt(6.0);
 }
 
-RunResidual runResidual(const RunData& run, const Replay& replay) {
+namespace {
+
+/// Mean and standard error of the finite flow samples in [begin, end).
+bool flowMean(const RunData& run, std::size_t begin, std::size_t end, double* mean, double* standard_error) {
+  double sum = 0.0, sum2 = 0.0;
+  int count = 0;
+  for (std::size_t k = begin; k < end; ++k)
+    if (std::isfinite(run.mdot_in_kg_s[k])) {
+      sum += run.mdot_in_kg_s[k];
+      sum2 += run.mdot_in_kg_s[k] * run.mdot_in_kg_s[k];
+      ++count;
+    }
+  if (count < 10) return false;
+  *mean = sum / count;
+  const double var = std::max(0.0, (sum2 - count * *mean * *mean) / (count - 1));
+  *standard_error = std::sqrt(var / count);
+  return true;
+}
+
+/// Whether the flow in [begin, end) is consistent with zero (within 3 standard errors).
+bool zeroWithinNoise(const RunData& run, std::size_t begin, std::size_t end) {
+  double mean = 0.0, se = 0.0;
+  return flowMean(run, begin, end, &mean, &se) && std::fabs(mean) <= 3.0 * se;
+}
+
+}  // namespace
+
+bool ventsThroughUnmeteredValve(const RunData& run) {
+  const std::size_t n = run.size();
+  if (run.valve_cmd.size() != n) return false;
+  std::vector<double> q;
+  for (std::size_t i = 1; i < n; ++i)
+    if (run.valve_cmd[i] < 0.0 && run.valve_cmd[i - 1] < 0.0 && std::isfinite(run.mdot_in_kg_s[i]))
+      q.push_back(run.mdot_in_kg_s[i]);
+  if (q.size() < 5) return false;
+  // Venting through the metered inlet shows as a clearly negative flow.
+  double mean = 0.0, peak = 0.0;
+  for (double x : q) {
+    mean += x / q.size();
+    peak = std::max(peak, std::fabs(x));
+  }
+  double inflow_peak = 0.0;
+  for (double x : run.mdot_in_kg_s)
+    if (std::isfinite(x)) inflow_peak = std::max(inflow_peak, x);
+  return mean > -0.01 * inflow_peak;
+}
+
+int zeroClosedInletFlow(RunData* run) {
+  const std::size_t n = run->size();
+  // Closed stretches: from the valve command where recorded, else the hold phase trimmed of
+  // half-second chunks at its ends whose flow is not yet zero within the noise (the tail of the
+  // inflow, the start of the vent).
+  std::vector<std::pair<std::size_t, std::size_t>> stretches;
+  bool have_valve = run->valve_cmd.size() == n;
+  for (std::size_t i = 0; have_valve && i < n; ++i) have_valve = std::isfinite(run->valve_cmd[i]);
+  if (have_valve) {
+    for (std::size_t i = 0; i < n;) {
+      if (run->valve_cmd[i] != 0.0) {
+        ++i;
+        continue;
+      }
+      std::size_t end = i;
+      while (end < n && run->valve_cmd[end] == 0.0) ++end;
+      // The first closed sample may still carry flow of the interval before it (a meter that
+      // reports the mean since its last sample).
+      stretches.emplace_back(i + 1, end);
+      i = end;
+    }
+  } else {
+    const std::vector<RunPhase> phases = classifyPhases(*run);
+    for (std::size_t i = 0; i < n;) {
+      if (phases[i] != RunPhase::kHold) {
+        ++i;
+        continue;
+      }
+      std::size_t begin = i, end = i;
+      while (end < n && phases[end] == RunPhase::kHold) ++end;
+      i = end;
+      auto chunkEnd = [&](std::size_t from) {
+        std::size_t k = from;
+        while (k < end && run->t_s[k] < run->t_s[from] + 0.5) ++k;
+        return k;
+      };
+      while (begin < end && !zeroWithinNoise(*run, begin, chunkEnd(begin))) begin = chunkEnd(begin);
+      auto chunkBegin = [&](std::size_t to) {
+        std::size_t k = to;
+        while (k > begin && run->t_s[k - 1] > run->t_s[to - 1] - 0.5) --k;
+        return k;
+      };
+      while (end > begin && !zeroWithinNoise(*run, chunkBegin(end), end)) end = chunkBegin(end);
+      if (end > begin) stretches.emplace_back(begin, end);
+    }
+  }
+  int zeroed = 0;
+  for (const auto& [begin, end] : stretches) {
+    if (!zeroWithinNoise(*run, begin, end)) continue;  // a meter offset: keep it, it is a finding
+    for (std::size_t k = begin; k < end; ++k)
+      if (std::isfinite(run->mdot_in_kg_s[k]) && run->mdot_in_kg_s[k] != 0.0) {
+        run->mdot_in_kg_s[k] = 0.0;
+        ++zeroed;
+      }
+  }
+  return zeroed;
+}
+
+RunResidual pooledResidual(const std::vector<const RunData*>& runs, const std::vector<const Replay*>& replays) {
+  if (runs.size() != replays.size()) throw std::invalid_argument("pooledResidual: runs and replays differ in number");
   RunResidual r;
   double p_lo = INFINITY, p_hi = -INFINITY, h_lo = INFINITY, h_hi = -INFINITY, sp = 0.0, sh = 0.0;
-  for (std::size_t i = 0; i < run.size(); ++i) {
-    if (replay.phases[i] == RunPhase::kLanded) continue;
-    const double p = run.p_gauge_pa[i], h = run.h_m[i];
-    if (!std::isfinite(p) || !std::isfinite(h)) continue;
-    p_lo = std::min(p_lo, p);
-    p_hi = std::max(p_hi, p);
-    h_lo = std::min(h_lo, h);
-    h_hi = std::max(h_hi, h);
-    sp += std::pow(p - replay.p_gauge_pa[i], 2);
-    sh += std::pow(h - replay.h_m[i], 2);
-    ++r.samples;
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const RunData& run = *runs[k];
+    const Replay& replay = *replays[k];
+    for (std::size_t i = 0; i < run.size(); ++i) {
+      if (replay.phases[i] == RunPhase::kLanded) continue;
+      const double p = run.p_gauge_pa[i], h = run.h_m[i];
+      if (!std::isfinite(p) || !std::isfinite(h)) continue;
+      p_lo = std::min(p_lo, p);
+      p_hi = std::max(p_hi, p);
+      h_lo = std::min(h_lo, h);
+      h_hi = std::max(h_hi, h);
+      sp += std::pow(p - replay.p_gauge_pa[i], 2);
+      sh += std::pow(h - replay.h_m[i], 2);
+      ++r.samples;
+    }
   }
   if (r.samples == 0) return r;
   r.range_p_pa = std::max(p_hi - p_lo, 1e-9);
@@ -127,6 +252,8 @@ RunResidual runResidual(const RunData& run, const Replay& replay) {
   r.nrmse_h = std::sqrt(sh / r.samples) / r.range_h_m;
   return r;
 }
+
+RunResidual runResidual(const RunData& run, const Replay& replay) { return pooledResidual({&run}, {&replay}); }
 
 std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::vector<Replay>& replays) {
   if (runs.size() != replays.size()) throw std::invalid_argument("localizeGap: runs and replays differ in number");

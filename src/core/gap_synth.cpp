@@ -370,4 +370,23 @@ SynthResult synthesizeDataset(const SynthOptions& o) {
   return result;
 }
 
+std::vector<CellEffectPtr> effectsFromText(const std::string& text, std::uint32_t seed) {
+  std::vector<SynthEffectRequest> requests;
+  std::size_t start = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find(';', start);
+    if (end == std::string::npos) end = text.size();
+    std::string item = text.substr(start, end - start);
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (!item.empty()) requests.push_back(parseEffectRequest(item));
+    start = end + 1;
+  }
+  std::vector<std::string> names;
+  std::vector<std::map<std::string, double>> params;
+  std::vector<CellEffectPtr> effects;
+  resolveSynthEffects(requests, seed, &names, &params, &effects);
+  return effects;
+}
+
 }  // namespace nursing_bed

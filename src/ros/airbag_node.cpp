@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "nursing_bed/core/airbag_params_io.h"
+#include "nursing_bed/core/gap_synth.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"
@@ -23,6 +24,11 @@ std::string AirbagNodeParams::validate() const {
   if (!(initial_height_m >= 0.0 && initial_height_m <= airbag.controller.max_height_m))
     err << "~initial_height_m must lie in [0, controller/max_height_m]; ";
   if (!std::isfinite(supply_pressure_pa)) err << "~supply_pressure_pa must be finite; ";
+  try {
+    effectsFromText(effects, static_cast<std::uint32_t>(airbag.noise_seed));
+  } catch (const std::invalid_argument& e) {
+    err << "~effects: " << e.what() << "; ";
+  }
   const std::string airbag_error = airbag.validate();
   if (!airbag_error.empty()) err << airbag_error << "; ";
   std::string s = err.str();
@@ -41,6 +47,7 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("load_n", p.load_n, p.load_n);
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
   pnh.param("supply_pressure_pa", p.supply_pressure_pa, p.supply_pressure_pa);
+  pnh.param("effects", p.effects, p.effects);
   const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
   return p;
@@ -68,7 +75,10 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   const std::string error = params_.validate();
   if (!error.empty()) throw std::runtime_error("airbag " + names::airbagName(params_.row, params_.col) + ": " + error);
 
-  cell_ = std::make_unique<AirbagCell>(params_.airbag);
+  cell_ = std::make_unique<AirbagCell>(params_.airbag,
+                                       effectsFromText(params_.effects, static_cast<std::uint32_t>(params_.airbag.noise_seed)));
+  if (!params_.effects.empty()) ROS_INFO("airbag %s: simulated with hidden effects: %s",
+                                         names::airbagName(params_.row, params_.col).c_str(), params_.effects.c_str());
   if (params_.initial_height_m > 0.0) {
     cell_->resetToHeight(params_.initial_height_m, params_.load_n);
   } else {
@@ -125,7 +135,12 @@ void AirbagNode::publishState(const ros::Time& stamp) {
   msg.volume_m3 = v.structure.volume_m3;
   msg.gas_mass_kg = v.mass_kg;
   msg.gas_temperature_k = v.temperature_k;
-  msg.inflow_kg_s = m.inflow_kg_s;
+  // Mean metered inflow since the previous message (from the totaliser): what a logged flow
+  // meter gives, and what a replay of the recording can integrate (doc/airbag_node.md).
+  const double interval_s = (stamp - last_publish_).toSec();
+  const double metered_kg = cell_->meteredInletMassKg();
+  msg.inflow_kg_s = interval_s > 0.0 ? (metered_kg - metered_mass_at_publish_kg_) / interval_s : m.inflow_kg_s;
+  metered_mass_at_publish_kg_ = metered_kg;
   msg.external_load_n = cell_->load();
   msg.inlet_valve_cmd = cell_->valves().inlet;
   msg.vent_valve_cmd = cell_->valves().vent;

@@ -1,7 +1,10 @@
 // gap SUBCOMMAND ...: the sim-to-real gap tools. Subcommands are entries of kSubcommands; each
 // parses its own options and returns the exit code (0 ok, 1 failure while running, 2 bad
-// command line). `gap synth` writes a synthetic dataset (doc/gap_effects.md).
+// command line). `gap synth` writes a synthetic dataset (doc/gap_effects.md); `gap diagnose`
+// diagnoses a dataset (doc/gap_diagnosis.md).
+#include <algorithm>
 #include <charconv>
+#include <cstdlib>
 #include <cmath>
 #include <cstdint>
 #include <iostream>
@@ -10,8 +13,17 @@
 #include <string>
 #include <vector>
 
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "nursing_bed/core/cell_params_io.h"
+#include "nursing_bed/core/gap_diagnosis.h"
 #include "nursing_bed/core/gap_effects.h"
+#include "nursing_bed/core/gap_paper.h"
+#include "nursing_bed/core/run_data.h"
 #include "nursing_bed/core/gap_synth.h"
+#include "nursing_bed/ros/bag_runs.h"
 
 namespace nb = nursing_bed;
 
@@ -117,8 +129,143 @@ int runSynth(const std::vector<std::string>& args) {
   return 0;
 }
 
+
+constexpr const char* kDiagnoseUsage =
+    "usage: gap diagnose DATASET --out DIR [--effects NAME,NAME...] [--threads N] [--no-plots]\n"
+    "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
+    "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
+    "on the fit runs, names the effect that explains the gap (or says none / unexplained) and\n"
+    "checks it on the withheld runs. Writes DIR/report.json, DIR/report.md, DIR/traces/*.csv and\n"
+    "the plots DIR/traces.png, residual_by_phase.png, hp_loops.png.\n"
+    "  --out       output directory (created)\n"
+    "  --effects   candidates to try, comma-separated (default: all seven)\n"
+    "  --threads   candidate fits in parallel (default 2)\n"
+    "  --no-plots  skip the PNG plots (they need /usr/bin/python3 with matplotlib)\n";
+
+/// Runs of a dataset directory: CSVs, bags and dataset.yaml.
+std::vector<nb::RunData> readDatasetWithBags(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw std::runtime_error(dir + ": not a directory (expected a dataset directory)");
+  std::vector<std::string> bags;
+  for (const auto& entry : fs::directory_iterator(dir, ec))
+    if (entry.path().extension() == ".bag") bags.push_back(entry.path().string());
+  if (ec) throw std::runtime_error(dir + ": cannot list: " + ec.message());
+  std::sort(bags.begin(), bags.end());
+  std::vector<nb::RunData> extra;
+  for (const auto& b : bags) {
+    auto runs = nb::readRunsFromBag(b);
+    extra.insert(extra.end(), runs.begin(), runs.end());
+  }
+  return nb::readDataset(dir, extra);
+}
+
+int runDiagnose(const std::vector<std::string>& args) {
+  std::string dataset, out_dir;
+  bool plots = true;
+  nb::DiagnosisOptions options;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= args.size()) throw UsageError(a + " needs a value");
+      return args[++i];
+    };
+    if (a == "--help" || a == "-h") {
+      std::cout << kDiagnoseUsage;
+      return 0;
+    } else if (a == "--out") {
+      out_dir = value();
+    } else if (a == "--effects") {
+      const std::string v = value();
+      std::set<std::string> seen;
+      std::size_t start = 0;
+      while (start <= v.size()) {
+        const std::size_t comma = std::min(v.find(',', start), v.size());
+        const std::string name = v.substr(start, comma - start);
+        bool known = false;
+        for (const auto& c : nb::candidateEffectNames()) known = known || c == name;
+        if (!known) throw UsageError("--effects: '" + name + "' is not a candidate effect; candidates:\n" + effectList());
+        if (seen.insert(name).second) options.candidates.push_back(name);
+        start = comma + 1;
+      }
+    } else if (a == "--threads") {
+      const std::string v = value();
+      const double t = parseNumber(a, v);
+      if (t < 1 || t > 64 || t != std::floor(t)) throw UsageError("--threads: expected a whole number 1..64, got '" + v + "'");
+      options.threads = static_cast<int>(t);
+    } else if (a == "--no-plots") {
+      plots = false;
+    } else if (!a.empty() && a[0] == '-') {
+      throw UsageError("unknown option '" + a + "'");
+    } else if (dataset.empty()) {
+      dataset = a;
+    } else {
+      throw UsageError("one DATASET only, got '" + dataset + "' and '" + a + "'");
+    }
+  }
+  if (dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
+  if (out_dir.empty()) throw UsageError("--out DIR is required");
+
+  std::vector<nb::RunData> runs = readDatasetWithBags(dataset);
+  std::set<std::string> airbags;
+  for (const auto& r : runs) airbags.insert(nb::resolveAirbagParamsFile(r.airbag, dataset));
+  if (airbags.size() != 1) {
+    std::string list;
+    for (const auto& a : airbags) list += " " + a;
+    throw std::runtime_error(dataset + ": runs name different airbag parameter sets (" + list.substr(1) +
+                             "); diagnose each airbag's runs as a dataset of its own");
+  }
+  const nb::CellParams params = nb::loadCellParamsYaml(*airbags.begin());
+  std::cout << "gap diagnose: " << runs.size() << " runs from " << dataset << ", airbag " << *airbags.begin() << "\n";
+  options.progress = [](const std::string& line) { std::cout << "  " << line << std::endl; };
+  const nb::DiagnosisReport report = nb::diagnoseRuns(runs, params, options, dataset);
+  nb::writeReportFiles(out_dir, report);
+  std::cout << "wrote " << out_dir << "/report.json, report.md, traces/\n";
+  if (plots) {
+    const std::string script = std::string(NURSING_BED_SOURCE_DIR) + "/scripts/plot_gap_report.py";
+    const std::string command = "/usr/bin/python3 '" + script + "' '" + out_dir + "'";
+    if (std::system(command.c_str()) != 0)
+      std::cerr << "gap diagnose: the plots failed (" << command << "); the report itself is complete\n";
+  }
+  std::cout << "verdict: " << report.status;
+  for (const auto& e : report.verdict_effects) std::cout << " " << e;
+  std::cout << "\n";
+  return 0;
+}
+
+constexpr const char* kEq24Usage =
+    "usage: gap eq24 [--out FILE]\n"
+    "The paper's eq. 24 curve (x read as bar) as measured quasi-static h(p) at its 10.4 N load:\n"
+    "where the nominal model departs from it, what each candidate effect changes, and the guide\n"
+    "friction that would be needed. Prints markdown (and writes it to FILE).\n";
+
+int runEq24(const std::vector<std::string>& args) {
+  std::string out;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--help" || args[i] == "-h") {
+      std::cout << kEq24Usage;
+      return 0;
+    } else if (args[i] == "--out" && i + 1 < args.size()) {
+      out = args[++i];
+    } else {
+      throw UsageError("unknown argument '" + args[i] + "'");
+    }
+  }
+  const nb::CellParams params = nb::loadCellParamsYaml(nb::resolveAirbagParamsFile(""));
+  const std::string text = nb::paperStudyMarkdown(nb::studyPaperEq24(params));
+  std::cout << text;
+  if (!out.empty()) {
+    std::ofstream f(out);
+    f << text;
+    if (!f) throw std::runtime_error(out + ": cannot write");
+  }
+  return 0;
+}
+
 const Subcommand kSubcommands[] = {
     {"synth", "write a synthetic dataset with planted effects", kSynthUsage, runSynth},
+    {"diagnose", "diagnose the gap between a dataset of runs and the model", kDiagnoseUsage, runDiagnose},
+    {"eq24", "the paper's eq. 24 curve as data: where the model departs", kEq24Usage, runEq24},
 };
 
 void printUsage(std::ostream& out) {

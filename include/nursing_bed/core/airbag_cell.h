@@ -79,6 +79,10 @@ class AirbagCell {
   const CellVariables& variables() const { return model_.variables(); }
   /// Last sensor readings (NaN after a sensor failure).
   const Measurement& measurement() const { return measurement_; }
+  /// Gas that the inlet's flow meter has counted since reset [kg] (a totaliser: its change over
+  /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
+  /// integrate without losing the mass of valve switches between samples).
+  double meteredInletMassKg() const { return metered_inlet_mass_kg_; }
   const ValveCommand& valves() const { return valves_; }
   AirbagMode mode() const { return mode_; }
   std::uint32_t faults() const { return faults_; }
@@ -96,6 +100,7 @@ class AirbagCell {
   CellModel model_;
   HeightController controller_;
   double load_n_ = 0.6;
+  double metered_inlet_mass_kg_ = 0.0;
   double supply_pressure_pa_;
   AirbagMode mode_ = AirbagMode::kIdle;
   std::uint32_t faults_ = kFaultNone;

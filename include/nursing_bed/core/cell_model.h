@@ -93,7 +93,9 @@ class CellModel {
   /// Flat cell with ambient air, plate on the bed, t = 0.
   void reset(double load_n = 0.6);
   /// Plate at rest at `height_m` under `load_n` with the gas that holds it there.
-  void resetToEquilibrium(double height_m, double load_n);
+  /// The gas is at `gas_temperature_k` (NaN: the ambient temperature).
+  void resetToEquilibrium(double height_m, double load_n,
+                          double gas_temperature_k = std::numeric_limits<double>::quiet_NaN());
 
   /// One step of `dt` (default params().time_step_s).
   void step(const CellInputs& inputs) { step(params_.time_step_s, inputs); }
@@ -102,6 +104,11 @@ class CellModel {
   void advance(double duration_s, const CellInputs& inputs);
 
   double time() const { return time_; }
+  /// Accepted integration sub-steps since construction (the cost of what was simulated).
+  long substeps() const { return substeps_; }
+  /// Makes step() throw std::runtime_error once substeps() would exceed `max_substeps`
+  /// (0: no limit). For fits that may wander into needlessly stiff parameters.
+  void setSubstepBudget(long max_substeps) { substep_budget_ = max_substeps; }
   const CellVariables& variables() const { return vars_; }
   /// What the sensors report (true values unless an effect changes them).
   Measurement measure() const;
@@ -141,6 +148,8 @@ class CellModel {
   Eigen::PartialPivLU<StateMatrix> lu_;
   StateVector scale_;                 // typical magnitude of each state (FD increments, tolerances)
   double substep_s_ = 0.0;            // last accepted sub-step size
+  long substeps_ = 0;
+  long substep_budget_ = 0;
   StateVector rate_at_state_;         // dx/dt at (time_, state_, last_inputs_), kept with vars_
 };
 

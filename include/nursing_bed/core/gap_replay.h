@@ -28,20 +28,41 @@ struct Replay {
   std::vector<double> h_m;         ///< simulated height reading [m]
   std::vector<RunPhase> phases;
   bool ok = true;                  ///< false: the model failed (the message says why)
+  long substeps = 0;               ///< integration sub-steps spent
   std::string message;
 };
 
 /**
  * Replays `run` through a cell with `params` and `effects`: the measured inflow is the input
  * (the paper's way), the load follows the run's load (column or constant), and the cell starts
- * flat at ambient (or at rest at the first measured height if that is above 3 mm). Samples
- * after landing are still simulated but marked kLanded.
+ * flat at ambient (or at rest at the first measured height if that is above 3 mm, at the first
+ * measured gas temperature if the run has one). Samples after the plate has landed in the
+ * vent (kLanded) are not simulated: NaN. `max_substeps` bounds the integration's cost (0: 50
+ * sub-steps per default step on average): a replay that needs more accepted sub-steps fails
+ * ("too stiff"), as a fit may wander into parameters that make the model needlessly stiff.
  */
-Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects);
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps = 0);
 
 /// Noise of a measured signal: robust (median absolute deviation) estimate from second
 /// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.
 double estimateNoise(const std::vector<double>& signal);
+
+/// Whether the run vents through a valve of its own that the inlet's meter does not see (a
+/// bed's cell): valve_cmd < 0 (venting) while the metered flow stays near zero (its mean above
+/// -1 % of the peak inflow). The replay then opens the model's vent valve by -valve_cmd.
+bool ventsThroughUnmeteredValve(const RunData& run);
+
+/**
+ * Where the inlet is closed, a flow meter reads noise around zero (and its offset, if it has
+ * one). Replaying that reading integrates the noise into a random walk of the gas mass that no
+ * model can follow. Closed stretches come from the valve_cmd column (== 0) where it is
+ * recorded, else from the hold phase without the ends whose flow is not yet zero within the
+ * noise (half-second chunks: the inflow's tail, the vent's start). A stretch whose mean flow is
+ * within 3 standard errors of zero gets exactly 0; one with a clear offset is left as
+ * measured, so a meter offset still shows. Returns the number of samples set to 0.
+ */
+int zeroClosedInletFlow(RunData* run);
 
 /// Residual statistics of one run against its replay (samples not landed).
 struct RunResidual {
@@ -51,6 +72,9 @@ struct RunResidual {
   int samples = 0;
 };
 RunResidual runResidual(const RunData& run, const Replay& replay);
+/// The same over several runs pooled (gap-report.md's nrmse "on the runs named"): RMS over all
+/// their samples, divided by the range of the measured signal over all of them.
+RunResidual pooledResidual(const std::vector<const RunData*>& runs, const std::vector<const Replay*>& replays);
 
 /// One line of "where it lies": a share of the total squared normalised residual.
 struct GapShare {

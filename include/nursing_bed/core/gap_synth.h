@@ -111,6 +111,11 @@ void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::u
                          std::vector<std::string>* names, std::vector<std::map<std::string, double>>* params,
                          std::vector<CellEffectPtr>* effects);
 
+/// Effects from a list "NAME[:param=value,...][;NAME...]" (empty: none), parameters not given
+/// drawn from `seed`, checked, in catalogue order: how a simulated cell is given a hidden
+/// effect (the airbag node's ~effects). Throws std::invalid_argument naming what is wrong.
+std::vector<CellEffectPtr> effectsFromText(const std::string& text, std::uint32_t seed);
+
 /**
  * Generates a dataset: DIR/<run>.csv, DIR/dataset.yaml (airbag and roles) and DIR/truth.json
  * (effects with their parameters, seed, noise scale, protocol; the diagnosis never reads it).

@@ -30,6 +30,10 @@ struct AirbagNodeParams {
   double load_n = 0.6;                ///< ~load_n: external load until a load topic says otherwise [N]
   double initial_height_m = 0.0;      ///< ~initial_height_m: start at rest at this height [m]
   double supply_pressure_pa = -1.0;   ///< ~supply_pressure_pa: regulator setting; < 0 keeps cell/supply/pressure_pa
+  /// ~effects: effects the simulated cell has and the nominal model leaves out, for sim-to-real
+  /// tests of the gap diagnosis: "NAME[:param=value,...][;NAME...]" (gap_effects.h; parameters
+  /// not given are drawn from the noise seed). Default "": the nominal cell.
+  std::string effects;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
 
   /// Empty when valid, else every problem found.
@@ -63,6 +67,7 @@ class AirbagNode {
   std::unique_ptr<AirbagCell> cell_;
   std::mutex mutex_;  // callbacks may run on several nodelet worker threads
   ros::Time start_, last_publish_;
+  double metered_mass_at_publish_kg_ = 0.0;  ///< the cell's flow totaliser at the last AirbagState
   ros::Publisher state_pub_, pressure_pub_;
   ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_;
   ros::ServiceServer set_height_srv_;

@@ -1,0 +1,138 @@
+#include "nursing_bed/core/gap_paper.h"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <iomanip>
+
+#include "nursing_bed/core/gap_effects.h"
+#include "nursing_bed/core/gap_replay.h"
+#include "nursing_bed/core/paper_experiment.h"
+#include "nursing_bed/core/pillow_structure.h"
+
+namespace nursing_bed {
+namespace {
+
+constexpr double kGridLoPa = 10.0e3, kGridHiPa = 28.0e3, kGridStepPa = 500.0;
+constexpr double kDurationS = 300.0, kSampleS = 0.1;
+
+/// Rising h at each grid pressure: the first time the replayed pressure reaches it.
+std::vector<double> risingHeightAt(const Replay& rep, const std::vector<double>& grid) {
+  std::vector<double> h(grid.size(), std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t g = 0; g < grid.size(); ++g)
+    for (std::size_t i = 1; i < rep.p_gauge_pa.size(); ++i)
+      if (rep.p_gauge_pa[i - 1] < grid[g] && rep.p_gauge_pa[i] >= grid[g]) {
+        const double f = (grid[g] - rep.p_gauge_pa[i - 1]) / (rep.p_gauge_pa[i] - rep.p_gauge_pa[i - 1]);
+        h[g] = rep.h_m[i - 1] + f * (rep.h_m[i] - rep.h_m[i - 1]);
+        break;
+      }
+  return h;
+}
+
+double rms(const std::vector<double>& a, const std::vector<double>& b) {
+  double s = 0.0;
+  int n = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (std::isfinite(a[i]) && std::isfinite(b[i])) {
+      s += (a[i] - b[i]) * (a[i] - b[i]);
+      ++n;
+    }
+  return n ? std::sqrt(s / n) : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// Static rising curve under an extra load (what guide friction does while the plate rises).
+std::vector<double> staticHeights(const CellParams& params, double load_n, const std::vector<double>& grid) {
+  const PillowStructure structure(params.structure);
+  std::vector<double> h;
+  for (double p : grid) {
+    const StructureEquilibrium eq = structure.equilibriumAtPressure(p, load_n);
+    h.push_back(eq.converged ? eq.height_m : std::numeric_limits<double>::quiet_NaN());
+  }
+  return h;
+}
+
+}  // namespace
+
+PaperCurveStudy studyPaperEq24(const CellParams& params) {
+  PaperCurveStudy s;
+  s.load_n = kPaperEq24LoadN;
+  for (double p = kGridLoPa; p <= kGridHiPa + 1e-6; p += kGridStepPa) {
+    s.pressure_pa.push_back(p);
+    s.paper_height_m.push_back(paperEq24HeightM(p));
+  }
+  // A slow constant inflow over 300 s
+  // (3 L of air at 30 kPa gauge: more than the cell holds at full height)
+  const double full_mass = 3.0e-3 * (params.ambient_pressure_pa + 30.0e3) / 287.0 / params.ambient_temperature_k;
+  s.inflow_kg_s = full_mass / kDurationS;
+  RunData run;
+  run.name = "eq24_quasi_static";
+  run.load_n = s.load_n;
+  for (double t = 0.0; t <= kDurationS + 1e-9; t += kSampleS) {
+    run.t_s.push_back(t);
+    run.mdot_in_kg_s.push_back(s.inflow_kg_s);
+    run.p_gauge_pa.push_back(std::numeric_limits<double>::quiet_NaN());
+    run.h_m.push_back(std::numeric_limits<double>::quiet_NaN());
+  }
+  const Replay nominal = replayRun(run, params, {});
+  s.model_height_m = risingHeightAt(nominal, s.pressure_pa);
+  s.nominal_rms_m = rms(s.model_height_m, s.paper_height_m);
+  for (double lo = kGridLoPa; lo < kGridHiPa; lo += 3.0e3) {
+    double sum = 0.0;
+    int n = 0;
+    for (std::size_t g = 0; g < s.pressure_pa.size(); ++g)
+      if (s.pressure_pa[g] >= lo && s.pressure_pa[g] < lo + 3.0e3 && std::isfinite(s.model_height_m[g])) {
+        sum += s.model_height_m[g] - s.paper_height_m[g];
+        ++n;
+      }
+    s.bands.push_back({lo, lo + 3.0e3, n ? sum / n : std::numeric_limits<double>::quiet_NaN()});
+  }
+  for (const auto& name : candidateEffectNames()) {
+    const EffectSpec& spec = effectSpec(name);
+    std::map<std::string, double> values;
+    for (const auto& p : spec.params)
+      values[p.name] = p.log_scale ? std::sqrt(p.lo * p.hi) : 0.5 * p.hi;  // mid of the range (of |x|)
+    const Replay rep = replayRun(run, params, {makeEffect(name, values)});
+    s.candidates.push_back({name, describeEffect(name, values), rms(risingHeightAt(rep, s.pressure_pa), s.paper_height_m)});
+  }
+  // Friction needed: golden-section search of the extra load while rising, 0-300 N.
+  double a = 0.0, b = 300.0;
+  const double r = 0.5 * (std::sqrt(5.0) - 1.0);
+  auto cost = [&](double f) {
+    const double e = rms(staticHeights(params, s.load_n + f, s.pressure_pa), s.paper_height_m);
+    return std::isfinite(e) ? e : 1e9;
+  };
+  for (int it = 0; it < 40; ++it) {
+    const double c = b - r * (b - a), d = a + r * (b - a);
+    if (cost(c) < cost(d)) b = d;
+    else a = c;
+  }
+  s.friction_needed_n = 0.5 * (a + b);
+  s.friction_rms_m = cost(s.friction_needed_n);
+  return s;
+}
+
+std::string paperStudyMarkdown(const PaperCurveStudy& s) {
+  std::ostringstream m;
+  m << std::fixed;
+  m << "Eq. 24 (x read as bar) as a measured quasi-static h(p) at " << std::setprecision(1) << s.load_n
+    << " N, against quasi-static inflations of the model (constant inflow " << std::setprecision(2)
+    << s.inflow_kg_s * 1e6 << " mg/s, 300 s), over 10-28 kPa.\n\n";
+  m << "| p [kPa] | eq. 24 h [mm] | model h [mm] |\n|---|---|---|\n";
+  for (std::size_t g = 0; g < s.pressure_pa.size(); g += 4)
+    m << "| " << std::setprecision(1) << s.pressure_pa[g] / 1e3 << " | " << s.paper_height_m[g] * 1e3 << " | "
+      << s.model_height_m[g] * 1e3 << " |\n";
+  m << "\nRMS model - eq. 24: " << std::setprecision(1) << s.nominal_rms_m * 1e3 << " mm.\n\n";
+  m << "| band [kPa] | mean model - eq. 24 [mm] |\n|---|---|\n";
+  for (const auto& b : s.bands)
+    m << "| " << std::setprecision(0) << b.p_lo_pa / 1e3 << "-" << b.p_hi_pa / 1e3 << " | " << std::setprecision(1)
+      << b.mean_difference_m * 1e3 << " |\n";
+  m << "\n| candidate (mid-plausible magnitude) | RMS vs eq. 24 [mm] |\n|---|---|\n";
+  m << "| nominal model | " << std::setprecision(1) << s.nominal_rms_m * 1e3 << " |\n";
+  for (const auto& c : s.candidates) m << "| " << c.parameters << " | " << c.rms_m * 1e3 << " |\n";
+  m << "\nGuide friction that would shift the model onto eq. 24 (an extra load while rising): "
+    << std::setprecision(0) << s.friction_needed_n << " N, leaving " << std::setprecision(1)
+    << s.friction_rms_m * 1e3 << " mm RMS.\n";
+  return m.str();
+}
+
+}  // namespace nursing_bed
