@@ -127,7 +127,7 @@ def verdict_text(rep):
     else:
         head = "no significant gap"
     return "verdict: %s — withheld nrmse %s → %s" % (
-        head, fmt(s.get("withheld_nrmse_before")), fmt(s.get("withheld_nrmse_after")))
+        head, fmt(s.get("withheld_nrmse_before"), "%.3g"), fmt(s.get("withheld_nrmse_after"), "%.3g"))
 
 
 def after_label(rep):

@@ -121,6 +121,8 @@ void AirbagCell::advanceTo(double now_s) {
     model_.advance(period, in);
     // The valve holds over the period: its end flow stands for the period.
     metered_inlet_mass_kg_ += model_.measure().inflow_kg_s * period;
+    inlet_opening_s_ += valves_.inlet * period;
+    vent_opening_s_ += valves_.vent * period;
   }
 }
 

@@ -686,84 +686,89 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   });
   for (const auto& s : scored) rep.candidates.push_back(s.first);
 
-  // 5. Verdict.
+  // 5. Verdict. Candidates in BIC order; the first that is significant and holds up (fits the
+  // fit runs within the noise, and the withheld runs too, better than the nominal model) wins.
   const double chi2n_nominal = rep.nominal_chi2_per_sample;
   const bool gap = chi2n_nominal > options.within_noise_chi2;
-  const CandidateFit* winner = nullptr;
-  const ModelSpec* winner_model = nullptr;
-  for (const auto& s : scored)
-    if (s.first.ok && s.first.plausible) {
-      winner = &s.first;
-      winner_model = &s.second;
-      break;
-    }
-  // A pair is named only if it beats the better of its two singles significantly.
-  if (winner && winner->effects.size() > 1) {
-    for (const auto& s : scored) {
-      if (!s.first.ok || !s.first.plausible || s.first.effects.size() != 1) continue;
-      if (std::find(winner->effects.begin(), winner->effects.end(), s.first.effects[0]) == winner->effects.end()) continue;
-      if (s.first.bic_delta - winner->bic_delta < options.significant_bic_drop ||
-          (s.first.chi2 - winner->chi2) / n < options.min_chi2_drop) {
-        winner = &s.first;
-        winner_model = &s.second;
-      }
-      break;  // the best single within the pair (scored is sorted)
-    }
-  }
+  const double held_before = rep.nominal_withheld_chi2_per_sample;
+  const double held_nrmse_before = setResidual(withheld_runs, params, {}).total;
   auto drop = [&](const CandidateFit& c) { return (chi2_nominal - c.chi2) / n; };
-  const bool significant =
-      winner && winner->bic_delta < -options.significant_bic_drop && drop(*winner) >= options.min_chi2_drop;
+  auto significant = [&](const CandidateFit& c) {
+    return c.ok && c.plausible && c.bic_delta < -options.significant_bic_drop && drop(c) >= options.min_chi2_drop;
+  };
+  auto fitsFitRuns = [&](const CandidateFit& c) {
+    return c.chi2 / n <= options.explained_chi2 ||
+           c.chi2 / n - 1.0 <= (1.0 - options.explained_excess_removed) * (chi2n_nominal - 1.0);
+  };
+  auto fitsWithheld = [&](const CandidateFit& c) {
+    if (!std::isfinite(held_before)) return true;  // nothing withheld
+    const double after = c.withheld_chi2_per_sample;
+    const bool within = after <= options.withheld_chi2 ||
+                        (after - 1.0) <= (1.0 - options.withheld_gap_removed) * (held_before - 1.0);
+    return within && c.withheld_nrmse < held_nrmse_before;
+  };
+  // A pair only where it beats the better of its two singles significantly.
+  auto pairEarnsItsPlace = [&](const CandidateFit& pair) {
+    for (const auto& s2 : scored) {
+      const CandidateFit& c = s2.first;
+      if (!c.ok || c.effects.size() != 1) continue;
+      if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
+      return c.bic_delta - pair.bic_delta >= options.significant_bic_drop && (c.chi2 - pair.chi2) / n >= options.min_chi2_drop;
+    }
+    return true;
+  };
   std::ostringstream why;
   why << "nominal model: chi2/n = " << fmt(chi2n_nominal) << " in noise-floor units (within the noise up to "
-      << fmt(options.within_noise_chi2) << "), fit-run nrmse " << fmt(rep.nominal_fit_nrmse);
+      << fmt(options.within_noise_chi2) << ")" << (std::isfinite(held_before) ? ", " + fmt(held_before) + " on the withheld runs" : "")
+      << "; fit-run nrmse " << fmt(rep.nominal_fit_nrmse);
   rep.reasons.push_back(why.str());
   if (gated_runs > 0)
     rep.reasons.push_back("in " + std::to_string(gated_runs) + " of " + std::to_string(runs.size()) +
                           " runs the flow meter read noise around zero while the inlet was closed; the replay "
                           "takes zero flow there");
-  if (winner) {
-    std::ostringstream w;
-    w << "best plausible candidate: " << joinNames(winner->effects) << ", BIC " << fmt(winner->bic_delta, 4)
-      << ", lowers chi2/n by " << fmt(drop(*winner)) << " to " << fmt(winner->chi2 / n) << " (significant: BIC below -"
-      << fmt(options.significant_bic_drop) << " and chi2/n lower by at least " << fmt(options.min_chi2_drop) << ")";
-    rep.reasons.push_back(w.str());
-  } else {
-    rep.reasons.push_back("no candidate fitted with plausible parameters");
-  }
-  // Explained: the named effect leaves the fit runs within the noise, and fits the withheld
-  // runs (never fitted) within the noise too, or at least removes nearly all of their gap.
-  const bool fits_fit_runs =
-      significant && (winner->chi2 / n <= options.explained_chi2 ||
-                      winner->chi2 / n - 1.0 <= (1.0 - options.explained_excess_removed) * (chi2n_nominal - 1.0));
-  const double held_before = rep.nominal_withheld_chi2_per_sample, held_after = winner ? winner->withheld_chi2_per_sample : kNaN;
-  const bool fits_withheld = !std::isfinite(held_before) || held_after <= options.withheld_chi2 ||
-                             (held_after - 1.0) <= (1.0 - options.withheld_gap_removed) * (held_before - 1.0);
-  const bool explained = fits_fit_runs && fits_withheld;
-  if (significant) {
+  rep.reasons.push_back("a candidate is significant when BIC drops by more than " + fmt(options.significant_bic_drop) +
+                        " and chi2/n by at least " + fmt(options.min_chi2_drop) + "; it explains the gap when it leaves " +
+                        "chi2/n <= " + fmt(options.explained_chi2) + " on the fit runs (or removes " +
+                        fmt(100.0 * options.explained_excess_removed) + " % of the excess over 1), <= " +
+                        fmt(options.withheld_chi2) + " on the withheld runs (or removes " +
+                        fmt(100.0 * options.withheld_gap_removed) + " %) and lowers their nrmse");
+  const CandidateFit* winner = nullptr;
+  const ModelSpec* winner_model = nullptr;
+  int significant_count = 0;
+  for (const auto& s2 : scored) {
+    const CandidateFit& c = s2.first;
+    if (!significant(c) || (c.effects.size() > 1 && !pairEarnsItsPlace(c))) continue;
+    ++significant_count;
     std::ostringstream e;
-    e << "on the fit runs it leaves chi2/n = " << fmt(winner->chi2 / n) << " (to explain the gap: at most "
-      << fmt(options.explained_chi2) << ", or " << fmt(100.0 * options.explained_excess_removed)
-      << " % of the excess over 1 removed)";
+    e << joinNames(c.effects) << ": BIC " << fmt(c.bic_delta, 4) << ", chi2/n " << fmt(c.chi2 / n) << " on the fit runs";
     if (std::isfinite(held_before))
-      e << "; on the withheld runs chi2/n goes from " << fmt(held_before) << " to " << fmt(held_after) << " (at most "
-        << fmt(options.withheld_chi2) << ", or " << fmt(100.0 * options.withheld_gap_removed) << " % removed)";
+      e << ", " << fmt(c.withheld_chi2_per_sample) << " on the withheld runs (nrmse " << fmt(held_nrmse_before) << " -> "
+        << fmt(c.withheld_nrmse) << ")";
+    const bool fit_ok = fitsFitRuns(c), held_ok = fitsWithheld(c);
+    e << (fit_ok && held_ok ? ": explains the gap"
+          : !fit_ok         ? ": leaves too much on the fit runs"
+                            : ": does not hold up on the withheld runs");
     rep.reasons.push_back(e.str());
-    rep.reasons.push_back(explained ? "so it explains the gap"
-                                    : !fits_fit_runs ? "so part of the gap on the fit runs is something else"
-                                                     : "so it does not carry over to runs it was not fitted on: "
-                                                       "the gap is something else that it imitates");
+    if (fit_ok && held_ok) {
+      winner = &c;
+      winner_model = &s2.second;
+      break;
+    }
+    if (significant_count >= 4) break;  // the rest fit worse still
   }
+  if (significant_count == 0) rep.reasons.push_back("no candidate improves the fit significantly");
+  const bool explained = winner != nullptr;
   if (explained) {
     rep.status = "explained";
     rep.verdict_effects = winner->effects;
     rep.verdict_params = winner->params;
-  } else if (!gap && !significant) {
+  } else if (!gap) {
     rep.status = "none";
-    rep.reasons.push_back("the nominal model fits within the noise and no candidate improves it significantly");
+    rep.reasons.push_back("the nominal model fits within the noise, and no candidate both improves it significantly "
+                          "and holds up on the withheld runs");
   } else {
     rep.status = "unexplained";
-    rep.reasons.push_back(gap && !significant ? "a significant gap that no candidate reduces significantly"
-                                              : "a significant gap remains that no candidate accounts for");
+    rep.reasons.push_back("a significant gap that no candidate accounts for");
   }
 
   // 6. Shrinkage and traces with the verdict model (the nominal one when nothing is named).

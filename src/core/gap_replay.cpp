@@ -94,7 +94,9 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
       if (i > 0) {
         in.load_n = run.loadAt(i - 1);
         // A bed's cell vents through its own valve, which the inlet's meter does not see.
-        in.vent_opening = vent_valve && run.valve_cmd[i - 1] < 0.0 ? std::min(1.0, -run.valve_cmd[i - 1]) : 0.0;
+        // valve_cmd at a sample is taken as the (mean) opening over the interval ending there, as
+        // the bed's AirbagState reports it.
+        in.vent_opening = vent_valve && run.valve_cmd[i] < 0.0 ? std::min(1.0, -run.valve_cmd[i]) : 0.0;
         model.advance(run.t_s[i] - run.t_s[i - 1], in);
       }
       const Measurement m = model.measure();
@@ -260,12 +262,20 @@ std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::v
   using Key = std::tuple<std::string, std::string, double>;
   std::map<Key, GapShare> cells;
   double total = 0.0;
+  // One range per signal over all runs (a run whose own range is the size of the noise, like a
+  // plate-only run's pressure, would otherwise weigh its noise as much as another run's gap).
+  std::vector<const RunData*> all_runs;
+  std::vector<const Replay*> all_replays;
+  for (std::size_t k = 0; k < runs.size(); ++k)
+    if (replays[k].ok) {
+      all_runs.push_back(&runs[k]);
+      all_replays.push_back(&replays[k]);
+    }
+  const RunResidual range = pooledResidual(all_runs, all_replays);
   for (std::size_t k = 0; k < runs.size(); ++k) {
     const RunData& run = runs[k];
     const Replay& rep = replays[k];
-    if (!rep.ok) continue;
-    const RunResidual range = runResidual(run, rep);
-    if (range.samples == 0) continue;
+    if (!rep.ok || range.samples == 0) continue;
     for (std::size_t i = 0; i < run.size(); ++i) {
       if (rep.phases[i] == RunPhase::kLanded) continue;
       const double ep = (run.p_gauge_pa[i] - rep.p_gauge_pa[i]) / range.range_p_pa;

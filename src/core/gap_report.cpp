@@ -159,7 +159,7 @@ std::string reportMarkdown(const DiagnosisReport& r) {
 
   m << "## 1. Where the model and the data part\n\n";
   m << "Each run was replayed through the nominal model with its measured inflow and load. The table splits the "
-       "squared residual (each signal normalised by its measured range) by signal, phase and load; "
+       "squared residual (each signal normalised by its measured range over all runs) by signal, phase and load; "
        "largest first (shares sum to 1).\n\n";
   m << "| signal | phase | load [N] | share | time in run [s] |\n|---|---|---|---|---|\n";
   for (std::size_t i = 0; i < r.localization.size() && i < 12; ++i) {

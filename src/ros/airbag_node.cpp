@@ -3,6 +3,7 @@
 #include <sensor_msgs/FluidPressure.h>
 
 #include <boost/make_shared.hpp>
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -142,8 +143,15 @@ void AirbagNode::publishState(const ros::Time& stamp) {
   msg.inflow_kg_s = interval_s > 0.0 ? (metered_kg - metered_mass_at_publish_kg_) / interval_s : m.inflow_kg_s;
   metered_mass_at_publish_kg_ = metered_kg;
   msg.external_load_n = cell_->load();
-  msg.inlet_valve_cmd = cell_->valves().inlet;
-  msg.vent_valve_cmd = cell_->valves().vent;
+  // Mean valve openings since the previous message, for the same reason: a 200 Hz valve
+  // sampled at 50 Hz would misstate the gas it let through.
+  const double inlet_s = cell_->inletOpeningSeconds(), vent_s = cell_->ventOpeningSeconds();
+  msg.inlet_valve_cmd = interval_s > 0.0 ? (inlet_s - inlet_opening_at_publish_s_) / interval_s : cell_->valves().inlet;
+  msg.vent_valve_cmd = interval_s > 0.0 ? (vent_s - vent_opening_at_publish_s_) / interval_s : cell_->valves().vent;
+  msg.inlet_valve_cmd = std::clamp(msg.inlet_valve_cmd, 0.0, 1.0);
+  msg.vent_valve_cmd = std::clamp(msg.vent_valve_cmd, 0.0, 1.0);
+  inlet_opening_at_publish_s_ = inlet_s;
+  vent_opening_at_publish_s_ = vent_s;
   msg.height_setpoint_m = cell_->setpoint();
   msg.mode = static_cast<uint8_t>(cell_->mode());
   msg.faults = cell_->faults();

@@ -65,7 +65,9 @@ std::vector<RunData> readRunsFromBag(const std::string& path) {
       run.p_gauge_pa.push_back(msg->gauge_pressure_pa);
       run.h_m.push_back(msg->height_m);
       run.load_n_series.push_back(msg->external_load_n);
-      run.valve_cmd.push_back(msg->inlet_valve_cmd - msg->vent_valve_cmd);
+      // The vent's opening whenever it was open (the inlet's gas is metered anyway; the vent's
+      // is not, and a replay needs its opening), else the inlet's.
+      run.valve_cmd.push_back(msg->vent_valve_cmd > 0.0 ? -msg->vent_valve_cmd : msg->inlet_valve_cmd);
       run.t_gas_k.push_back(msg->gas_temperature_k);
     }
   } catch (const rosbag::BagException& e) {

@@ -13,13 +13,13 @@
 // It then reads the bags back (readRunsFromBag), makes one dataset per cell and diagnoses each
 // against the nominal model of the default cell file with the default options: the leaky
 // cell must come out "explained" by exactly {leak} (its fitted area within a factor 2 of the
-// simulated one), the nominal one "none". Each report is printed in full (reportMarkdown).
+// simulated one), the nominal one "none". Each report is printed in full (reportMarkdown); when
+// the test fails, the bags and the reports (report_airbag_R_C/) stay in the temp dir it names.
 #include <rosbag/bag.h>
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
 #include <unistd.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -141,6 +141,7 @@ TEST_F(GapBagFixture, LeakyCellIsExplainedByALeakAndTheNominalCellByNothing) {
   const ros::WallTime t0 = ros::WallTime::now();
   double leak_truth = 0.0;
   ros::NodeHandle("~").param("leak_area_m2", leak_truth, leak_truth);
+  ASSERT_GT(leak_truth, 0.0) << "~leak_area_m2 (the simulated leak) is not set";
 
   // Run A: 10.6 N, flat -> 12 cm.
   setLoads(10.6);
@@ -182,6 +183,8 @@ TEST_F(GapBagFixture, LeakyCellIsExplainedByALeakAndTheNominalCellByNothing) {
     std::cout << "\n";
     for (const auto& r : report.reasons) std::cout << "  " << r << "\n";
     std::cout << reportMarkdown(report) << std::endl;
+    // Kept with the bags when the test fails.
+    writeReportFiles((dir_ / ("report_" + topic.substr(1, topic.rfind('/') - 1))).string(), report);
     reports[topic] = std::move(report);
   }
 

@@ -83,3 +83,80 @@ TEST(GapReplay, AFailedReplaySaysWhy) {
 }
 
 }  // namespace
+
+namespace {
+/// A run whose hold reads flow-meter noise around `offset_kg_s`; valve_cmd dropped when asked.
+nb::RunData holdWithMeterReading(double offset_kg_s, bool keep_valve_cmd) {
+  nb::RunData run = synthRun({}, 0.0);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 5e-6);
+  for (std::size_t i = 0; i < run.size(); ++i)
+    if (run.valve_cmd[i] == 0.0) run.mdot_in_kg_s[i] = offset_kg_s + noise(rng);
+  if (!keep_valve_cmd) run.valve_cmd.clear();
+  return run;
+}
+}  // namespace
+
+TEST(GapReplay, ClosedInletNoiseIsZeroedButAMeterOffsetIsKept) {
+  for (bool valve : {true, false}) {
+    nb::RunData noisy = holdWithMeterReading(0.0, valve);
+    const nb::RunData before = noisy;
+    EXPECT_GT(nb::zeroClosedInletFlow(&noisy), 1000) << "valve_cmd " << valve;
+    int zero_in_hold = 0, inflow_changed = 0;
+    for (std::size_t i = 0; i < noisy.size(); ++i) {
+      if (before.t_s[i] > 10.0 && before.t_s[i] < 30.0) zero_in_hold += noisy.mdot_in_kg_s[i] == 0.0;
+      if (before.t_s[i] < 2.0) inflow_changed += noisy.mdot_in_kg_s[i] != before.mdot_in_kg_s[i];
+    }
+    EXPECT_GT(zero_in_hold, 900);      // the hold (50 Hz, 20 s) is zero
+    EXPECT_EQ(inflow_changed, 0);      // the inflation is untouched
+    nb::RunData offset = holdWithMeterReading(3e-6, valve);  // 3e-6 kg/s: ~40 standard errors
+    const nb::RunData kept = offset;
+    EXPECT_EQ(nb::zeroClosedInletFlow(&offset), 0);
+    EXPECT_EQ(offset.mdot_in_kg_s, kept.mdot_in_kg_s);
+  }
+}
+
+TEST(GapReplay, AnUnmeteredVentValveIsRecognisedAndReplayed) {
+  // A bed's cell: venting through its own valve (valve_cmd -1) while the inlet meter reads 0.
+  nb::RunData run = synthRun({}, 0.0);
+  EXPECT_FALSE(nb::ventsThroughUnmeteredValve(run));  // the generator vents through the meter
+  const nb::Replay metered = nb::replayRun(run, nb::CellParams{}, {});
+  for (std::size_t i = 0; i < run.size(); ++i)
+    if (run.valve_cmd[i] < 0.0) run.mdot_in_kg_s[i] = 0.0;
+  EXPECT_TRUE(nb::ventsThroughUnmeteredValve(run));
+  const nb::Replay vented = nb::replayRun(run, nb::CellParams{}, {});
+  ASSERT_TRUE(metered.ok && vented.ok) << vented.message;
+  // The model's own vent valve empties it: the height falls in the vent as the data's does.
+  auto at = [&](double t) {
+    std::size_t i = 0;
+    while (i + 1 < run.size() && run.t_s[i] < t) ++i;
+    return i;
+  };
+  EXPECT_LT(vented.h_m[at(38.0)], vented.h_m[at(30.0)] - 0.02);  // 30 s: hold, 38 s: venting
+  EXPECT_NEAR(vented.h_m[at(38.0)], metered.h_m[at(38.0)], 0.01);
+}
+
+TEST(GapReplay, PooledResidualUsesTheRangeOverAllRuns) {
+  const nb::RunData a = synthRun({}, 1.0, 0), b = synthRun({}, 1.0, 3);
+  const nb::Replay ra = nb::replayRun(a, nb::CellParams{}, {}), rb = nb::replayRun(b, nb::CellParams{}, {});
+  const nb::RunResidual pooled = nb::pooledResidual({&a, &b}, {&ra, &rb});
+  EXPECT_GE(pooled.range_p_pa, std::max(nb::runResidual(a, ra).range_p_pa, nb::runResidual(b, rb).range_p_pa));
+  EXPECT_EQ(pooled.samples, nb::runResidual(a, ra).samples + nb::runResidual(b, rb).samples);
+}
+
+TEST(GapReplay, HiddenEffectsFromTextAreCheckedAndNamed) {
+  EXPECT_TRUE(nb::effectsFromText("", 1).empty());
+  const auto two = nb::effectsFromText("leak:leak_area_m2=5e-9; heat_transfer", 3);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0]->name(), "heat_transfer");  // catalogue order
+  EXPECT_EQ(two[1]->name(), "leak");
+  EXPECT_DOUBLE_EQ(two[1]->parameters().at("leak_area_m2"), 5e-9);
+  for (const char* bad : {"lek", "leak:leak_area_m2=abc", "leak:area=1e-9", "leak:leak_area_m2=-1"}) {
+    try {
+      nb::effectsFromText(bad, 1);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).size(), 0u) << bad;
+    }
+  }
+}

@@ -97,7 +97,7 @@ TEST(BagRuns, OneRunPerAirbagStateTopic) {
   EXPECT_EQ(c1.load_n, 10.6);
   EXPECT_EQ(c1.load_n_series.size(), 5u);
   EXPECT_EQ(c1.valve_cmd[0], 1.0);
-  EXPECT_EQ(c0.valve_cmd[0], -1.0);  // inlet - vent
+  EXPECT_EQ(c0.valve_cmd[0], -1.0);  // the vent's opening while it is open
   EXPECT_EQ(c0.load_n, 0.6);
   EXPECT_NEAR(c1.t_gas_k[1], 293.25, 1e-9);
   EXPECT_TRUE(c1.p_supply_gauge_pa.empty());

@@ -83,6 +83,11 @@ class AirbagCell {
   /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
   /// integrate without losing the mass of valve switches between samples).
   double meteredInletMassKg() const { return metered_inlet_mass_kg_; }
+  /// Integrals of the valve openings over time since reset [s] (their change over an interval
+  /// divided by it is the mean opening: a valve that switches every control period is recorded
+  /// faithfully at a lower rate).
+  double inletOpeningSeconds() const { return inlet_opening_s_; }
+  double ventOpeningSeconds() const { return vent_opening_s_; }
   const ValveCommand& valves() const { return valves_; }
   AirbagMode mode() const { return mode_; }
   std::uint32_t faults() const { return faults_; }
@@ -101,6 +106,7 @@ class AirbagCell {
   HeightController controller_;
   double load_n_ = 0.6;
   double metered_inlet_mass_kg_ = 0.0;
+  double inlet_opening_s_ = 0.0, vent_opening_s_ = 0.0;
   double supply_pressure_pa_;
   AirbagMode mode_ = AirbagMode::kIdle;
   std::uint32_t faults_ = kFaultNone;

@@ -28,6 +28,11 @@ struct PaperCurveStudy {
     double rms_m = 0.0;                  ///< rising h(p) with it vs eq. 24
   };
   std::vector<Candidate> candidates;     ///< each candidate at a mid-plausible magnitude
+  double dynamic_mass_kg = 0.0;          ///< the paper-shaped inflation's gas
+  double dynamic_nominal_rms_m = 0.0;    ///< its rising h(p) vs eq. 24, nominal model
+  double line_volume_m3 = 0.0, line_area_m2 = 0.0;  ///< supply line fitted to eq. 24 (area only)
+  double line_rms_m = 0.0;               ///< what is left then
+  std::vector<double> line_height_m;     ///< that model's rising h at the grid pressures
   double friction_needed_n = 0.0;        ///< guide friction that best shifts the model onto eq. 24
   double friction_rms_m = 0.0;           ///< what is left then
 };

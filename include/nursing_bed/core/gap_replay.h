@@ -84,7 +84,7 @@ struct GapShare {
   double share = 0.0;
   double t_start_s = 0.0, t_end_s = 0.0;  ///< where that phase lies in those runs
 };
-/// Splits the squared residual, normalised per run and signal by the measured range, by
+/// Splits the squared residual, normalised per signal by the measured range over all runs, by
 /// signal, phase and load; largest first.
 std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::vector<Replay>& replays);
 

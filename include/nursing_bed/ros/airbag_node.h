@@ -68,6 +68,7 @@ class AirbagNode {
   std::mutex mutex_;  // callbacks may run on several nodelet worker threads
   ros::Time start_, last_publish_;
   double metered_mass_at_publish_kg_ = 0.0;  ///< the cell's flow totaliser at the last AirbagState
+  double inlet_opening_at_publish_s_ = 0.0, vent_opening_at_publish_s_ = 0.0;  ///< valve integrals then
   ros::Publisher state_pub_, pressure_pub_;
   ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_;
   ros::ServiceServer set_height_srv_;

@@ -15,7 +15,8 @@ namespace nursing_bed {
  *    topic's first message is unstamped, i.e. stamp 0);
  *  - mdot_in_kg_s <- inflow_kg_s, p_gauge_pa <- gauge_pressure_pa, h_m <- height_m,
  *    t_gas_k <- gas_temperature_k, load_n_series <- external_load_n (load_n = its first value),
- *    valve_cmd <- inlet_valve_cmd - vent_valve_cmd;
+ *    valve_cmd <- -vent_valve_cmd while the vent was open, else inlet_valve_cmd (the inlet's gas
+ *    is metered; a replay needs the unmetered vent's opening);
  *  - name = bag file stem + topic (e.g. "rig1/bed/cell_0/state"), source = the bag path,
  *    meta: nursing_bed_run, bag, topic.
  * Throws std::runtime_error naming the bag (and topic) when the bag cannot be opened, has no
