@@ -73,15 +73,30 @@ double parseNumber(const std::string& option, const std::string& text) {
   return v;
 }
 
+/// Walks a subcommand's arguments: `while (args.next()) { ... args.flag() ... args.value() }`.
+class ArgWalker {
+ public:
+  explicit ArgWalker(const std::vector<std::string>& args) : args_(args) {}
+  bool next() { return ++i_ < args_.size(); }
+  const std::string& flag() const { return args_[i_]; }
+  /// The value after the current option; a UsageError naming the option when there is none.
+  std::string value() {
+    if (i_ + 1 >= args_.size()) throw UsageError(flag() + " needs a value");
+    return args_[++i_];
+  }
+
+ private:
+  const std::vector<std::string>& args_;
+  std::size_t i_ = static_cast<std::size_t>(-1);
+};
+
 int runSynth(const std::vector<std::string>& args) {
   nb::SynthOptions o;
   o.progress = &std::cout;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= args.size()) throw UsageError(a + " needs a value");
-      return args[++i];
-    };
+  ArgWalker walk(args);
+  while (walk.next()) {
+    const std::string& a = walk.flag();
+    auto value = [&]() { return walk.value(); };
     if (a == "--help" || a == "-h") {
       std::cout << kSynthUsage << "effects and their parameters:\n" << effectList();
       return 0;
@@ -164,12 +179,10 @@ int runDiagnose(const std::vector<std::string>& args) {
   std::string dataset, out_dir;
   bool plots = true;
   nb::DiagnosisOptions options;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= args.size()) throw UsageError(a + " needs a value");
-      return args[++i];
-    };
+  ArgWalker walk(args);
+  while (walk.next()) {
+    const std::string& a = walk.flag();
+    auto value = [&]() { return walk.value(); };
     if (a == "--help" || a == "-h") {
       std::cout << kDiagnoseUsage;
       return 0;
@@ -241,14 +254,15 @@ constexpr const char* kEq24Usage =
 
 int runEq24(const std::vector<std::string>& args) {
   std::string out;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--help" || args[i] == "-h") {
+  ArgWalker walk(args);
+  while (walk.next()) {
+    if (walk.flag() == "--help" || walk.flag() == "-h") {
       std::cout << kEq24Usage;
       return 0;
-    } else if (args[i] == "--out" && i + 1 < args.size()) {
-      out = args[++i];
+    } else if (walk.flag() == "--out") {
+      out = walk.value();
     } else {
-      throw UsageError("unknown argument '" + args[i] + "'");
+      throw UsageError("unknown argument '" + walk.flag() + "'");
     }
   }
   const nb::CellParams params = nb::loadCellParamsYaml(nb::resolveAirbagParamsFile(""));
