@@ -104,9 +104,10 @@ bool plausibleValues(const ModelSpec& m, const std::map<std::string, double>& va
   for (const auto& a : m.axes) {
     const double x = values.at(a.spec->name);
     if (a.spec->log_scale) {
-      // Small values are no reason to doubt a significant fit (the range's low end is what
-      // matters for a bed, not a physical bound): 10 x more slack downwards.
-      if (x < a.spec->lo / (10.0 * slack) || x > a.spec->hi * slack) return false;
+      // Only too large is implausible: a small value is an effect that barely uses that
+      // parameter (a short supply line), and the range's low end is what matters for a bed,
+      // not a physical bound.
+      if (x > a.spec->hi * slack) return false;
     } else {
       const double u = a.toU(x);
       if (u < -0.5 * (slack - 1.0) || u > 1.0 + 0.5 * (slack - 1.0)) return false;
@@ -707,13 +708,22 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
                         (after - 1.0) <= (1.0 - options.withheld_gap_removed) * (held_before - 1.0);
     return within && c.withheld_nrmse < held_nrmse_before;
   };
-  // A pair only where it beats the better of its two singles significantly.
+  // A pair only where it beats the better of its two singles significantly, and neither single
+  // explains the gap alone (the simpler answer first).
+  auto explainsAlone = [&](const CandidateFit& c) {
+    return significant(c) && fitsFitRuns(c) && fitsWithheld(c);
+  };
   auto pairEarnsItsPlace = [&](const CandidateFit& pair) {
+    bool first = true;
     for (const auto& s2 : scored) {
       const CandidateFit& c = s2.first;
       if (!c.ok || c.effects.size() != 1) continue;
       if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
-      return c.bic_delta - pair.bic_delta >= options.significant_bic_drop && (c.chi2 - pair.chi2) / n >= options.min_chi2_drop;
+      if (explainsAlone(c)) return false;
+      if (first && (c.bic_delta - pair.bic_delta < options.significant_bic_drop ||
+                    (c.chi2 - pair.chi2) / n < options.min_chi2_drop))
+        return false;
+      first = false;
     }
     return true;
   };

@@ -280,9 +280,9 @@ void InflowBiasEffect::contribute(const CellParams& params, const CellVariables&
   if (off() || cell.inflow_prescribed != 1.0) return;
   // The prescribed series is what the meter read; the cell receives the true flow.
   const double metered = cell.metered_inflow_kg_s;
-  // A reading of exactly zero is a closed inlet (the diagnosis' replay zeroes the meter's noise
-  // there, zeroClosedInletFlow): no gas flows, whatever the meter's error.
-  if (metered == 0.0) return;
+  // A closed inlet (the diagnosis' replay zeroes the meter's noise there, zeroClosedInletFlow):
+  // no gas flows, whatever the meter's error.
+  if (cell.inlet_closed == 1.0) return;
   const double truth = (metered - offset_kg_s_) / (1.0 + scale_error_);
   const double cp = params.gas.cp();
   terms->mass_flow_kg_s = truth - metered;

@@ -93,6 +93,7 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
       if (out.phases[i] == RunPhase::kLanded) break;
       if (i > 0) {
         in.load_n = run.loadAt(i - 1);
+        in.inlet_closed = run.inlet_closed.size() == n && run.inlet_closed[i - 1] && run.inlet_closed[i];
         // A bed's cell vents through its own valve, which the inlet's meter does not see.
         // valve_cmd at a sample is taken as the (mean) opening over the interval ending there, as
         // the bed's AirbagState reports it.
@@ -218,11 +219,14 @@ int zeroClosedInletFlow(RunData* run) {
   int zeroed = 0;
   for (const auto& [begin, end] : stretches) {
     if (!zeroWithinNoise(*run, begin, end)) continue;  // a meter offset: keep it, it is a finding
-    for (std::size_t k = begin; k < end; ++k)
+    if (run->inlet_closed.size() != n) run->inlet_closed.assign(n, false);
+    for (std::size_t k = begin; k < end; ++k) {
+      run->inlet_closed[k] = true;
       if (std::isfinite(run->mdot_in_kg_s[k]) && run->mdot_in_kg_s[k] != 0.0) {
         run->mdot_in_kg_s[k] = 0.0;
         ++zeroed;
       }
+    }
   }
   return zeroed;
 }

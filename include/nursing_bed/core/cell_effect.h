@@ -34,6 +34,7 @@ struct CellVariables {
   double inflow_kg_s = 0.0;             ///< true mass flow entering through the inlet (+ in)
   double metered_inflow_kg_s = 0.0;     ///< inlet flow as given/metered before effects correct it
   double inflow_prescribed = 0.0;       ///< 1 when the inflow is imposed from a series, 0 valve-driven
+  double inlet_closed = 0.0;            ///< 1 when the inputs declare the inlet closed (CellInputs)
   double vent_flow_kg_s = 0.0;          ///< mass flow out through the vent valve
   double leak_flow_kg_s = 0.0;          ///< mass flow out through the nominal leak
   double bed_contact_force_n = 0.0;     ///< force of the bed on a bottomed-out plate

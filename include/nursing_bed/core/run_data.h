@@ -29,6 +29,9 @@ struct RunData {
   std::vector<double> p_supply_gauge_pa;  ///< supply pressure, gauge [Pa]
   std::vector<double> t_gas_k;            ///< gas temperature [K]
   std::string role;                       ///< "fit", "withheld" or "" (not assigned)
+  /// Samples whose flow the diagnosis set to 0 because the inlet was closed there
+  /// (zeroClosedInletFlow); empty: none. Not read or written with the CSV.
+  std::vector<bool> inlet_closed;
 
   std::size_t size() const { return t_s.size(); }
   /// Load at sample i: the column where present and finite, else load_n.
