@@ -115,7 +115,9 @@ class MembraneViscoelasticityEffect : public CellEffect {
 
 /// Flow meter error: it reads (1 + k) q_true + b. Prescribed (metered) inflow: the true flow
 /// (q_m - b) / (1 + k) enters instead of q_m (the difference is added as a mass flow with the
-/// enthalpy of the true flow). Valve-driven: the reading becomes (1 + k) q + b. k = b = 0: off.
+/// enthalpy of the true flow); where the inputs declare the inlet closed (CellInputs::inlet_closed,
+/// the diagnosis' zeroed meter noise) nothing flows. Valve-driven: the reading becomes
+/// (1 + k) q + b. k = b = 0: off.
 class InflowBiasEffect : public CellEffect {
  public:
   InflowBiasEffect(double scale_error, double offset_kg_s) : scale_error_(scale_error), offset_kg_s_(offset_kg_s) {}
