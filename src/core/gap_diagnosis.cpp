@@ -706,7 +706,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     const double after = c.withheld_chi2_per_sample;
     const bool within = after <= options.withheld_chi2 ||
                         (after - 1.0) <= (1.0 - options.withheld_gap_removed) * (held_before - 1.0);
-    return within && c.withheld_nrmse < held_nrmse_before;
+    return within && after < held_before;  // the held-out likelihood improves
   };
   // A pair only where it beats the better of its two singles significantly, and neither single
   // explains the gap alone (the simpler answer first).
@@ -741,7 +741,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
                         "chi2/n <= " + fmt(options.explained_chi2) + " on the fit runs (or removes " +
                         fmt(100.0 * options.explained_excess_removed) + " % of the excess over 1), <= " +
                         fmt(options.withheld_chi2) + " on the withheld runs (or removes " +
-                        fmt(100.0 * options.withheld_gap_removed) + " %) and lowers their nrmse");
+                        fmt(100.0 * options.withheld_gap_removed) + " %) and lowers their chi2");
   const CandidateFit* winner = nullptr;
   const ModelSpec* winner_model = nullptr;
   int significant_count = 0;
