@@ -9,13 +9,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <limits>
 #include <mutex>
 #include <numeric>
-#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -216,11 +213,11 @@ std::vector<double> localNoise(const std::vector<double>& x, std::size_t w) {
 }
 
 struct RunNoise {
-  double p_pa = 0.0, h_m = 0.0, q_kg_s = 0.0;
+  double p_pa = 0.0, h_m = 0.0;
 };
 
 RunNoise runNoise(const RunData& run) {
-  return {estimateNoise(run.p_gauge_pa), estimateNoise(run.h_m), estimateNoise(run.mdot_in_kg_s)};
+  return {estimateNoise(run.p_gauge_pa), estimateNoise(run.h_m)};
 }
 
 /// Noise floor of each used sample: sensor noise, the replay's accuracy, and the flow meter's
