@@ -153,10 +153,10 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
 
   // Inlet: a prescribed (metered) series, or the regulator through the inlet valve.
   double inflow_enthalpy_w = 0.0;
-  if (in.prescribed_inflow) {
+  if (in.prescribed_inflow || std::isfinite(in.prescribed_inflow_kg_s)) {
     v.inflow_prescribed = 1.0;
     v.inlet_closed = in.inlet_closed ? 1.0 : 0.0;
-    v.metered_inflow_kg_s = in.prescribed_inflow->at(time_s);
+    v.metered_inflow_kg_s = in.prescribed_inflow ? in.prescribed_inflow->at(time_s) : in.prescribed_inflow_kg_s;
     v.inflow_kg_s = v.metered_inflow_kg_s;
     const double t_in = v.inflow_kg_s >= 0.0 ? params_.supply_temperature_k : v.temperature_k;
     inflow_enthalpy_w = v.inflow_kg_s * cp * t_in;
@@ -355,7 +355,8 @@ bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
   return same(a.inlet_opening, b.inlet_opening) && same(a.vent_opening, b.vent_opening) &&
          same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) &&
          same(a.load_n, b.load_n) && same(a.supply_pressure_pa, b.supply_pressure_pa) &&
-         a.prescribed_inflow == b.prescribed_inflow && a.inlet_closed == b.inlet_closed;
+         a.prescribed_inflow == b.prescribed_inflow && same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) &&
+         a.inlet_closed == b.inlet_closed;
 }
 
 Measurement CellModel::measure() const {

@@ -202,6 +202,29 @@ void massSensitivity(const RunData& run, const CellParams& params, const Replay&
   }
 }
 
+/// The start: a run that starts lifted starts from the mean of its first height readings
+/// (initialHeight), whose noise stays in the replay's gas for the whole run. Fills the
+/// readings' sensitivity to the start height (from a replay started one noise floor higher)
+/// and returns the start height's variance (0 for a run that starts flat).
+double startSensitivity(const RunData& run, const CellParams& params, const Replay& nominal, double noise_h_m,
+                        std::vector<double>* dp_dh0, std::vector<double>* dh_dh0) {
+  dp_dh0->assign(run.size(), 0.0);
+  dh_dh0->assign(run.size(), 0.0);
+  const InitialHeight h0 = initialHeight(run);
+  if (h0.samples == 0 || !(h0.h_m > kLandedHeightM) || !(noise_h_m > 0.0)) return 0.0;
+  RunData lifted = run;
+  for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i) lifted.h_m[i] += noise_h_m;
+  const Replay shifted = replayRun(lifted, params, {});
+  if (!shifted.ok) return 0.0;
+  for (std::size_t i = 0; i < run.size(); ++i) {
+    const double dp = (shifted.p_gauge_pa[i] - nominal.p_gauge_pa[i]) / noise_h_m;
+    const double dh = (shifted.h_m[i] - nominal.h_m[i]) / noise_h_m;
+    (*dp_dh0)[i] = std::isfinite(dp) ? dp : 0.0;
+    (*dh_dh0)[i] = std::isfinite(dh) ? dh : 0.0;
+  }
+  return noise_h_m * noise_h_m / h0.samples;
+}
+
 /// Noise of a signal around each sample: estimateNoise() over the samples i-w .. i+w.
 std::vector<double> localNoise(const std::vector<double>& x, std::size_t w) {
   std::vector<double> out(x.size(), 0.0);
@@ -243,11 +266,13 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
   const std::size_t stride =
       std::max({std::size_t{1}, static_cast<std::size_t>(std::lround(1.0 / (sample_hz * interval))),
                 (usable + kMaxFitSamples - 1) / kMaxFitSamples});
+  std::vector<double> start_p, start_h;
+  const double start_var = startSensitivity(run, params, nominal, noise.h_m, &start_p, &start_h);
   // The flow meter's noise where it is (a meter's noise grows with its reading): a robust
   // estimate over +-25 samples.
   const std::vector<double> flow_noise = localNoise(measured_flow, 25);
   double walk_var = 0.0;
-  std::vector<double> walk, white_p, white_h, gain_p, gain_h;
+  std::vector<double> walk, white_p, white_h, gain_p, gain_h, g0_p, g0_h;
   for (std::size_t i = 0; i < run.size(); ++i) {
     // Flow set to 0 where the inlet is closed (zeroClosedInletFlow) integrates no noise.
     if (i > 0 && run.mdot_in_kg_s[i] != 0.0)
@@ -260,11 +285,14 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
     white_h.push_back(std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2));
     gain_p.push_back(dp_dm[i]);
     gain_h.push_back(dh_dm[i]);
-    r.sigma_p_pa.push_back(std::sqrt(white_p.back() + dp_dm[i] * dp_dm[i] * walk_var));
-    r.sigma_h_m.push_back(std::sqrt(white_h.back() + dh_dm[i] * dh_dm[i] * walk_var));
+    g0_p.push_back(start_p[i]);
+    g0_h.push_back(start_h[i]);
+    r.sigma_p_pa.push_back(std::sqrt(white_p.back() + dp_dm[i] * dp_dm[i] * walk_var + start_p[i] * start_p[i] * start_var));
+    r.sigma_h_m.push_back(std::sqrt(white_h.back() + dh_dm[i] * dh_dm[i] * walk_var + start_h[i] * start_h[i] * start_var));
   }
   // Covariance of the scaled residuals: white sensor noise on the diagonal plus the mass walk,
-  // Cov(e_a(t_j), e_b(t_l)) = g_a(t_j) g_b(t_l) Var_m(min(t_j, t_l)).
+  // Cov(e_a(t_j), e_b(t_l)) = g_a(t_j) g_b(t_l) Var_m(min(t_j, t_l)), plus the start's
+  // s_a(t_j) s_b(t_l) Var_h0.
   const int m = static_cast<int>(r.index.size());
   Eigen::MatrixXd cov(2 * m, 2 * m);
   for (int j = 0; j < m; ++j)
@@ -272,9 +300,11 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
       const double v = walk[l];  // l <= j: the earlier sample's walk variance
       const double gj[2] = {gain_p[j] / r.sigma_p_pa[j], gain_h[j] / r.sigma_h_m[j]};
       const double gl[2] = {gain_p[l] / r.sigma_p_pa[l], gain_h[l] / r.sigma_h_m[l]};
+      const double sj[2] = {g0_p[j] / r.sigma_p_pa[j], g0_h[j] / r.sigma_h_m[j]};
+      const double sl[2] = {g0_p[l] / r.sigma_p_pa[l], g0_h[l] / r.sigma_h_m[l]};
       for (int a = 0; a < 2; ++a)
         for (int b = 0; b < 2; ++b) {
-          double c = gj[a] * gl[b] * v;
+          double c = gj[a] * gl[b] * v + sj[a] * sl[b] * start_var;
           if (j == l && a == b) c += (a == 0 ? white_p[j] / std::pow(r.sigma_p_pa[j], 2) : white_h[j] / std::pow(r.sigma_h_m[j], 2));
           cov(2 * j + a, 2 * l + b) = c;
           cov(2 * l + b, 2 * j + a) = c;
@@ -361,48 +391,52 @@ struct FitOutcome {
   std::string message;
 };
 
+/// Levenberg-Marquardt from the best `refined` points of `starts` (a grid); the best result.
+/// With two or more parameters a valley can hold LM far from the optimum (an inflow_bias fit
+/// stopped at chi2/n 578 from one start): the second-best grid point gives it a second way in.
 FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
                     int max_iterations) {
   std::atomic<int> evaluations{0};
   ReplayCost probe(fit, model, &evaluations);
   std::vector<double> r(fit.residualCount());
+  std::vector<std::pair<double, std::vector<double>>> ranked;  // chi2, start
+  for (const auto& s : starts)
+    if (probe.residualsAt(s, r.data())) ranked.emplace_back(sumSquares(r), s);
   FitOutcome best;
-  for (const auto& s : starts) {
-    if (!probe.residualsAt(s, r.data())) continue;
-    const double c = sumSquares(r);
-    if (!best.ok || c < best.chi2) {
-      best.u = s;
-      best.chi2 = c;
-      best.ok = true;
-    }
-  }
-  if (!best.ok) {
+  if (ranked.empty()) {
     best.evaluations = evaluations;
     best.message = "the model failed at every starting point";
     return best;
   }
-  ceres::Problem problem;
-  std::vector<double> u = best.u;
-  problem.AddResidualBlock(new ReplayCost(fit, model, &evaluations), nullptr, u.data());
-  for (std::size_t j = 0; j < model.axes.size(); ++j) {
-    problem.SetParameterLowerBound(u.data(), static_cast<int>(j), model.axes[j].u_min);
-    problem.SetParameterUpperBound(u.data(), static_cast<int>(j), model.axes[j].u_max);
-  }
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_QR;
-  options.max_num_iterations = max_iterations;
-  options.function_tolerance = 1e-5;
-  options.parameter_tolerance = 1e-4;
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-  if (std::isfinite(summary.final_cost) && 2.0 * summary.final_cost <= best.chi2) {
-    best.u = u;
-    best.chi2 = 2.0 * summary.final_cost;
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  const std::size_t refined = std::min<std::size_t>(ranked.size(), model.axes.size() >= 2 ? 2 : 1);
+  best.ok = true;
+  best.u = ranked[0].second;
+  best.chi2 = ranked[0].first;
+  for (std::size_t k = 0; k < refined; ++k) {
+    ceres::Problem problem;
+    std::vector<double> u = ranked[k].second;
+    problem.AddResidualBlock(new ReplayCost(fit, model, &evaluations), nullptr, u.data());
+    for (std::size_t j = 0; j < model.axes.size(); ++j) {
+      problem.SetParameterLowerBound(u.data(), static_cast<int>(j), model.axes[j].u_min);
+      problem.SetParameterUpperBound(u.data(), static_cast<int>(j), model.axes[j].u_max);
+    }
+    ceres::Solver::Options options;
+    options.linear_solver_type = ceres::DENSE_QR;
+    options.max_num_iterations = max_iterations;
+    options.function_tolerance = 1e-5;
+    options.parameter_tolerance = 1e-4;
+    options.num_threads = 1;
+    options.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(options, &problem, &summary);
+    if (std::isfinite(summary.final_cost) && 2.0 * summary.final_cost <= best.chi2) {
+      best.u = u;
+      best.chi2 = 2.0 * summary.final_cost;
+      best.message = summary.BriefReport();
+    }
   }
   best.evaluations = evaluations;
-  best.message = summary.BriefReport();
   return best;
 }
 

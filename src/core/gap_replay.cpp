@@ -9,7 +9,8 @@
 
 namespace nursing_bed {
 namespace {
-constexpr double kLandedHeightM = 0.003;
+/// Over kInitialRestS a plate at rest moves less than this (sensor noise ~0.3 mm averages out).
+constexpr double kMovingPlateM = 0.001;
 }  // namespace
 
 const char* phaseName(RunPhase phase) {
@@ -55,6 +56,19 @@ std::vector<RunPhase> classifyPhases(const RunData& run) {
   return phases;
 }
 
+InitialHeight initialHeight(const RunData& run) {
+  std::vector<double> h;
+  for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i)
+    if (std::isfinite(run.h_m[i])) h.push_back(run.h_m[i]);
+  if (h.empty()) return {NAN, 0};
+  // A plate that is already moving is not at rest: then the first reading alone.
+  const std::size_t half = h.size() / 2;
+  const double first_half = std::accumulate(h.begin(), h.begin() + half, 0.0) / std::max<std::size_t>(half, 1);
+  const double second_half = std::accumulate(h.begin() + half, h.end(), 0.0) / (h.size() - half);
+  if (half == 0 || std::fabs(second_half - first_half) > kMovingPlateM) return {h[0], 1};
+  return {std::accumulate(h.begin(), h.end(), 0.0) / h.size(), static_cast<int>(h.size())};
+}
+
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
                  long max_substeps) {
   Replay out;
@@ -76,7 +90,8 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
     const double load0 = run.loadAt(0);
     // At rest at the first measured height, with the measured gas temperature if there is one.
     const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
-    if (std::isfinite(run.h_m[0]) && run.h_m[0] > kLandedHeightM) model.resetToEquilibrium(run.h_m[0], load0, t_gas0);
+    const InitialHeight h0 = initialHeight(run);
+    if (h0.samples > 0 && h0.h_m > kLandedHeightM) model.resetToEquilibrium(h0.h_m, load0, t_gas0);
     else model.reset(load0);
     // Model time starts at the run's first sample.
     model.setState(run.t_s[0], model.state());
@@ -98,6 +113,11 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
         // valve_cmd at a sample is taken as the (mean) opening over the interval ending there, as
         // the bed's AirbagState reports it.
         in.vent_opening = vent_valve && run.valve_cmd[i] < 0.0 ? std::min(1.0, -run.valve_cmd[i]) : 0.0;
+        // Interval means: the interval's own mean flow, constant over it (a missing sample
+        // falls back to the interpolated series).
+        const bool interval_mean = run.flow_interval_means && std::isfinite(run.mdot_in_kg_s[i]);
+        in.prescribed_inflow = interval_mean ? nullptr : &inflow;
+        in.prescribed_inflow_kg_s = interval_mean ? run.mdot_in_kg_s[i] : NAN;
         model.advance(run.t_s[i] - run.t_s[i - 1], in);
       }
       const Measurement m = model.measure();

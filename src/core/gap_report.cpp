@@ -227,6 +227,9 @@ void writeReportFiles(const std::string& dir, const DiagnosisReport& r) {
     out.close();
     if (!out) throw std::runtime_error(path.string() + ": cannot write");
   };
+  // Traces of an earlier report in the same directory would be plotted with this one's.
+  for (const auto& old : fs::directory_iterator(fs::path(dir) / "traces", ec))
+    if (old.is_regular_file() && old.path().extension() == ".csv") fs::remove(old.path(), ec);
   write(fs::path(dir) / "report.json", reportJson(r));
   write(fs::path(dir) / "report.md", reportMarkdown(r));
   for (const auto& t : r.traces) {
@@ -240,9 +243,12 @@ void writeReportFiles(const std::string& dir, const DiagnosisReport& r) {
       s << num(t.t_s[i]) << ',' << num(t.mdot_in_kg_s[i]) << ',' << num(t.p_meas_pa[i]) << ',' << num(t.h_meas_m[i])
         << ',' << num(t.p_nominal_pa[i]) << ',' << num(t.h_nominal_m[i]) << ',' << num(t.p_after_pa[i]) << ','
         << num(t.h_after_m[i]) << ',' << phaseName(t.phases[i]) << "\n";
-    std::string stem = fs::path(t.name).filename().string();
+    // The whole run name, made a file name: a bag's runs are "bag/topic/state", and every
+    // run of a bag ends in the same "state".
+    std::string stem = t.name;
     for (char& c : stem)
-      if (c == '/' || c == ':') c = '_';
+      if (c == '/' || c == ':' || c == '\\') c = '_';
+    stem.erase(0, stem.find_first_not_of('_'));
     if (fs::path(stem).extension() != ".csv") stem += ".csv";
     write(fs::path(dir) / "traces" / stem, s.str());
   }

@@ -119,6 +119,13 @@ RunData readRunCsv(const std::string& path) {
     }
     const auto a = run.meta.find("airbag");
     if (a != run.meta.end()) run.airbag = a->second;
+    const auto s = run.meta.find(kFlowSamplingKey);
+    if (s != run.meta.end()) {
+      if (s->second != "instant" && s->second != "interval_mean")
+        throw fail(meta_line[kFlowSamplingKey], std::string("metadata ") + kFlowSamplingKey +
+                                                   ": expected instant or interval_mean, got '" + s->second + "'");
+      run.flow_interval_means = s->second == "interval_mean";
+    }
   };
 
   std::string line;
@@ -227,8 +234,9 @@ void writeRunCsv(const std::string& path, const RunData& run) {
   out << "# " << kVersionKey << ": " << kRunCsvVersion << "\n";
   if (std::isfinite(run.load_n)) out << "# load_n: " << formatNumber(run.load_n) << "\n";
   if (!run.airbag.empty()) out << "# airbag: " << run.airbag << "\n";
+  if (run.flow_interval_means) out << "# " << kFlowSamplingKey << ": interval_mean\n";
   for (const auto& [key, value] : run.meta) {
-    if (key == kVersionKey || key == "load_n" || key == "airbag") continue;
+    if (key == kVersionKey || key == "load_n" || key == "airbag" || key == kFlowSamplingKey) continue;
     std::string v = value;
     std::replace(v.begin(), v.end(), '\n', ' ');
     out << "# " << key << ": " << v << "\n";

@@ -146,13 +146,16 @@ int runSynth(const std::vector<std::string>& args) {
 
 
 constexpr const char* kDiagnoseUsage =
-    "usage: gap diagnose DATASET --out DIR [--effects NAME,NAME...] [--threads N] [--no-plots]\n"
+    "usage: gap diagnose DATASET --out DIR [--topic TOPIC] [--effects NAME,NAME...] [--threads N]\n"
+    "                    [--no-plots]\n"
     "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
     "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
     "on the fit runs, names the effect that explains the gap (or says none / unexplained) and\n"
     "checks it on the withheld runs. Writes DIR/report.json, DIR/report.md, DIR/traces/*.csv and\n"
     "the plots DIR/traces.png, residual_by_phase.png, hp_loops.png.\n"
     "  --out       output directory (created)\n"
+    "  --topic     diagnose only the bag runs of this AirbagState topic (one cell of a bed bag);\n"
+    "              CSV runs are left out then\n"
     "  --effects   candidates to try, comma-separated (default: all seven)\n"
     "  --threads   candidate fits in parallel (default 2)\n"
     "  --no-plots  skip the PNG plots (they need /usr/bin/python3 with matplotlib)\n";
@@ -175,8 +178,29 @@ std::vector<nb::RunData> readDatasetWithBags(const std::string& dir) {
   return nb::readDataset(dir, extra);
 }
 
+/// The bag runs recorded from `topic`; a bed bag holds one run per cell, and each cell is a
+/// dataset of its own.
+std::vector<nb::RunData> runsOfTopic(std::vector<nb::RunData> runs, const std::string& topic,
+                                     const std::string& dataset) {
+  std::vector<nb::RunData> kept;
+  std::set<std::string> topics;
+  for (auto& r : runs) {
+    const auto it = r.meta.find("topic");
+    if (it == r.meta.end()) continue;
+    topics.insert(it->second);
+    if (it->second == topic) kept.push_back(std::move(r));
+  }
+  if (kept.empty()) {
+    std::string list;
+    for (const auto& t : topics) list += " " + t;
+    throw std::runtime_error(dataset + ": no bag run has the topic '" + topic + "' (topics:" +
+                             (list.empty() ? std::string(" none, no bags") : list) + ")");
+  }
+  return kept;
+}
+
 int runDiagnose(const std::vector<std::string>& args) {
-  std::string dataset, out_dir;
+  std::string dataset, out_dir, topic;
   bool plots = true;
   nb::DiagnosisOptions options;
   ArgWalker walk(args);
@@ -188,6 +212,8 @@ int runDiagnose(const std::vector<std::string>& args) {
       return 0;
     } else if (a == "--out") {
       out_dir = value();
+    } else if (a == "--topic") {
+      topic = value();
     } else if (a == "--effects") {
       const std::string v = value();
       std::set<std::string> seen;
@@ -220,6 +246,7 @@ int runDiagnose(const std::vector<std::string>& args) {
   if (out_dir.empty()) throw UsageError("--out DIR is required");
 
   std::vector<nb::RunData> runs = readDatasetWithBags(dataset);
+  if (!topic.empty()) runs = runsOfTopic(std::move(runs), topic, dataset);
   std::set<std::string> airbags;
   for (const auto& r : runs) airbags.insert(nb::resolveAirbagParamsFile(r.airbag, dataset));
   if (airbags.size() != 1) {

@@ -20,6 +20,8 @@
 #include <std_msgs/Float64.h>
 #include <unistd.h>
 
+#include <cstdlib>
+
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -71,7 +73,7 @@ class GapBagFixture : public BedFixture {
 
   void TearDown() override {
     bag_.reset();
-    if (!HasFailure()) {
+    if (!HasFailure() && !std::getenv("NURSING_BED_KEEP_BAGS")) {
       std::error_code ec;
       fs::remove_all(dir_, ec);
     } else {

@@ -202,7 +202,7 @@ TEST_F(GapDiagnoseCli, UnknownSubcommandAndHelp) {
 
   const ToolResult help = runGap({"diagnose", "--help"});
   EXPECT_EQ(help.code, 0) << help.output;
-  expectContains(help.output, {"usage: gap diagnose DATASET --out DIR", "--effects", "--threads"});
+  expectContains(help.output, {"usage: gap diagnose DATASET --out DIR", "--topic", "--effects", "--threads"});
 }
 
 TEST_F(GapDiagnoseCli, MissingOrEmptyDatasetExitsWith1) {
@@ -216,6 +216,15 @@ TEST_F(GapDiagnoseCli, MissingOrEmptyDatasetExitsWith1) {
     const fs::path empty = tmpDir("empty");
     expectDataError(empty, {empty.string(), "no runs found"});
   }
+}
+
+TEST_F(GapDiagnoseCli, TopicThatNoBagRunHasExitsWith1) {
+  const fs::path dir = datasetWith("csv_only_topic", 2);
+  const fs::path out = tmpDir("topic_out", false);
+  const ToolResult r = runGap({"diagnose", dir.string(), "--out", out.string(), "--topic", "/airbag_0_0/state"});
+  EXPECT_EQ(r.code, 1) << r.output;
+  expectContains(r.output, {"no bag run has the topic '/airbag_0_0/state'", "none, no bags"});
+  expectNoReport(out);
 }
 
 TEST_F(GapDiagnoseCli, BadRunFilesAreNamedWithLineAndColumn) {
@@ -411,6 +420,29 @@ TEST(GapDiagnoseReport, WriteReportFilesWritesJsonAndMarkdown) {
   nb::writeReportFiles(dir.string(), report);
   EXPECT_EQ(slurp(dir / "report.json"), nb::reportJson(report));
   EXPECT_EQ(slurp(dir / "report.md"), nb::reportMarkdown(report));
+}
+
+TEST(GapDiagnoseReport, EveryRunGetsItsOwnTraceFileEvenFromOneBag) {
+  nb::DiagnosisReport report = handMadeReport();
+  for (const std::string name : {"run_a/airbag_0_0/state", "run_b/airbag_0_0/state", "a.csv"}) {
+    nb::RunTrace t;
+    t.name = name;
+    t.role = "fit";
+    t.t_s = {0.0, 0.1};
+    t.mdot_in_kg_s = t.p_meas_pa = t.h_meas_m = t.p_nominal_pa = t.h_nominal_m = t.p_after_pa = t.h_after_m = {0.0, 1.0};
+    t.phases = {nb::RunPhase::kDeploy, nb::RunPhase::kHold};
+    report.traces.push_back(t);
+  }
+  const fs::path dir = tmpDir("traces", false);
+  fs::create_directories(dir / "traces");
+  writeFile(dir / "traces" / "stale_from_an_earlier_report.csv", "# run: stale\n");
+  nb::writeReportFiles(dir.string(), report);
+  EXPECT_FALSE(fs::exists(dir / "traces" / "stale_from_an_earlier_report.csv"));
+  for (const std::string file : {"run_a_airbag_0_0_state.csv", "run_b_airbag_0_0_state.csv", "a.csv"}) {
+    const std::string text = slurp(dir / "traces" / file);
+    EXPECT_NE(text.find("# run: "), std::string::npos) << file << " missing or empty";
+  }
+  EXPECT_NE(slurp(dir / "traces" / "run_b_airbag_0_0_state.csv").find("# run: run_b/airbag_0_0/state"), std::string::npos);
 }
 
 // -------------------------------------------------------------------------------------------

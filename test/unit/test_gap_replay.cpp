@@ -136,6 +136,36 @@ TEST(GapReplay, AnUnmeteredVentValveIsRecognisedAndReplayed) {
   EXPECT_NEAR(vented.h_m[at(38.0)], metered.h_m[at(38.0)], 0.01);
 }
 
+TEST(GapReplay, IntervalMeanFlowPutsEachPulseInItsOwnInterval) {
+  // A bed's cell reports the mean flow since its previous message; a valve pulse of a few ms
+  // shows as one sample. Replayed as interval means, the pulse's gas is in by the sample that
+  // reports it; interpolated, only half of it.
+  const nb::CellParams params;
+  nb::RunData run;
+  run.name = "pulse";
+  run.load_n = 10.6;
+  const double dt = 0.02, pulse_kg_s = 2e-4;
+  for (int i = 0; i <= 100; ++i) {
+    run.t_s.push_back(i * dt);
+    run.mdot_in_kg_s.push_back(i == 50 ? pulse_kg_s : 0.0);
+    run.p_gauge_pa.push_back(0.0);
+    run.h_m.push_back(0.135);  // near full height: the pressure shows the gas
+  }
+  auto massAt = [&](bool interval_means, std::size_t i) {
+    run.flow_interval_means = interval_means;
+    // The gas in the bag at sample i, from the replay's pressure rise over the first sample's.
+    const nb::Replay rep = nb::replayRun(run, params, {});
+    EXPECT_TRUE(rep.ok) << rep.message;
+    return rep.p_gauge_pa[i] - rep.p_gauge_pa[0];
+  };
+  const double full_rise = massAt(true, 100);
+  ASSERT_GT(full_rise, 50.0);
+  EXPECT_NEAR(massAt(true, 100), massAt(false, 100), 0.01 * full_rise);  // the same gas in the end
+  // All of it by sample 50 (the plate, kicked, overshoots a little); interpolated, half.
+  EXPECT_GT(massAt(true, 50), 0.9 * full_rise);
+  EXPECT_LT(massAt(false, 50), 0.7 * massAt(true, 50));
+}
+
 TEST(GapReplay, PooledResidualUsesTheRangeOverAllRuns) {
   const nb::RunData a = synthRun({}, 1.0, 0), b = synthRun({}, 1.0, 3);
   const nb::Replay ra = nb::replayRun(a, nb::CellParams{}, {}), rb = nb::replayRun(b, nb::CellParams{}, {});

@@ -135,6 +135,10 @@ TEST(RunData, ReaderErrorsNameFileLineAndColumn) {
   expectContains(readError("# nursing_bed_run: 1\n# load_n: 1\nt_s,h_m,mdot_in_kg_s,p_gauge_pa,h_m\n"),
                  {"bad.csv:3:", "column 'h_m' (5) appears twice"});
   expectContains(readError("# nursing_bed_run: 1\n# load_n: 1\n"), {"bad.csv:", "no header"});
+  // How the flow was sampled: instant or interval_mean only.
+  expectContains(readError("# nursing_bed_run: 1\n# load_n: 1\n# mdot_sampling: averaged\n"
+                           "t_s,mdot_in_kg_s,p_gauge_pa,h_m\n0,0,0,0\n1,0,0,0\n"),
+                 {"bad.csv:3:", "mdot_sampling", "instant or interval_mean", "'averaged'"});
   // Unreadable file.
   try {
     nb::readRunCsv("/nonexistent/dir/run.csv");
@@ -182,6 +186,11 @@ TEST(RunData, WriteThenReadGivesTheSameRunBitForBit) {
       EXPECT_EQ(back.p_gauge_pa[i], r.p_gauge_pa[i]);
     }
   }
+  EXPECT_FALSE(back.flow_interval_means);
+  // Interval-mean flows say so in the metadata and read back as such.
+  r.flow_interval_means = true;
+  nb::writeRunCsv((dir / "means.csv").string(), r);
+  EXPECT_TRUE(nb::readRunCsv((dir / "means.csv").string()).flow_interval_means);
   // Inconsistent columns are refused.
   r.h_m.pop_back();
   EXPECT_THROW(nb::writeRunCsv((dir / "bad.csv").string(), r), std::runtime_error);

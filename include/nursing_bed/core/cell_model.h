@@ -59,6 +59,9 @@ struct CellInputs {
   /// When set, the inlet mass flow is this series [kg/s vs s] (a measured curve, the paper's
   /// way); the regulator and inlet valve are bypassed. Not owned.
   const TimeSeries* prescribed_inflow = nullptr;
+  /// When finite (and no series is set), the inlet mass flow is this constant over the step
+  /// [kg/s]: a meter that reports the mean flow of each sample interval.
+  double prescribed_inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
   /// With a prescribed inflow: the inlet is known to be closed over this step (a replay set the
   /// meter's noise there to 0), so effects that model the meter's errors add nothing.
   bool inlet_closed = false;

@@ -29,6 +29,11 @@ struct RunData {
   std::vector<double> p_supply_gauge_pa;  ///< supply pressure, gauge [Pa]
   std::vector<double> t_gas_k;            ///< gas temperature [K]
   std::string role;                       ///< "fit", "withheld" or "" (not assigned)
+  /// true: mdot_in_kg_s[i] is the mean flow over the interval that ends at sample i, as a
+  /// bed's AirbagState reports it (metadata "mdot_sampling: interval_mean"); a valve that
+  /// opens for a few ms between samples then still moves the right gas in the right interval.
+  /// false (default, "mdot_sampling: instant"): the meter's reading at t_s[i], linear between.
+  bool flow_interval_means = false;
   /// Samples whose flow the diagnosis set to 0 because the inlet was closed there
   /// (zeroClosedInletFlow); empty: none. Not read or written with the CSV.
   std::vector<bool> inlet_closed;
@@ -40,6 +45,8 @@ struct RunData {
 
 /// Format version this code reads and writes.
 constexpr int kRunCsvVersion = 1;
+/// Metadata key saying how mdot_in_kg_s was sampled: "instant" or "interval_mean".
+constexpr const char* kFlowSamplingKey = "mdot_sampling";
 
 /**
  * Reads a run CSV (version 1). Metadata lines "# key: value" before the header; the version
