@@ -132,15 +132,59 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
   return out;
 }
 
+namespace {
+
+/// Robust sd of white noise from second differences d: 1.4826 MAD / sqrt(6).
+double noiseOfSecondDifferences(std::vector<double> d) {
+  if (d.empty()) return 0.0;
+  for (double& v : d) v = std::fabs(v);
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return 1.4826 * d[d.size() / 2] / std::sqrt(6.0);
+}
+
+/// A local estimate of the meter's noise needs this many steady samples near.
+constexpr std::size_t kMinSteadySamples = 5;
+
+}  // namespace
+
 double estimateNoise(const std::vector<double>& x) {
   std::vector<double> d;
   for (std::size_t i = 1; i + 1 < x.size(); ++i) {
     const double v = x[i + 1] - 2.0 * x[i] + x[i - 1];
-    if (std::isfinite(v)) d.push_back(std::fabs(v));
+    if (std::isfinite(v)) d.push_back(v);
   }
-  if (d.empty()) return 0.0;
-  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-  return 1.4826 * d[d.size() / 2] / std::sqrt(6.0);
+  return noiseOfSecondDifferences(d);
+}
+
+std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w) {
+  const std::size_t n = flow.size();
+  const bool has_valve = run.valve_cmd.size() == n;
+  std::vector<double> d(n, NAN);  // second difference at i where the valve held still
+  std::vector<double> steady;
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    const bool still = !has_valve || (std::isfinite(run.valve_cmd[i]) && run.valve_cmd[i - 1] == run.valve_cmd[i] &&
+                                      run.valve_cmd[i + 1] == run.valve_cmd[i]);
+    const double v = flow[i + 1] - 2.0 * flow[i] + flow[i - 1];
+    if (still && std::isfinite(v)) {
+      d[i] = v;
+      steady.push_back(v);
+    }
+  }
+  // No steady sample at all (a valve that never held still): every sample, as without valve_cmd.
+  if (steady.empty()) {
+    for (std::size_t i = 1; i + 1 < n; ++i) d[i] = flow[i + 1] - 2.0 * flow[i] + flow[i - 1];
+    steady.assign(d.begin() + 1, d.end() - 1);
+    steady.erase(std::remove_if(steady.begin(), steady.end(), [](double v) { return !std::isfinite(v); }), steady.end());
+  }
+  const double whole_run = noiseOfSecondDifferences(steady);
+  std::vector<double> out(n, whole_run);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::vector<double> near;
+    for (std::size_t k = i > w ? i - w : 0; k < std::min(n, i + w + 1); ++k)
+      if (std::isfinite(d[k])) near.push_back(d[k]);
+    if (near.size() >= kMinSteadySamples) out[i] = noiseOfSecondDifferences(near);
+  }
+  return out;
 }
 
 namespace {

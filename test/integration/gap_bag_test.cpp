@@ -1,9 +1,10 @@
 // rostest node (gap_bag.test): the gap diagnosis on bags recorded from the simulated bed.
 //
 // The launch starts a 1 x 2 bed with sensor noise on; cell (0,0) is simulated with a hidden
-// leak (its private ~effects parameter), cell (0,1) is nominal. This test drives both cells
-// with the same protocol at the same time and records their AirbagState topics with rosbag
-// (each message written at its receipt time), one bag per run:
+// effect (its private ~effects parameter; by default a leak, the launch's `effect` arg), cell
+// (0,1) is nominal. This test drives both cells with the same protocol at the same time and
+// records their AirbagState topics with rosbag (each message written at its receipt time), one
+// bag per run:
 //   run A: load 10.6 N, flat -> 0.12 m, 25 s                                 role "fit"
 //   (unrecorded: load 15.6 N, down to 0.05 m, settle)
 //   run B: load 15.6 N, 0.05 m -> 0.13 m, 25 s                               role "withheld"
@@ -11,10 +12,11 @@
 // watchdog, safety/command_timeout_s, alive), then from kSealAtS on the heartbeats stop, the
 // watchdog shuts both valves and the cell holds its gas to the end of the run.
 // It then reads the bags back (readRunsFromBag), makes one dataset per cell and diagnoses each
-// against the nominal model of the default cell file with the default options: the leaky
-// cell must come out "explained" by exactly {leak} (its fitted area within a factor 2 of the
-// simulated one), the nominal one "none". Each report is printed in full (reportMarkdown); when
-// the test fails, the bags and the reports (report_airbag_R_C/) stay in the temp dir it names.
+// against the nominal model of the default cell file with the default options: the affected
+// cell must come out "explained" by exactly its effect (each fitted parameter within a factor
+// 2 of the simulated one), the nominal one "none". Each report is printed in full
+// (reportMarkdown); when the test fails (or NURSING_BED_KEEP_BAGS is set), the bags and the
+// reports (report_airbag_R_C/) stay in the temp dir it names.
 #include <rosbag/bag.h>
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
@@ -29,6 +31,7 @@
 #include "bed_fixture.h"
 #include "nursing_bed/core/cell_params_io.h"
 #include "nursing_bed/core/gap_diagnosis.h"
+#include "nursing_bed/core/gap_synth.h"
 #include "nursing_bed/core/run_data.h"
 #include "nursing_bed/ros/bag_runs.h"
 
@@ -141,9 +144,17 @@ class GapBagFixture : public BedFixture {
 
 TEST_F(GapBagFixture, LeakyCellIsExplainedByALeakAndTheNominalCellByNothing) {
   const ros::WallTime t0 = ros::WallTime::now();
-  double leak_truth = 0.0;
-  ros::NodeHandle("~").param("leak_area_m2", leak_truth, leak_truth);
-  ASSERT_GT(leak_truth, 0.0) << "~leak_area_m2 (the simulated leak) is not set";
+  // The hidden effect of cell (0,0), as its ~effects parameter has it: one candidate with every
+  // parameter given.
+  std::string effect_text;
+  ros::NodeHandle("~").param("effect", effect_text, effect_text);
+  SynthEffectRequest truth;
+  try {
+    truth = parseEffectRequest(effect_text);
+  } catch (const std::invalid_argument& e) {
+    FAIL() << "~effect '" << effect_text << "': " << e.what();
+  }
+  ASSERT_FALSE(truth.params.empty()) << "~effect '" << effect_text << "' gives no parameter values";
 
   // Run A: 10.6 N, flat -> 12 cm.
   setLoads(10.6);
@@ -190,15 +201,16 @@ TEST_F(GapBagFixture, LeakyCellIsExplainedByALeakAndTheNominalCellByNothing) {
     reports[topic] = std::move(report);
   }
 
-  const DiagnosisReport& leaky = reports.at("/airbag_0_0/state");
+  const DiagnosisReport& affected = reports.at("/airbag_0_0/state");
   const DiagnosisReport& nominal = reports.at("/airbag_0_1/state");
-  EXPECT_EQ(leaky.status, "explained");
-  EXPECT_EQ(leaky.verdict_effects, std::vector<std::string>{"leak"});
-  if (leaky.verdict_params.count("leak_area_m2")) {
-    const double fitted = leaky.verdict_params.at("leak_area_m2");
-    std::cout << "fitted leak area " << fitted << " m^2, simulated " << leak_truth << " m^2" << std::endl;
-    EXPECT_GT(fitted, 0.5 * leak_truth);
-    EXPECT_LT(fitted, 2.0 * leak_truth);
+  EXPECT_EQ(affected.status, "explained");
+  EXPECT_EQ(affected.verdict_effects, std::vector<std::string>{truth.name});
+  for (const auto& [key, simulated] : truth.params) {
+    if (!affected.verdict_params.count(key)) continue;
+    const double fitted = affected.verdict_params.at(key);
+    std::cout << "fitted " << key << " " << fitted << ", simulated " << simulated << std::endl;
+    EXPECT_GT(fitted, 0.5 * simulated) << key;
+    EXPECT_LT(fitted, 2.0 * simulated) << key;
   }
   EXPECT_EQ(nominal.status, "none");
   EXPECT_TRUE(nominal.verdict_effects.empty());

@@ -166,6 +166,29 @@ TEST(GapReplay, IntervalMeanFlowPutsEachPulseInItsOwnInterval) {
   EXPECT_LT(massAt(false, 50), 0.7 * massAt(true, 50));
 }
 
+TEST(GapReplay, MeterNoiseIsTakenWhereTheValveHeldStillNotFromValvePulses) {
+  // 20 s at 50 Hz: a steady inflow with the meter's noise (valve open), then a controller
+  // holding with 5 ms pulses in every other sample (valve_cmd the mean opening, 0.25).
+  std::mt19937 rng(3);
+  std::normal_distribution<double> meter(0.0, 2e-6);
+  nb::RunData run;
+  for (int i = 0; i < 1000; ++i) {
+    const bool pulsing = i >= 500;
+    const bool pulse = pulsing && i % 2 == 0;
+    run.t_s.push_back(0.02 * i);
+    run.valve_cmd.push_back(pulsing ? (pulse ? 0.25 : 0.0) : 1.0);
+    run.mdot_in_kg_s.push_back(pulsing ? (pulse ? 1e-4 : 0.0) : 5e-5 + meter(rng));
+  }
+  run.p_gauge_pa.assign(run.size(), 0.0);
+  run.h_m.assign(run.size(), 0.1);
+  const std::vector<double> noise = nb::meterNoise(run, run.mdot_in_kg_s, 25);
+  EXPECT_NEAR(noise[250], 2e-6, 0.5e-6);  // steady: the meter's noise
+  EXPECT_LT(noise[800], 4e-6);            // pulses: not noise; the run's steady estimate
+  // Without valve_cmd the pulses cannot be told from noise: they count.
+  run.valve_cmd.clear();
+  EXPECT_GT(nb::meterNoise(run, run.mdot_in_kg_s, 25)[800], 1e-5);
+}
+
 TEST(GapReplay, PooledResidualUsesTheRangeOverAllRuns) {
   const nb::RunData a = synthRun({}, 1.0, 0), b = synthRun({}, 1.0, 3);
   const nb::Replay ra = nb::replayRun(a, nb::CellParams{}, {}), rb = nb::replayRun(b, nb::CellParams{}, {});

@@ -54,6 +54,11 @@ struct DiagnosisOptions {
   double explained_excess_removed = 0.995;
   double withheld_chi2 = 3.0;
   double withheld_gap_removed = 0.99;
+  /// ... and it must lower the withheld runs' chi2 (whitened, summed) by at least this: their
+  /// likelihood rises by e^(gain/2), about 150 : 1 at 10, with no parameter fitted to them. A
+  /// fit that only bends the model onto the fit runs' noise or artefacts (a sensor lag of 50 us
+  /// fitted to a lift-off spike at 50 Hz) gains nothing there.
+  double min_withheld_gain = 10.0;
   /// Fitted parameters may lie this factor outside their plausible range (log-scale ones; linear
   /// ones this many range widths) before the fit is called implausible.
   double plausible_slack = 3.0;

@@ -60,6 +60,15 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
 /// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.
 double estimateNoise(const std::vector<double>& signal);
 
+/// The flow meter's noise around each sample of `flow` (the run's inflow as measured): the
+/// estimate of estimateNoise() over the samples i-w .. i+w (a meter's noise grows with its
+/// reading), from the samples where the valve held still (valve_cmd equal at i-1, i, i+1, when
+/// the run has it). A valve that the controller opens for a few ms at a time moves gas in
+/// pulses, and those are flow, not the meter's noise: on recordings of the bed they posed as a
+/// noise hundreds of times the meter's. Where fewer than 5 such samples are near, the estimate
+/// over all of the run's; a run whose valve never held still, every sample.
+std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w);
+
 /// Whether the run vents through a valve of its own that the inlet's meter does not see (a
 /// bed's cell): valve_cmd < 0 (venting) while the metered flow stays near zero (its mean above
 /// -1 % of the peak inflow). The replay then opens the model's vent valve by -valve_cmd.
