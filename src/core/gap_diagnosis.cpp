@@ -809,6 +809,32 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     if (significant_count >= 4) break;  // the rest fit worse still
   }
   if (significant_count == 0) rep.reasons.push_back("no candidate improves the fit significantly");
+  // A near tie on the fit runs: a candidate (no more effects than the winner) that also
+  // explains the gap and fits the fit runs about as well; the withheld runs decide.
+  if (winner && std::isfinite(held_before)) {
+    for (const auto& s2 : scored) {
+      const CandidateFit& c = s2.first;
+      if (&c == winner || c.effects.size() > winner->effects.size()) continue;
+      if (!(std::fabs(c.bic_delta - winner->bic_delta) < options.near_tie_bic)) continue;
+      if (!explainsAlone(c) || (c.effects.size() > 1 && !pairEarnsItsPlace(c))) continue;
+      const double gain = (winner->withheld_chi2_per_sample - c.withheld_chi2_per_sample) * n_held;
+      std::ostringstream e;
+      e << joinNames(winner->effects) << " and " << joinNames(c.effects) << " fit the fit runs about equally well (BIC "
+        << fmt(winner->bic_delta, 5) << " and " << fmt(c.bic_delta, 5) << "); on the withheld runs their chi2 is "
+        << fmt(winner->withheld_chi2_per_sample * n_held, 5) << " and " << fmt(c.withheld_chi2_per_sample * n_held, 5);
+      if (gain >= options.min_withheld_gain) {
+        e << ": the withheld runs decide for " << joinNames(c.effects);
+        winner = &c;
+        winner_model = &s2.second;
+        rep.reasons.push_back(e.str());
+        break;
+      }
+      e << ": " << (gain <= -options.min_withheld_gain ? "the withheld runs confirm " + joinNames(winner->effects)
+                                                        : "the withheld runs do not tell them apart either; " +
+                                                              joinNames(winner->effects) + " by BIC");
+      rep.reasons.push_back(e.str());
+    }
+  }
   const bool explained = winner != nullptr;
   if (explained) {
     rep.status = "explained";

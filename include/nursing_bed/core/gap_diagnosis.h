@@ -59,6 +59,10 @@ struct DiagnosisOptions {
   /// fit that only bends the model onto the fit runs' noise or artefacts (a sensor lag of 50 us
   /// fitted to a lift-off spike at 50 Hz) gains nothing there.
   double min_withheld_gain = 10.0;
+  /// Two candidates whose BIC on the fit runs differ by less than this are a near tie (BIC
+  /// differences below 10 are not "very strong" evidence): the withheld runs, which no fit has
+  /// seen, decide between them when one lowers their chi2 by min_withheld_gain more.
+  double near_tie_bic = 10.0;
   /// Fitted parameters may lie this factor outside their plausible range (log-scale ones; linear
   /// ones this many range widths) before the fit is called implausible.
   double plausible_slack = 3.0;
