@@ -516,6 +516,114 @@ std::string fmt(double v, int precision = 3) {
 
 }  // namespace
 
+Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
+                      const DiagnosisOptions& options) {
+  Verdict v;
+  const int n = nominal.fit_residuals, n_held = nominal.withheld_residuals;
+  const double chi2n_nominal = nominal.chi2 / n;
+  const double held_before = n_held > 0 ? nominal.withheld_chi2_per_sample : kNaN;
+  auto drop = [&](const CandidateFit& c) { return (nominal.chi2 - c.chi2) / n; };
+  auto significant = [&](const CandidateFit& c) {
+    return c.ok && c.plausible && c.bic_delta < -options.significant_bic_drop && drop(c) >= options.min_chi2_drop;
+  };
+  auto fitsFitRuns = [&](const CandidateFit& c) {
+    return c.chi2 / n <= options.explained_chi2 ||
+           c.chi2 / n - 1.0 <= (1.0 - options.explained_excess_removed) * (chi2n_nominal - 1.0);
+  };
+  auto fitsWithheld = [&](const CandidateFit& c) {
+    if (!std::isfinite(held_before)) return true;  // nothing withheld
+    const double after = c.withheld_chi2_per_sample;
+    const bool within = after <= options.withheld_chi2 ||
+                        (after - 1.0) <= (1.0 - options.withheld_gap_removed) * (held_before - 1.0);
+    return within && (held_before - after) * n_held >= options.min_withheld_gain;  // held-out likelihood
+  };
+  auto explainsAlone = [&](const CandidateFit& c) { return significant(c) && fitsFitRuns(c) && fitsWithheld(c); };
+  // A pair only where it beats the better of its two singles significantly, and neither single
+  // explains the gap alone (the simpler answer first).
+  auto pairEarnsItsPlace = [&](const CandidateFit& pair) {
+    bool first = true;
+    for (const CandidateFit& c : candidates) {
+      if (!c.ok || c.effects.size() != 1) continue;
+      if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
+      if (explainsAlone(c)) return false;
+      if (first && (c.bic_delta - pair.bic_delta < options.significant_bic_drop ||
+                    (c.chi2 - pair.chi2) / n < options.min_chi2_drop))
+        return false;
+      first = false;
+    }
+    return true;
+  };
+  v.reasons.push_back("a candidate is significant when BIC drops by more than " + fmt(options.significant_bic_drop) +
+                      " and chi2/n by at least " + fmt(options.min_chi2_drop) + "; it explains the gap when it leaves " +
+                      "chi2/n <= " + fmt(options.explained_chi2) + " on the fit runs (or removes " +
+                      fmt(100.0 * options.explained_excess_removed) + " % of the excess over 1), <= " +
+                      fmt(options.withheld_chi2) + " on the withheld runs (or removes " +
+                      fmt(100.0 * options.withheld_gap_removed) + " %) and lowers their chi2 by at least " +
+                      fmt(options.min_withheld_gain));
+  // Candidates in BIC order; the first that is significant and holds up (fits the fit runs
+  // within the noise, and the withheld runs too, better than the nominal model) wins.
+  int significant_count = 0;
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const CandidateFit& c = candidates[i];
+    if (!significant(c) || (c.effects.size() > 1 && !pairEarnsItsPlace(c))) continue;
+    ++significant_count;
+    std::ostringstream e;
+    e << joinNames(c.effects) << ": BIC " << fmt(c.bic_delta, 4) << ", chi2/n " << fmt(c.chi2 / n) << " on the fit runs";
+    if (std::isfinite(held_before))
+      e << ", " << fmt(c.withheld_chi2_per_sample) << " on the withheld runs (chi2 " << fmt(held_before * n_held, 5)
+        << " -> " << fmt(c.withheld_chi2_per_sample * n_held, 5) << ", nrmse " << fmt(nominal.withheld_nrmse) << " -> "
+        << fmt(c.withheld_nrmse) << ")";
+    const bool fit_ok = fitsFitRuns(c), held_ok = fitsWithheld(c);
+    e << (fit_ok && held_ok ? ": explains the gap"
+          : !fit_ok         ? ": leaves too much on the fit runs"
+                            : ": does not hold up on the withheld runs");
+    v.reasons.push_back(e.str());
+    if (fit_ok && held_ok) {
+      v.winner = static_cast<int>(i);
+      break;
+    }
+    if (significant_count >= 4) break;  // the rest fit worse still
+  }
+  if (significant_count == 0) v.reasons.push_back("no candidate improves the fit significantly");
+  // A near tie on the fit runs: a candidate (no more effects than the winner) that also
+  // explains the gap and fits the fit runs about as well; the withheld runs decide.
+  if (v.winner >= 0 && std::isfinite(held_before)) {
+    const CandidateFit& w = candidates[v.winner];
+    for (std::size_t i = 0; i < candidates.size(); ++i) {
+      const CandidateFit& c = candidates[i];
+      if (static_cast<int>(i) == v.winner || c.effects.size() > w.effects.size()) continue;
+      if (!(std::fabs(c.bic_delta - w.bic_delta) < options.near_tie_bic)) continue;
+      if (!explainsAlone(c) || (c.effects.size() > 1 && !pairEarnsItsPlace(c))) continue;
+      const double gain = (w.withheld_chi2_per_sample - c.withheld_chi2_per_sample) * n_held;
+      std::ostringstream e;
+      e << joinNames(w.effects) << " and " << joinNames(c.effects) << " fit the fit runs about equally well (BIC "
+        << fmt(w.bic_delta, 5) << " and " << fmt(c.bic_delta, 5) << "); on the withheld runs their chi2 is "
+        << fmt(w.withheld_chi2_per_sample * n_held, 5) << " and " << fmt(c.withheld_chi2_per_sample * n_held, 5);
+      if (gain >= options.min_withheld_gain) {
+        e << ": the withheld runs decide for " << joinNames(c.effects);
+        v.reasons.push_back(e.str());
+        v.winner = static_cast<int>(i);
+        break;
+      }
+      e << ": " << (gain <= -options.min_withheld_gain ? "the withheld runs confirm " + joinNames(w.effects)
+                                                        : "the withheld runs do not tell them apart either; " +
+                                                              joinNames(w.effects) + " by BIC");
+      v.reasons.push_back(e.str());
+    }
+  }
+  if (v.winner >= 0) {
+    v.status = "explained";
+  } else if (chi2n_nominal <= options.within_noise_chi2) {
+    v.status = "none";
+    v.reasons.push_back("the nominal model fits within the noise, and no candidate both improves it significantly "
+                        "and holds up on the withheld runs");
+  } else {
+    v.status = "unexplained";
+    v.reasons.push_back("a significant gap that no candidate accounts for");
+  }
+  return v;
+}
+
 DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
                              const std::string& dataset_name) {
   const auto started = std::chrono::steady_clock::now();
@@ -727,126 +835,31 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   });
   for (const auto& s : scored) rep.candidates.push_back(s.first);
 
-  // 5. Verdict. Candidates in BIC order; the first that is significant and holds up (fits the
-  // fit runs within the noise, and the withheld runs too, better than the nominal model) wins.
-  const double chi2n_nominal = rep.nominal_chi2_per_sample;
-  const bool gap = chi2n_nominal > options.within_noise_chi2;
-  const double held_before = rep.nominal_withheld_chi2_per_sample;
-  const double held_nrmse_before = setResidual(withheld_runs, params, {}).total;
-  auto drop = [&](const CandidateFit& c) { return (chi2_nominal - c.chi2) / n; };
-  auto significant = [&](const CandidateFit& c) {
-    return c.ok && c.plausible && c.bic_delta < -options.significant_bic_drop && drop(c) >= options.min_chi2_drop;
-  };
-  auto fitsFitRuns = [&](const CandidateFit& c) {
-    return c.chi2 / n <= options.explained_chi2 ||
-           c.chi2 / n - 1.0 <= (1.0 - options.explained_excess_removed) * (chi2n_nominal - 1.0);
-  };
-  auto fitsWithheld = [&](const CandidateFit& c) {
-    if (!std::isfinite(held_before)) return true;  // nothing withheld
-    const double after = c.withheld_chi2_per_sample;
-    const bool within = after <= options.withheld_chi2 ||
-                        (after - 1.0) <= (1.0 - options.withheld_gap_removed) * (held_before - 1.0);
-    return within && (held_before - after) * n_held >= options.min_withheld_gain;  // held-out likelihood
-  };
-  // A pair only where it beats the better of its two singles significantly, and neither single
-  // explains the gap alone (the simpler answer first).
-  auto explainsAlone = [&](const CandidateFit& c) {
-    return significant(c) && fitsFitRuns(c) && fitsWithheld(c);
-  };
-  auto pairEarnsItsPlace = [&](const CandidateFit& pair) {
-    bool first = true;
-    for (const auto& s2 : scored) {
-      const CandidateFit& c = s2.first;
-      if (!c.ok || c.effects.size() != 1) continue;
-      if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
-      if (explainsAlone(c)) return false;
-      if (first && (c.bic_delta - pair.bic_delta < options.significant_bic_drop ||
-                    (c.chi2 - pair.chi2) / n < options.min_chi2_drop))
-        return false;
-      first = false;
-    }
-    return true;
-  };
+  // 5. Verdict (decideVerdict).
+  NominalScore nominal_score;
+  nominal_score.chi2 = chi2_nominal;
+  nominal_score.fit_residuals = n;
+  nominal_score.withheld_chi2_per_sample = rep.nominal_withheld_chi2_per_sample;
+  nominal_score.withheld_residuals = n_held;
+  nominal_score.withheld_nrmse = setResidual(withheld_runs, params, {}).total;
   std::ostringstream why;
-  why << "nominal model: chi2/n = " << fmt(chi2n_nominal) << " in noise-floor units (within the noise up to "
-      << fmt(options.within_noise_chi2) << ")" << (std::isfinite(held_before) ? ", " + fmt(held_before) + " on the withheld runs" : "")
+  why << "nominal model: chi2/n = " << fmt(rep.nominal_chi2_per_sample) << " in noise-floor units (within the noise up to "
+      << fmt(options.within_noise_chi2) << ")"
+      << (n_held > 0 ? ", " + fmt(rep.nominal_withheld_chi2_per_sample) + " on the withheld runs" : "")
       << "; fit-run nrmse " << fmt(rep.nominal_fit_nrmse);
   rep.reasons.push_back(why.str());
   if (gated_runs > 0)
     rep.reasons.push_back("in " + std::to_string(gated_runs) + " of " + std::to_string(runs.size()) +
                           " runs the flow meter read noise around zero while the inlet was closed; the replay "
                           "takes zero flow there");
-  rep.reasons.push_back("a candidate is significant when BIC drops by more than " + fmt(options.significant_bic_drop) +
-                        " and chi2/n by at least " + fmt(options.min_chi2_drop) + "; it explains the gap when it leaves " +
-                        "chi2/n <= " + fmt(options.explained_chi2) + " on the fit runs (or removes " +
-                        fmt(100.0 * options.explained_excess_removed) + " % of the excess over 1), <= " +
-                        fmt(options.withheld_chi2) + " on the withheld runs (or removes " +
-                        fmt(100.0 * options.withheld_gap_removed) + " %) and lowers their chi2 by at least " +
-                        fmt(options.min_withheld_gain));
-  const CandidateFit* winner = nullptr;
-  const ModelSpec* winner_model = nullptr;
-  int significant_count = 0;
-  for (const auto& s2 : scored) {
-    const CandidateFit& c = s2.first;
-    if (!significant(c) || (c.effects.size() > 1 && !pairEarnsItsPlace(c))) continue;
-    ++significant_count;
-    std::ostringstream e;
-    e << joinNames(c.effects) << ": BIC " << fmt(c.bic_delta, 4) << ", chi2/n " << fmt(c.chi2 / n) << " on the fit runs";
-    if (std::isfinite(held_before))
-      e << ", " << fmt(c.withheld_chi2_per_sample) << " on the withheld runs (chi2 " << fmt(held_before * n_held, 5)
-        << " -> " << fmt(c.withheld_chi2_per_sample * n_held, 5) << ", nrmse " << fmt(held_nrmse_before) << " -> "
-        << fmt(c.withheld_nrmse) << ")";
-    const bool fit_ok = fitsFitRuns(c), held_ok = fitsWithheld(c);
-    e << (fit_ok && held_ok ? ": explains the gap"
-          : !fit_ok         ? ": leaves too much on the fit runs"
-                            : ": does not hold up on the withheld runs");
-    rep.reasons.push_back(e.str());
-    if (fit_ok && held_ok) {
-      winner = &c;
-      winner_model = &s2.second;
-      break;
-    }
-    if (significant_count >= 4) break;  // the rest fit worse still
-  }
-  if (significant_count == 0) rep.reasons.push_back("no candidate improves the fit significantly");
-  // A near tie on the fit runs: a candidate (no more effects than the winner) that also
-  // explains the gap and fits the fit runs about as well; the withheld runs decide.
-  if (winner && std::isfinite(held_before)) {
-    for (const auto& s2 : scored) {
-      const CandidateFit& c = s2.first;
-      if (&c == winner || c.effects.size() > winner->effects.size()) continue;
-      if (!(std::fabs(c.bic_delta - winner->bic_delta) < options.near_tie_bic)) continue;
-      if (!explainsAlone(c) || (c.effects.size() > 1 && !pairEarnsItsPlace(c))) continue;
-      const double gain = (winner->withheld_chi2_per_sample - c.withheld_chi2_per_sample) * n_held;
-      std::ostringstream e;
-      e << joinNames(winner->effects) << " and " << joinNames(c.effects) << " fit the fit runs about equally well (BIC "
-        << fmt(winner->bic_delta, 5) << " and " << fmt(c.bic_delta, 5) << "); on the withheld runs their chi2 is "
-        << fmt(winner->withheld_chi2_per_sample * n_held, 5) << " and " << fmt(c.withheld_chi2_per_sample * n_held, 5);
-      if (gain >= options.min_withheld_gain) {
-        e << ": the withheld runs decide for " << joinNames(c.effects);
-        winner = &c;
-        winner_model = &s2.second;
-        rep.reasons.push_back(e.str());
-        break;
-      }
-      e << ": " << (gain <= -options.min_withheld_gain ? "the withheld runs confirm " + joinNames(winner->effects)
-                                                        : "the withheld runs do not tell them apart either; " +
-                                                              joinNames(winner->effects) + " by BIC");
-      rep.reasons.push_back(e.str());
-    }
-  }
-  const bool explained = winner != nullptr;
+  const Verdict verdict = decideVerdict(rep.candidates, nominal_score, options);
+  rep.reasons.insert(rep.reasons.end(), verdict.reasons.begin(), verdict.reasons.end());
+  rep.status = verdict.status;
+  const bool explained = verdict.winner >= 0;
+  const ModelSpec* winner_model = explained ? &scored[verdict.winner].second : nullptr;
   if (explained) {
-    rep.status = "explained";
-    rep.verdict_effects = winner->effects;
-    rep.verdict_params = winner->params;
-  } else if (!gap) {
-    rep.status = "none";
-    rep.reasons.push_back("the nominal model fits within the noise, and no candidate both improves it significantly "
-                          "and holds up on the withheld runs");
-  } else {
-    rep.status = "unexplained";
-    rep.reasons.push_back("a significant gap that no candidate accounts for");
+    rep.verdict_effects = rep.candidates[verdict.winner].effects;
+    rep.verdict_params = rep.candidates[verdict.winner].params;
   }
 
   // 6. Shrinkage and traces with the verdict model (the nominal one when nothing is named).

@@ -359,6 +359,118 @@ assert s["by_signal"]["pressure"] == [0.08, 0.008] and s["by_signal"]["height"] 
 print("report.json ok")
 )PY";
 
+// -------------------------------------------------------------------------------------------
+// The decision alone (decideVerdict), on hand-made fits: 500 fit residuals, 250 withheld
+// -------------------------------------------------------------------------------------------
+
+constexpr int kFitResiduals = 500, kHeldResiduals = 250;
+
+nb::NominalScore nominalScore(double chi2_per_sample, double withheld_chi2_per_sample) {
+  nb::NominalScore s;
+  s.chi2 = chi2_per_sample * kFitResiduals;
+  s.fit_residuals = kFitResiduals;
+  s.withheld_chi2_per_sample = withheld_chi2_per_sample;
+  s.withheld_residuals = kHeldResiduals;
+  s.withheld_nrmse = 0.02;
+  return s;
+}
+
+/// A fit of `effects` (one parameter each) leaving chi2/n on the fit runs and on the withheld.
+nb::CandidateFit fitOf(std::vector<std::string> effects, double chi2_per_sample, double withheld_chi2_per_sample,
+                       const nb::NominalScore& nominal) {
+  nb::CandidateFit c;
+  c.effects = std::move(effects);
+  c.chi2 = chi2_per_sample * kFitResiduals;
+  c.bic_delta = c.chi2 - nominal.chi2 + c.effects.size() * std::log(double(kFitResiduals));
+  c.withheld_chi2_per_sample = withheld_chi2_per_sample;
+  c.withheld_nrmse = 0.01;
+  return c;
+}
+
+std::vector<nb::CandidateFit> byBic(std::vector<nb::CandidateFit> c) {
+  std::sort(c.begin(), c.end(), [](const auto& a, const auto& b) { return a.bic_delta < b.bic_delta; });
+  return c;
+}
+
+std::string named(const nb::Verdict& v, const std::vector<nb::CandidateFit>& c) {
+  std::string all;
+  for (const auto& r : v.reasons) all += "\n  " + r;
+  return v.status + (v.winner >= 0 ? " " + c[v.winner].effects[0] + (c[v.winner].effects.size() > 1 ? "+" + c[v.winner].effects[1] : "") : "") + all;
+}
+
+TEST(GapDecision, AClearEffectIsNamed) {
+  const auto nominal = nominalScore(2.0, 2.0);
+  const auto c = byBic({fitOf({"leak"}, 1.0, 1.0, nominal), fitOf({"heat_transfer"}, 1.6, 1.7, nominal)});
+  const nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  EXPECT_EQ(v.status, "explained") << named(v, c);
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects, std::vector<std::string>{"leak"});
+}
+
+TEST(GapDecision, WithinTheNoiseAndNoWithheldGainIsNone) {
+  // Significant on the fit runs (BIC -24), but the withheld runs gain less than 1 in chi2: the
+  // fit bent the model onto the fit runs' noise (a 50 us sensor lag on a lift-off spike).
+  const auto nominal = nominalScore(1.15, 1.21);
+  const auto c = byBic({fitOf({"pressure_sensor_lag"}, 1.15 - 30.0 / kFitResiduals, 1.208, nominal)});
+  ASSERT_LT(c[0].bic_delta, -20.0);
+  const nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  EXPECT_EQ(v.status, "none") << named(v, c);
+  EXPECT_EQ(v.winner, -1);
+}
+
+TEST(GapDecision, ANearTieIsDecidedByTheWithheldRuns) {
+  const auto nominal = nominalScore(2.4, 4.0);
+  // heat_transfer fits the fit runs 0.4 better in BIC, the leak the withheld runs by 150.
+  auto leak = fitOf({"leak"}, 1.2, 1.5, nominal), heat = fitOf({"heat_transfer"}, 1.2, 2.1, nominal);
+  heat.chi2 -= 0.4;
+  heat.bic_delta -= 0.4;
+  const auto c = byBic({leak, heat});
+  ASSERT_EQ(c[0].effects[0], "heat_transfer");
+  const nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0) << named(v, c);
+  EXPECT_EQ(c[v.winner].effects[0], "leak") << named(v, c);
+  // Withheld runs that cannot tell them apart either leave the BIC winner.
+  auto heat_alike = heat;
+  heat_alike.withheld_chi2_per_sample = 1.5 + 5.0 / kHeldResiduals;
+  const auto c2 = byBic({leak, heat_alike});
+  const nb::Verdict v2 = nb::decideVerdict(c2, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v2.winner, 0);
+  EXPECT_EQ(c2[v2.winner].effects[0], "heat_transfer") << named(v2, c2);
+  // No tie at 10 or more in BIC: the withheld runs are not asked.
+  heat.chi2 -= 12.0;
+  heat.bic_delta -= 12.0;
+  const auto c3 = byBic({leak, heat});
+  const nb::Verdict v3 = nb::decideVerdict(c3, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v3.winner, 0);
+  EXPECT_EQ(c3[v3.winner].effects[0], "heat_transfer") << named(v3, c3);
+}
+
+TEST(GapDecision, APairOnlyWhereNoSingleExplainsTheGap) {
+  const auto nominal = nominalScore(3.0, 3.0);
+  const auto leak = fitOf({"leak"}, 1.3, 1.3, nominal);
+  const auto pair = fitOf({"leak", "membrane_viscoelasticity"}, 1.0, 1.0, nominal);  // 150 better in chi2
+  auto c = byBic({leak, pair});
+  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);  // the leak explains it alone
+  // A single that leaves too much (chi2/n 2): the pair.
+  c = byBic({fitOf({"leak"}, 2.0, 2.0, nominal), pair});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+}
+
+TEST(GapDecision, AGapNothingRemovesIsUnexplainedAndImplausibleFitsDoNotCount) {
+  const auto nominal = nominalScore(5.0, 5.0);
+  auto partial = fitOf({"heat_transfer"}, 3.0, 3.5, nominal);  // significant, but leaves chi2/n 3
+  auto implausible = fitOf({"supply_line"}, 1.0, 1.0, nominal);
+  implausible.plausible = false;
+  const auto c = byBic({partial, implausible});
+  const nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  EXPECT_EQ(v.status, "unexplained") << named(v, c);
+  EXPECT_EQ(v.winner, -1);
+}
+
 TEST(GapDiagnoseReport, JsonHasExactlyTheSpecifiedKeysNullForNaNAndEscapes) {
   const nb::DiagnosisReport report = handMadeReport();
   const std::string json = nb::reportJson(report);

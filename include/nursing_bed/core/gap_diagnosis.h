@@ -128,6 +128,27 @@ struct DiagnosisReport {
   double elapsed_s = 0.0;
 };
 
+/// What the decision needs of the nominal model.
+struct NominalScore {
+  double chi2 = 0.0;                      ///< fit runs, whitened, summed
+  int fit_residuals = 0;                  ///< n of the BIC
+  double withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs
+  int withheld_residuals = 0;             ///< 0: nothing withheld
+  double withheld_nrmse = NAN;            ///< for the reasons
+};
+
+struct Verdict {
+  std::string status;                ///< none, explained, unexplained
+  int winner = -1;                   ///< index of the named candidate; -1: none named
+  std::vector<std::string> reasons;  ///< the decision in words, one line each
+};
+
+/// The decision of doc/gap_diagnosis.md ("Decisions") over fitted `candidates` (lowest BIC
+/// first, as DiagnosisReport::candidates): significance, holding up on fit and withheld runs,
+/// pairs only where no single explains the gap, near ties decided by the withheld runs.
+Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
+                      const DiagnosisOptions& options);
+
 /**
  * Diagnoses `runs` (each with a role "fit"/"withheld", or all without one; then about a
  * quarter, spread over the loads, is withheld and the report says so) against the nominal
