@@ -158,6 +158,7 @@ double estimateNoise(const std::vector<double>& x) {
 
 std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w) {
   const std::size_t n = flow.size();
+  if (n < 3) return std::vector<double>(n, 0.0);  // no second difference
   const bool has_valve = run.valve_cmd.size() == n;
   std::vector<double> d(n, NAN);  // second difference at i where the valve held still
   std::vector<double> steady;
