@@ -63,7 +63,7 @@ void AirbagCell::reset(double load_n) {
   valves_ = ValveCommand{};
   last_command_s_ = 0.0;
   last_pressure_pa_ = 0.0;
-  measurement_ = model_.measure();
+  sense();
 }
 
 void AirbagCell::resetToHeight(double height_m, double load_n) {
@@ -71,7 +71,7 @@ void AirbagCell::resetToHeight(double height_m, double load_n) {
   model_.resetToEquilibrium(height_m, load_n);
   controller_.setTarget(height_m);
   mode_ = AirbagMode::kHeight;
-  measurement_ = model_.measure();
+  sense();
   last_pressure_pa_ = measurement_.gauge_pressure_pa;
 }
 
@@ -123,12 +123,13 @@ void AirbagCell::advanceTo(double now_s) {
     metered_inlet_mass_kg_ += model_.measure().inflow_kg_s * period;
     inlet_opening_s_ += valves_.inlet * period;
     vent_opening_s_ += valves_.vent * period;
+    // Read at the period's end: what is published with this time is the state at this time
+    // (read at the start instead, a recording's pressure lagged its metered gas by a period).
+    sense();
   }
 }
 
-void AirbagCell::controlStep() {
-  const double now = model_.time();
-  // Sensors.
+void AirbagCell::sense() {
   measurement_ = model_.measure();
   measurement_.gauge_pressure_pa += params_.pressure_noise_pa * unit_noise_(rng_);
   measurement_.height_m += params_.height_noise_m * unit_noise_(rng_);
@@ -136,6 +137,11 @@ void AirbagCell::controlStep() {
     measurement_.gauge_pressure_pa = std::numeric_limits<double>::quiet_NaN();
     measurement_.height_m = std::numeric_limits<double>::quiet_NaN();
   }
+}
+
+void AirbagCell::controlStep() {
+  const double now = model_.time();
+  // The sensors were read at the end of the previous period (advanceTo), i.e. now.
   const AirbagSafetyParams& s = params_.safety;
   const double p = measurement_.gauge_pressure_pa, h = measurement_.height_m;
   const bool sensor_ok = std::isfinite(p) && std::isfinite(h) && p >= s.sensor_pressure_min_pa &&

@@ -237,23 +237,34 @@ RunNoise runNoise(const RunData& run) {
 /// noise integrated by the replay (a random walk of the gas mass, seen through the model's
 /// sensitivity).
 /// Interval means say how much gas came in over an interval, not when within it: a valve pulse
-/// may have been at its start or its end. The readings then are uncertain by the signal's rate
-/// of change times that timing, sd dt / sqrt(12) (uniform over the interval): nothing where the
-/// signals are steady, hundreds of Pa on the lift-off spike (4 kPa in 10 ms), where a replay at
-/// 200 Hz otherwise left chi2/n 13 on a cell the model matches. Instantaneous readings: none.
-struct Timing {
-  double var_p = 0.0, var_h = 0.0;
-};
-Timing timingSpread(const RunData& run, const Replay& nominal, std::size_t i) {
-  if (!run.flow_interval_means || i == 0 || i + 1 >= run.size()) return {};
-  const double span = run.t_s[i + 1] - run.t_s[i - 1];
-  const double dp_dt = (nominal.p_gauge_pa[i + 1] - nominal.p_gauge_pa[i - 1]) / span;
-  const double dh_dt = (nominal.h_m[i + 1] - nominal.h_m[i - 1]) / span;
-  const double var_t = std::pow(run.t_s[i] - run.t_s[i - 1], 2) / 12.0;
-  Timing t;
-  if (std::isfinite(dp_dt)) t.var_p = dp_dt * dp_dt * var_t;
-  if (std::isfinite(dh_dt)) t.var_h = dh_dt * dh_dt * var_t;
-  return t;
+/// may have been at its start or its end. Where that matters (the lift-off, where the plate
+/// rings on its gas spring after every pulse) the readings are uncertain by the replay's
+/// response to that timing: a replay with every interval's gas (and vent opening) moved half an
+/// interval earlier. A timing uniform over the interval has a third of that shift's variance.
+/// Fills the variances per sample (zero for instantaneous readings).
+void timingSpread(const RunData& run, const CellParams& params, const Replay& nominal, std::vector<double>* var_p,
+                  std::vector<double>* var_h) {
+  const std::size_t n = run.size();
+  var_p->assign(n, 0.0);
+  var_h->assign(n, 0.0);
+  if (!run.flow_interval_means || n < 3) return;
+  RunData early = run;
+  const bool has_valve = run.valve_cmd.size() == n;
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    if (std::isfinite(run.mdot_in_kg_s[i]) && std::isfinite(run.mdot_in_kg_s[i + 1]))
+      early.mdot_in_kg_s[i] = 0.5 * (run.mdot_in_kg_s[i] + run.mdot_in_kg_s[i + 1]);
+    if (has_valve && std::isfinite(run.valve_cmd[i]) && std::isfinite(run.valve_cmd[i + 1])) {
+      const double vent = 0.5 * (std::max(0.0, -run.valve_cmd[i]) + std::max(0.0, -run.valve_cmd[i + 1]));
+      early.valve_cmd[i] = vent > 0.0 ? -vent : std::max(0.0, run.valve_cmd[i]);
+    }
+  }
+  const Replay shifted = replayRun(early, params, {});
+  if (!shifted.ok) return;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double dp = shifted.p_gauge_pa[i] - nominal.p_gauge_pa[i], dh = shifted.h_m[i] - nominal.h_m[i];
+    (*var_p)[i] = std::isfinite(dp) ? dp * dp / 3.0 : 0.0;
+    (*var_h)[i] = std::isfinite(dh) ? dh * dh / 3.0 : 0.0;
+  }
 }
 
 FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measured_flow, const RunNoise& noise,
@@ -279,6 +290,8 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
   std::vector<double> start_p, start_h;
   const double start_var = startSensitivity(run, params, nominal, noise.h_m, &start_p, &start_h);
   const std::vector<double> flow_noise = meterNoise(run, measured_flow, 25);
+  std::vector<double> timing_p, timing_h;
+  timingSpread(run, params, nominal, &timing_p, &timing_h);
   double walk_var = 0.0;
   std::vector<double> walk, white_p, white_h, gain_p, gain_h, g0_p, g0_h;
   for (std::size_t i = 0; i < run.size(); ++i) {
@@ -289,9 +302,8 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
     if (!std::isfinite(run.p_gauge_pa[i]) || !std::isfinite(run.h_m[i])) continue;
     r.index.push_back(i);
     walk.push_back(walk_var);
-    const Timing timing = timingSpread(run, nominal, i);
-    white_p.push_back(std::pow(noise.p_pa, 2) + std::pow(kModelAccuracyShare * range.range_p_pa, 2) + timing.var_p);
-    white_h.push_back(std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing.var_h);
+    white_p.push_back(std::pow(noise.p_pa, 2) + std::pow(kModelAccuracyShare * range.range_p_pa, 2) + timing_p[i]);
+    white_h.push_back(std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing_h[i]);
     gain_p.push_back(dp_dm[i]);
     gain_h.push_back(dh_dm[i]);
     g0_p.push_back(start_p[i]);

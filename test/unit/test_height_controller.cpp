@@ -174,6 +174,19 @@ TEST(AirbagCell, SensorFaultClosesTheValves) {
   EXPECT_NEAR(cell.variables().height_m, 0.12, 1e-3);
 }
 
+TEST(AirbagCell, ReadingsAreOfTheStateAtTheCellsTime) {
+  // What advanceTo leaves in measurement() is the state at time(): a recording stamps it with
+  // that time and a replay compares it there (read at the period's start, it lagged by a period).
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.03, 15.6);
+  cell.requestHeight(0.12, 0.0);
+  for (double t = 0.02; t < 1.0; t += 0.02) {
+    cell.advanceTo(t);
+    ASSERT_EQ(cell.measurement().gauge_pressure_pa, cell.variables().gauge_pressure_pa) << "at " << t << " s";
+    ASSERT_EQ(cell.measurement().height_m, cell.variables().height_m) << "at " << t << " s";
+  }
+}
+
 TEST(AirbagCell, VentEmptiesTheCell) {
   nb::AirbagCell cell{nb::AirbagCellParams{}};
   cell.resetToHeight(0.12, 20.6);

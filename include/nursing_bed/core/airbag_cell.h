@@ -69,15 +69,19 @@ class AirbagCell {
 
   void setLoad(double load_n) { load_n_ = load_n; }
   void setSupplyPressure(double pressure_pa);
-  /// Test hook: the sensors fail (read NaN) while set.
-  void setSensorFailure(bool failed) { sensor_failed_ = failed; }
+  /// Test hook: the sensors fail (read NaN) while set; read again at once.
+  void setSensorFailure(bool failed) {
+    sensor_failed_ = failed;
+    sense();
+  }
 
   /// Runs plant, sensors, safety and controller up to `now_s` in control periods.
   void advanceTo(double now_s);
 
   double time() const { return model_.time(); }
   const CellVariables& variables() const { return model_.variables(); }
-  /// Last sensor readings (NaN after a sensor failure).
+  /// Last sensor readings (NaN after a sensor failure), taken at time(): at the end of the
+  /// last control period, which is the start of the next (the controller acts on them there).
   const Measurement& measurement() const { return measurement_; }
   /// Gas that the inlet's flow meter has counted since reset [kg] (a totaliser: its change over
   /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
@@ -100,6 +104,8 @@ class AirbagCell {
 
  private:
   void controlStep();
+  /// Reads the sensors now (with their noise; NaN while failed) into measurement_.
+  void sense();
 
   AirbagCellParams params_;
   CellModel model_;
