@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -20,6 +22,20 @@ inline std::filesystem::path freshTestDir(const std::string& group, const std::s
   std::filesystem::remove_all(dir);
   if (create) std::filesystem::create_directories(dir);
   return dir;
+}
+
+/// Writes `text` to `path`; returns the path.
+inline std::string writeFile(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+/// The whole file (empty when it cannot be read).
+inline std::string slurp(const std::filesystem::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
 }
 
 /// Expects an error message that contains every fragment.

@@ -176,6 +176,22 @@ double sumSquares(const std::vector<double>& r) {
   return s;
 }
 
+/// The readings' response to a change of the run's inputs: (replay of `changed` - `nominal`) /
+/// `unit` per sample (0 where either is not finite); false (and zeros) when the replay fails.
+bool replayResponse(const RunData& changed, const CellParams& params, const Replay& nominal, double unit,
+                    std::vector<double>* dp, std::vector<double>* dh) {
+  dp->assign(nominal.p_gauge_pa.size(), 0.0);
+  dh->assign(nominal.h_m.size(), 0.0);
+  const Replay rep = replayRun(changed, params, {});
+  if (!rep.ok) return false;
+  for (std::size_t i = 0; i < dp->size(); ++i) {
+    const double p = (rep.p_gauge_pa[i] - nominal.p_gauge_pa[i]) / unit, h = (rep.h_m[i] - nominal.h_m[i]) / unit;
+    (*dp)[i] = std::isfinite(p) ? p : 0.0;
+    (*dh)[i] = std::isfinite(h) ? h : 0.0;
+  }
+  return true;
+}
+
 /// The model's sensitivity of the readings to a mass error made at the start: replays the run
 /// with a little more gas injected in its first sample interval.
 void massSensitivity(const RunData& run, const CellParams& params, const Replay& nominal, std::vector<double>* dp_dm,
@@ -194,12 +210,7 @@ void massSensitivity(const RunData& run, const CellParams& params, const Replay&
   const double extra = dm / (run.t_s[1] - run.t_s[0]);
   bumped.mdot_in_kg_s[0] += extra;
   bumped.mdot_in_kg_s[1] += extra;
-  const Replay rep = replayRun(bumped, params, {});
-  if (!rep.ok) return;
-  for (std::size_t i = 0; i < run.size(); ++i) {
-    (*dp_dm)[i] = (rep.p_gauge_pa[i] - nominal.p_gauge_pa[i]) / dm;
-    (*dh_dm)[i] = (rep.h_m[i] - nominal.h_m[i]) / dm;
-  }
+  replayResponse(bumped, params, nominal, dm, dp_dm, dh_dm);
 }
 
 /// The start: a run that starts lifted starts from the mean of its first height readings
@@ -214,14 +225,7 @@ double startSensitivity(const RunData& run, const CellParams& params, const Repl
   if (h0.samples == 0 || !(h0.h_m > kLandedHeightM) || !(noise_h_m > 0.0)) return 0.0;
   RunData lifted = run;
   for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i) lifted.h_m[i] += noise_h_m;
-  const Replay shifted = replayRun(lifted, params, {});
-  if (!shifted.ok) return 0.0;
-  for (std::size_t i = 0; i < run.size(); ++i) {
-    const double dp = (shifted.p_gauge_pa[i] - nominal.p_gauge_pa[i]) / noise_h_m;
-    const double dh = (shifted.h_m[i] - nominal.h_m[i]) / noise_h_m;
-    (*dp_dh0)[i] = std::isfinite(dp) ? dp : 0.0;
-    (*dh_dh0)[i] = std::isfinite(dh) ? dh : 0.0;
-  }
+  if (!replayResponse(lifted, params, nominal, noise_h_m, dp_dh0, dh_dh0)) return 0.0;
   return noise_h_m * noise_h_m / h0.samples;
 }
 
@@ -258,12 +262,10 @@ void timingSpread(const RunData& run, const CellParams& params, const Replay& no
       early.valve_cmd[i] = vent > 0.0 ? -vent : std::max(0.0, run.valve_cmd[i]);
     }
   }
-  const Replay shifted = replayRun(early, params, {});
-  if (!shifted.ok) return;
+  replayResponse(early, params, nominal, 1.0, var_p, var_h);
   for (std::size_t i = 0; i < n; ++i) {
-    const double dp = shifted.p_gauge_pa[i] - nominal.p_gauge_pa[i], dh = shifted.h_m[i] - nominal.h_m[i];
-    (*var_p)[i] = std::isfinite(dp) ? dp * dp / 3.0 : 0.0;
-    (*var_h)[i] = std::isfinite(dh) ? dh * dh / 3.0 : 0.0;
+    (*var_p)[i] = (*var_p)[i] * (*var_p)[i] / 3.0;
+    (*var_h)[i] = (*var_h)[i] * (*var_h)[i] / 3.0;
   }
 }
 
@@ -740,10 +742,13 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   fitResiduals(fit, {}, r_nominal.data());
   const double chi2_nominal = sumSquares(r_nominal);
   rep.nominal_chi2_per_sample = chi2_nominal / n;
-  {
-    std::vector<const RunData*> f = fit_runs;
-    rep.nominal_fit_nrmse = setResidual(f, params, {}).total;
-  }
+  // nrmse of the nominal model over a set of runs, from the replays already made.
+  auto nominalNrmse = [&](const std::vector<const RunData*>& set) {
+    std::vector<const Replay*> replays;
+    for (const RunData* r : set) replays.push_back(&nominal[r - runs.data()]);
+    return set.empty() ? kNaN : pooledResidual(set, replays).nrmse();
+  };
+  rep.nominal_fit_nrmse = nominalNrmse(fit_runs);
   say("noise floor: pressure " + fmt(rep.noise_p_pa) + " Pa, height " + fmt(rep.noise_h_m * 1e3) +
       " mm; nominal model: chi2/n = " + fmt(rep.nominal_chi2_per_sample) + " on " + std::to_string(n) +
       " fit residuals");
@@ -853,7 +858,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   nominal_score.fit_residuals = n;
   nominal_score.withheld_chi2_per_sample = rep.nominal_withheld_chi2_per_sample;
   nominal_score.withheld_residuals = n_held;
-  nominal_score.withheld_nrmse = setResidual(withheld_runs, params, {}).total;
+  nominal_score.withheld_nrmse = nominalNrmse(withheld_runs);
   std::ostringstream why;
   why << "nominal model: chi2/n = " << fmt(rep.nominal_chi2_per_sample) << " in noise-floor units (within the noise up to "
       << fmt(options.within_noise_chi2) << ")"

@@ -48,7 +48,6 @@ std::vector<RunData> readRunsFromBag(const std::string& path) {
         run.meta["topic"] = topic;
         // AirbagState's inflow and valve openings are means since the previous message.
         run.flow_interval_means = true;
-        run.meta[kFlowSamplingKey] = "interval_mean";
         run.load_n = msg->external_load_n;
         run.meta["load_n"] = std::to_string(msg->external_load_n);
         use_record_time[topic] = msg->header.stamp.isZero();

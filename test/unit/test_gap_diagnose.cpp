@@ -31,20 +31,11 @@ using nursing_bed::test::expectContains;
 
 namespace {
 
+using nursing_bed::test::slurp;
+using nursing_bed::test::writeFile;
+
 fs::path tmpDir(const std::string& name, bool create = true) {
   return nursing_bed::test::freshTestDir("gap_diagnose", name, create);
-}
-
-std::string writeFile(const fs::path& path, const std::string& text) {
-  std::ofstream(path) << text;
-  return path.string();
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
 }
 
 std::string shellQuote(const std::string& s) {

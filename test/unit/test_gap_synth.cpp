@@ -19,14 +19,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("gap_synth", name, false); }
+using nursing_bed::test::slurp;
+using nursing_bed::test::writeFile;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("gap_synth", name, false); }
 
 nb::SynthOptions smallOptions(const fs::path& dir) {
   nb::SynthOptions o;

@@ -16,12 +16,10 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("run_data", name, true); }
+using nursing_bed::test::slurp;
+using nursing_bed::test::writeFile;
 
-std::string writeFile(const fs::path& path, const std::string& text) {
-  std::ofstream(path) << text;
-  return path.string();
-}
+fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("run_data", name, true); }
 
 const std::string kGood =
     "# nursing_bed_run: 1\n"
