@@ -7,8 +7,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "nursing_bed/core/airbag_params_io.h"
-#include "nursing_bed/core/gap_synth.h"
+#include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"

@@ -16,7 +16,7 @@
 #include <sstream>
 
 #include "nursing_bed/InterfacePressure.h"
-#include "nursing_bed/core/units.h"
+#include "nursing_bed/core/physics/units.h"
 #include "nursing_bed/ros/names.h"
 
 namespace nursing_bed {

@@ -17,10 +17,10 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/airbag_cell.h"
-#include "nursing_bed/core/body_model.h"
-#include "nursing_bed/core/posture_plans.h"
-#include "nursing_bed/core/units.h"
+#include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/bed/body_model.h"
+#include "nursing_bed/core/bed/posture_plans.h"
+#include "nursing_bed/core/physics/units.h"
 
 namespace nb = nursing_bed;
 

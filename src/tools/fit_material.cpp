@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/material_fit.h"
-#include "nursing_bed/core/units.h"
+#include "nursing_bed/core/physics/material_fit.h"
+#include "nursing_bed/core/physics/units.h"
 
 namespace {
 

@@ -17,12 +17,12 @@
 #include <fstream>
 #include <set>
 
-#include "nursing_bed/core/cell_params_io.h"
-#include "nursing_bed/core/gap_diagnosis.h"
-#include "nursing_bed/core/gap_effects.h"
-#include "nursing_bed/core/gap_paper.h"
-#include "nursing_bed/core/run_data.h"
-#include "nursing_bed/core/gap_synth.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
+#include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/gap/paper_study.h"
+#include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/ros/bag_runs.h"
 
 namespace nb = nursing_bed;

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/cell_params_io.h"
-#include "nursing_bed/core/paper_experiment.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
+#include "nursing_bed/core/physics/paper_experiment.h"
 
 namespace nb = nursing_bed;
 namespace fs = std::filesystem;

@@ -1,8 +1,8 @@
 // Cost of one simulated cell-second at the default step (doc/benchmarks.md).
 #include <benchmark/benchmark.h>
 
-#include "nursing_bed/core/basic_effects.h"
-#include "nursing_bed/core/cell_model.h"
+#include "nursing_bed/core/physics/basic_effects.h"
+#include "nursing_bed/core/physics/cell_model.h"
 
 namespace nb = nursing_bed;
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "nursing_bed/core/airbag_cell.h"
+#include "nursing_bed/core/control/airbag_cell.h"
 
 namespace nb = nursing_bed;
 

@@ -116,10 +116,3 @@ TEST_F(BedFixture, DiagnosticsReportEveryCell) {
 
 }  // namespace test
 }  // namespace nursing_bed
-
-int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "airbag_test");
-  ros::NodeHandle nh;
-  return RUN_ALL_TESTS();
-}

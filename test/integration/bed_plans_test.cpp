@@ -187,10 +187,3 @@ TEST_F(PlanFixture, LateralTurnRollsTheBodyByTheRequestedAngle) {
 
 }  // namespace test
 }  // namespace nursing_bed
-
-int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "bed_plans_test");
-  ros::NodeHandle nh;
-  return RUN_ALL_TESTS();
-}

@@ -29,10 +29,10 @@
 #include <memory>
 
 #include "bed_fixture.h"
-#include "nursing_bed/core/cell_params_io.h"
-#include "nursing_bed/core/gap_diagnosis.h"
-#include "nursing_bed/core/gap_synth.h"
-#include "nursing_bed/core/run_data.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
+#include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/core/gap/run_data.h"
 #include "nursing_bed/ros/bag_runs.h"
 
 namespace nursing_bed {
@@ -219,10 +219,3 @@ TEST_F(GapBagFixture, LeakyCellIsExplainedByALeakAndTheNominalCellByNothing) {
 
 }  // namespace test
 }  // namespace nursing_bed
-
-int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "gap_bag_test");
-  ros::NodeHandle nh;
-  return RUN_ALL_TESTS();
-}

@@ -11,7 +11,7 @@
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/SetHeight.h"
-#include "nursing_bed/core/airbag_cell.h"
+#include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/ros/bed_layout.h"
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>

@@ -1,11 +1,11 @@
 // Runs recorded as ROS bags: every topic carrying nursing_bed/AirbagState becomes one run of the
-// gap diagnosis, in the same structure as a run CSV (nursing_bed/core/run_data.h).
+// gap diagnosis, in the same structure as a run CSV (nursing_bed/core/gap/run_data.h).
 #pragma once
 
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/run_data.h"
+#include "nursing_bed/core/gap/run_data.h"
 
 namespace nursing_bed {
 

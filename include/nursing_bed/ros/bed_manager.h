@@ -15,7 +15,7 @@
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetHeights.h"
 #include "nursing_bed/SetPosture.h"
-#include "nursing_bed/core/posture_plans.h"
+#include "nursing_bed/core/bed/posture_plans.h"
 #include "nursing_bed/ros/bed_layout.h"
 
 namespace nursing_bed {

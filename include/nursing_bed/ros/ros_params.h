@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/param_table.h"
+#include "nursing_bed/core/io/param_table.h"
 
 namespace nursing_bed {
 

@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "nursing_bed/AirbagState.h"
-#include "nursing_bed/core/body_model.h"
+#include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/ros/bed_layout.h"
 
 namespace nursing_bed {

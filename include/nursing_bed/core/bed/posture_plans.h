@@ -1,0 +1,90 @@
+// Posture plans of the bed manager (ROS-free): a nurse's intent turned into a height for every
+// cell over time. Each plan validates its parameters when it is made; every target it gives is
+// inside the configured height limits. doc/bed_manager.md lists plans and parameters.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/bed/bed_grid.h"
+#include "nursing_bed/core/io/param_table.h"
+
+namespace nursing_bed {
+
+/// The absolute cap on a lateral turn, whatever the configuration says [deg].
+constexpr double kHardMaxTiltDeg = 40.0;
+
+/// Plan configuration (config/bed_manager.yaml, `plans/...`).
+struct PlanConfig {
+  double nominal_height_m = 0.10;        ///< flat bed height [m]
+  double min_height_m = 0.02;            ///< lowest height a plan commands (CPR vents instead) [m]
+  double max_height_m = 0.15;            ///< highest height a plan commands [m]
+  double max_tilt_deg = 30.0;            ///< configured maximum lateral turn [deg] (<= 40)
+  double max_tilt_rate_deg_s = 1.0;      ///< fastest change of the turn angle [deg/s]
+  double turn_ramp_s = 60.0;             ///< default ramp time of a turn [s]
+  double turn_dwell_s = 600.0;           ///< default dwell at the turned angle [s]
+  double alternating_period_s = 600.0;   ///< default alternating cycle [s]
+  double alternating_low_m = 0.03;       ///< default height of the relieved (low) cells [m]
+  double alternating_high_m = 0.12;      ///< default height of the supporting cells [m]
+  double alternating_transition_s = 5.0; ///< the rising group gets this long before the next one lowers [s]
+  int static_head_rows = 2;              ///< head rows that alternating leaves at the nominal height
+  double max_inflate_timeout_s = 900.0;  ///< default time before max_inflate reverts [s]
+  std::string validate() const;
+};
+
+/// Where the body lies, so that plans act under it (from the simulator's body model, or the
+/// default adult placement).
+struct BodyFootprint {
+  int first_row = 0;        ///< first row under the body (head end)
+  int last_row = 17;        ///< last row under the body (feet)
+  double center_y_m = 0.0;  ///< the body's midline across the bed [m]
+};
+
+/// What a plan wants at one instant.
+struct PlanTargets {
+  std::vector<double> heights_m;  ///< per cell id; empty when venting
+  bool vent_all = false;          ///< open every vent (CPR)
+  std::string phase;              ///< e.g. "ramp", "dwell", "group 2 of 3 low"
+  double tilt_deg = 0.0;          ///< lateral turn angle commanded now (+: towards the patient's left)
+  bool finished = false;          ///< the plan has run its course (max_inflate: revert now)
+};
+
+/// A request as it arrives (service or command line): plan name, key=value arguments, and the
+/// per-cell heights of a `custom` plan.
+struct PlanRequest {
+  std::string plan;
+  std::map<std::string, std::string> args;
+  std::vector<double> heights_m;
+};
+
+class PosturePlan {
+ public:
+  virtual ~PosturePlan() = default;
+  virtual std::string name() const = 0;
+  /// Targets `elapsed_s` after the plan started.
+  virtual PlanTargets targets(double elapsed_s) const = 0;
+  /// The plan's parameters after defaults, as "key=value ...".
+  virtual std::string describe() const = 0;
+};
+
+/// Builds a plan. On any problem (unknown plan, unknown or missing argument, non-numeric,
+/// non-finite or out-of-range value, a turn beyond the limits or too fast, a custom plan with
+/// the wrong number of heights) returns nullptr and says why in *error.
+std::unique_ptr<PosturePlan> makePlan(const PlanRequest& request, const PlanConfig& config, const BedGrid& grid,
+                                      const BodyFootprint& body, std::string* error);
+
+/// The bed manager's own plans: every cell held at one height after a cell failed
+/// ("safe_level": keeps the patient level), and manual per-cell heights ("custom", validated by
+/// the caller against the cells' limits).
+std::unique_ptr<PosturePlan> makeSafeLevelPlan(const BedGrid& grid, double height_m);
+std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m);
+
+/// Keys of PlanConfig for YAML and the parameter server ("plans/..." in the bed manager).
+const ParamTable<PlanConfig>& planConfigFields();
+
+/// The plans makePlan knows, with their arguments (for help texts).
+const std::map<std::string, std::string>& planHelp();
+
+}  // namespace nursing_bed

@@ -1,0 +1,128 @@
+// One airbag cell as a bed runs it: the plant (CellModel), its sensors, the height controller
+// and the safety layer between them. ROS-free; the airbag node and nodelet wrap it.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/control/height_controller.h"
+
+namespace nursing_bed {
+
+struct AirbagSafetyParams {
+  double relief_pressure_pa = 35000.0;    ///< gauge pressure never exceeded: inlet shut, vent open [Pa]
+  double relief_margin_pa = 500.0;        ///< act this far below it, ahead of the next period's rise [Pa]
+  double command_timeout_s = 0.0;         ///< hold and flag when no command/heartbeat for this long; 0 = off [s]
+  double sensor_pressure_min_pa = -50000.0;  ///< readings outside [min, max] are a sensor fault [Pa]
+  double sensor_pressure_max_pa = 150000.0;
+  double sensor_height_min_m = -0.02;     ///< [m]
+  double sensor_height_max_m = 0.40;      ///< [m]
+  std::string validate() const;
+};
+
+struct AirbagCellParams {
+  CellParams cell;
+  HeightControllerParams controller;
+  AirbagSafetyParams safety;
+  double control_period_s = 0.005;        ///< controller and safety period [s]
+  /// Gauge pressure the vents see while venting for CPR (vent mode): a vacuum source empties a
+  /// cell that carries only its plate in seconds instead of half a minute; 0: vent to ambient.
+  double cpr_vacuum_pa = -5000.0;
+  double pressure_noise_pa = 0.0;         ///< sd of the pressure sensor's noise [Pa]
+  double height_noise_m = 0.0;            ///< sd of the height sensor's noise [m]
+  std::uint32_t noise_seed = 1;
+  std::string validate() const;
+};
+
+enum class AirbagMode : std::uint8_t { kIdle = 0, kHeight = 1, kVent = 2, kSafe = 3 };
+
+/// Fault bits (the AirbagState message's FAULT_ constants).
+enum AirbagFault : std::uint32_t {
+  kFaultNone = 0,
+  kFaultSensor = 1,
+  kFaultOverpressure = 2,
+  kFaultCommandTimeout = 4,
+  kFaultLowPressure = 8,
+};
+
+class AirbagCell {
+ public:
+  /// Throws std::invalid_argument naming what is wrong in `params`.
+  explicit AirbagCell(const AirbagCellParams& params, const std::vector<CellEffectPtr>& effects = {});
+
+  /// Flat cell, plate on the bed, valves shut, idle; time 0.
+  void reset(double load_n);
+  /// Plate at rest at `height_m` holding that height.
+  void resetToHeight(double height_m, double load_n);
+
+  /// Empty when `height_m` is a valid setpoint, else why not (nothing changes then).
+  std::string checkHeight(double height_m) const;
+  /// Sets the height setpoint at time `now_s`; returns checkHeight's message (empty: done).
+  std::string requestHeight(double height_m, double now_s);
+  /// Vents the cell as fast as the vent allows (CPR); a height request ends it.
+  void requestVent(double now_s);
+  /// Keeps the command watchdog alive without changing the setpoint.
+  void heartbeat(double now_s);
+
+  void setLoad(double load_n) { load_n_ = load_n; }
+  void setSupplyPressure(double pressure_pa);
+  /// Test hook: the sensors fail (read NaN) while set; read again at once.
+  void setSensorFailure(bool failed) {
+    sensor_failed_ = failed;
+    sense();
+  }
+
+  /// Runs plant, sensors, safety and controller up to `now_s` in control periods.
+  void advanceTo(double now_s);
+
+  double time() const { return model_.time(); }
+  const CellVariables& variables() const { return model_.variables(); }
+  /// Last sensor readings (NaN after a sensor failure), taken at time(): at the end of the
+  /// last control period, which is the start of the next (the controller acts on them there).
+  const Measurement& measurement() const { return measurement_; }
+  /// Gas that the inlet's flow meter has counted since reset [kg] (a totaliser: its change over
+  /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
+  /// integrate without losing the mass of valve switches between samples).
+  double meteredInletMassKg() const { return metered_inlet_mass_kg_; }
+  /// Integrals of the valve openings over time since reset [s] (their change over an interval
+  /// divided by it is the mean opening: a valve that switches every control period is recorded
+  /// faithfully at a lower rate).
+  double inletOpeningSeconds() const { return inlet_opening_s_; }
+  double ventOpeningSeconds() const { return vent_opening_s_; }
+  const ValveCommand& valves() const { return valves_; }
+  AirbagMode mode() const { return mode_; }
+  std::uint32_t faults() const { return faults_; }
+  double setpoint() const { return controller_.hasTarget() ? controller_.target() : std::numeric_limits<double>::quiet_NaN(); }
+  double loadEstimate() const { return controller_.loadEstimate(); }
+  double load() const { return load_n_; }
+  const AirbagCellParams& params() const { return params_; }
+  const CellModel& model() const { return model_; }
+  const HeightController& controller() const { return controller_; }
+
+ private:
+  void controlStep();
+  /// Reads the sensors now (with their noise; NaN while failed) into measurement_.
+  void sense();
+
+  AirbagCellParams params_;
+  CellModel model_;
+  HeightController controller_;
+  double load_n_ = 0.6;
+  double metered_inlet_mass_kg_ = 0.0;
+  double inlet_opening_s_ = 0.0, vent_opening_s_ = 0.0;
+  double supply_pressure_pa_;
+  AirbagMode mode_ = AirbagMode::kIdle;
+  std::uint32_t faults_ = kFaultNone;
+  ValveCommand valves_;
+  Measurement measurement_;
+  double last_pressure_pa_ = 0.0;
+  double last_command_s_ = 0.0;
+  bool sensor_failed_ = false;
+  std::mt19937 rng_;
+  std::normal_distribution<double> unit_noise_{0.0, 1.0};
+};
+
+}  // namespace nursing_bed

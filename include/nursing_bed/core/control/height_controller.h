@@ -1,0 +1,121 @@
+// Height controller of one airbag cell (ROS-free). It sets the height through the gas, as the
+// paper's section 5 proposes, but through a load-aware characteristic and with the loop
+// closed on measured height and pressure.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "nursing_bed/core/physics/cell_characteristic.h"
+
+namespace nursing_bed {
+
+struct HeightControllerParams {
+  double min_height_m = 0.0;              ///< lowest setpoint accepted [m]
+  double max_height_m = 0.150;            ///< highest setpoint accepted [m]
+  double height_tolerance_m = 0.0004;     ///< deadband: no valve action within it [m]
+  double approach_band_m = 0.004;         ///< predicted error over which a valve goes from shut to fully open [m]
+  double max_pressure_pa = 32000.0;       ///< never fill above this gauge pressure (below the relief) [Pa]
+  double load_filter_time_s = 0.3;        ///< time constant of the load estimate [s]
+  double settled_speed_m_s = 0.003;       ///< plate speed under which the cell counts as at rest [m/s]
+  double integral_rate_per_s = 2.0;       ///< rate at which a resting height error is integrated out [1/s]
+  double integral_limit_m = 0.02;         ///< bound of that correction [m]
+  double move_threshold_m = 0.003;        ///< predicted error above which a move uses the shaped full-flow law [m]
+  double damping_band_m = 0.01;           ///< plate swing about its rest height that opens a valve fully (active damping) [m]
+
+  /// Empty when valid, else every problem found.
+  std::string validate() const;
+};
+
+/// Valve openings 0..1 (proportional valves; an on/off valve is PWM'd to the same mean).
+struct ValveCommand {
+  double inlet = 0.0;
+  double vent = 0.0;
+};
+
+/**
+ * Model-predictive valve law. From the measured pressure and height it computes the gas's
+ * adiabatic invariant K = p V^gamma and, from the tabulated characteristic, the height h_rest at
+ * which the plate would come to rest under the estimated load if the valves shut now.
+ *  - Moves (|h* - h_rest| > move_threshold_m): the ideal flow-limited command is a
+ *    full-flow pulse that ends when h_rest reaches the target. The loaded plate rings on its
+ *    gas spring (half period T/2 from the characteristic), so the pulse is passed through a
+ *    zero-vibration input shaper: half of it now, half T/2 later. In practice: half open for
+ *    T/2, fully open until the gas in the cell plus half a flow for T/2 will carry the plate
+ *    to the target, half open for the last T/2 (re-aimed every period on the prediction).
+ *    A move too small for that is two half-open pulses T/2 apart. The ringing excited by
+ *    the first half-step is cancelled by the second.
+ *  - Near the target the opening is proportional to h* - h_rest (full at approach_band_m)
+ *    plus (h - h_rest) / damping_band_m: gas in while the plate swings above its rest
+ *    height, out while below, makes the pressure lag the swing by a quarter period and so
+ *    damps the lightly damped plate actively. Deadband height_tolerance_m.
+ * The feed-forward is the characteristic (h, load) -> p; the feedback is the measured height:
+ * a resting error is integrated into the target the predictor aims at. The load is estimated
+ * from the characteristic while the plate rests.
+ */
+class HeightController {
+ public:
+  HeightController(const HeightControllerParams& params, std::shared_ptr<const CellCharacteristic> characteristic);
+
+  /// Empty when `height_m` is an acceptable setpoint, else why not.
+  std::string checkSetpoint(double height_m) const;
+  /// Sets the target (must pass checkSetpoint); resets the integral correction.
+  void setTarget(double height_m);
+  void clearTarget();
+  bool hasTarget() const { return has_target_; }
+  double target() const { return target_m_; }
+
+  /// One control period: measured gauge pressure [Pa], height [m], their time step [s].
+  ValveCommand update(double dt_s, double gauge_pressure_pa, double height_m);
+
+  /// Pressure of the supply behind the inlet valve, gauge [Pa] (default: the cell's setting).
+  void setSupplyPressure(double pressure_pa) { supply_pressure_pa_ = pressure_pa; }
+  /// Seeds the load estimate (e.g. from a load cell or the nominal load) [N].
+  void setLoadEstimate(double load_n) { load_estimate_n_ = load_n; }
+  double loadEstimate() const { return load_estimate_n_; }
+  /// Half period of the loaded plate ringing on the closed cell at the target [s].
+  double halfPeriod() const;
+  /// Where the plate would rest if the valves shut now [m].
+  double restingHeight() const { return resting_height_m_; }
+  /// Feed-forward: gauge pressure that holds the target under the estimated load [Pa].
+  double targetPressure() const;
+  /// True when the target needs more pressure than max_pressure_pa allows for this load.
+  bool targetOutOfReach() const;
+  const HeightControllerParams& params() const { return params_; }
+
+ private:
+  HeightControllerParams params_;
+  std::shared_ptr<const CellCharacteristic> characteristic_;
+  bool has_target_ = false;
+  double target_m_ = 0.0;
+  double integral_m_ = 0.0;
+  double load_estimate_n_ = 0.6;
+  double resting_height_m_ = 0.0;
+  double last_height_m_ = 0.0;
+  bool has_last_ = false;
+  double stretch_guess_ = 1.0;
+  /// Rate at which h_rest moves with the valve of `direction` fully open [m/s].
+  double fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3, double invariant) const;
+
+  // Shaped move (zero-vibration shaper on a full-flow pulse): direction (+1 fill, -1 vent,
+  // 0 none), phase (1 half-open lead, 2 full flow or pause, 3 half-open tail), timers.
+  int move_direction_ = 0;
+  int move_phase_ = 0;
+  double move_time_s_ = 0.0;
+  double lead_duration_s_ = 0.0;
+  double tail_start_s_ = 0.0;
+  double initial_remaining_m_ = 0.0;
+  double supply_pressure_pa_ = 0.0;
+  // Half period cached for (target, load) because it costs a few solves.
+  mutable double half_period_s_ = -1.0, half_period_target_m_ = -1.0, half_period_load_n_ = -1.0;
+};
+
+/**
+ * The physical bound on a height move: the inlet (or, going down, the vent) fully open from
+ * the start, with the plate at rest at `from_m`, until the gas volume reaches the volume of the
+ * rest state at `to_m` under the same load [s]. No controller can do it faster with these
+ * valves and this supply. NaN if the volume is never reached within 30 s.
+ */
+double flowLimitedMinimumTime(const CellParams& params, double load_n, double from_m, double to_m);
+
+}  // namespace nursing_bed

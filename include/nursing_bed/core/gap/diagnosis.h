@@ -1,0 +1,169 @@
+// The sim-to-real gap diagnosis (gap-report.md): where the nominal model and the recorded runs
+// part, which candidate effect (gap_effects.h) explains it, and how far the gap shrinks on runs
+// withheld from fitting. ROS-free; `gap diagnose` is its command line and doc/gap_diagnosis.md
+// explains the method and its decisions.
+#pragma once
+
+#include <cmath>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/gap/replay.h"
+#include "nursing_bed/core/gap/run_data.h"
+
+namespace nursing_bed {
+
+/// Knobs of the diagnosis. The defaults are the documented method; tests change little else
+/// than `threads` and `progress`.
+struct DiagnosisOptions {
+  /// Effects to try (canonical candidate names); empty: every candidate of the catalogue.
+  std::vector<std::string> candidates;
+  /// Pairs are tried among this many best single candidates (0: no pairs).
+  int pair_pool = 3;
+  /// Residuals enter the fits at about this rate (runs are replayed at their full rate).
+  double fit_sample_hz = 10.0;
+  /// Largest integration step while fitting (the run's sample interval if that is shorter) and
+  /// the integrator's relative tolerance then; the final replays use the cell's own settings.
+  double fit_time_step_s = 0.01;
+  double fit_relative_tolerance = 3.0e-4;
+  int max_iterations = 25;  ///< Levenberg-Marquardt iterations per candidate
+  int threads = 2;          ///< candidate fits in parallel
+
+  // Decisions (doc/gap_diagnosis.md). chi2/n is the mean squared whitened residual: residuals
+  // in units of the noise floor (sensor noise, replay accuracy, and the flow meter's noise that
+  // the replay integrates into a random walk of the gas mass), decorrelated (that walk is shared
+  // by all later samples). About 1 for a model that fits.
+  /// A candidate is significant when it lowers BIC by more than this ...
+  double significant_bic_drop = 20.0;
+  /// ... and lowers chi2/n by at least this much (the replay's own numerical noise, changes of
+  /// the integrator's step sequence, stays below it).
+  double min_chi2_drop = 0.03;
+  /// The nominal model fits "within the noise" up to this chi2/n (about 1 +- 0.05 on clean data).
+  double within_noise_chi2 = 1.5;
+  /// A significant candidate explains the gap if on the fit runs it leaves at most this chi2/n,
+  /// the same "within the noise" as for the nominal model (synthetic data leaves 0.9-1.05;
+  /// recordings of the simulated bed, whose clocks jitter, up to 1.3) ...
+  double explained_chi2 = 1.5;
+  /// ... or removes at least this share of the nominal model's excess over 1 (a gap hundreds of
+  /// noise floors deep, where the fit's integration differs from the rig's by more than the
+  /// noise); and on the withheld runs it leaves at most withheld_chi2 or removes at least
+  /// withheld_gap_removed of their excess. Else the gap is "unexplained".
+  double explained_excess_removed = 0.995;
+  double withheld_chi2 = 3.0;
+  double withheld_gap_removed = 0.99;
+  /// ... and it must lower the withheld runs' chi2 (whitened, summed) by at least this: their
+  /// likelihood rises by e^(gain/2), about 150 : 1 at 10, with no parameter fitted to them. A
+  /// fit that only bends the model onto the fit runs' noise or artefacts (a sensor lag of 50 us
+  /// fitted to a lift-off spike at 50 Hz) gains nothing there.
+  double min_withheld_gain = 10.0;
+  /// Two candidates whose BIC on the fit runs differ by less than this are a near tie (BIC
+  /// differences below 10 are not "very strong" evidence): the withheld runs, which no fit has
+  /// seen, decide between them when one lowers their chi2 by min_withheld_gain more.
+  double near_tie_bic = 10.0;
+  /// Fitted parameters may lie this factor outside their plausible range (log-scale ones; linear
+  /// ones this many range widths) before the fit is called implausible.
+  double plausible_slack = 3.0;
+
+  /// Called with one line per step ("fitting leak ... 3/7"). May be empty.
+  std::function<void(const std::string&)> progress;
+};
+
+/// One fitted model: nominal plus `effects`.
+struct CandidateFit {
+  std::vector<std::string> effects;       ///< canonical names, catalogue order
+  std::map<std::string, double> params;   ///< fitted parameters (SI, catalogue keys)
+  double chi2 = 0.0;                      ///< fit runs, sum of squared noise-scaled residuals
+  double bic_delta = 0.0;                 ///< BIC minus the nominal model's (negative: better)
+  double fit_nrmse = 0.0;                 ///< on the fit runs (gap-report.md's nrmse)
+  double withheld_nrmse = 0.0;            ///< on the withheld runs (NaN when there are none)
+  double withheld_chi2_per_sample = NAN;  ///< whitened, on the withheld runs (NaN: none)
+  bool plausible = true;                  ///< every parameter within its (slackened) plausible range
+  bool ok = true;                         ///< false: the model failed on some run
+  std::string message;                    ///< why not ok, or notes
+  int evaluations = 0;                    ///< replays of the fit-run set spent on it
+};
+
+/// Per-run numbers for the report.
+struct RunSummary {
+  std::string name;
+  std::string role;  ///< fit or withheld
+  double load_n = 0.0;
+  double duration_s = 0.0;
+  double noise_p_pa = 0.0, noise_h_m = 0.0;
+  RunResidual before, after;  ///< nominal and verdict model
+};
+
+/// Traces of one run for plots: measured, nominal and verdict-model readings.
+struct RunTrace {
+  std::string name;
+  std::string role;
+  std::vector<double> t_s, mdot_in_kg_s, p_meas_pa, h_meas_m, p_nominal_pa, h_nominal_m, p_after_pa, h_after_m;
+  std::vector<RunPhase> phases;
+};
+
+struct DiagnosisReport {
+  std::string dataset;
+  DiagnosisOptions options;  ///< the thresholds the decision used
+  std::vector<std::string> fit_runs, withheld_runs;
+  bool roles_chosen = false;  ///< true: no roles were given, the diagnosis chose them
+  double noise_p_pa = 0.0, noise_h_m = 0.0;
+  std::vector<GapShare> localization;
+  double nominal_chi2_per_sample = 0.0;   ///< fit runs, in noise-floor units
+  double nominal_fit_nrmse = 0.0;
+  double nominal_withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs (NaN: none)
+  int fit_samples = 0;                    ///< residuals in the fits (both signals)
+  std::vector<CandidateFit> candidates;   ///< best (lowest BIC) first
+  std::string status;                     ///< none, explained, unexplained
+  std::vector<std::string> verdict_effects;
+  std::map<std::string, double> verdict_params;
+  std::vector<std::string> reasons;       ///< the decision in words, one line each
+  // Shrinkage on the withheld runs: nominal vs verdict model (equal when nothing is named).
+  double withheld_before = 0.0, withheld_after = 0.0;
+  double withheld_p_before = 0.0, withheld_p_after = 0.0, withheld_h_before = 0.0, withheld_h_after = 0.0;
+  std::vector<RunSummary> runs;
+  std::vector<RunTrace> traces;
+  double elapsed_s = 0.0;
+};
+
+/// What the decision needs of the nominal model.
+struct NominalScore {
+  double chi2 = 0.0;                      ///< fit runs, whitened, summed
+  int fit_residuals = 0;                  ///< n of the BIC
+  double withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs
+  int withheld_residuals = 0;             ///< 0: nothing withheld
+  double withheld_nrmse = NAN;            ///< for the reasons
+};
+
+struct Verdict {
+  std::string status;                ///< none, explained, unexplained
+  int winner = -1;                   ///< index of the named candidate; -1: none named
+  std::vector<std::string> reasons;  ///< the decision in words, one line each
+};
+
+/// The decision of doc/gap_diagnosis.md ("Decisions") over fitted `candidates` (lowest BIC
+/// first, as DiagnosisReport::candidates): significance, holding up on fit and withheld runs,
+/// pairs only where no single explains the gap, near ties decided by the withheld runs.
+Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
+                      const DiagnosisOptions& options);
+
+/**
+ * Diagnoses `runs` (each with a role "fit"/"withheld", or all without one; then about a
+ * quarter, spread over the loads, is withheld and the report says so) against the nominal
+ * model of `params`. Throws std::invalid_argument for unusable input: no runs, a run whose
+ * nominal replay fails, fewer than 2 runs with roles missing, no fit run, an unknown candidate.
+ */
+DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
+                             const std::string& dataset_name = "");
+
+/// report.json exactly as gap-report.md fixes it (plus nothing else).
+std::string reportJson(const DiagnosisReport& report);
+/// report.md: the three answers in words and tables, and the figures written beside it.
+std::string reportMarkdown(const DiagnosisReport& report);
+/// Writes DIR/report.json, DIR/report.md and DIR/traces/<run>.csv (inputs of the plots);
+/// throws std::runtime_error naming the file that cannot be written.
+void writeReportFiles(const std::string& dir, const DiagnosisReport& report);
+
+}  // namespace nursing_bed

@@ -1,0 +1,112 @@
+// Replaying recorded runs through the cell model, and where model and data part (the first of
+// the gap diagnosis' three answers; gap-report.md). ROS-free.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/gap/run_data.h"
+
+namespace nursing_bed {
+
+/// Phase of a run at one sample (gap-report.md): bag unfolding, bag pressurising, inlet closed,
+/// venting; `landed` marks vent samples after the plate has come down on the bed, where a
+/// replay is ill-conditioned (a few mL of gas left) and which the diagnosis leaves out.
+enum class RunPhase { kDeploy, kPressurize, kHold, kVent, kLanded };
+const char* phaseName(RunPhase phase);
+
+/// Per-sample phases from the measured signals: inflating while the inflow exceeds 2 % of its
+/// peak (deploy while the pressure is below a quarter of the inflation's peak pressure, then
+/// pressurize), venting from the first clearly negative inflow, hold in between; landed once
+/// the measured height is below 3 mm during the vent.
+std::vector<RunPhase> classifyPhases(const RunData& run);
+
+/// A run replayed through a model: the simulated readings at the measured times.
+struct Replay {
+  std::vector<double> p_gauge_pa;  ///< simulated pressure reading (sensor effects applied) [Pa]
+  std::vector<double> h_m;         ///< simulated height reading [m]
+  std::vector<RunPhase> phases;
+  bool ok = true;                  ///< false: the model failed (the message says why)
+  long substeps = 0;               ///< integration sub-steps spent
+  std::string message;
+};
+
+/// The height a run starts from: the mean of its readings over the first kInitialRestS (one
+/// noisy reading would put the sensor's noise into the replay's gas for the whole run: at
+/// 5 cm, 0.3 mm of height is 0.6 % of the gas), and how many readings that mean has.
+constexpr double kInitialRestS = 0.2;
+/// Below this height the plate rests on the bed (a run starting there starts flat).
+constexpr double kLandedHeightM = 0.003;
+struct InitialHeight {
+  double h_m = 0.0;
+  int samples = 0;
+};
+InitialHeight initialHeight(const RunData& run);
+
+/**
+ * Replays `run` through a cell with `params` and `effects`: the measured inflow is the input
+ * (the paper's way), the load follows the run's load (column or constant), and the cell starts
+ * flat at ambient (or at rest at initialHeight() if that is above 3 mm, at the first measured
+ * gas temperature if the run has one). Samples after the plate has landed in the
+ * vent (kLanded) are not simulated: NaN. `max_substeps` bounds the integration's cost (0: 50
+ * sub-steps per default step on average): a replay that needs more accepted sub-steps fails
+ * ("too stiff"), as a fit may wander into parameters that make the model needlessly stiff.
+ */
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps = 0);
+
+/// Noise of a measured signal: robust (median absolute deviation) estimate from second
+/// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.
+double estimateNoise(const std::vector<double>& signal);
+
+/// The flow meter's noise around each sample of `flow` (the run's inflow as measured): the
+/// estimate of estimateNoise() over the samples i-w .. i+w (a meter's noise grows with its
+/// reading), from the samples where the valve held still (valve_cmd equal at i-1, i, i+1, when
+/// the run has it). A valve that the controller opens for a few ms at a time moves gas in
+/// pulses, and those are flow, not the meter's noise: on recordings of the bed they posed as a
+/// noise hundreds of times the meter's. Where fewer than 5 such samples are near, the estimate
+/// over all of the run's; a run whose valve never held still, every sample.
+std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w);
+
+/// Whether the run vents through a valve of its own that the inlet's meter does not see (a
+/// bed's cell): valve_cmd < 0 (venting) while the metered flow stays near zero (its mean above
+/// -1 % of the peak inflow). The replay then opens the model's vent valve by -valve_cmd.
+bool ventsThroughUnmeteredValve(const RunData& run);
+
+/**
+ * Where the inlet is closed, a flow meter reads noise around zero (and its offset, if it has
+ * one). Replaying that reading integrates the noise into a random walk of the gas mass that no
+ * model can follow. Closed stretches come from the valve_cmd column (== 0) where it is
+ * recorded, else from the hold phase without the ends whose flow is not yet zero within the
+ * noise (half-second chunks: the inflow's tail, the vent's start). A stretch whose mean flow is
+ * within 3 standard errors of zero gets exactly 0; one with a clear offset is left as
+ * measured, so a meter offset still shows. Returns the number of samples set to 0.
+ */
+int zeroClosedInletFlow(RunData* run);
+
+/// Residual statistics of one run against its replay (samples not landed).
+struct RunResidual {
+  double range_p_pa = 0.0, range_h_m = 0.0;  ///< measured ranges (the nrmse denominators)
+  double nrmse_p = 0.0, nrmse_h = 0.0;       ///< RMS(measured - simulated) / range
+  double nrmse() const { return 0.5 * (nrmse_p + nrmse_h); }
+  int samples = 0;
+};
+RunResidual runResidual(const RunData& run, const Replay& replay);
+/// The same over several runs pooled (gap-report.md's nrmse "on the runs named"): RMS over all
+/// their samples, divided by the range of the measured signal over all of them.
+RunResidual pooledResidual(const std::vector<const RunData*>& runs, const std::vector<const Replay*>& replays);
+
+/// One line of "where it lies": a share of the total squared normalised residual.
+struct GapShare {
+  std::string signal;  ///< "pressure" or "height"
+  std::string phase;   ///< deploy, pressurize, hold, vent
+  double load_n = 0.0;
+  double share = 0.0;
+  double t_start_s = 0.0, t_end_s = 0.0;  ///< where that phase lies in those runs
+};
+/// Splits the squared residual, normalised per signal by the measured range over all runs, by
+/// signal, phase and load; largest first.
+std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::vector<Replay>& replays);
+
+}  // namespace nursing_bed

@@ -1,0 +1,62 @@
+// The cell's quasi-static characteristic, tabulated once: equilibrium gauge pressure and gas
+// volume for every (plate height, load). It is the paper's section-5 idea (set the height
+// through the pressure) made load-aware, and what the height controller predicts with.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "nursing_bed/core/physics/cell_model.h"
+
+namespace nursing_bed {
+
+class CellCharacteristic {
+ public:
+  /// Tabulates the structure of `params` on a grid of heights 0..height_max and loads
+  /// 0..load_max. Costly (~0.1-1 s); use shared() to build it once per parameter set.
+  CellCharacteristic(const CellParams& params, double height_max_m = 0.20, double height_step_m = 0.001,
+                     double load_max_n = 60.0, double load_step_n = 1.0);
+
+  /// One table per distinct parameter set, built on first use and shared by every user in the
+  /// process for its lifetime (thread-safe).
+  static std::shared_ptr<const CellCharacteristic> shared(const CellParams& params);
+
+  /// Equilibrium gauge pressure [Pa] that holds `load_n` at `height_m`; NaN out of reach.
+  double pressureAt(double height_m, double load_n) const;
+  /// Gas volume [m^3] at that equilibrium; NaN out of reach.
+  double volumeAt(double height_m, double load_n) const;
+  /// Load [N] that gauge pressure p carries at rest at height h (inverse in the load).
+  double loadAt(double height_m, double gauge_pressure_pa) const;
+  /// Height [m] where the cell comes to rest if the valves close now: the gas keeps its
+  /// adiabatic invariant K = p_abs V^gamma while the plate settles under `load_n`.
+  double restingHeight(double adiabatic_invariant, double load_n) const;
+  /// Gas volume at plate height h and gauge pressure p with the film relaxed to that pressure
+  /// (the film is fast: this is the cell's volume while the plate moves) [m^3]. `stretch`
+  /// carries the film stretch between calls as a warm start (may be null).
+  double relaxedVolume(double height_m, double gauge_pressure_pa, double* stretch = nullptr) const;
+  /// Small-oscillation stiffness of the plate on the closed cell around its rest at
+  /// `height_m` under `load_n` (adiabatic gas spring and shrinking effective area) [N/m].
+  double plateStiffness(double height_m, double load_n) const;
+  /// Rate of change of the adiabatic invariant [Pa m^(3 gamma)/s] when mass flows in at
+  /// `mass_flow_kg_s` (negative: out) at temperature `temperature_k` into volume V.
+  double invariantRate(double volume_m3, double mass_flow_kg_s, double temperature_k) const;
+  /// Adiabatic invariant p_abs V^gamma of a state.
+  double invariant(double gauge_pressure_pa, double volume_m3) const;
+  /// Largest height the table reaches for this load (film limits, table range) [m].
+  double maxHeight(double load_n) const;
+
+  double heightStep() const { return height_step_m_; }
+  const CellParams& params() const { return params_; }
+
+ private:
+  // Row-major over loads: value(load_index, height_index).
+  double at(const std::vector<double>& table, double height_m, double load_n) const;
+  CellParams params_;
+  PillowStructure structure_;
+  double height_step_m_, load_step_n_;
+  int heights_, loads_;
+  std::vector<double> pressure_pa_, volume_m3_, invariant_;
+  std::vector<int> reachable_;  // per load: number of heights with an equilibrium
+};
+
+}  // namespace nursing_bed

@@ -1,0 +1,162 @@
+// Control-volume model of one airbag cell under a loaded rigid plate (paper section 4.1).
+#pragma once
+
+#include <Eigen/Dense>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/physics/cell_effect.h"
+#include "nursing_bed/core/physics/cell_structure.h"
+#include "nursing_bed/core/physics/gas.h"
+#include "nursing_bed/core/physics/pillow_structure.h"
+#include "nursing_bed/core/physics/time_series.h"
+#include "nursing_bed/core/physics/units.h"
+
+namespace nursing_bed {
+
+/// Parameters of one cell with its valves. SI units; defaults and their sources are in
+/// config/airbag_tpu_double_100.yaml and doc/cell_model.md.
+struct CellParams {
+  GasProperties gas;
+  double ambient_pressure_pa = kAtmosphericPressurePa;
+  double ambient_temperature_k = kRoomTemperatureK;
+  double supply_temperature_k = kRoomTemperatureK;   ///< temperature of the supplied air
+
+  PillowParams structure;                             ///< geometry and film
+
+  double plate_mass_kg = 0.6 / kGravity;              ///< loading plate (0.6 N, paper section 2.2)
+  double plate_damping_n_s_m = 20.0;                  ///< viscous damping of the plate guide
+  double bed_contact_stiffness_n_m = 2.0e5;           ///< folded film stack under a bottomed plate
+  double bed_contact_damping_n_s_m = 100.0;
+
+  double supply_pressure_pa = 20.0e3;                 ///< pressure-reducing valve setting (gauge)
+  double regulator_time_constant_s = 1.2;             ///< first-order response of that valve's outlet
+  double inlet_area_m2 = 1.5e-5;                      ///< effective area Cd*A of the open inlet valve
+  double vent_area_m2 = 1.5e-5;                       ///< effective area Cd*A of the open vent valve
+  double leak_area_m2 = 0.0;                          ///< effective area of seams/film leakage (eq. 17)
+  double orifice_linear_band_pa = 100.0;              ///< smoothing band of orifice flow near dp = 0
+
+  double time_step_s = 2.0e-3;                        ///< default (and largest) integration step
+  int jacobian_refresh_steps = 8;                     ///< accepted steps between Jacobian updates
+  double relative_tolerance = 1.0e-4;                 ///< local error control of the sub-steps
+
+  /// Empty when valid, else every problem found, separated by "; ".
+  std::string validate() const;
+};
+
+/// Commands and boundary conditions, held over a step.
+struct CellInputs {
+  double inlet_opening = 0.0;   ///< inlet valve opening 0 (closed) .. 1 (open); proportional
+  double vent_opening = 0.0;    ///< vent valve opening 0 .. 1
+  /// Gauge pressure at the vent's outlet: 0 vents to ambient; < 0 is a vacuum source (the
+  /// vacuum-assisted rapid deflation of CPR mattresses).
+  double vent_back_pressure_pa = 0.0;
+  double load_n = 0.6;          ///< external vertical load on the plate, plate weight included
+  /// Pressure-reducing valve setting (gauge); NaN uses CellParams::supply_pressure_pa.
+  double supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
+  /// When set, the inlet mass flow is this series [kg/s vs s] (a measured curve, the paper's
+  /// way); the regulator and inlet valve are bypassed. Not owned.
+  const TimeSeries* prescribed_inflow = nullptr;
+  /// When finite (and no series is set), the inlet mass flow is this constant over the step
+  /// [kg/s]: a meter that reports the mean flow of each sample interval.
+  double prescribed_inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
+  /// With a prescribed inflow: the inlet is known to be closed over this step (a replay set the
+  /// meter's noise there to 0), so effects that model the meter's errors add nothing.
+  bool inlet_closed = false;
+};
+
+/**
+ * State x = [m, U, h, v, p_reg, q_1..q_k, effect states]:
+ *  - gas mass m and internal energy U (ideal gas, constant heat capacities, adiabatic unless
+ *    an effect adds heat; eq. 12-16), mass balance eq. 17;
+ *  - plate height h and velocity v (rigid plate carrying the load, fig. 7);
+ *  - regulator outlet gauge pressure p_reg;
+ *  - film shape q (CellStructure), relaxing viscously to its balance dW/dq = p_gauge dV/dq;
+ *  - states of plugged-in effects.
+ * Integrated with ROS2, a second-order L-stable linearly implicit (Rosenbrock-W) method whose
+ * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps: the plate on its gas
+ * spring and the film are stiff, the gas balances are not. A step of the default size is
+ * split into sub-steps when the local error estimate (ROS2 against its embedded first-order
+ * solution) exceeds the tolerance, as it does while the bag lifts off a bottomed plate.
+ */
+class CellModel {
+ public:
+  static constexpr int kMaxStates = 24;
+  using StateVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxStates, 1>;
+  using StateMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxStates, kMaxStates>;
+  enum StateIndex { kMass = 0, kEnergy = 1, kHeight = 2, kVelocity = 3, kRegulator = 4, kShape = 5 };
+
+  /// Throws std::invalid_argument when params.validate() fails. The default structure is a
+  /// PillowStructure built from params.structure.
+  explicit CellModel(const CellParams& params, std::shared_ptr<const CellStructure> structure = nullptr);
+
+  /// Adds an effect and resets the model (its states join the state vector).
+  void addEffect(CellEffectPtr effect);
+  const std::vector<CellEffectPtr>& effects() const { return effects_; }
+
+  /// Flat cell with ambient air, plate on the bed, t = 0.
+  void reset(double load_n = 0.6);
+  /// Plate at rest at `height_m` under `load_n` with the gas that holds it there.
+  /// The gas is at `gas_temperature_k` (NaN: the ambient temperature).
+  void resetToEquilibrium(double height_m, double load_n,
+                          double gas_temperature_k = std::numeric_limits<double>::quiet_NaN());
+
+  /// One step of `dt` (default params().time_step_s).
+  void step(const CellInputs& inputs) { step(params_.time_step_s, inputs); }
+  void step(double dt, const CellInputs& inputs);
+  /// Steps of the default size (the last one shortened) until `duration_s` has passed.
+  void advance(double duration_s, const CellInputs& inputs);
+
+  double time() const { return time_; }
+  /// Accepted integration sub-steps since construction (the cost of what was simulated).
+  long substeps() const { return substeps_; }
+  /// Makes step() throw std::runtime_error once substeps() would exceed `max_substeps`
+  /// (0: no limit). For fits that may wander into needlessly stiff parameters.
+  void setSubstepBudget(long max_substeps) { substep_budget_ = max_substeps; }
+  const CellVariables& variables() const { return vars_; }
+  /// What the sensors report (true values unless an effect changes them).
+  Measurement measure() const;
+  const StateVector& state() const { return state_; }
+  /// Replaces the state (size must match); variables are recomputed.
+  void setState(double time_s, const StateVector& state);
+  const CellParams& params() const { return params_; }
+  const CellStructure& structure() const { return *structure_; }
+  int stateSize() const { return static_cast<int>(state_.size()); }
+
+  /// True when two input sets would give the same right-hand side.
+  static bool sameInputs(const CellInputs& a, const CellInputs& b);
+  /// Right-hand side dx/dt at (t, x); fills `vars` when non-null.
+  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs,
+                   CellVariables* vars = nullptr) const;
+
+ private:
+  void refreshVariables(const CellInputs& inputs);
+  void updateJacobian(const CellInputs& inputs, const StateVector& f0);
+  /// One ROS2 attempt of size dt from the current state; returns the scaled error norm.
+  double attemptStep(double dt, const CellInputs& inputs, const StateVector& f0, StateVector* next);
+
+  CellParams params_;
+  std::shared_ptr<const CellStructure> structure_;
+  std::vector<CellEffectPtr> effects_;
+  std::vector<int> effect_offsets_;
+  int shape_dofs_ = 1;
+  double time_ = 0.0;
+  StateVector state_;
+  CellVariables vars_;
+  CellInputs last_inputs_;
+  // W-method bookkeeping.
+  StateMatrix jacobian_;
+  bool jacobian_fresh_ = false;       // computed at the current state
+  int steps_since_jacobian_ = 1 << 30;
+  double lu_dt_ = 0.0;                // step size the factorisation was made for
+  Eigen::PartialPivLU<StateMatrix> lu_;
+  StateVector scale_;                 // typical magnitude of each state (FD increments, tolerances)
+  double substep_s_ = 0.0;            // last accepted sub-step size
+  long substeps_ = 0;
+  long substep_budget_ = 0;
+  StateVector rate_at_state_;         // dx/dt at (time_, state_, last_inputs_), kept with vars_
+};
+
+}  // namespace nursing_bed

@@ -1,0 +1,34 @@
+// Reading and writing CellParams: one table of every parameter (key, unit, meaning), used by the
+// YAML loader here and by the ROS wrappers' loadParams(), so both accept exactly the same keys.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/io/param_table.h"
+
+namespace nursing_bed {
+
+using CellParamField = ParamField<CellParams>;
+
+/// Every scalar parameter of a cell, in documentation order.
+const ParamTable<CellParams>& cellParamFields();
+
+/**
+ * Reads a YAML file of cell parameters (layout: config/airbag_tpu_double_100.yaml) on top of
+ * `defaults`. Keys that are absent keep their default. Throws std::runtime_error naming the
+ * file and the key for: unreadable file or YAML syntax error, an unknown key (a typo would
+ * otherwise be silently ignored), a non-numeric or non-integer value, or a parameter set that
+ * fails CellParams::validate().
+ */
+CellParams loadCellParamsYaml(const std::string& path, const CellParams& defaults = CellParams{});
+
+/// Same, from YAML text (`source` names it in errors).
+CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& source,
+                               const CellParams& defaults = CellParams{});
+
+/// The parameters as YAML (every key, one comment each).
+std::string cellParamsToYaml(const CellParams& params);
+
+}  // namespace nursing_bed

@@ -1,0 +1,456 @@
+#include "nursing_bed/core/bed/body_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "nursing_bed/core/physics/units.h"
+
+namespace nursing_bed {
+
+namespace {
+
+// Stature the underside radii of the table are given for [m]; they scale with H / this.
+constexpr double kReferenceStatureM = 1.70;
+
+// Segment indices (segmentTable() order).
+enum : int {
+  kHeadNeck = 0, kThorax, kAbdomen, kPelvis,
+  kRightUpperArm, kRightForearm, kRightHand, kLeftUpperArm, kLeftForearm, kLeftHand,
+  kRightThigh, kRightLeg, kRightFoot, kLeftThigh, kLeftLeg, kLeftFoot, kSegmentCount
+};
+
+// Where the segment table's numbers come from.
+//
+// Mass fractions: Dempster (1955) as tabulated by Winter, "Biomechanics and Motor Control of
+// Human Movement" (4th ed., 2009), Table 4.1: head+neck 0.081, thorax 0.216, abdomen 0.139,
+// pelvis 0.142, upper arm 0.028, forearm 0.016, hand 0.006, thigh 0.100, leg 0.0465,
+// foot 0.0145 (each limb segment per side); they sum to 1.000.
+//
+// Lengths and widths, fractions of stature H: Winter Fig. 4.1 (after Drillis & Contini 1966):
+// head (vertex-chin) 0.130, upper arm 0.186, forearm 0.146, hand 0.108, thigh 0.245,
+// leg 0.246, foot 0.152; shoulder width 0.259, hip width 0.191, chest width 0.174; landmark
+// heights shoulder 0.818, hip (greater trochanter) 0.530, knee 0.285, ankle 0.039.
+//
+// Chosen here (not in Winter's figure): the trunk split along the body, from the shoulder line
+// (0.182 H from the vertex) to the gluteal fold (0.520 H): thorax 0.148 H (to ~T12/L1),
+// abdomen 0.070 H (to ~L4/L5, the iliac crest), pelvis 0.120 H (iliac crest to the gluteal
+// fold: the buttocks' contact, so it reaches below the greater trochanter at 0.470 H); waist
+// breadth 0.160 H, head breadth 0.091 H; limb widths from typical adult circumferences / pi
+// (upper arm ~30 cm -> 0.055 H, forearm ~25 cm -> 0.045 H, hand breadth 0.050 H, mean thigh
+// ~43 cm -> 0.080 H, calf ~32 cm -> 0.060 H, heel breadth 0.040 H); depths for drawing only.
+// The neck (0.130-0.182 H) is in cervical lordosis and touches nothing: the head+neck mass rests
+// on the head's footprint. In supine the foot stands up from the heel, so its footprint is the
+// heel, 0.059 H long behind the ankle line (0.941-1.000 H from the vertex); the leg's footprint
+// ends there. The thigh's contact starts at the gluteal fold.
+//
+// Placement: supine, head towards +x, arms along the trunk (their axes 0.125 H off the midline,
+// just clear of the hips), legs hip-width apart (each leg's axis through its hip joint, a
+// quarter of the hip width, 0.048 H, off the midline).
+//
+// Underside radii (for H = 1.70 m): the limbs are near-cylinders (R_y = half their width, R_x
+// long: straight); the trunk's back is broad and flat; the contact-concentrating radii of the
+// occiput, the sacrum (pelvis) and the heels are calibrated so that, with
+// tissue_stiffness_pa_m = 1.5e5 Pa/m on a flat bed, the point peaks of a 70 kg, 1.70 m patient
+// fall in the supine references on foam (sacrum 36-44, heels 46-59, occiput 43-63 mmHg;
+// paper-targets.md): see doc/simulator.md for the values obtained. The heel's small effective
+// radius stands in for its thin, stiff tissue over the calcaneus.
+const std::vector<SegmentSpec> kSegmentTable = {
+    // name             mass     length start  end    width  depth  lateral  R_x    R_y   parent       trunk
+    {"head_neck",       0.081,   0.130, 0.000, 0.130, 0.091, 0.115,  0.000,  0.070, 0.040, kThorax,     false},
+    {"thorax",          0.216,   0.148, 0.182, 0.330, 0.174, 0.130,  0.000,  0.600, 0.200, kAbdomen,    true},
+    {"abdomen",         0.139,   0.070, 0.330, 0.400, 0.160, 0.120,  0.000,  1.000, 0.400, kPelvis,     true},
+    {"pelvis",          0.142,   0.120, 0.400, 0.520, 0.191, 0.130,  0.000,  0.110, 0.250, -1,          true},
+    {"right_upper_arm", 0.028,   0.186, 0.182, 0.368, 0.055, 0.055, -0.125,  1.000, 0.047, kThorax,     false},
+    {"right_forearm",   0.016,   0.146, 0.368, 0.514, 0.045, 0.045, -0.125,  1.000, 0.038, kRightUpperArm, false},
+    {"right_hand",      0.006,   0.108, 0.514, 0.622, 0.050, 0.020, -0.125,  0.300, 0.060, kRightForearm, false},
+    {"left_upper_arm",  0.028,   0.186, 0.182, 0.368, 0.055, 0.055,  0.125,  1.000, 0.047, kThorax,     false},
+    {"left_forearm",    0.016,   0.146, 0.368, 0.514, 0.045, 0.045,  0.125,  1.000, 0.038, kLeftUpperArm, false},
+    {"left_hand",       0.006,   0.108, 0.514, 0.622, 0.050, 0.020,  0.125,  0.300, 0.060, kLeftForearm, false},
+    {"right_thigh",     0.100,   0.245, 0.520, 0.715, 0.080, 0.090, -0.048,  1.000, 0.068, kPelvis,     false},
+    {"right_leg",       0.0465,  0.246, 0.715, 0.941, 0.060, 0.060, -0.048,  1.000, 0.051, kRightThigh, false},
+    {"right_foot",      0.0145,  0.152, 0.941, 1.000, 0.040, 0.130, -0.048,  0.012, 0.008, kRightLeg,   false},
+    {"left_thigh",      0.100,   0.245, 0.520, 0.715, 0.080, 0.090,  0.048,  1.000, 0.068, kPelvis,     false},
+    {"left_leg",        0.0465,  0.246, 0.715, 0.941, 0.060, 0.060,  0.048,  1.000, 0.051, kLeftThigh,  false},
+    {"left_foot",       0.0145,  0.152, 0.941, 1.000, 0.040, 0.130,  0.048,  0.012, 0.008, kLeftLeg,    false},
+};
+
+// Newton's tolerance: force within this fraction of the weight, moment within this times
+// weight x 1 m.
+constexpr double kTolerance = 1e-10;
+constexpr int kMaxIterations = 100;
+
+std::vector<int> sortedUnique(std::set<int> s) { return std::vector<int>(s.begin(), s.end()); }
+
+}  // namespace
+
+const std::vector<SegmentSpec>& segmentTable() { return kSegmentTable; }
+
+std::string PatientParams::validate() const {
+  std::ostringstream err;
+  if (!(mass_kg >= 20.0 && mass_kg <= 250.0)) err << "mass_kg must lie in [20, 250] kg (got " << mass_kg << "); ";
+  if (!(height_m >= 1.0 && height_m <= 2.3)) err << "height_m must lie in [1.0, 2.3] m (got " << height_m << "); ";
+  if (!(head_clearance_m >= 0.0 && head_clearance_m <= 1.0))
+    err << "head_clearance_m must lie in [0, 1] m (got " << head_clearance_m << "); ";
+  if (!(tissue_stiffness_pa_m >= 1e4 && tissue_stiffness_pa_m <= 1e8))
+    err << "tissue_stiffness_pa_m must lie in [1e4, 1e8] Pa/m (got " << tissue_stiffness_pa_m << "); ";
+  if (!(std::isfinite(lateral_offset_m) && std::abs(lateral_offset_m) <= 1.0))
+    err << "lateral_offset_m must lie in [-1, 1] m (got " << lateral_offset_m << "); ";
+  if (!(contact_resolution_m >= 0.002 && contact_resolution_m <= 0.05))
+    err << "contact_resolution_m must lie in [0.002, 0.05] m (got " << contact_resolution_m << "); ";
+  if (!(max_roll_rad > 0.0 && max_roll_rad <= 1.4))
+    err << "max_roll_rad must lie in (0, 1.4] rad (got " << max_roll_rad << "); ";
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+int BodyModel::segmentIndex(const std::string& name) {
+  for (std::size_t i = 0; i < kSegmentTable.size(); ++i)
+    if (name == kSegmentTable[i].name) return static_cast<int>(i);
+  return -1;
+}
+
+BodyModel::BodyModel(const PatientParams& params, const BedGrid& grid) : params_(params), grid_(grid) {
+  const std::string error = params_.validate();
+  if (!error.empty()) throw std::invalid_argument("patient parameters: " + error);
+  if (grid_.rows < 1 || grid_.cols < 1 || !(grid_.pitch_m > 0.0))
+    throw std::invalid_argument("body model: the bed grid is empty");
+  const double H = params_.height_m;
+  const double scale = H / kReferenceStatureM;
+  const double x_vertex = 0.5 * grid_.lengthM() - params_.head_clearance_m;
+  for (const SegmentSpec& spec : kSegmentTable) {
+    Segment seg;
+    seg.spec = spec;
+    seg.x0 = x_vertex - spec.end_fraction * H;  // foot end
+    seg.x1 = x_vertex - spec.start_fraction * H;  // head end
+    seg.x_c = 0.5 * (seg.x0 + seg.x1);
+    seg.y_c = params_.lateral_offset_m + spec.lateral_fraction * H;
+    seg.y0 = seg.y_c - 0.5 * spec.width_fraction * H;
+    seg.y1 = seg.y_c + 0.5 * spec.width_fraction * H;
+    seg.mass_kg = spec.mass_fraction * params_.mass_kg;
+    seg.radius_x = spec.radius_x_m * scale;
+    seg.radius_y = spec.radius_y_m * scale;
+    seg.carried_n = seg.mass_kg * kGravity;
+    buildSegment(&seg);
+    segments_.push_back(std::move(seg));
+  }
+  // Segments off the bed hand their weight to their parents, distal first (children come after
+  // their parents in the table, so walk it backwards).
+  for (int i = kSegmentCount - 1; i >= 0; --i) {
+    Segment& seg = segments_[i];
+    if (!seg.points.empty()) continue;
+    seg.on_bed = false;
+    if (seg.spec.parent < 0 || seg.spec.trunk || i == kHeadNeck) {
+      std::ostringstream m;
+      m << "body model: the " << seg.spec.name << " does not lie on the bed (a " << H << " m patient with "
+        << params_.head_clearance_m << " m head clearance, lateral offset " << params_.lateral_offset_m << " m, on a "
+        << grid_.lengthM() << " x " << grid_.widthM() << " m bed)";
+      throw std::invalid_argument(m.str());
+    }
+    segments_[seg.spec.parent].carried_n += seg.carried_n;
+    seg.carried_n = 0.0;
+  }
+}
+
+void BodyModel::buildSegment(Segment* seg) const {
+  // Sub-points on a regular grid over the footprint, symmetric about the segment's centre.
+  const double res = params_.contact_resolution_m;
+  const int nx = std::max(1, static_cast<int>(std::ceil((seg->x1 - seg->x0) / res - 1e-9)));
+  const int ny = std::max(1, static_cast<int>(std::ceil((seg->y1 - seg->y0) / res - 1e-9)));
+  const double dx = (seg->x1 - seg->x0) / nx, dy = (seg->y1 - seg->y0) / ny;
+  const double half_l = 0.5 * grid_.lengthM(), half_w = 0.5 * grid_.widthM();
+  const double p = grid_.pitch_m;
+  for (int i = 0; i < nx; ++i) {
+    const double x = seg->x0 + (i + 0.5) * dx;
+    if (x <= -half_l || x >= half_l) continue;  // off the bed: no support
+    for (int j = 0; j < ny; ++j) {
+      const double y = seg->y0 + (j + 0.5) * dy;
+      if (y <= -half_w || y >= half_w) continue;
+      SubPoint sp;
+      sp.u = y - seg->y_c;
+      const double v = x - seg->x_c;
+      sp.q = sp.u * sp.u / (2.0 * seg->radius_y) + v * v / (2.0 * seg->radius_x);
+      sp.area = dx * dy;
+      // Continuous cell coordinates: row r at x(r), col c at y(c).
+      const double r = 0.5 * grid_.rows - 0.5 - x / p;
+      const double c = y / p + 0.5 * grid_.cols - 0.5;
+      const int face_row = std::clamp(static_cast<int>(std::lround(r)), 0, grid_.rows - 1);
+      const int face_col = std::clamp(static_cast<int>(std::lround(c)), 0, grid_.cols - 1);
+      sp.face_cell = grid_.id(face_row, face_col);
+      if (params_.smooth_cover) {
+        // Bilinear between the four surrounding centres; clamped beyond the outermost ones.
+        const double rc = std::clamp(r, 0.0, static_cast<double>(grid_.rows - 1));
+        const double cc = std::clamp(c, 0.0, static_cast<double>(grid_.cols - 1));
+        const int r0 = std::min(static_cast<int>(std::floor(rc)), std::max(grid_.rows - 2, 0));
+        const int c0 = std::min(static_cast<int>(std::floor(cc)), std::max(grid_.cols - 2, 0));
+        const int r1 = std::min(r0 + 1, grid_.rows - 1), c1 = std::min(c0 + 1, grid_.cols - 1);
+        const double fr = rc - r0, fc = cc - c0;
+        sp.cell[0] = grid_.id(r0, c0);
+        sp.cell[1] = grid_.id(r0, c1);
+        sp.cell[2] = grid_.id(r1, c0);
+        sp.cell[3] = grid_.id(r1, c1);
+        sp.weight[0] = (1.0 - fr) * (1.0 - fc);
+        sp.weight[1] = (1.0 - fr) * fc;
+        sp.weight[2] = fr * (1.0 - fc);
+        sp.weight[3] = fr * fc;
+      } else {
+        sp.cell[0] = sp.face_cell;
+        sp.weight[0] = 1.0;
+      }
+      seg->points.push_back(sp);
+    }
+  }
+}
+
+double BodyModel::weightN() const { return params_.mass_kg * kGravity; }
+
+void BodyModel::reset() {
+  for (Segment& seg : segments_) seg.warm = false;
+}
+
+BodyModel::Evaluation BodyModel::evaluate(const Segment& seg, const std::vector<double>& surface, double z,
+                                          double t) const {
+  // Potential m g z + k/2 sum a d+^2, its gradient (W - F, -M) and Hessian [[s0, s1], [s1, s2]].
+  Evaluation e;
+  double energy = 0.0;
+  for (std::size_t i = 0; i < seg.points.size(); ++i) {
+    const SubPoint& sp = seg.points[i];
+    const double d = surface[i] - z - t * sp.u - sp.q;
+    if (d <= 0.0) continue;
+    const double ad = sp.area * d;
+    energy += ad * d;
+    e.force += ad;
+    e.moment += ad * sp.u;
+    e.s0 += sp.area;
+    e.s1 += sp.area * sp.u;
+    e.s2 += sp.area * sp.u * sp.u;
+  }
+  const double k = params_.tissue_stiffness_pa_m;
+  e.force *= k;
+  e.moment *= k;
+  e.s0 *= k;
+  e.s1 *= k;
+  e.s2 *= k;
+  e.potential = seg.carried_n * z + 0.5 * k * energy;
+  return e;
+}
+
+int BodyModel::solveSegment(Segment* seg, const std::vector<double>& surface, bool* converged) const {
+  const double W = seg->carried_n;
+  const double t_max = std::tan(params_.max_roll_rad);
+  const double k = params_.tissue_stiffness_pa_m;
+  // Highest point of the surface relative to the underside at roll t: first contact there.
+  auto touchdown = [&](double t) {
+    double top = -std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < seg->points.size(); ++i)
+      top = std::max(top, surface[i] - t * seg->points[i].u - seg->points[i].q);
+    return top;
+  };
+  if (!seg->warm) {
+    // Cold start: level, sunk as far as a paraboloid on a plane would for this weight
+    // (F = k pi sqrt(R_x R_y) d^2).
+    seg->t = 0.0;
+    seg->z = touchdown(0.0) - std::sqrt(W / (k * kPi * std::sqrt(seg->radius_x * seg->radius_y)));
+  }
+  double z = seg->z, t = seg->t;
+  const double force_tol = kTolerance * W, moment_tol = kTolerance * W * 1.0;
+  int it = 0;
+  *converged = false;
+  for (; it < kMaxIterations; ++it) {
+    Evaluation e = evaluate(*seg, surface, z, t);
+    if (e.s0 <= 0.0) {  // floating above the surface: drop onto it, then go on
+      z = touchdown(t) - 1e-6;
+      continue;
+    }
+    const double gz = W - e.force, gt = -e.moment;
+    // Roll at its bound and pushed further out: hold it there (an unbalanced segment).
+    const bool hold_t = (t >= t_max && gt < 0.0) || (t <= -t_max && gt > 0.0);
+    if (std::abs(gz) <= force_tol && (hold_t || std::abs(gt) <= moment_tol)) {
+      *converged = true;
+      break;
+    }
+    double dz, dt = 0.0;
+    const double det = e.s0 * e.s2 - e.s1 * e.s1;
+    if (!hold_t && det > 1e-12 * e.s0 * e.s2 && e.s2 > 0.0) {
+      dz = -(e.s2 * gz - e.s1 * gt) / det;
+      dt = -(-e.s1 * gz + e.s0 * gt) / det;
+    } else {
+      dz = -gz / e.s0;  // contact along a line (no roll stiffness) or roll held: height only
+    }
+    // Backtracking line search on the potential (convex, C1: Newton converges from anywhere).
+    const double slope = gz * dz + gt * dt;  // < 0: a descent direction
+    double alpha = 1.0;
+    bool accepted = false;
+    for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
+      const double zn = z + alpha * dz;
+      const double tn = std::clamp(t + alpha * dt, -t_max, t_max);
+      const Evaluation en = evaluate(*seg, surface, zn, tn);
+      // (with an allowance for rounding, or steps near the solution would be refused)
+      if (en.potential <= e.potential + 1e-4 * alpha * slope + 1e-12 * std::abs(e.potential) || ls == 39) {
+        z = zn;
+        t = tn;
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) break;
+  }
+  seg->z = z;
+  seg->t = t;
+  seg->warm = true;
+  return it;
+}
+
+BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
+  const std::size_t n = static_cast<std::size_t>(grid_.cells());
+  if (cell_heights_m.size() != n) {
+    std::ostringstream m;
+    m << "body model: got " << cell_heights_m.size() << " cell heights for a " << grid_.rows << " x " << grid_.cols
+      << " bed (" << n << " cells)";
+    throw std::invalid_argument(m.str());
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (!std::isfinite(cell_heights_m[i]))
+      throw std::invalid_argument("body model: cell " + std::to_string(i) + " height is not finite");
+
+  BodyState state;
+  state.cell_load_n.assign(n, 0.0);
+  state.cell_pressure_pa.assign(n, 0.0);
+  state.cell_peak_pressure_pa.assign(n, 0.0);
+  const double k = params_.tissue_stiffness_pa_m;
+  std::vector<double> surface;
+  std::vector<std::vector<double>> seg_cell_load(segments_.size());
+  double trunk_roll = 0.0, trunk_mass = 0.0;
+  for (std::size_t s = 0; s < segments_.size(); ++s) {
+    Segment& seg = segments_[s];
+    SegmentPose pose;
+    pose.name = seg.spec.name;
+    pose.x_c_m = seg.x_c;
+    pose.y_c_m = seg.y_c;
+    pose.mass_kg = seg.mass_kg;
+    pose.length_m = seg.spec.length_fraction * params_.height_m;
+    pose.width_m = seg.y1 - seg.y0;
+    pose.footprint_length_m = seg.x1 - seg.x0;
+    pose.depth_m = seg.spec.depth_fraction * params_.height_m;
+    pose.on_bed = seg.on_bed;
+    if (!seg.on_bed) {
+      // Hanging off the bed: drawn level with its parent, carried by it.
+      const Segment& parent = segments_[seg.spec.parent];
+      pose.z_m = parent.z;
+      pose.roll_rad = std::atan(parent.t);
+      state.segments.push_back(pose);
+      continue;
+    }
+    surface.resize(seg.points.size());
+    for (std::size_t i = 0; i < seg.points.size(); ++i) {
+      const SubPoint& sp = seg.points[i];
+      surface[i] = sp.weight[0] * cell_heights_m[sp.cell[0]] + sp.weight[1] * cell_heights_m[sp.cell[1]] +
+                   sp.weight[2] * cell_heights_m[sp.cell[2]] + sp.weight[3] * cell_heights_m[sp.cell[3]];
+    }
+    bool ok = false;
+    state.iterations += solveSegment(&seg, surface, &ok);
+    state.converged = state.converged && ok;
+    // Forces at the sub-points, shared among the cells that make the surface there.
+    std::vector<double>& loads = seg_cell_load[s];
+    loads.assign(n, 0.0);
+    double force = 0.0, moment = 0.0, peak = 0.0;
+    for (std::size_t i = 0; i < seg.points.size(); ++i) {
+      const SubPoint& sp = seg.points[i];
+      const double d = surface[i] - seg.z - seg.t * sp.u - sp.q;
+      if (d <= 0.0) continue;
+      const double f = k * sp.area * d;
+      force += f;
+      moment += f * sp.u;
+      for (int j = 0; j < 4; ++j)
+        if (sp.weight[j] > 0.0) loads[sp.cell[j]] += f * sp.weight[j];
+      const double pressure = k * d;
+      peak = std::max(peak, pressure);
+      state.cell_peak_pressure_pa[sp.face_cell] = std::max(state.cell_peak_pressure_pa[sp.face_cell], pressure);
+    }
+    pose.z_m = seg.z;
+    pose.roll_rad = std::atan(seg.t);
+    pose.support_n = force;
+    pose.moment_residual_nm = moment;
+    pose.peak_pressure_pa = peak;
+    pose.at_roll_limit = std::abs(seg.t) >= std::tan(params_.max_roll_rad) * (1.0 - 1e-12);
+    for (std::size_t c = 0; c < n; ++c) {
+      if (loads[c] == 0.0) continue;
+      pose.cell_loads_n.emplace_back(static_cast<std::uint32_t>(c), loads[c]);
+      state.cell_load_n[c] += loads[c];
+    }
+    if (seg.spec.trunk) {
+      trunk_roll += seg.mass_kg * pose.roll_rad;
+      trunk_mass += seg.mass_kg;
+    }
+    state.segments.push_back(std::move(pose));
+  }
+  state.roll_rad = trunk_mass > 0.0 ? trunk_roll / trunk_mass : 0.0;
+  const double area = grid_.cellAreaM2();
+  for (std::size_t c = 0; c < n; ++c) {
+    state.cell_pressure_pa[c] = state.cell_load_n[c] / area;
+    state.total_load_n += state.cell_load_n[c];
+  }
+  // Regional peaks: point peaks of the region's segments; cell peaks over the cells they load.
+  auto region = [&](std::initializer_list<int> segs, double* point_peak, double* cell_peak) {
+    for (int s : segs) {
+      *point_peak = std::max(*point_peak, state.segments[s].peak_pressure_pa);
+      for (const auto& cl : state.segments[s].cell_loads_n)
+        *cell_peak = std::max(*cell_peak, state.cell_pressure_pa[cl.first]);
+    }
+  };
+  region({kPelvis}, &state.peak_pressure_pa.sacrum, &state.peak_cell_pressure_pa.sacrum);
+  region({kRightFoot, kLeftFoot}, &state.peak_pressure_pa.heels, &state.peak_cell_pressure_pa.heels);
+  region({kHeadNeck}, &state.peak_pressure_pa.occiput, &state.peak_cell_pressure_pa.occiput);
+  return state;
+}
+
+std::vector<int> BodyModel::rowsOf(const std::vector<int>& segment_indices) const {
+  std::set<int> rows;
+  const double p = grid_.pitch_m;
+  for (int s : segment_indices) {
+    const Segment& seg = segments_[s];
+    for (int r = 0; r < grid_.rows; ++r) {
+      const double xc = grid_.x(r);
+      // The cell's face [xc - p/2, xc + p/2] overlaps the footprint (not just touches it).
+      if (xc + 0.5 * p > seg.x0 + 1e-9 && xc - 0.5 * p < seg.x1 - 1e-9) rows.insert(r);
+    }
+  }
+  return sortedUnique(rows);
+}
+
+std::vector<int> BodyModel::footprintRows() const {
+  std::vector<int> all;
+  for (int s = 0; s < kSegmentCount; ++s)
+    if (segments_[s].on_bed) all.push_back(s);
+  return rowsOf(all);
+}
+
+std::vector<int> BodyModel::trunkRows() const { return rowsOf({kThorax, kAbdomen, kPelvis}); }
+std::vector<int> BodyModel::headRows() const { return rowsOf({kHeadNeck}); }
+std::vector<int> BodyModel::pelvisRows() const { return rowsOf({kPelvis}); }
+
+std::vector<int> BodyModel::heelRows() const {
+  std::vector<int> feet;
+  if (segments_[kRightFoot].on_bed) feet.push_back(kRightFoot);
+  if (segments_[kLeftFoot].on_bed) feet.push_back(kLeftFoot);
+  return rowsOf(feet);
+}
+
+std::vector<int> BodyModel::footprintCols() const {
+  std::set<int> cols;
+  const double p = grid_.pitch_m;
+  for (const Segment& seg : segments_) {
+    if (!seg.on_bed) continue;
+    for (int c = 0; c < grid_.cols; ++c) {
+      const double yc = grid_.y(c);
+      if (yc + 0.5 * p > seg.y0 + 1e-9 && yc - 0.5 * p < seg.y1 - 1e-9) cols.insert(c);
+    }
+  }
+  return sortedUnique(cols);
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,365 @@
+#include "nursing_bed/core/bed/posture_plans.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "nursing_bed/core/physics/units.h"
+
+namespace nursing_bed {
+
+std::string PlanConfig::validate() const {
+  std::ostringstream err;
+  if (!(min_height_m >= 0.0 && max_height_m > min_height_m)) err << "need 0 <= min_height_m < max_height_m; ";
+  if (!(nominal_height_m >= min_height_m && nominal_height_m <= max_height_m))
+    err << "nominal_height_m must lie in [min_height_m, max_height_m]; ";
+  if (!(max_tilt_deg > 0.0 && max_tilt_deg <= kHardMaxTiltDeg)) err << "max_tilt_deg must lie in (0, 40]; ";
+  if (!(max_tilt_rate_deg_s > 0.0)) err << "max_tilt_rate_deg_s must be positive; ";
+  if (!(turn_ramp_s > 0.0 && turn_dwell_s >= 0.0)) err << "turn_ramp_s must be positive, turn_dwell_s >= 0; ";
+  if (!(alternating_low_m >= min_height_m && alternating_high_m <= max_height_m && alternating_low_m < alternating_high_m))
+    err << "alternating heights must satisfy min <= low < high <= max; ";
+  if (!(alternating_transition_s > 0.0)) err << "alternating_transition_s must be positive; ";
+  if (!(alternating_period_s >= 6.0 * alternating_transition_s)) err << "alternating_period_s too short for the transition; ";
+  if (static_head_rows < 0) err << "static_head_rows must be >= 0; ";
+  if (!(max_inflate_timeout_s > 0.0)) err << "max_inflate_timeout_s must be positive; ";
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+namespace {
+
+// Reads plan arguments, each at most once, with the reasons for refusal in one place.
+class Args {
+ public:
+  Args(const std::map<std::string, std::string>& args, const std::string& plan) : args_(args), plan_(plan) {}
+
+  double number(const std::string& key, double fallback, double lo, double hi, bool required = false) {
+    used_.insert(key);
+    const auto it = args_.find(key);
+    if (it == args_.end()) {
+      if (required) fail("needs " + key);
+      return fallback;
+    }
+    std::size_t pos = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(it->second, &pos);
+    } catch (const std::exception&) {
+      pos = 0;
+    }
+    if (pos == 0 || pos != it->second.size()) fail(key + " must be a number, got '" + it->second + "'");
+    if (!std::isfinite(v)) fail(key + " must be finite");
+    if (v < lo || v > hi) {
+      std::ostringstream m;
+      m << key << " = " << v << " is outside [" << lo << ", " << hi << "]";
+      fail(m.str());
+    }
+    return v;
+  }
+
+  std::string word(const std::string& key, const std::vector<std::string>& allowed, const std::string& fallback,
+                   bool required = false) {
+    used_.insert(key);
+    const auto it = args_.find(key);
+    if (it == args_.end()) {
+      if (required) fail("needs " + key + " (" + join(allowed) + ")");
+      return fallback;
+    }
+    if (std::find(allowed.begin(), allowed.end(), it->second) == allowed.end())
+      fail(key + " must be one of " + join(allowed) + ", got '" + it->second + "'");
+    return it->second;
+  }
+
+  /// Refuses arguments the plan does not take.
+  void finish() const {
+    for (const auto& a : args_)
+      if (!used_.count(a.first)) fail("does not take '" + a.first + "'");
+  }
+
+  [[noreturn]] void fail(const std::string& what) const { throw std::invalid_argument(plan_ + ": " + what); }
+
+ private:
+  static std::string join(const std::vector<std::string>& v) {
+    std::string s;
+    for (const auto& w : v) s += (s.empty() ? "" : "|") + w;
+    return s;
+  }
+  const std::map<std::string, std::string>& args_;
+  std::string plan_;
+  std::set<std::string> used_;
+};
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+class UniformPlan : public PosturePlan {
+ public:
+  UniformPlan(std::string name, const BedGrid& grid, double height_m, double timeout_s)
+      : name_(std::move(name)), cells_(grid.cells()), height_m_(height_m), timeout_s_(timeout_s) {}
+  std::string name() const override { return name_; }
+  PlanTargets targets(double elapsed_s) const override {
+    PlanTargets t;
+    t.heights_m.assign(cells_, height_m_);
+    t.phase = timeout_s_ > 0.0 ? (elapsed_s < timeout_s_ ? "inflated" : "timed out") : "holding";
+    t.finished = timeout_s_ > 0.0 && elapsed_s >= timeout_s_;
+    return t;
+  }
+  std::string describe() const override {
+    return "height_m=" + fmt(height_m_) + (timeout_s_ > 0.0 ? " timeout_s=" + fmt(timeout_s_) : "");
+  }
+
+ private:
+  std::string name_;
+  int cells_;
+  double height_m_, timeout_s_;
+};
+
+class CprPlan : public PosturePlan {
+ public:
+  std::string name() const override { return "cpr"; }
+  PlanTargets targets(double) const override {
+    PlanTargets t;
+    t.vent_all = true;
+    t.phase = "venting";
+    return t;
+  }
+  std::string describe() const override { return ""; }
+};
+
+class CustomPlan : public PosturePlan {
+ public:
+  explicit CustomPlan(std::vector<double> heights) : heights_(std::move(heights)) {}
+  std::string name() const override { return "custom"; }
+  PlanTargets targets(double) const override {
+    PlanTargets t;
+    t.heights_m = heights_;
+    t.phase = "holding";
+    return t;
+  }
+  std::string describe() const override { return std::to_string(heights_.size()) + " heights"; }
+
+ private:
+  std::vector<double> heights_;
+};
+
+// Lateral turn: the cells under the body form a plane tilted across the bed about the body's
+// midline; the body rolls with it. Ramp (rate-limited), dwell, and optionally back to flat.
+class LateralTurnPlan : public PosturePlan {
+ public:
+  LateralTurnPlan(const PlanConfig& c, const BedGrid& g, const BodyFootprint& b, double direction, double angle_deg,
+                  double ramp_s, double dwell_s, bool back)
+      : config_(c), grid_(g), body_(b), direction_(direction), angle_deg_(angle_deg), ramp_s_(ramp_s),
+        dwell_s_(dwell_s), back_(back) {}
+  std::string name() const override { return "lateral_turn"; }
+  PlanTargets targets(double t) const override {
+    PlanTargets out;
+    double a = angle_deg_;
+    if (t < ramp_s_) {
+      a = angle_deg_ * t / ramp_s_;
+      out.phase = "ramp";
+    } else if (!back_ || t < ramp_s_ + dwell_s_) {
+      out.phase = "dwell";
+    } else if (t < 2.0 * ramp_s_ + dwell_s_) {
+      a = angle_deg_ * (1.0 - (t - ramp_s_ - dwell_s_) / ramp_s_);
+      out.phase = "return";
+    } else {
+      a = 0.0;
+      out.phase = "flat";
+      out.finished = true;
+    }
+    out.tilt_deg = direction_ * a;
+    // Turning towards the patient's left (+) lowers the left (+y) side.
+    const double slope = -std::tan(out.tilt_deg * kPi / 180.0);
+    const double mid = 0.5 * (config_.min_height_m + config_.max_height_m);
+    out.heights_m.assign(grid_.cells(), config_.nominal_height_m);
+    for (int r = std::max(0, body_.first_row); r <= std::min(grid_.rows - 1, body_.last_row); ++r) {
+      for (int c = 0; c < grid_.cols; ++c) {
+        // Blend from the flat height into the tilt plane as the angle grows, so that the start
+        // and end of a turn are continuous.
+        const double w = std::min(1.0, std::fabs(a) / std::max(angle_deg_, 1e-9));
+        const double base = config_.nominal_height_m + w * (mid - config_.nominal_height_m);
+        const double h = base + slope * (grid_.y(c) - body_.center_y_m);
+        out.heights_m[grid_.id(r, c)] = std::clamp(h, config_.min_height_m, config_.max_height_m);
+      }
+    }
+    return out;
+  }
+  std::string describe() const override {
+    return std::string("side=") + (direction_ > 0 ? "left" : "right") + " angle_deg=" + fmt(angle_deg_) +
+           " ramp_s=" + fmt(ramp_s_) + " dwell_s=" + fmt(dwell_s_) + " return=" + (back_ ? "yes" : "no");
+  }
+
+ private:
+  PlanConfig config_;
+  BedGrid grid_;
+  BodyFootprint body_;
+  double direction_, angle_deg_, ramp_s_, dwell_s_;
+  bool back_;
+};
+
+// Alternating pressure: rows beyond the static head rows form N groups (row mod N); in each
+// N-th of the period one group is low. The next group lowers only `transition_s` after the
+// previous one was sent back up, so two adjacent rows are never low together.
+class AlternatingPlan : public PosturePlan {
+ public:
+  AlternatingPlan(const PlanConfig& c, const BedGrid& g, int groups, double period_s, double low_m, double high_m,
+                  int head_rows)
+      : config_(c), grid_(g), groups_(groups), period_s_(period_s), low_m_(low_m), high_m_(high_m),
+        head_rows_(head_rows) {}
+  std::string name() const override { return "alternating"; }
+  PlanTargets targets(double t) const override {
+    PlanTargets out;
+    const double slot = period_s_ / groups_;
+    const long index = static_cast<long>(std::floor(t / slot));
+    const int low_group = static_cast<int>(index % groups_);
+    const bool lowering = t - index * slot >= config_.alternating_transition_s;
+    out.phase = lowering ? "group " + std::to_string(low_group + 1) + " of " + std::to_string(groups_) + " low"
+                         : "all up before group " + std::to_string(low_group + 1);
+    out.heights_m.assign(grid_.cells(), high_m_);
+    for (int r = 0; r < grid_.rows; ++r) {
+      for (int c = 0; c < grid_.cols; ++c) {
+        double h = high_m_;
+        if (r < head_rows_) h = config_.nominal_height_m;
+        else if (lowering && (r - head_rows_) % groups_ == low_group) h = low_m_;
+        out.heights_m[grid_.id(r, c)] = h;
+      }
+    }
+    return out;
+  }
+  std::string describe() const override {
+    return "pattern=1in" + std::to_string(groups_) + " period_s=" + fmt(period_s_) + " low_m=" + fmt(low_m_) +
+           " high_m=" + fmt(high_m_) + " static_head_rows=" + std::to_string(head_rows_);
+  }
+
+ private:
+  PlanConfig config_;
+  BedGrid grid_;
+  int groups_;
+  double period_s_, low_m_, high_m_;
+  int head_rows_;
+};
+
+}  // namespace
+
+std::unique_ptr<PosturePlan> makeSafeLevelPlan(const BedGrid& grid, double height_m) {
+  return std::make_unique<UniformPlan>("safe_level", grid, height_m, 0.0);
+}
+
+std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m) {
+  return std::make_unique<CustomPlan>(std::move(heights_m));
+}
+
+const ParamTable<PlanConfig>& planConfigFields() {
+  using P = PlanConfig;
+#define NB_FIELD(key, desc, expr) realField<P>(key, desc, [](P& p) -> double& { return expr; })
+  static const ParamTable<P> fields = {
+      NB_FIELD("nominal_height_m", "flat bed height [m]", p.nominal_height_m),
+      NB_FIELD("min_height_m", "lowest height a plan commands [m]", p.min_height_m),
+      NB_FIELD("max_height_m", "highest height a plan commands [m]", p.max_height_m),
+      NB_FIELD("max_tilt_deg", "configured maximum lateral turn (hard cap 40) [deg]", p.max_tilt_deg),
+      NB_FIELD("max_tilt_rate_deg_s", "fastest change of the turn angle [deg/s]", p.max_tilt_rate_deg_s),
+      NB_FIELD("turn_ramp_s", "default ramp time of a turn [s]", p.turn_ramp_s),
+      NB_FIELD("turn_dwell_s", "default dwell at the turned angle [s]", p.turn_dwell_s),
+      NB_FIELD("alternating_period_s", "default alternating cycle [s]", p.alternating_period_s),
+      NB_FIELD("alternating_low_m", "default height of the relieved cells [m]", p.alternating_low_m),
+      NB_FIELD("alternating_high_m", "default height of the supporting cells [m]", p.alternating_high_m),
+      NB_FIELD("alternating_transition_s", "time the rising group gets before the next one lowers [s]", p.alternating_transition_s),
+      integerField<P>("static_head_rows", "head rows that alternating leaves at the nominal height [-]",
+                      [](P& p) -> int& { return p.static_head_rows; }),
+      NB_FIELD("max_inflate_timeout_s", "default time before max_inflate reverts [s]", p.max_inflate_timeout_s),
+  };
+#undef NB_FIELD
+  return fields;
+}
+
+const std::map<std::string, std::string>& planHelp() {
+  static const std::map<std::string, std::string> help = {
+      {"flat", "[height_m=H]"},
+      {"lateral_turn", "side=left|right angle_deg=A [ramp_s=S] [dwell_s=S] [return=yes|no]"},
+      {"alternating", "pattern=1in2|1in3 [period_s=S] [low_m=H] [high_m=H] [static_head_rows=N]"},
+      {"max_inflate", "[timeout_s=S]"},
+      {"cpr", "(no arguments)"},
+      {"custom", "heights_m = one height per cell, by cell id"},
+  };
+  return help;
+}
+
+std::unique_ptr<PosturePlan> makePlan(const PlanRequest& req, const PlanConfig& config, const BedGrid& grid,
+                                      const BodyFootprint& body, std::string* error) {
+  try {
+    if (!planHelp().count(req.plan)) {
+      std::string known;
+      for (const auto& p : planHelp()) known += (known.empty() ? "" : ", ") + p.first;
+      throw std::invalid_argument("unknown plan '" + req.plan + "' (known: " + known + ")");
+    }
+    if (req.plan != "custom" && !req.heights_m.empty())
+      throw std::invalid_argument(req.plan + ": does not take per-cell heights");
+    Args args(req.args, req.plan);
+    std::unique_ptr<PosturePlan> plan;
+    const double lo = config.min_height_m, hi = config.max_height_m;
+    if (req.plan == "flat") {
+      plan = std::make_unique<UniformPlan>("flat", grid, args.number("height_m", config.nominal_height_m, lo, hi), 0.0);
+    } else if (req.plan == "max_inflate") {
+      plan = std::make_unique<UniformPlan>("max_inflate", grid, hi,
+                                           args.number("timeout_s", config.max_inflate_timeout_s, 1.0, 7200.0));
+    } else if (req.plan == "cpr") {
+      plan = std::make_unique<CprPlan>();
+    } else if (req.plan == "custom") {
+      if (static_cast<int>(req.heights_m.size()) != grid.cells())
+        args.fail("needs " + std::to_string(grid.cells()) + " heights (one per cell), got " +
+                  std::to_string(req.heights_m.size()));
+      for (std::size_t i = 0; i < req.heights_m.size(); ++i) {
+        const double h = req.heights_m[i];
+        if (!std::isfinite(h) || h < lo || h > hi) {
+          std::ostringstream m;
+          m << "height " << h << " m of cell " << i << " is outside [" << lo << ", " << hi << "] m or not finite";
+          args.fail(m.str());
+        }
+      }
+      plan = std::make_unique<CustomPlan>(req.heights_m);
+    } else if (req.plan == "lateral_turn") {
+      const std::string side = args.word("side", {"left", "right"}, "", true);
+      const double angle = args.number("angle_deg", 0.0, 0.0, kHardMaxTiltDeg, true);
+      if (angle > config.max_tilt_deg) {
+        std::ostringstream m;
+        m << "angle_deg = " << angle << " exceeds the configured maximum " << config.max_tilt_deg << " deg";
+        args.fail(m.str());
+      }
+      if (!(angle > 0.0)) args.fail("angle_deg must be positive");
+      const double min_ramp = angle / config.max_tilt_rate_deg_s;
+      const double ramp = args.number("ramp_s", std::max(config.turn_ramp_s, min_ramp), 0.0, 3600.0);
+      if (ramp < min_ramp) {
+        std::ostringstream m;
+        m << "ramp_s = " << ramp << " turns faster than " << config.max_tilt_rate_deg_s << " deg/s (at least "
+          << min_ramp << " s for " << angle << " deg)";
+        args.fail(m.str());
+      }
+      const double dwell = args.number("dwell_s", config.turn_dwell_s, 0.0, 7200.0);
+      const bool back = args.word("return", {"yes", "no"}, "yes") == "yes";
+      plan = std::make_unique<LateralTurnPlan>(config, grid, body, side == "left" ? 1.0 : -1.0, angle, ramp, dwell, back);
+    } else if (req.plan == "alternating") {
+      const std::string pattern = args.word("pattern", {"1in2", "1in3"}, "", true);
+      const int groups = pattern == "1in2" ? 2 : 3;
+      const double period = args.number("period_s", config.alternating_period_s, 2.0 * groups * config.alternating_transition_s, 7200.0);
+      const double low = args.number("low_m", config.alternating_low_m, lo, hi);
+      const double high = args.number("high_m", config.alternating_high_m, lo, hi);
+      if (!(low < high)) args.fail("low_m must be below high_m");
+      const double head = args.number("static_head_rows", config.static_head_rows, 0.0, grid.rows - groups);
+      if (head != std::floor(head)) args.fail("static_head_rows must be a whole number");
+      plan = std::make_unique<AlternatingPlan>(config, grid, groups, period, low, high, static_cast<int>(head));
+    }
+    args.finish();
+    return plan;
+  } catch (const std::invalid_argument& e) {
+    if (error) *error = e.what();
+    return nullptr;
+  }
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,65 @@
+#include "nursing_bed/core/control/airbag_params_io.h"
+
+#include <stdexcept>
+
+#include "nursing_bed/core/physics/cell_params_io.h"
+
+namespace nursing_bed {
+namespace {
+
+using P = AirbagCellParams;
+#define NB_FIELD(key, desc, expr) realField<P>(key, desc, [](P& p) -> double& { return expr; })
+
+ParamTable<P> makeFields() {
+  ParamTable<P> t = {
+      NB_FIELD("controller/period_s", "controller and safety period [s]", p.control_period_s),
+      NB_FIELD("controller/min_height_m", "lowest height setpoint accepted [m]", p.controller.min_height_m),
+      NB_FIELD("controller/max_height_m", "highest height setpoint accepted (also capped by the URDF joint limit) [m]", p.controller.max_height_m),
+      NB_FIELD("controller/height_tolerance_m", "deadband around the setpoint [m]", p.controller.height_tolerance_m),
+      NB_FIELD("controller/approach_band_m", "predicted error that opens a valve fully near the target [m]", p.controller.approach_band_m),
+      NB_FIELD("controller/max_pressure_pa", "the controller never fills above this gauge pressure [Pa]", p.controller.max_pressure_pa),
+      NB_FIELD("controller/load_filter_time_s", "time constant of the load estimate [s]", p.controller.load_filter_time_s),
+      NB_FIELD("controller/settled_speed_m_s", "plate speed under which the cell counts as at rest [m/s]", p.controller.settled_speed_m_s),
+      NB_FIELD("controller/integral_rate_per_s", "rate at which a resting height error is integrated out [1/s]", p.controller.integral_rate_per_s),
+      NB_FIELD("controller/integral_limit_m", "bound of that correction [m]", p.controller.integral_limit_m),
+      NB_FIELD("controller/move_threshold_m", "predicted error above which a move uses the shaped full-flow law [m]", p.controller.move_threshold_m),
+      NB_FIELD("controller/damping_band_m", "plate swing about its rest height that opens a valve fully [m]", p.controller.damping_band_m),
+      NB_FIELD("safety/relief_pressure_pa", "gauge pressure never exceeded [Pa]", p.safety.relief_pressure_pa),
+      NB_FIELD("safety/relief_margin_pa", "act this far below the relief pressure [Pa]", p.safety.relief_margin_pa),
+      NB_FIELD("safety/command_timeout_s", "hold and flag when no command or heartbeat for this long; 0 = off [s]", p.safety.command_timeout_s),
+      NB_FIELD("safety/sensor_pressure_min_pa", "pressure readings below are a sensor fault [Pa]", p.safety.sensor_pressure_min_pa),
+      NB_FIELD("safety/sensor_pressure_max_pa", "pressure readings above are a sensor fault [Pa]", p.safety.sensor_pressure_max_pa),
+      NB_FIELD("safety/sensor_height_min_m", "height readings below are a sensor fault [m]", p.safety.sensor_height_min_m),
+      NB_FIELD("safety/sensor_height_max_m", "height readings above are a sensor fault [m]", p.safety.sensor_height_max_m),
+      NB_FIELD("cpr/vacuum_pa", "gauge pressure at the vents while venting for CPR; 0 = ambient [Pa]", p.cpr_vacuum_pa),
+      NB_FIELD("sensors/pressure_noise_pa", "standard deviation of the pressure sensor's noise [Pa]", p.pressure_noise_pa),
+      NB_FIELD("sensors/height_noise_m", "standard deviation of the height sensor's noise [m]", p.height_noise_m),
+  };
+  ParamField<P> seed;  // an unsigned integer: its own accessors
+  seed.key = "sensors/noise_seed";
+  seed.description = "seed of the sensor noise [-]";
+  seed.integer = true;
+  seed.get = [](const P& p) { return static_cast<double>(p.noise_seed); };
+  seed.set = [](P& p, double v) { p.noise_seed = static_cast<std::uint32_t>(v); };
+  t.push_back(seed);
+  appendNested(&t, cellParamFields(), "cell/", [](P& p) -> CellParams& { return p.cell; });
+  return t;
+}
+#undef NB_FIELD
+
+}  // namespace
+
+const ParamTable<AirbagCellParams>& airbagParamFields() {
+  static const ParamTable<AirbagCellParams> fields = makeFields();
+  return fields;
+}
+
+AirbagCellParams airbagParamsFrom(const FlatParams& values, const std::string& source, const AirbagCellParams& base) {
+  AirbagCellParams params = base;
+  applyFlatParams(values, source, airbagParamFields(), &params);
+  const std::string error = params.validate();
+  if (!error.empty()) throw std::runtime_error(source + ": invalid airbag parameters: " + error);
+  return params;
+}
+
+}  // namespace nursing_bed

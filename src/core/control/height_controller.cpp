@@ -1,0 +1,225 @@
+#include "nursing_bed/core/control/height_controller.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "nursing_bed/core/physics/orifice.h"
+#include "nursing_bed/core/physics/units.h"
+
+namespace nursing_bed {
+
+std::string HeightControllerParams::validate() const {
+  std::ostringstream err;
+  auto check = [&err](bool ok, const char* what) {
+    if (!ok) err << what << "; ";
+  };
+  check(std::isfinite(min_height_m) && min_height_m >= 0.0, "min_height_m must be >= 0");
+  check(std::isfinite(max_height_m) && max_height_m > min_height_m, "max_height_m must exceed min_height_m");
+  check(height_tolerance_m > 0.0 && height_tolerance_m < 0.01, "height_tolerance_m must lie in (0, 0.01) m");
+  check(approach_band_m > 0.0 && approach_band_m < 0.05, "approach_band_m must lie in (0, 0.05) m");
+  check(max_pressure_pa > 0.0 && std::isfinite(max_pressure_pa), "max_pressure_pa must be positive");
+  check(load_filter_time_s > 0.0, "load_filter_time_s must be positive");
+  check(settled_speed_m_s > 0.0, "settled_speed_m_s must be positive");
+  check(integral_rate_per_s >= 0.0, "integral_rate_per_s must be >= 0");
+  check(integral_limit_m >= 0.0, "integral_limit_m must be >= 0");
+  check(move_threshold_m > 0.0, "move_threshold_m must be positive");
+  check(damping_band_m > 0.0, "damping_band_m must be positive");
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+HeightController::HeightController(const HeightControllerParams& params,
+                                   std::shared_ptr<const CellCharacteristic> characteristic)
+    : params_(params), characteristic_(std::move(characteristic)) {
+  if (characteristic_) supply_pressure_pa_ = characteristic_->params().supply_pressure_pa;
+  const std::string error = params_.validate();
+  if (!error.empty()) throw std::invalid_argument("height controller parameters: " + error);
+  if (!characteristic_) throw std::invalid_argument("height controller: no characteristic");
+}
+
+std::string HeightController::checkSetpoint(double height_m) const {
+  std::ostringstream msg;
+  if (!std::isfinite(height_m)) {
+    msg << "height setpoint is not a finite number";
+  } else if (height_m < params_.min_height_m || height_m > params_.max_height_m) {
+    msg << "height setpoint " << height_m << " m is outside [" << params_.min_height_m << ", "
+        << params_.max_height_m << "] m";
+  }
+  return msg.str();
+}
+
+void HeightController::setTarget(double height_m) {
+  has_target_ = true;
+  target_m_ = height_m;
+  integral_m_ = 0.0;
+}
+
+void HeightController::clearTarget() { has_target_ = false; }
+
+double HeightController::targetPressure() const {
+  return characteristic_->pressureAt(target_m_, load_estimate_n_);
+}
+
+bool HeightController::targetOutOfReach() const {
+  const double p = targetPressure();
+  return !(p <= params_.max_pressure_pa) || target_m_ > characteristic_->maxHeight(load_estimate_n_);
+}
+
+double HeightController::fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3,
+                                          double invariant) const {
+  const CellParams& cell = characteristic_->params();
+  const double p_abs = cell.ambient_pressure_pa + gauge_pressure_pa;
+  const double flow =
+      direction > 0
+          ? orificeFlow(cell.gas, cell.inlet_area_m2, cell.ambient_pressure_pa + supply_pressure_pa_,
+                        cell.supply_temperature_k, p_abs, cell.supply_temperature_k, cell.orifice_linear_band_pa)
+                .mass_flow_kg_s
+          : -orificeFlow(cell.gas, cell.vent_area_m2, p_abs, cell.ambient_temperature_k, cell.ambient_pressure_pa,
+                         cell.ambient_temperature_k, cell.orifice_linear_band_pa)
+                 .mass_flow_kg_s;
+  const double k_rate = characteristic_->invariantRate(volume_m3, flow, cell.supply_temperature_k);
+  const double dk = 1e-3 * invariant;
+  const double dh_dk = (characteristic_->restingHeight(invariant + dk, load_estimate_n_) -
+                        characteristic_->restingHeight(invariant - dk, load_estimate_n_)) / (2.0 * dk);
+  return std::fabs(dh_dk * k_rate);
+}
+
+double HeightController::halfPeriod() const {
+  if (half_period_s_ < 0.0 || half_period_target_m_ != target_m_ ||
+      std::fabs(load_estimate_n_ - half_period_load_n_) > 0.05 * half_period_load_n_) {
+    const double mass = std::max(characteristic_->params().plate_mass_kg, load_estimate_n_ / kGravity);
+    const double k = characteristic_->plateStiffness(target_m_, load_estimate_n_);
+    half_period_s_ = k > 0.0 ? kPi * std::sqrt(mass / k) : 0.05;
+    half_period_target_m_ = target_m_;
+    half_period_load_n_ = load_estimate_n_;
+  }
+  return half_period_s_;
+}
+
+ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
+  ValveCommand cmd;
+  const double speed = has_last_ && dt_s > 0.0 ? std::fabs(height_m - last_height_m_) / dt_s : 0.0;
+  last_height_m_ = height_m;
+  has_last_ = true;
+  const bool resting = speed < params_.settled_speed_m_s;
+
+  // Load estimate: the load the measured pressure carries at the measured height, while the
+  // plate rests on a lifted cell (on the bed the pressure says nothing about the load).
+  if (resting && height_m > 0.005 && gauge_pressure_pa > 0.0 && move_direction_ == 0) {
+    const double observed = characteristic_->loadAt(height_m, gauge_pressure_pa);
+    const double a = std::min(1.0, dt_s / params_.load_filter_time_s);
+    load_estimate_n_ += a * (observed - load_estimate_n_);
+  }
+
+  // Where the plate rests if the valves shut now (adiabatic invariant of the present gas; the
+  // volume uses the film relaxed at the measured pressure, so the invariant holds while the
+  // plate swings).
+  const double volume = characteristic_->relaxedVolume(height_m, gauge_pressure_pa, &stretch_guess_);
+  const double invariant = characteristic_->invariant(gauge_pressure_pa, volume);
+  resting_height_m_ = characteristic_->restingHeight(invariant, load_estimate_n_);
+  if (!has_target_) {
+    move_direction_ = 0;
+    return cmd;
+  }
+
+  // Feedback: a resting height error is integrated into the height the predictor aims at.
+  const double error = target_m_ - height_m;
+  if (resting && move_direction_ == 0 && std::fabs(error) > params_.height_tolerance_m * 0.5) {
+    integral_m_ += params_.integral_rate_per_s * error * dt_s;
+    integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
+  }
+  const double predicted_error = target_m_ + integral_m_ - resting_height_m_;
+  const bool lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
+  auto apply = [&](int direction, double opening) {
+    if (direction > 0) {
+      cmd.inlet = gauge_pressure_pa < params_.max_pressure_pa ? opening : 0.0;
+    } else {
+      cmd.vent = lowest ? 1.0 : opening;  // lowest setpoint: empty as fast as the vent allows
+    }
+  };
+
+  // Shaped full-flow move.
+  if (move_direction_ == 0 && std::fabs(predicted_error) > params_.move_threshold_m && !lowest) {
+    move_direction_ = predicted_error > 0.0 ? 1 : -1;
+    move_phase_ = 1;
+    move_time_s_ = 0.0;
+    initial_remaining_m_ = std::fabs(predicted_error);
+  }
+  if (move_direction_ != 0) {
+    const double remaining = move_direction_ * predicted_error;
+    const double half_period = halfPeriod();
+    const double rate = fullFlowRestRate(move_direction_, gauge_pressure_pa, volume, invariant);
+    move_time_s_ += dt_s;
+    if (move_phase_ == 1) {  // half-open lead: T/2, or until half the move is done
+      if (move_time_s_ <= half_period + 0.5 * dt_s && remaining > 0.5 * initial_remaining_m_) {
+        apply(move_direction_, 0.5);
+        return cmd;
+      }
+      lead_duration_s_ = move_time_s_ - dt_s;
+      move_phase_ = 2;
+    }
+    if (move_phase_ == 2) {  // full flow until the tail can finish it; a small move pauses instead
+      const bool small = lead_duration_s_ < half_period;
+      const double tail_duration = small ? lead_duration_s_ : half_period;
+      const bool tail_due = small ? move_time_s_ >= half_period : remaining <= 0.5 * rate * tail_duration;
+      if (!tail_due) {
+        apply(move_direction_, small ? 0.0 : 1.0);
+        return cmd;
+      }
+      tail_start_s_ = move_time_s_ - dt_s;
+      move_phase_ = 3;
+    }
+    // Tail: spread the remaining gas over what is left of it (half flow when the prediction is
+    // exact; re-aimed every period so that h_rest lands on the target).
+    const double tail_duration = std::min(lead_duration_s_, half_period);
+    const double time_left = tail_start_s_ + tail_duration - (move_time_s_ - dt_s);
+    if (remaining > 0.0 && time_left > 0.5 * dt_s && rate > 0.0) {
+      apply(move_direction_, std::clamp(remaining / (rate * std::max(time_left, dt_s)), 0.0, 1.0));
+      return cmd;
+    }
+    move_direction_ = 0;  // move done; fine corrections from here
+    move_phase_ = 0;
+  }
+
+  if (lowest) {
+    apply(-1, 1.0);
+    return cmd;
+  }
+  const double swing = height_m - resting_height_m_;
+  if (std::fabs(predicted_error) < params_.height_tolerance_m && std::fabs(error) < params_.height_tolerance_m &&
+      std::fabs(swing) < params_.height_tolerance_m)
+    return cmd;  // on target and at rest: hold the gas
+  const double demand = predicted_error / params_.approach_band_m + swing / params_.damping_band_m;
+  apply(demand > 0.0 ? 1 : -1, std::clamp(std::fabs(demand), 0.0, 1.0));
+  return cmd;
+}
+
+double flowLimitedMinimumTime(const CellParams& params, double load_n, double from_m, double to_m) {
+  const PillowStructure structure(params.structure);
+  const StructureEquilibrium target = structure.equilibriumAtHeight(to_m, load_n);
+  if (!target.converged) return std::nan("");
+  CellModel plant(params);
+  plant.resetToEquilibrium(from_m, load_n);
+  CellInputs in;
+  in.load_n = load_n;
+  const bool up = to_m > from_m;
+  in.inlet_opening = up ? 1.0 : 0.0;
+  in.vent_opening = up ? 0.0 : 1.0;
+  const double step = 2e-4;
+  double previous = plant.variables().structure.volume_m3;
+  while (plant.time() < 30.0) {
+    plant.advance(step, in);
+    const double v = plant.variables().structure.volume_m3;
+    if (up ? v >= target.eval.volume_m3 : v <= target.eval.volume_m3) {
+      // Interpolate the crossing inside the last step.
+      const double f = (target.eval.volume_m3 - previous) / (v - previous);
+      return plant.time() - step + std::clamp(f, 0.0, 1.0) * step;
+    }
+    previous = v;
+  }
+  return std::nan("");
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,381 @@
+#include "nursing_bed/core/gap/replay.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <tuple>
+
+namespace nursing_bed {
+namespace {
+/// Over kInitialRestS a plate at rest moves less than this (sensor noise ~0.3 mm averages out).
+constexpr double kMovingPlateM = 0.001;
+}  // namespace
+
+const char* phaseName(RunPhase phase) {
+  switch (phase) {
+    case RunPhase::kDeploy: return "deploy";
+    case RunPhase::kPressurize: return "pressurize";
+    case RunPhase::kHold: return "hold";
+    case RunPhase::kVent: return "vent";
+    case RunPhase::kLanded: return "landed";
+  }
+  return "?";
+}
+
+std::vector<RunPhase> classifyPhases(const RunData& run) {
+  const std::size_t n = run.size();
+  std::vector<RunPhase> phases(n, RunPhase::kHold);
+  double peak_flow = 0.0;
+  for (double q : run.mdot_in_kg_s)
+    if (std::isfinite(q)) peak_flow = std::max(peak_flow, std::fabs(q));
+  const double threshold = 0.02 * peak_flow;
+  // Inflation: from the start to the last sample with clear inflow before the first vent.
+  std::size_t vent_start = n;
+  for (std::size_t i = 0; i < n; ++i)
+    if (run.mdot_in_kg_s[i] < -threshold) {
+      vent_start = i;
+      break;
+    }
+  std::size_t inflate_end = 0;
+  for (std::size_t i = 0; i < vent_start; ++i)
+    if (run.mdot_in_kg_s[i] > threshold) inflate_end = i + 1;
+  double peak_p = 0.0;
+  for (std::size_t i = 0; i < inflate_end; ++i)
+    if (std::isfinite(run.p_gauge_pa[i])) peak_p = std::max(peak_p, run.p_gauge_pa[i]);
+  bool landed = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i < inflate_end) {
+      phases[i] = run.p_gauge_pa[i] < 0.25 * peak_p ? RunPhase::kDeploy : RunPhase::kPressurize;
+    } else if (i >= vent_start) {
+      landed = landed || (std::isfinite(run.h_m[i]) && run.h_m[i] < kLandedHeightM);
+      phases[i] = landed ? RunPhase::kLanded : RunPhase::kVent;
+    }
+  }
+  return phases;
+}
+
+InitialHeight initialHeight(const RunData& run) {
+  std::vector<double> h;
+  for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i)
+    if (std::isfinite(run.h_m[i])) h.push_back(run.h_m[i]);
+  if (h.empty()) return {NAN, 0};
+  // A plate that is already moving is not at rest: then the first reading alone.
+  const std::size_t half = h.size() / 2;
+  const double first_half = std::accumulate(h.begin(), h.begin() + half, 0.0) / std::max<std::size_t>(half, 1);
+  const double second_half = std::accumulate(h.begin() + half, h.end(), 0.0) / (h.size() - half);
+  if (half == 0 || std::fabs(second_half - first_half) > kMovingPlateM) return {h[0], 1};
+  return {std::accumulate(h.begin(), h.end(), 0.0) / h.size(), static_cast<int>(h.size())};
+}
+
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps) {
+  Replay out;
+  out.phases = classifyPhases(run);
+  const std::size_t n = run.size();
+  out.p_gauge_pa.assign(n, NAN);
+  out.h_m.assign(n, NAN);
+  try {
+    std::vector<double> t, q;
+    for (std::size_t i = 0; i < n; ++i)
+      if (std::isfinite(run.mdot_in_kg_s[i])) {
+        t.push_back(run.t_s[i]);
+        q.push_back(run.mdot_in_kg_s[i]);
+      }
+    if (t.size() < 2) throw std::invalid_argument("fewer than 2 inflow samples");
+    const TimeSeries inflow(t, q);
+    CellModel model(params);
+    for (const auto& e : effects) model.addEffect(e);
+    const double load0 = run.loadAt(0);
+    // At rest at the first measured height, with the measured gas temperature if there is one.
+    const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
+    const InitialHeight h0 = initialHeight(run);
+    if (h0.samples > 0 && h0.h_m > kLandedHeightM) model.resetToEquilibrium(h0.h_m, load0, t_gas0);
+    else model.reset(load0);
+    // Model time starts at the run's first sample.
+    model.setState(run.t_s[0], model.state());
+    CellInputs in;
+    in.prescribed_inflow = &inflow;
+    const bool vent_valve = ventsThroughUnmeteredValve(run);
+    // A default budget that only a runaway (a model pushed far from the data) exhausts.
+    const double duration = run.t_s.back() - run.t_s.front();
+    model.setSubstepBudget(max_substeps > 0 ? max_substeps
+                                            : static_cast<long>(50.0 * duration / params.time_step_s) + 10000);
+    for (std::size_t i = 0; i < n; ++i) {
+      // After the plate has landed in the vent the few mL left make the replay ill-conditioned
+      // (and a metered outflow may exceed what is left): not simulated, left NaN.
+      if (out.phases[i] == RunPhase::kLanded) break;
+      if (i > 0) {
+        in.load_n = run.loadAt(i - 1);
+        in.inlet_closed = run.inlet_closed.size() == n && run.inlet_closed[i - 1] && run.inlet_closed[i];
+        // A bed's cell vents through its own valve, which the inlet's meter does not see.
+        // valve_cmd at a sample is taken as the (mean) opening over the interval ending there, as
+        // the bed's AirbagState reports it.
+        in.vent_opening = vent_valve && run.valve_cmd[i] < 0.0 ? std::min(1.0, -run.valve_cmd[i]) : 0.0;
+        // Interval means: the interval's own mean flow, constant over it (a missing sample
+        // falls back to the interpolated series).
+        const bool interval_mean = run.flow_interval_means && std::isfinite(run.mdot_in_kg_s[i]);
+        in.prescribed_inflow = interval_mean ? nullptr : &inflow;
+        in.prescribed_inflow_kg_s = interval_mean ? run.mdot_in_kg_s[i] : NAN;
+        model.advance(run.t_s[i] - run.t_s[i - 1], in);
+      }
+      const Measurement m = model.measure();
+      out.p_gauge_pa[i] = m.gauge_pressure_pa;
+      out.h_m[i] = m.height_m;
+    }
+    out.substeps = model.substeps();
+  } catch (const std::exception& e) {
+    out.ok = false;
+    out.message = run.name + ": replay failed: " + e.what();
+  }
+  return out;
+}
+
+namespace {
+
+/// Robust sd of white noise from second differences d: 1.4826 MAD / sqrt(6).
+double noiseOfSecondDifferences(std::vector<double> d) {
+  if (d.empty()) return 0.0;
+  for (double& v : d) v = std::fabs(v);
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return 1.4826 * d[d.size() / 2] / std::sqrt(6.0);
+}
+
+/// A local estimate of the meter's noise needs this many steady samples near.
+constexpr std::size_t kMinSteadySamples = 5;
+
+}  // namespace
+
+double estimateNoise(const std::vector<double>& x) {
+  std::vector<double> d;
+  for (std::size_t i = 1; i + 1 < x.size(); ++i) {
+    const double v = x[i + 1] - 2.0 * x[i] + x[i - 1];
+    if (std::isfinite(v)) d.push_back(v);
+  }
+  return noiseOfSecondDifferences(d);
+}
+
+std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w) {
+  const std::size_t n = flow.size();
+  if (n < 3) return std::vector<double>(n, 0.0);  // no second difference
+  const bool has_valve = run.valve_cmd.size() == n;
+  std::vector<double> d(n, NAN);  // second difference at i where the valve held still
+  std::vector<double> steady;
+  for (std::size_t i = 1; i + 1 < n; ++i) {
+    const bool still = !has_valve || (std::isfinite(run.valve_cmd[i]) && run.valve_cmd[i - 1] == run.valve_cmd[i] &&
+                                      run.valve_cmd[i + 1] == run.valve_cmd[i]);
+    const double v = flow[i + 1] - 2.0 * flow[i] + flow[i - 1];
+    if (still && std::isfinite(v)) {
+      d[i] = v;
+      steady.push_back(v);
+    }
+  }
+  // No steady sample at all (a valve that never held still): every sample, as without valve_cmd.
+  if (steady.empty()) {
+    for (std::size_t i = 1; i + 1 < n; ++i) d[i] = flow[i + 1] - 2.0 * flow[i] + flow[i - 1];
+    steady.assign(d.begin() + 1, d.end() - 1);
+    steady.erase(std::remove_if(steady.begin(), steady.end(), [](double v) { return !std::isfinite(v); }), steady.end());
+  }
+  const double whole_run = noiseOfSecondDifferences(steady);
+  std::vector<double> out(n, whole_run);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::vector<double> near;
+    for (std::size_t k = i > w ? i - w : 0; k < std::min(n, i + w + 1); ++k)
+      if (std::isfinite(d[k])) near.push_back(d[k]);
+    if (near.size() >= kMinSteadySamples) out[i] = noiseOfSecondDifferences(near);
+  }
+  return out;
+}
+
+namespace {
+
+/// Mean and standard error of the finite flow samples in [begin, end).
+bool flowMean(const RunData& run, std::size_t begin, std::size_t end, double* mean, double* standard_error) {
+  double sum = 0.0, sum2 = 0.0;
+  int count = 0;
+  for (std::size_t k = begin; k < end; ++k)
+    if (std::isfinite(run.mdot_in_kg_s[k])) {
+      sum += run.mdot_in_kg_s[k];
+      sum2 += run.mdot_in_kg_s[k] * run.mdot_in_kg_s[k];
+      ++count;
+    }
+  if (count < 10) return false;
+  *mean = sum / count;
+  const double var = std::max(0.0, (sum2 - count * *mean * *mean) / (count - 1));
+  *standard_error = std::sqrt(var / count);
+  return true;
+}
+
+/// Whether the flow in [begin, end) is consistent with zero (within 3 standard errors).
+bool zeroWithinNoise(const RunData& run, std::size_t begin, std::size_t end) {
+  double mean = 0.0, se = 0.0;
+  return flowMean(run, begin, end, &mean, &se) && std::fabs(mean) <= 3.0 * se;
+}
+
+}  // namespace
+
+bool ventsThroughUnmeteredValve(const RunData& run) {
+  const std::size_t n = run.size();
+  if (run.valve_cmd.size() != n) return false;
+  std::vector<double> q;
+  for (std::size_t i = 1; i < n; ++i)
+    if (run.valve_cmd[i] < 0.0 && run.valve_cmd[i - 1] < 0.0 && std::isfinite(run.mdot_in_kg_s[i]))
+      q.push_back(run.mdot_in_kg_s[i]);
+  if (q.size() < 5) return false;
+  // Venting through the metered inlet shows as a clearly negative flow.
+  double mean = 0.0, peak = 0.0;
+  for (double x : q) {
+    mean += x / q.size();
+    peak = std::max(peak, std::fabs(x));
+  }
+  double inflow_peak = 0.0;
+  for (double x : run.mdot_in_kg_s)
+    if (std::isfinite(x)) inflow_peak = std::max(inflow_peak, x);
+  return mean > -0.01 * inflow_peak;
+}
+
+int zeroClosedInletFlow(RunData* run) {
+  const std::size_t n = run->size();
+  // Closed stretches: from the valve command where recorded, else the hold phase trimmed of
+  // half-second chunks at its ends whose flow is not yet zero within the noise (the tail of the
+  // inflow, the start of the vent).
+  std::vector<std::pair<std::size_t, std::size_t>> stretches;
+  bool have_valve = run->valve_cmd.size() == n;
+  for (std::size_t i = 0; have_valve && i < n; ++i) have_valve = std::isfinite(run->valve_cmd[i]);
+  if (have_valve) {
+    for (std::size_t i = 0; i < n;) {
+      if (run->valve_cmd[i] != 0.0) {
+        ++i;
+        continue;
+      }
+      std::size_t end = i;
+      while (end < n && run->valve_cmd[end] == 0.0) ++end;
+      // The first closed sample may still carry flow of the interval before it (a meter that
+      // reports the mean since its last sample).
+      stretches.emplace_back(i + 1, end);
+      i = end;
+    }
+  } else {
+    const std::vector<RunPhase> phases = classifyPhases(*run);
+    for (std::size_t i = 0; i < n;) {
+      if (phases[i] != RunPhase::kHold) {
+        ++i;
+        continue;
+      }
+      std::size_t begin = i, end = i;
+      while (end < n && phases[end] == RunPhase::kHold) ++end;
+      i = end;
+      auto chunkEnd = [&](std::size_t from) {
+        std::size_t k = from;
+        while (k < end && run->t_s[k] < run->t_s[from] + 0.5) ++k;
+        return k;
+      };
+      while (begin < end && !zeroWithinNoise(*run, begin, chunkEnd(begin))) begin = chunkEnd(begin);
+      auto chunkBegin = [&](std::size_t to) {
+        std::size_t k = to;
+        while (k > begin && run->t_s[k - 1] > run->t_s[to - 1] - 0.5) --k;
+        return k;
+      };
+      while (end > begin && !zeroWithinNoise(*run, chunkBegin(end), end)) end = chunkBegin(end);
+      if (end > begin) stretches.emplace_back(begin, end);
+    }
+  }
+  int zeroed = 0;
+  for (const auto& [begin, end] : stretches) {
+    if (!zeroWithinNoise(*run, begin, end)) continue;  // a meter offset: keep it, it is a finding
+    if (run->inlet_closed.size() != n) run->inlet_closed.assign(n, false);
+    for (std::size_t k = begin; k < end; ++k) {
+      run->inlet_closed[k] = true;
+      if (std::isfinite(run->mdot_in_kg_s[k]) && run->mdot_in_kg_s[k] != 0.0) {
+        run->mdot_in_kg_s[k] = 0.0;
+        ++zeroed;
+      }
+    }
+  }
+  return zeroed;
+}
+
+RunResidual pooledResidual(const std::vector<const RunData*>& runs, const std::vector<const Replay*>& replays) {
+  if (runs.size() != replays.size()) throw std::invalid_argument("pooledResidual: runs and replays differ in number");
+  RunResidual r;
+  double p_lo = INFINITY, p_hi = -INFINITY, h_lo = INFINITY, h_hi = -INFINITY, sp = 0.0, sh = 0.0;
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const RunData& run = *runs[k];
+    const Replay& replay = *replays[k];
+    for (std::size_t i = 0; i < run.size(); ++i) {
+      if (replay.phases[i] == RunPhase::kLanded) continue;
+      const double p = run.p_gauge_pa[i], h = run.h_m[i];
+      if (!std::isfinite(p) || !std::isfinite(h)) continue;
+      p_lo = std::min(p_lo, p);
+      p_hi = std::max(p_hi, p);
+      h_lo = std::min(h_lo, h);
+      h_hi = std::max(h_hi, h);
+      sp += std::pow(p - replay.p_gauge_pa[i], 2);
+      sh += std::pow(h - replay.h_m[i], 2);
+      ++r.samples;
+    }
+  }
+  if (r.samples == 0) return r;
+  r.range_p_pa = std::max(p_hi - p_lo, 1e-9);
+  r.range_h_m = std::max(h_hi - h_lo, 1e-12);
+  r.nrmse_p = std::sqrt(sp / r.samples) / r.range_p_pa;
+  r.nrmse_h = std::sqrt(sh / r.samples) / r.range_h_m;
+  return r;
+}
+
+RunResidual runResidual(const RunData& run, const Replay& replay) { return pooledResidual({&run}, {&replay}); }
+
+std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::vector<Replay>& replays) {
+  if (runs.size() != replays.size()) throw std::invalid_argument("localizeGap: runs and replays differ in number");
+  using Key = std::tuple<std::string, std::string, double>;
+  std::map<Key, GapShare> cells;
+  double total = 0.0;
+  // One range per signal over all runs (a run whose own range is the size of the noise, like a
+  // plate-only run's pressure, would otherwise weigh its noise as much as another run's gap).
+  std::vector<const RunData*> all_runs;
+  std::vector<const Replay*> all_replays;
+  for (std::size_t k = 0; k < runs.size(); ++k)
+    if (replays[k].ok) {
+      all_runs.push_back(&runs[k]);
+      all_replays.push_back(&replays[k]);
+    }
+  const RunResidual range = pooledResidual(all_runs, all_replays);
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const RunData& run = runs[k];
+    const Replay& rep = replays[k];
+    if (!rep.ok || range.samples == 0) continue;
+    for (std::size_t i = 0; i < run.size(); ++i) {
+      if (rep.phases[i] == RunPhase::kLanded) continue;
+      const double ep = (run.p_gauge_pa[i] - rep.p_gauge_pa[i]) / range.range_p_pa;
+      const double eh = (run.h_m[i] - rep.h_m[i]) / range.range_h_m;
+      for (int s = 0; s < 2; ++s) {
+        const double e2 = s == 0 ? ep * ep : eh * eh;
+        if (!std::isfinite(e2)) continue;
+        const Key key{s == 0 ? "pressure" : "height", phaseName(rep.phases[i]), std::round(run.loadAt(i) * 10.0) / 10.0};
+        auto [it, fresh] = cells.try_emplace(key);
+        GapShare& g = it->second;
+        if (fresh) {
+          g.signal = std::get<0>(key);
+          g.phase = std::get<1>(key);
+          g.load_n = std::get<2>(key);
+          g.t_start_s = run.t_s[i];
+          g.t_end_s = run.t_s[i];
+        }
+        g.share += e2;
+        g.t_start_s = std::min(g.t_start_s, run.t_s[i]);
+        g.t_end_s = std::max(g.t_end_s, run.t_s[i]);
+        total += e2;
+      }
+    }
+  }
+  std::vector<GapShare> out;
+  for (auto& kv : cells) {
+    kv.second.share = total > 0.0 ? kv.second.share / total : 0.0;
+    out.push_back(kv.second);
+  }
+  std::sort(out.begin(), out.end(), [](const GapShare& a, const GapShare& b) { return a.share > b.share; });
+  return out;
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,257 @@
+// report.json (gap-report.md), report.md and the traces behind the plots of a gap diagnosis.
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
+
+#include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/effects.h"
+
+namespace nursing_bed {
+namespace {
+
+/// Shortest exact form of a finite number, "null" otherwise (JSON has no NaN).
+std::string jsonNumber(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  return std::string(buf, r.ptr);
+}
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof(buf), "\\u%04x", c);
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out + "\"";
+}
+
+std::string jsonStrings(const std::vector<std::string>& v) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + jsonString(v[i]);
+  return s + "]";
+}
+
+std::string jsonParams(const std::map<std::string, double>& params) {
+  std::string s = "{";
+  bool first = true;
+  for (const auto& [k, v] : params) {
+    s += (first ? "" : ", ") + jsonString(k) + ": " + jsonNumber(v);
+    first = false;
+  }
+  return s + "}";
+}
+
+std::string fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "–";
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(digits) << v;
+  return s.str();
+}
+
+std::string general(double v, int digits = 3) {
+  if (!std::isfinite(v)) return "–";
+  std::ostringstream s;
+  s << std::setprecision(digits) << v;
+  return s.str();
+}
+
+std::string effectsText(const std::vector<std::string>& effects) {
+  std::string s;
+  for (std::size_t i = 0; i < effects.size(); ++i) s += (i ? " + " : "") + std::string("`") + effects[i] + "`";
+  return s;
+}
+
+std::string paramsText(const std::map<std::string, double>& params) {
+  std::string s;
+  for (const auto& [k, v] : params) {
+    std::string unit;
+    for (const auto& e : effectCatalog())
+      if (const EffectParamSpec* p = e.param(k)) unit = p->unit == "-" ? "" : " " + p->unit;
+    s += (s.empty() ? "" : ", ") + k + " = " + general(v) + unit;
+  }
+  return s;
+}
+
+double shrinkPercent(double before, double after) {
+  return before > 0.0 ? 100.0 * (1.0 - after / before) : NAN;
+}
+
+}  // namespace
+
+std::string reportJson(const DiagnosisReport& r) {
+  std::ostringstream j;
+  j << "{\n";
+  j << "  \"format\": \"nursing_bed_gap_report/1\",\n";
+  j << "  \"dataset\": " << jsonString(r.dataset) << ",\n";
+  j << "  \"runs\": {\"fit\": " << jsonStrings(r.fit_runs) << ", \"withheld\": " << jsonStrings(r.withheld_runs)
+    << "},\n";
+  j << "  \"noise\": {\"p_gauge_pa\": " << jsonNumber(r.noise_p_pa) << ", \"h_m\": " << jsonNumber(r.noise_h_m)
+    << "},\n";
+  j << "  \"localization\": [";
+  for (std::size_t i = 0; i < r.localization.size(); ++i) {
+    const GapShare& g = r.localization[i];
+    j << (i ? ",\n" : "\n") << "    {\"signal\": " << jsonString(g.signal) << ", \"phase\": " << jsonString(g.phase)
+      << ", \"load_n\": " << jsonNumber(g.load_n) << ", \"share\": " << jsonNumber(g.share)
+      << ", \"t_start_s\": " << jsonNumber(g.t_start_s) << ", \"t_end_s\": " << jsonNumber(g.t_end_s) << "}";
+  }
+  j << (r.localization.empty() ? "],\n" : "\n  ],\n");
+  j << "  \"candidates\": [";
+  for (std::size_t i = 0; i < r.candidates.size(); ++i) {
+    const CandidateFit& c = r.candidates[i];
+    j << (i ? ",\n" : "\n") << "    {\"effects\": " << jsonStrings(c.effects) << ", \"params\": " << jsonParams(c.params)
+      << ", \"bic_delta\": " << jsonNumber(c.bic_delta) << ", \"fit_nrmse\": " << jsonNumber(c.fit_nrmse)
+      << ", \"withheld_nrmse\": " << jsonNumber(c.withheld_nrmse) << "}";
+  }
+  j << (r.candidates.empty() ? "],\n" : "\n  ],\n");
+  j << "  \"verdict\": {\"effects\": " << jsonStrings(r.verdict_effects) << ", \"status\": " << jsonString(r.status)
+    << "},\n";
+  j << "  \"shrinkage\": {\"withheld_nrmse_before\": " << jsonNumber(r.withheld_before)
+    << ", \"withheld_nrmse_after\": " << jsonNumber(r.withheld_after) << ",\n";
+  j << "                \"by_signal\": {\"pressure\": [" << jsonNumber(r.withheld_p_before) << ", "
+    << jsonNumber(r.withheld_p_after) << "], \"height\": [" << jsonNumber(r.withheld_h_before) << ", "
+    << jsonNumber(r.withheld_h_after) << "]}}\n";
+  j << "}\n";
+  return j.str();
+}
+
+std::string reportMarkdown(const DiagnosisReport& r) {
+  std::ostringstream m;
+  m << "# Sim-to-real gap diagnosis\n\n";
+  m << "Dataset: `" << r.dataset << "` — " << r.fit_runs.size() + r.withheld_runs.size() << " runs, "
+    << r.fit_runs.size() << " used to fit the candidate effects, " << r.withheld_runs.size()
+    << " withheld to check them" << (r.roles_chosen ? " (the dataset gave no roles; the diagnosis chose them)" : "")
+    << ". Diagnosed in " << fixed(r.elapsed_s, 1) << " s.\n\n";
+  m << "## Verdict\n\n";
+  if (r.status == "explained") {
+    m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "). ";
+    m << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
+      << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)
+      << " % smaller).\n\n";
+  } else if (r.status == "none") {
+    m << "**No significant gap.** The nominal model already fits the runs within the noise, and no candidate "
+         "effect improves the fit by more than its extra parameters cost.\n\n";
+  } else {
+    m << "**Unexplained gap.** The model and the runs part by more than the noise, and no candidate effect (alone "
+         "or in a pair) removes it with plausible parameters. Look for a physical effect outside the candidate "
+         "list; the localisation below says where it acts.\n\n";
+  }
+  m << "How the decision was made:\n\n";
+  for (const auto& line : r.reasons) m << "- " << line << "\n";
+  m << "\nNoise (robust estimate from the runs): pressure " << general(r.noise_p_pa) << " Pa, height "
+    << general(r.noise_h_m * 1e3) << " mm.\n\n";
+
+  m << "## 1. Where the model and the data part\n\n";
+  m << "Each run was replayed through the nominal model with its measured inflow and load. The table splits the "
+       "squared residual (each signal normalised by its measured range over all runs) by signal, phase and load; "
+       "largest first (shares sum to 1).\n\n";
+  m << "| signal | phase | load [N] | share | time in run [s] |\n|---|---|---|---|---|\n";
+  for (std::size_t i = 0; i < r.localization.size() && i < 12; ++i) {
+    const GapShare& g = r.localization[i];
+    m << "| " << g.signal << " | " << g.phase << " | " << fixed(g.load_n, 1) << " | " << fixed(g.share, 3) << " | "
+      << fixed(g.t_start_s, 1) << " – " << fixed(g.t_end_s, 1) << " |\n";
+  }
+  m << "\nPhases: *deploy* = bag unfolding (height rising at low pressure), *pressurize* = inflating near full "
+       "height, *hold* = inlet closed, *vent* = gas leaving through the inlet (samples after the plate has landed "
+       "are left out).\n\n";
+
+  m << "## 2. Which effect\n\n";
+  m << "Every candidate (and pairs of the best three) was fitted to the fit runs by Ceres (Levenberg-Marquardt "
+       "on whole replays, started from a grid over the plausible range). BIC Δ < 0 means better than the "
+       "nominal model after paying for the parameters; a candidate is significant below −"
+    << general(r.options.significant_bic_drop)
+    << ". chi2/n is the mean squared residual in units of the noise floor, decorrelated (1 = a model that fits "
+       "within the noise).\n\n";
+  m << "| effects | fitted parameters | BIC Δ | chi2/n | fit nrmse | withheld nrmse |\n|---|---|---|---|---|---|\n";
+  m << "| nominal model | – | 0 | " << general(r.nominal_chi2_per_sample) << " | " << fixed(r.nominal_fit_nrmse, 4)
+    << " | " << fixed(r.withheld_before, 4) << " |\n";
+  for (const auto& c : r.candidates) {
+    m << "| " << effectsText(c.effects) << (c.plausible ? "" : " (implausible)") << " | "
+      << (c.ok ? paramsText(c.params) : "failed: " + c.message) << " | " << general(c.bic_delta, 4) << " | "
+      << general(r.fit_samples > 0 ? c.chi2 / r.fit_samples : NAN) << " | " << fixed(c.fit_nrmse, 4) << " | "
+      << fixed(c.withheld_nrmse, 4) << " |\n";
+  }
+  m << "\n## 3. How far the gap shrinks on withheld runs\n\n";
+  if (r.withheld_runs.empty()) {
+    m << "No run was withheld, so there is no independent check.\n\n";
+  } else {
+    m << "| signal | nrmse before | nrmse after | shrink |\n|---|---|---|---|\n";
+    m << "| pressure | " << fixed(r.withheld_p_before, 4) << " | " << fixed(r.withheld_p_after, 4) << " | "
+      << fixed(shrinkPercent(r.withheld_p_before, r.withheld_p_after), 0) << " % |\n";
+    m << "| height | " << fixed(r.withheld_h_before, 4) << " | " << fixed(r.withheld_h_after, 4) << " | "
+      << fixed(shrinkPercent(r.withheld_h_before, r.withheld_h_after), 0) << " % |\n";
+    m << "| both (mean) | " << fixed(r.withheld_before, 4) << " | " << fixed(r.withheld_after, 4) << " | "
+      << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0) << " % |\n\n";
+    if (r.status != "explained") m << "(Nothing was named, so \"after\" is the nominal model.)\n\n";
+  }
+  m << "nrmse = RMS(measured − simulated) / range of the measured signal, averaged over pressure and height.\n\n";
+  m << "## Runs\n\n| run | role | load [N] | length [s] | noise p [Pa] | noise h [mm] | nrmse before | nrmse after |\n"
+       "|---|---|---|---|---|---|---|---|\n";
+  for (const auto& s : r.runs)
+    m << "| " << s.name << " | " << s.role << " | " << fixed(s.load_n, 1) << " | " << fixed(s.duration_s, 1) << " | "
+      << general(s.noise_p_pa) << " | " << general(s.noise_h_m * 1e3) << " | " << fixed(s.before.nrmse(), 4) << " | "
+      << fixed(s.after.nrmse(), 4) << " |\n";
+  m << "\n## Figures\n\n";
+  m << "- `traces.png`: measured pressure and height against the nominal model (dashed) and the model with the "
+       "named effect (solid), phases shaded.\n";
+  m << "- `residual_by_phase.png`: the localisation shares, and the RMS residual per phase before and after.\n";
+  m << "- `hp_loops.png`: height against pressure — the loops that friction and viscoelasticity open.\n\n";
+  m << "![traces](traces.png)\n\n![residual by phase](residual_by_phase.png)\n\n![h(p) loops](hp_loops.png)\n";
+  return m.str();
+}
+
+void writeReportFiles(const std::string& dir, const DiagnosisReport& r) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(fs::path(dir) / "traces", ec);
+  if (ec) throw std::runtime_error(dir + ": cannot create the output directory: " + ec.message());
+  auto write = [](const fs::path& path, const std::string& text) {
+    std::ofstream out(path);
+    out << text;
+    out.close();
+    if (!out) throw std::runtime_error(path.string() + ": cannot write");
+  };
+  // Traces of an earlier report in the same directory would be plotted with this one's.
+  for (const auto& old : fs::directory_iterator(fs::path(dir) / "traces", ec))
+    if (old.is_regular_file() && old.path().extension() == ".csv") fs::remove(old.path(), ec);
+  write(fs::path(dir) / "report.json", reportJson(r));
+  write(fs::path(dir) / "report.md", reportMarkdown(r));
+  for (const auto& t : r.traces) {
+    std::ostringstream s;
+    s << "# run: " << t.name << "\n# role: " << t.role << "\n";
+    for (const auto& run : r.runs)
+      if (run.name == t.name) s << "# load_n: " << jsonNumber(run.load_n) << "\n";
+    s << "t_s,mdot_in_kg_s,p_meas_pa,h_meas_m,p_nominal_pa,h_nominal_m,p_after_pa,h_after_m,phase\n";
+    auto num = [](double v) { return std::isfinite(v) ? jsonNumber(v) : std::string(); };
+    for (std::size_t i = 0; i < t.t_s.size(); ++i)
+      s << num(t.t_s[i]) << ',' << num(t.mdot_in_kg_s[i]) << ',' << num(t.p_meas_pa[i]) << ',' << num(t.h_meas_m[i])
+        << ',' << num(t.p_nominal_pa[i]) << ',' << num(t.h_nominal_m[i]) << ',' << num(t.p_after_pa[i]) << ','
+        << num(t.h_after_m[i]) << ',' << phaseName(t.phases[i]) << "\n";
+    // The whole run name, made a file name: a bag's runs are "bag/topic/state", and every
+    // run of a bag ends in the same "state".
+    std::string stem = t.name;
+    for (char& c : stem)
+      if (c == '/' || c == ':' || c == '\\') c = '_';
+    stem.erase(0, stem.find_first_not_of('_'));
+    if (fs::path(stem).extension() != ".csv") stem += ".csv";
+    write(fs::path(dir) / "traces" / stem, s.str());
+  }
+}
+
+}  // namespace nursing_bed

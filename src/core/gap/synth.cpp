@@ -1,0 +1,392 @@
+#include "nursing_bed/core/gap/synth.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <ostream>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/physics/paper_experiment.h"
+#include "nursing_bed/core/physics/pillow_structure.h"
+
+namespace nursing_bed {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Heights the two flow magnitudes bring the cell to at rest (ambient temperature).
+constexpr double kLowTargetHeightM = 0.110;
+constexpr double kHighTargetHeightM = 0.145;
+// The inlet valve opens linearly over this time when the vent starts.
+constexpr double kVentOpeningRampS = 0.3;
+
+std::string shortNumber(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  return std::string(buf, r.ptr);
+}
+
+std::string jsonNumber(double v) { return std::isfinite(v) ? shortNumber(v) : "null"; }
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+// "10p6" for 10.6 N.
+std::string loadTag(double load_n) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(1) << load_n;
+  std::string t = s.str();
+  std::replace(t.begin(), t.end(), '.', 'p');
+  return t;
+}
+
+// Gas mass to add to the flat cell (ambient, dead volume only) so that it rests at `height_m`
+// under `load_n` at ambient temperature.
+double massToReach(const CellParams& params, const PillowStructure& structure, double height_m, double load_n) {
+  const StructureEquilibrium eq = structure.equilibriumAtHeight(height_m, load_n);
+  if (!eq.converged) {
+    std::ostringstream msg;
+    msg << "gap synth: no equilibrium holds " << load_n << " N at " << height_m << " m";
+    throw std::runtime_error(msg.str());
+  }
+  const double rest_volume = structure.evaluate(0.0, structure.restShape().data()).volume_m3;
+  const double m_flat =
+      massFromState(params.gas, params.ambient_pressure_pa, params.ambient_temperature_k, rest_volume);
+  const double m_target = massFromState(params.gas, params.ambient_pressure_pa + eq.gauge_pressure_pa,
+                                        params.ambient_temperature_k, eq.eval.volume_m3);
+  return m_target - m_flat;
+}
+
+}  // namespace
+
+SynthEffectRequest parseEffectRequest(const std::string& text) {
+  SynthEffectRequest r;
+  const auto colon = text.find(':');
+  r.name = text.substr(0, colon);
+  const EffectSpec& spec = effectSpec(r.name);  // throws for an unknown name
+  if (colon == std::string::npos) return r;
+  std::stringstream items(text.substr(colon + 1));
+  std::string item;
+  while (std::getline(items, item, ',')) {
+    if (item.empty()) continue;
+    const auto eq = item.find('=');
+    if (eq == std::string::npos)
+      throw std::invalid_argument("effect '" + r.name + "': expected param=value, got '" + item + "'");
+    const std::string key = item.substr(0, eq);
+    const std::string value = item.substr(eq + 1);
+    if (!spec.param(key)) {
+      std::string expected;
+      for (const auto& p : spec.params) expected += (expected.empty() ? "" : ", ") + p.name;
+      throw std::invalid_argument("effect '" + r.name + "': unknown parameter '" + key + "' (expected: " + expected +
+                                  ")");
+    }
+    double v = 0.0;
+    const char* begin = value.data();
+    const char* end = value.data() + value.size();
+    if (begin != end && *begin == '+') ++begin;
+    const auto res = std::from_chars(begin, end, v);
+    if (value.empty() || res.ec != std::errc() || res.ptr != end || !std::isfinite(v))
+      throw std::invalid_argument("effect '" + r.name + "': parameter " + key + ": '" + value +
+                                  "' is not a finite number");
+    if (r.params.count(key)) throw std::invalid_argument("effect '" + r.name + "': parameter " + key + " given twice");
+    r.params[key] = v;
+  }
+  return r;
+}
+
+SynthProtocol synthProtocol(const std::string& name, const CellParams& params) {
+  SynthProtocol p;
+  p.name = name;
+  std::vector<double> loads;
+  // (load, flow) pairs that are withheld.
+  std::set<std::pair<double, std::string>> withheld;
+  if (name == "standard") {
+    loads.assign(kPaperLoadsN.begin(), kPaperLoadsN.end());
+    withheld = {{10.6, "high"}, {20.6, "low"}};
+  } else if (name == "small") {
+    p.hold_s = 30.0;
+    p.sample_hz = 50.0;
+    loads = {0.6, 15.6};
+    withheld = {{0.6, "high"}, {15.6, "low"}};
+  } else {
+    throw std::invalid_argument("unknown protocol '" + name + "' (known: standard, small)");
+  }
+  const PillowStructure structure(params.structure);
+  for (double load : loads) {
+    for (const auto& [flow, height] : {std::pair<std::string, double>{"low", kLowTargetHeightM},
+                                       std::pair<std::string, double>{"high", kHighTargetHeightM}}) {
+      SynthRunPlan r;
+      r.load_n = load;
+      r.flow = flow;
+      r.target_height_m = height;
+      r.inflow_mass_kg = massToReach(params, structure, height, load);
+      r.name = "load" + loadTag(load) + "N_" + flow + ".csv";
+      r.role = withheld.count({load, flow}) ? "withheld" : "fit";
+      p.runs.push_back(r);
+    }
+  }
+  return p;
+}
+
+SensorNoise SensorNoise::scaled(double factor) const {
+  SensorNoise n = *this;
+  n.pressure_sd_pa *= factor;
+  n.pressure_step_pa *= factor;
+  n.height_sd_m *= factor;
+  n.height_step_m *= factor;
+  n.flow_relative_sd *= factor;
+  n.flow_sd_kg_s *= factor;
+  n.flow_step_kg_s *= factor;
+  return n;
+}
+
+double quantise(double x, double step) {
+  if (!(step > 0.0) || !std::isfinite(x)) return x;
+  // Divide by an integer 1/step where there is one: k / 10000 is the double nearest to the
+  // decimal k e-4 (k * 1e-4 often is not), so the CSV gets short numbers.
+  const double inverse = std::round(1.0 / step);
+  if (inverse >= 1.0 && std::fabs(inverse * step - 1.0) < 1e-12) return std::round(x * inverse) / inverse;
+  return std::round(x / step) * step;
+}
+
+RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                         const SynthProtocol& protocol, const SynthRunPlan& plan, const SensorNoise& noise,
+                         std::mt19937* rng, const std::string& airbag_name) {
+  CellParams p = params;
+  p.regulator_time_constant_s = 0.0;  // the vent's supply sits at 0 gauge at once
+  CellModel model(p);
+  for (const auto& e : effects) model.addEffect(e);
+  model.reset(plan.load_n);
+
+  const double hz = protocol.sample_hz;
+  const TimeSeries inflow = paperShapedInflow(plan.inflow_mass_kg, protocol.peak_s, protocol.inflate_s, 1.0 / hz);
+  const long n_total = std::lround(protocol.durationS() * hz);
+  const long n_inflate_end = std::lround(protocol.inflate_s * hz);
+  const long n_hold_end = std::lround((protocol.inflate_s + protocol.hold_s) * hz);
+
+  RunData run;
+  run.name = plan.name;
+  run.airbag = airbag_name;
+  run.load_n = plan.load_n;
+  run.meta["nursing_bed_run"] = std::to_string(kRunCsvVersion);
+  run.meta["load_n"] = shortNumber(plan.load_n);
+  run.meta["airbag"] = airbag_name;
+  {
+    std::ostringstream note;
+    note << "gap synth, protocol " << protocol.name << ": load " << plan.load_n << " N, " << plan.flow << " flow ("
+         << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, ~" << std::setprecision(3)
+         << plan.target_height_m * 1e3 << " mm at rest); inflate 0-" << protocol.inflate_s << " s, hold to "
+         << protocol.inflate_s + protocol.hold_s << " s, vent through the inlet to " << protocol.durationS() << " s";
+    run.meta["note"] = note.str();
+  }
+  for (auto* v : {&run.t_s, &run.mdot_in_kg_s, &run.p_gauge_pa, &run.h_m, &run.valve_cmd})
+    v->reserve(static_cast<std::size_t>(n_total + 1));
+
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  CellInputs in;
+  in.load_n = plan.load_n;
+  for (long i = 0; i <= n_total; ++i) {
+    const double t = static_cast<double>(i) / hz;
+    if (i > 0) {
+      // Inputs over the interval (t_{i-1}, t_i].
+      in.prescribed_inflow = nullptr;
+      in.inlet_opening = 0.0;
+      in.supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
+      if (i <= n_inflate_end) {
+        in.prescribed_inflow = &inflow;
+        model.advance(t - model.time(), in);
+      } else if (i <= n_hold_end) {
+        model.advance(t - model.time(), in);
+      } else {
+        // The inlet valve opens over kVentOpeningRampS (in 1 ms steps): a flow that starts
+        // smoothly, so that the sampled metered flow carries the mass that left.
+        in.supply_pressure_pa = 0.0;
+        const double vent_start = protocol.inflate_s + protocol.hold_s;
+        while (t - model.time() > 1e-12) {
+          const double ramp_end = vent_start + kVentOpeningRampS;
+          const double dt = model.time() < ramp_end - 1e-12 ? std::min(1e-3, t - model.time()) : t - model.time();
+          in.inlet_opening = std::min(1.0, (model.time() + 0.5 * dt - vent_start) / kVentOpeningRampS);
+          model.advance(dt, in);
+        }
+      }
+    }
+    const Measurement m = model.measure();
+    double pressure = m.gauge_pressure_pa, height = m.height_m, flow = m.inflow_kg_s;
+    if (rng) {
+      pressure = quantise(pressure + noise.pressure_sd_pa * gauss(*rng), noise.pressure_step_pa);
+      height = quantise(height + noise.height_sd_m * gauss(*rng), noise.height_step_m);
+      const double relative = noise.flow_relative_sd * gauss(*rng);
+      flow = quantise(flow * (1.0 + relative) + noise.flow_sd_kg_s * gauss(*rng), noise.flow_step_kg_s);
+    }
+    run.t_s.push_back(t);
+    run.mdot_in_kg_s.push_back(flow);
+    run.p_gauge_pa.push_back(pressure);
+    run.h_m.push_back(height);
+    // The command in force from this sample on.
+    run.valve_cmd.push_back(i < n_inflate_end ? 1.0 : (i < n_hold_end ? 0.0 : -1.0));
+  }
+  return run;
+}
+
+void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::uint32_t seed,
+                         std::vector<std::string>* names, std::vector<std::map<std::string, double>>* params,
+                         std::vector<CellEffectPtr>* effects) {
+  std::set<std::string> requested;
+  for (const auto& r : requests) {
+    effectSpec(r.name);  // throws for an unknown name
+    if (!requested.insert(r.name).second) throw std::invalid_argument("effect '" + r.name + "' given twice");
+  }
+  names->clear();
+  params->clear();
+  effects->clear();
+  // Catalogue order, one generator for all: the draw does not depend on the order given.
+  std::mt19937 rng(seed);
+  for (const auto& spec : effectCatalog()) {
+    if (!requested.count(spec.name)) continue;
+    const auto& req = *std::find_if(requests.begin(), requests.end(),
+                                    [&spec](const SynthEffectRequest& r) { return r.name == spec.name; });
+    std::map<std::string, double> values = randomEffectParams(spec.name, rng);
+    for (const auto& [k, v] : req.params) values[k] = v;
+    effects->push_back(makeEffect(spec.name, values));  // checks names and ranges
+    names->push_back(spec.name);
+    params->push_back(values);
+  }
+}
+
+SynthResult synthesizeDataset(const SynthOptions& o) {
+  if (o.out_dir.empty()) throw std::invalid_argument("gap synth: an output directory is required");
+  if (!(o.noise_scale >= 0.0) || !std::isfinite(o.noise_scale))
+    throw std::invalid_argument("gap synth: noise scale must be a finite number >= 0, got " +
+                                shortNumber(o.noise_scale));
+  SynthResult result;
+  result.protocol = synthProtocol(o.protocol, o.params);
+  std::vector<CellEffectPtr> effects;
+  resolveSynthEffects(o.effects, o.seed, &result.effect_names, &result.effect_params, &effects);
+
+  std::error_code ec;
+  fs::create_directories(o.out_dir, ec);
+  if (ec) throw std::runtime_error("gap synth: cannot create " + o.out_dir + ": " + ec.message());
+  const fs::path dir(o.out_dir);
+  const SensorNoise noise = SensorNoise{}.scaled(o.noise_scale);
+
+  if (o.progress) {
+    *o.progress << "gap synth: protocol " << o.protocol << ", " << result.protocol.runs.size() << " runs of "
+                << result.protocol.durationS() << " s at " << result.protocol.sample_hz << " Hz, seed " << o.seed
+                << ", noise scale " << o.noise_scale << "\n";
+    *o.progress << "gap synth: truth effects:";
+    if (result.effect_names.empty()) *o.progress << " none (nominal model)";
+    for (std::size_t i = 0; i < result.effect_names.size(); ++i)
+      *o.progress << " " << describeEffect(result.effect_names[i], result.effect_params[i]);
+    *o.progress << "\n";
+  }
+  for (std::size_t k = 0; k < result.protocol.runs.size(); ++k) {
+    const SynthRunPlan& plan = result.protocol.runs[k];
+    std::seed_seq seq{o.seed, static_cast<std::uint32_t>(k), 0x5eedu};
+    std::mt19937 rng(seq);
+    RunData run = simulateSynthRun(o.params, effects, result.protocol, plan, noise, &rng, o.airbag_name);
+    run.role = plan.role;
+    const fs::path file = dir / plan.name;
+    writeRunCsv(file.string(), run);
+    run.source = file.string();
+    if (o.progress) {
+      double h_max = -1e300, p_max = -1e300;
+      for (std::size_t i = 0; i < run.size(); ++i) {
+        h_max = std::max(h_max, run.h_m[i]);
+        p_max = std::max(p_max, run.p_gauge_pa[i]);
+      }
+      *o.progress << "  [" << k + 1 << "/" << result.protocol.runs.size() << "] " << plan.name << ": load "
+                  << plan.load_n << " N, " << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, max height "
+                  << std::setprecision(4) << h_max * 1e3 << " mm, max pressure " << std::setprecision(5) << p_max / 1e3
+                  << " kPa (" << plan.role << ")\n";
+    }
+    result.runs.push_back(std::move(run));
+  }
+
+  {
+    std::ofstream y(dir / "dataset.yaml");
+    y << "# Written by gap synth (protocol " << o.protocol << "). Roles: fit runs train the diagnosis, withheld\n"
+      << "# runs only judge it.\n";
+    y << "airbag: " << o.airbag_file << "\n";
+    y << "runs:\n";
+    for (const auto& plan : result.protocol.runs) y << "  " << plan.name << ": " << plan.role << "\n";
+    if (!y) throw std::runtime_error("gap synth: cannot write " + (dir / "dataset.yaml").string());
+  }
+  {
+    const SensorNoise& n = noise;
+    std::ofstream j(dir / "truth.json");
+    j << "{\n  \"format\": \"nursing_bed_gap_truth/1\",\n";
+    j << "  \"protocol\": " << jsonString(o.protocol) << ",\n";
+    j << "  \"seed\": " << o.seed << ",\n";
+    j << "  \"noise_scale\": " << jsonNumber(o.noise_scale) << ",\n";
+    j << "  \"noise\": {\"pressure_sd_pa\": " << jsonNumber(n.pressure_sd_pa)
+      << ", \"pressure_step_pa\": " << jsonNumber(n.pressure_step_pa)
+      << ", \"height_sd_m\": " << jsonNumber(n.height_sd_m) << ", \"height_step_m\": " << jsonNumber(n.height_step_m)
+      << ", \"flow_relative_sd\": " << jsonNumber(n.flow_relative_sd)
+      << ", \"flow_sd_kg_s\": " << jsonNumber(n.flow_sd_kg_s)
+      << ", \"flow_step_kg_s\": " << jsonNumber(n.flow_step_kg_s) << "},\n";
+    j << "  \"effects\": [";
+    for (std::size_t i = 0; i < result.effect_names.size(); ++i) {
+      j << (i ? "," : "") << "\n    {\"name\": " << jsonString(result.effect_names[i])
+        << ", \"candidate\": " << (effectSpec(result.effect_names[i]).candidate ? "true" : "false")
+        << ", \"params\": {";
+      bool first = true;
+      for (const auto& [k, v] : result.effect_params[i]) {
+        j << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
+        first = false;
+      }
+      j << "}}";
+    }
+    j << (result.effect_names.empty() ? "" : "\n  ") << "],\n";
+    j << "  \"runs\": [";
+    for (std::size_t i = 0; i < result.protocol.runs.size(); ++i) {
+      const SynthRunPlan& r = result.protocol.runs[i];
+      j << (i ? "," : "") << "\n    {\"file\": " << jsonString(r.name) << ", \"load_n\": " << jsonNumber(r.load_n)
+        << ", \"flow\": " << jsonString(r.flow) << ", \"target_height_m\": " << jsonNumber(r.target_height_m)
+        << ", \"inflow_mass_kg\": " << jsonNumber(r.inflow_mass_kg) << ", \"role\": " << jsonString(r.role) << "}";
+    }
+    j << "\n  ],\n";
+    j << "  \"timing\": {\"inflate_s\": " << jsonNumber(result.protocol.inflate_s)
+      << ", \"peak_s\": " << jsonNumber(result.protocol.peak_s)
+      << ", \"hold_s\": " << jsonNumber(result.protocol.hold_s)
+      << ", \"vent_s\": " << jsonNumber(result.protocol.vent_s)
+      << ", \"sample_hz\": " << jsonNumber(result.protocol.sample_hz) << "}\n}\n";
+    if (!j) throw std::runtime_error("gap synth: cannot write " + (dir / "truth.json").string());
+  }
+  if (o.progress)
+    *o.progress << "gap synth: wrote " << result.runs.size() << " runs, dataset.yaml and truth.json to " << o.out_dir
+                << "\n";
+  return result;
+}
+
+std::vector<CellEffectPtr> effectsFromText(const std::string& text, std::uint32_t seed) {
+  std::vector<SynthEffectRequest> requests;
+  std::size_t start = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find(';', start);
+    if (end == std::string::npos) end = text.size();
+    std::string item = text.substr(start, end - start);
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    if (!item.empty()) requests.push_back(parseEffectRequest(item));
+    start = end + 1;
+  }
+  std::vector<std::string> names;
+  std::vector<std::map<std::string, double>> params;
+  std::vector<CellEffectPtr> effects;
+  resolveSynthEffects(requests, seed, &names, &params, &effects);
+  return effects;
+}
+
+}  // namespace nursing_bed

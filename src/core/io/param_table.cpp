@@ -1,0 +1,80 @@
+#include "nursing_bed/core/io/param_table.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace nursing_bed {
+namespace {
+
+void flattenInto(const YAML::Node& node, const std::string& prefix, const std::string& source, FlatParams* out) {
+  for (const auto& entry : node) {
+    const std::string key = prefix + entry.first.as<std::string>();
+    const YAML::Node& value = entry.second;
+    if (value.IsMap()) {
+      flattenInto(value, key + "/", source, out);
+    } else if (value.IsScalar()) {
+      FlatValue v;
+      v.text = value.Scalar();
+      try {
+        v.value = value.as<double>();
+        v.numeric = std::isfinite(v.value);
+      } catch (const YAML::Exception&) {
+        v.numeric = false;
+      }
+      (*out)[key] = v;
+    } else {
+      throwParamError(source, key, "must be a number or a map of parameters");
+    }
+  }
+}
+
+}  // namespace
+
+void throwParamError(const std::string& source, const std::string& key, const std::string& what) {
+  throw std::runtime_error(source + ": parameter '" + key + "' " + what);
+}
+
+void throwUnknownParam(const std::string& source, const std::string& key) {
+  throw std::runtime_error(source + ": unknown parameter '" + key + "' (a typo? see the documented keys)");
+}
+
+bool isWholeNumber(double value) { return value == std::floor(value); }
+
+std::string formatParamValue(double value) {
+  std::ostringstream s;
+  s.precision(10);
+  s << value;
+  return s.str();
+}
+
+FlatParams flattenYaml(const YAML::Node& root, const std::string& source) {
+  FlatParams out;
+  if (root.IsNull()) return out;
+  if (!root.IsMap()) throw std::runtime_error(source + ": expected a map of parameter groups at the top level");
+  flattenInto(root, "", source, &out);
+  return out;
+}
+
+FlatParams flattenYamlText(const std::string& yaml_text, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw std::runtime_error(source + ": YAML syntax error: " + e.what());
+  }
+  return flattenYaml(root, source);
+}
+
+FlatParams flattenYamlFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot open parameter file");
+  std::stringstream text;
+  text << in.rdbuf();
+  return flattenYamlText(text.str(), path);
+}
+
+}  // namespace nursing_bed

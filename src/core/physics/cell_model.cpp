@@ -1,0 +1,373 @@
+#include "nursing_bed/core/physics/cell_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "nursing_bed/core/physics/orifice.h"
+
+namespace nursing_bed {
+namespace {
+
+// ROS2 (Verwer, Spee, Blom, Hundsdorfer 1999): gamma = 1 + 1/sqrt(2) makes it L-stable; it is
+// second order for any Jacobian approximation, so the Jacobian may be reused across steps.
+constexpr double kRos2Gamma = 1.0 + 0.70710678118654752440;
+
+}  // namespace
+
+std::string CellParams::validate() const {
+  std::ostringstream err;
+  auto check = [&err](bool ok, const char* name, double value, const char* rule) {
+    if (!ok) err << name << " " << rule << ", got " << value << "; ";
+  };
+  auto positive = [&check](const char* name, double v) {
+    check(v > 0.0 && std::isfinite(v), name, v, "must be a positive finite number");
+  };
+  auto non_negative = [&check](const char* name, double v) {
+    check(v >= 0.0 && std::isfinite(v), name, v, "must be >= 0 and finite");
+  };
+  const std::string gas_error = gas.validate();
+  if (!gas_error.empty()) err << "gas: " << gas_error << "; ";
+  positive("ambient_pressure_pa", ambient_pressure_pa);
+  positive("ambient_temperature_k", ambient_temperature_k);
+  positive("supply_temperature_k", supply_temperature_k);
+  const std::string structure_error = structure.validate();
+  if (!structure_error.empty()) err << structure_error << "; ";
+  positive("plate_mass_kg", plate_mass_kg);
+  non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
+  positive("bed_contact_stiffness_n_m", bed_contact_stiffness_n_m);
+  non_negative("bed_contact_damping_n_s_m", bed_contact_damping_n_s_m);
+  non_negative("supply_pressure_pa", supply_pressure_pa);
+  non_negative("regulator_time_constant_s", regulator_time_constant_s);
+  non_negative("inlet_area_m2", inlet_area_m2);
+  non_negative("vent_area_m2", vent_area_m2);
+  non_negative("leak_area_m2", leak_area_m2);
+  positive("orifice_linear_band_pa", orifice_linear_band_pa);
+  check(time_step_s > 0.0 && time_step_s <= 0.05, "time_step_s", time_step_s, "must lie in (0, 0.05] s");
+  check(jacobian_refresh_steps >= 1 && jacobian_refresh_steps <= 100, "jacobian_refresh_steps",
+        jacobian_refresh_steps, "must lie in 1..100");
+  check(relative_tolerance >= 1e-10 && relative_tolerance <= 1e-1, "relative_tolerance",
+        relative_tolerance, "must lie in [1e-10, 0.1]");
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructure> structure)
+    : params_(params), structure_(std::move(structure)) {
+  const std::string error = params_.validate();
+  if (!error.empty()) throw std::invalid_argument("cell parameters: " + error);
+  if (!structure_) structure_ = std::make_shared<PillowStructure>(params_.structure);
+  shape_dofs_ = structure_->shapeDofs();
+  reset();
+}
+
+void CellModel::addEffect(CellEffectPtr effect) {
+  if (!effect) throw std::invalid_argument("addEffect: null effect");
+  int total = kShape + shape_dofs_;
+  for (const auto& e : effects_) total += e->stateSize();
+  if (total + effect->stateSize() > kMaxStates)
+    throw std::invalid_argument("addEffect: too many states for effect " + effect->name());
+  effects_.push_back(std::move(effect));
+  reset(last_inputs_.load_n);
+}
+
+void CellModel::reset(double load_n) {
+  effect_offsets_.clear();
+  int n = kShape + shape_dofs_;
+  for (const auto& e : effects_) {
+    effect_offsets_.push_back(n);
+    n += e->stateSize();
+  }
+  state_.setZero(n);
+  const auto rest = structure_->restShape();
+  for (int i = 0; i < shape_dofs_; ++i) state_[kShape + i] = rest[i];
+  const double volume = structure_->evaluate(0.0, rest.data()).volume_m3;
+  const double mass = massFromState(params_.gas, params_.ambient_pressure_pa,
+                                    params_.ambient_temperature_k, volume);
+  state_[kMass] = mass;
+  state_[kEnergy] = mass * params_.gas.cv() * params_.ambient_temperature_k;
+  // A bottomed-out plate rests on the contact spring.
+  state_[kHeight] = -load_n / params_.bed_contact_stiffness_n_m;
+  state_[kRegulator] = 0.0;
+  time_ = 0.0;
+  last_inputs_ = CellInputs{};
+  last_inputs_.load_n = load_n;
+  refreshVariables(last_inputs_);
+  for (std::size_t i = 0; i < effects_.size(); ++i)
+    effects_[i]->initialState(params_, vars_, state_.data() + effect_offsets_[i]);
+  refreshVariables(last_inputs_);
+  steps_since_jacobian_ = 1 << 30;
+  jacobian_fresh_ = false;
+  substep_s_ = 0.0;
+}
+
+void CellModel::resetToEquilibrium(double height_m, double load_n, double gas_temperature_k) {
+  reset(load_n);
+  const StructureEquilibrium eq = structure_->equilibriumAtHeight(height_m, load_n);
+  if (!eq.converged) {
+    std::ostringstream msg;
+    msg << "resetToEquilibrium: no pressure holds " << load_n << " N at height " << height_m << " m";
+    throw std::invalid_argument(msg.str());
+  }
+  const double p = params_.ambient_pressure_pa + eq.gauge_pressure_pa;
+  const double temperature = std::isfinite(gas_temperature_k) ? gas_temperature_k : params_.ambient_temperature_k;
+  const double mass = massFromState(params_.gas, p, temperature, eq.eval.volume_m3);
+  state_[kMass] = mass;
+  state_[kEnergy] = mass * params_.gas.cv() * temperature;
+  state_[kHeight] = height_m;
+  state_[kVelocity] = 0.0;
+  state_[kRegulator] = params_.supply_pressure_pa;
+  for (int i = 0; i < shape_dofs_; ++i) state_[kShape + i] = eq.shape[i];
+  refreshVariables(last_inputs_);
+  for (std::size_t i = 0; i < effects_.size(); ++i)
+    effects_[i]->initialState(params_, vars_, state_.data() + effect_offsets_[i]);
+  refreshVariables(last_inputs_);
+}
+
+CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, const CellInputs& in,
+                                       CellVariables* vars_out) const {
+  const GasProperties& gas = params_.gas;
+  const double cp = gas.cp();
+  CellVariables local;
+  CellVariables& v = vars_out ? *vars_out : local;
+
+  v.time_s = time_s;
+  v.mass_kg = std::max(x[kMass], 1e-12);
+  v.internal_energy_j = std::max(x[kEnergy], 1e-9);
+  v.height_m = x[kHeight];
+  v.velocity_m_s = x[kVelocity];
+  v.regulator_pressure_pa = params_.regulator_time_constant_s > 0.0 ? x[kRegulator]
+                                                                    : (std::isnan(in.supply_pressure_pa)
+                                                                           ? params_.supply_pressure_pa
+                                                                           : in.supply_pressure_pa);
+  for (int i = 0; i < shape_dofs_; ++i) v.shape[i] = x[kShape + i];
+  v.structure = structure_->evaluate(v.height_m, v.shape.data());
+  const StructureEval& s = v.structure;
+  v.pressure_pa = pressureFromEnergy(gas, v.internal_energy_j, s.volume_m3);
+  v.gauge_pressure_pa = v.pressure_pa - params_.ambient_pressure_pa;
+  v.temperature_k = temperatureFromEnergy(gas, v.internal_energy_j, v.mass_kg);
+  v.load_n = in.load_n;
+  v.moving_mass_kg = std::max(params_.plate_mass_kg, in.load_n / kGravity);
+
+  // Inlet: a prescribed (metered) series, or the regulator through the inlet valve.
+  double inflow_enthalpy_w = 0.0;
+  if (in.prescribed_inflow || std::isfinite(in.prescribed_inflow_kg_s)) {
+    v.inflow_prescribed = 1.0;
+    v.inlet_closed = in.inlet_closed ? 1.0 : 0.0;
+    v.metered_inflow_kg_s = in.prescribed_inflow ? in.prescribed_inflow->at(time_s) : in.prescribed_inflow_kg_s;
+    v.inflow_kg_s = v.metered_inflow_kg_s;
+    const double t_in = v.inflow_kg_s >= 0.0 ? params_.supply_temperature_k : v.temperature_k;
+    inflow_enthalpy_w = v.inflow_kg_s * cp * t_in;
+  } else {
+    v.inflow_prescribed = 0.0;
+    const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
+    const OrificeFlow f = orificeFlow(gas, opening * params_.inlet_area_m2,
+                                      params_.ambient_pressure_pa + v.regulator_pressure_pa,
+                                      params_.supply_temperature_k, v.pressure_pa, v.temperature_k,
+                                      params_.orifice_linear_band_pa);
+    v.inflow_kg_s = f.mass_flow_kg_s;
+    v.metered_inflow_kg_s = v.inflow_kg_s;
+    inflow_enthalpy_w = v.inflow_kg_s * cp * f.upstream_temperature_k;
+  }
+  // Vent valve and leakage to ambient (eq. 17-23 with the choked branch).
+  auto outflow = [&](double area) {
+    const OrificeFlow f = orificeFlow(gas, area, v.pressure_pa, v.temperature_k,
+                                      params_.ambient_pressure_pa, params_.ambient_temperature_k,
+                                      params_.orifice_linear_band_pa);
+    return f;
+  };
+  const OrificeFlow vent =
+      orificeFlow(gas, std::clamp(in.vent_opening, 0.0, 1.0) * params_.vent_area_m2, v.pressure_pa, v.temperature_k,
+                  params_.ambient_pressure_pa + in.vent_back_pressure_pa, params_.ambient_temperature_k,
+                  params_.orifice_linear_band_pa);
+  const OrificeFlow leak = outflow(params_.leak_area_m2);
+  v.vent_flow_kg_s = vent.mass_flow_kg_s;
+  v.leak_flow_kg_s = leak.mass_flow_kg_s;
+
+  StateVector dx = StateVector::Zero(x.size());
+  EffectTerms terms;
+  for (std::size_t i = 0; i < effects_.size(); ++i) {
+    EffectTerms t;
+    const int off = effect_offsets_[i];
+    effects_[i]->contribute(params_, v, x.data() + off, &t, dx.data() + off);
+    terms.mass_flow_kg_s += t.mass_flow_kg_s;
+    terms.enthalpy_flow_w += t.enthalpy_flow_w;
+    terms.heat_flow_w += t.heat_flow_w;
+    terms.plate_force_n += t.plate_force_n;
+    for (int k = 0; k < shape_dofs_; ++k) terms.shape_force[k] += t.shape_force[k];
+  }
+
+  // Mass (eq. 17) and energy: dU/dt = sum mdot h + Q - p dV/dt (eq. 12-16 generalised to flow).
+  const double outflow_enthalpy_w =
+      vent.mass_flow_kg_s * cp * vent.upstream_temperature_k + leak.mass_flow_kg_s * cp * leak.upstream_temperature_k;
+  dx[kMass] = v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s + terms.mass_flow_kg_s;
+  // Film shape relaxes towards dW/dq = p_gauge dV/dq.
+  double volume_rate = s.effective_area_m2 * v.velocity_m_s;
+  for (int i = 0; i < shape_dofs_; ++i) {
+    const double imbalance = s.elastic_force[i] + terms.shape_force[i] - v.gauge_pressure_pa * s.dvolume_dshape[i];
+    dx[kShape + i] = -imbalance / s.shape_damping[i];
+    volume_rate += s.dvolume_dshape[i] * dx[kShape + i];
+  }
+  v.volume_rate_m3_s = volume_rate;
+  dx[kEnergy] = inflow_enthalpy_w - outflow_enthalpy_w + terms.enthalpy_flow_w + terms.heat_flow_w -
+                v.pressure_pa * volume_rate;
+
+  // Plate: gas force on the effective area against load, guide damping and the bed.
+  v.bed_contact_force_n = 0.0;
+  if (v.height_m < 0.0) {
+    v.bed_contact_force_n = std::max(0.0, -params_.bed_contact_stiffness_n_m * v.height_m -
+                                              params_.bed_contact_damping_n_s_m * v.velocity_m_s);
+  }
+  const double net_force = v.gauge_pressure_pa * s.effective_area_m2 - in.load_n -
+                           params_.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n +
+                           terms.plate_force_n;
+  dx[kHeight] = v.velocity_m_s;
+  dx[kVelocity] = net_force / v.moving_mass_kg;
+
+  if (params_.regulator_time_constant_s > 0.0) {
+    const double setting = std::isnan(in.supply_pressure_pa) ? params_.supply_pressure_pa : in.supply_pressure_pa;
+    dx[kRegulator] = (setting - x[kRegulator]) / params_.regulator_time_constant_s;
+  }
+  return dx;
+}
+
+void CellModel::updateJacobian(const CellInputs& in, const StateVector& f0) {
+  const int n = stateSize();
+  jacobian_.resize(n, n);
+  for (int j = 0; j < n; ++j) {
+    StateVector xp = state_;
+    const double dxj = 1e-7 * std::max(std::fabs(state_[j]), scale_[j]);
+    xp[j] += dxj;
+    jacobian_.col(j) = (rate(time_, xp, in) - f0) / dxj;
+  }
+  jacobian_fresh_ = true;
+  steps_since_jacobian_ = 0;
+  lu_dt_ = 0.0;
+}
+
+double CellModel::attemptStep(double dt, const CellInputs& in, const StateVector& f0, StateVector* next) {
+  const int n = stateSize();
+  if (dt != lu_dt_) {
+    lu_.compute(StateMatrix::Identity(n, n) - kRos2Gamma * dt * jacobian_);
+    lu_dt_ = dt;
+  }
+  // Time-dependent input (a prescribed inflow series): its time derivative enters both stages.
+  StateVector ft = StateVector::Zero(n);
+  if (in.prescribed_inflow) {
+    const double dt_fd = 1e-6;
+    ft = (rate(time_ + dt_fd, state_, in) - f0) / dt_fd;
+  }
+  const StateVector k1 = lu_.solve(f0 + kRos2Gamma * dt * ft);
+  const StateVector f1 = rate(time_ + dt, state_ + dt * k1, in);
+  const StateVector k2 = lu_.solve(f1 - 2.0 * k1 - kRos2Gamma * dt * ft);
+  *next = state_ + dt * (1.5 * k1 + 0.5 * k2);
+  // Local error: the second-order solution minus the embedded first-order x + dt k1.
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double tol = params_.relative_tolerance * (scale_[i] + std::fabs(state_[i]));
+    const double e = 0.5 * dt * (k1[i] + k2[i]) / tol;
+    sum += e * e;
+  }
+  const double err = std::sqrt(sum / n);
+  return std::isfinite(err) && next->allFinite() ? err : 1e10;
+}
+
+void CellModel::step(double dt, const CellInputs& in) {
+  const int n = stateSize();
+  if (scale_.size() != n) {
+    scale_.setConstant(n, 1e-3);
+    scale_[kMass] = 1e-4;
+    scale_[kEnergy] = 10.0;
+    scale_[kHeight] = 1e-2;
+    scale_[kVelocity] = 1.0;
+    scale_[kRegulator] = 1e3;
+    for (int i = 0; i < shape_dofs_; ++i) scale_[kShape + i] = 1.0;
+  }
+  double remaining = dt;
+  double h = substep_s_ > 0.0 ? std::min(substep_s_, dt) : dt;
+  int rejections = 0;
+  while (remaining > 1e-15) {
+    h = std::min(h, remaining);
+    if (remaining - h < 1e-3 * h) h = remaining;
+    // The rate at the current state is already known when the inputs did not change.
+    if (!sameInputs(in, last_inputs_) || rate_at_state_.size() != n) {
+      last_inputs_ = in;
+      refreshVariables(in);
+    }
+    const StateVector f0 = rate_at_state_;
+    if (!jacobian_fresh_ && steps_since_jacobian_ >= params_.jacobian_refresh_steps) updateJacobian(in, f0);
+    StateVector next;
+    const double err = attemptStep(h, in, f0, &next);
+    if (err <= 1.0 || h < 1e-9) {
+      state_ = next;
+      state_[kMass] = std::max(state_[kMass], 1e-12);
+      time_ += h;
+      refreshVariables(in);
+      remaining -= h;
+      if (++substeps_ > substep_budget_ && substep_budget_ > 0)
+        throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +
+                                 " integration steps (too stiff)");
+      jacobian_fresh_ = false;
+      ++steps_since_jacobian_;
+      // Grow towards the default step when the error allows.
+      const double grow = err > 1e-8 ? 0.9 / std::sqrt(err) : 4.0;
+      substep_s_ = std::min(dt, h * std::clamp(grow, 0.2, 4.0));
+      h = substep_s_;
+      rejections = 0;
+    } else {
+      // Retry smaller, with a Jacobian taken at the current state.
+      if (!jacobian_fresh_) updateJacobian(in, f0);
+      h *= std::clamp(0.9 / std::sqrt(err), 0.1, 0.5);
+      if (++rejections > 60) throw std::runtime_error("CellModel::step: no step size meets the tolerance");
+    }
+  }
+}
+
+void CellModel::advance(double duration_s, const CellInputs& in) {
+  const double end = time_ + duration_s;
+  const double h = params_.time_step_s;
+  while (end - time_ > 1e-12) {
+    double dt = std::min(h, end - time_);
+    // Avoid a sliver of a last step: split the remainder instead.
+    if (end - time_ - dt < 0.1 * h && end - time_ > dt) dt = 0.5 * (end - time_);
+    step(dt, in);
+  }
+}
+
+void CellModel::setState(double time_s, const StateVector& state) {
+  if (state.size() != state_.size())
+    throw std::invalid_argument("setState: expected " + std::to_string(state_.size()) + " states, got " +
+                                std::to_string(state.size()));
+  state_ = state;
+  time_ = time_s;
+  steps_since_jacobian_ = 1 << 30;
+  jacobian_fresh_ = false;
+  substep_s_ = 0.0;
+  refreshVariables(last_inputs_);
+}
+
+void CellModel::refreshVariables(const CellInputs& in) { rate_at_state_ = rate(time_, state_, in, &vars_); }
+
+bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
+  auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };
+  return same(a.inlet_opening, b.inlet_opening) && same(a.vent_opening, b.vent_opening) &&
+         same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) &&
+         same(a.load_n, b.load_n) && same(a.supply_pressure_pa, b.supply_pressure_pa) &&
+         a.prescribed_inflow == b.prescribed_inflow && same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) &&
+         a.inlet_closed == b.inlet_closed;
+}
+
+Measurement CellModel::measure() const {
+  Measurement m;
+  m.gauge_pressure_pa = vars_.gauge_pressure_pa;
+  m.height_m = vars_.height_m;
+  m.inflow_kg_s = vars_.metered_inflow_kg_s;
+  m.temperature_k = vars_.temperature_k;
+  for (std::size_t i = 0; i < effects_.size(); ++i)
+    effects_[i]->measure(params_, vars_, state_.data() + effect_offsets_[i], &m);
+  return m;
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,215 @@
+// Replaying runs through the model, phases, noise estimate and where the gap lies.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/gap/replay.h"
+#include "nursing_bed/core/gap/synth.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+nb::RunData synthRun(const std::vector<nb::CellEffectPtr>& effects, double noise_factor, std::size_t plan_index = 3) {
+  const nb::CellParams params;
+  const nb::SynthProtocol protocol = nb::synthProtocol("small", params);
+  std::mt19937 rng(7);
+  return nb::simulateSynthRun(params, effects, protocol, protocol.runs.at(plan_index),
+                              nb::SensorNoise{}.scaled(noise_factor), noise_factor > 0 ? &rng : nullptr);
+}
+
+TEST(GapReplay, PhasesFollowTheProtocol) {
+  const nb::RunData run = synthRun({}, 0.0);
+  const std::vector<nb::RunPhase> ph = nb::classifyPhases(run);
+  auto phase_at = [&](double t) {
+    std::size_t i = 0;
+    while (i + 1 < run.size() && run.t_s[i] < t) ++i;
+    return ph[i];
+  };
+  EXPECT_EQ(phase_at(0.5), nb::RunPhase::kDeploy);
+  EXPECT_EQ(phase_at(2.0), nb::RunPhase::kPressurize);
+  EXPECT_EQ(phase_at(20.0), nb::RunPhase::kHold);
+  EXPECT_EQ(phase_at(36.0), nb::RunPhase::kVent);
+  EXPECT_EQ(ph.back(), nb::RunPhase::kLanded);
+}
+
+TEST(GapReplay, NominalModelReplaysNominalDataExactly) {
+  // Noise-free data from the nominal model: the replay driven by its inflow gives it back.
+  const nb::RunData run = synthRun({}, 0.0);
+  const nb::Replay rep = nb::replayRun(run, nb::CellParams{}, {});
+  ASSERT_TRUE(rep.ok) << rep.message;
+  const nb::RunResidual r = nb::runResidual(run, rep);
+  EXPECT_GT(r.samples, 1000);
+  EXPECT_LT(r.nrmse_p, 2e-3);
+  EXPECT_LT(r.nrmse_h, 2e-3);
+}
+
+TEST(GapReplay, ALeakLeavesItsGapInTheHold) {
+  const auto leak = nb::makeEffect("leak", {{"leak_area_m2", 2e-8}});
+  const nb::RunData run = synthRun({leak}, 0.0);
+  const nb::Replay nominal = nb::replayRun(run, nb::CellParams{}, {});
+  const nb::Replay with_leak = nb::replayRun(run, nb::CellParams{}, {leak});
+  ASSERT_TRUE(nominal.ok && with_leak.ok);
+  EXPECT_GT(nb::runResidual(run, nominal).nrmse(), 0.02);
+  EXPECT_LT(nb::runResidual(run, with_leak).nrmse(), 2e-3);  // the right effect closes it
+  const std::vector<nb::GapShare> where = nb::localizeGap({run}, {nominal});
+  ASSERT_FALSE(where.empty());
+  EXPECT_EQ(where.front().phase, "hold") << where.front().signal;
+  double total = 0.0;
+  for (const auto& g : where) total += g.share;
+  EXPECT_NEAR(total, 1.0, 1e-9);
+}
+
+TEST(GapReplay, NoiseEstimateRecoversTheSensorNoise) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 30.0);
+  std::vector<double> x;
+  for (int i = 0; i < 5000; ++i) x.push_back(20000.0 * std::sin(i * 0.002) + noise(rng));
+  EXPECT_NEAR(nb::estimateNoise(x), 30.0, 3.0);
+  // On generated data: close to the generator's sd (quantisation adds a little).
+  const nb::RunData run = synthRun({}, 1.0);
+  EXPECT_NEAR(nb::estimateNoise(run.p_gauge_pa), 30.0, 6.0);
+  EXPECT_NEAR(nb::estimateNoise(run.h_m), 0.3e-3, 0.06e-3);
+}
+
+TEST(GapReplay, AFailedReplaySaysWhy) {
+  nb::RunData run = synthRun({}, 0.0);
+  for (double& q : run.mdot_in_kg_s) q = NAN;
+  const nb::Replay rep = nb::replayRun(run, nb::CellParams{}, {});
+  EXPECT_FALSE(rep.ok);
+  EXPECT_NE(rep.message.find("inflow"), std::string::npos) << rep.message;
+}
+
+}  // namespace
+
+namespace {
+/// A run whose hold reads flow-meter noise around `offset_kg_s`; valve_cmd dropped when asked.
+nb::RunData holdWithMeterReading(double offset_kg_s, bool keep_valve_cmd) {
+  nb::RunData run = synthRun({}, 0.0);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 5e-6);
+  for (std::size_t i = 0; i < run.size(); ++i)
+    if (run.valve_cmd[i] == 0.0) run.mdot_in_kg_s[i] = offset_kg_s + noise(rng);
+  if (!keep_valve_cmd) run.valve_cmd.clear();
+  return run;
+}
+}  // namespace
+
+TEST(GapReplay, ClosedInletNoiseIsZeroedButAMeterOffsetIsKept) {
+  for (bool valve : {true, false}) {
+    nb::RunData noisy = holdWithMeterReading(0.0, valve);
+    const nb::RunData before = noisy;
+    EXPECT_GT(nb::zeroClosedInletFlow(&noisy), 1000) << "valve_cmd " << valve;
+    int zero_in_hold = 0, inflow_changed = 0;
+    for (std::size_t i = 0; i < noisy.size(); ++i) {
+      if (before.t_s[i] > 10.0 && before.t_s[i] < 30.0) zero_in_hold += noisy.mdot_in_kg_s[i] == 0.0;
+      if (before.t_s[i] < 2.0) inflow_changed += noisy.mdot_in_kg_s[i] != before.mdot_in_kg_s[i];
+    }
+    EXPECT_GT(zero_in_hold, 900);      // the hold (50 Hz, 20 s) is zero
+    EXPECT_EQ(inflow_changed, 0);      // the inflation is untouched
+    nb::RunData offset = holdWithMeterReading(3e-6, valve);  // 3e-6 kg/s: ~40 standard errors
+    const nb::RunData kept = offset;
+    EXPECT_EQ(nb::zeroClosedInletFlow(&offset), 0);
+    EXPECT_EQ(offset.mdot_in_kg_s, kept.mdot_in_kg_s);
+  }
+}
+
+TEST(GapReplay, AnUnmeteredVentValveIsRecognisedAndReplayed) {
+  // A bed's cell: venting through its own valve (valve_cmd -1) while the inlet meter reads 0.
+  nb::RunData run = synthRun({}, 0.0);
+  EXPECT_FALSE(nb::ventsThroughUnmeteredValve(run));  // the generator vents through the meter
+  const nb::Replay metered = nb::replayRun(run, nb::CellParams{}, {});
+  for (std::size_t i = 0; i < run.size(); ++i)
+    if (run.valve_cmd[i] < 0.0) run.mdot_in_kg_s[i] = 0.0;
+  EXPECT_TRUE(nb::ventsThroughUnmeteredValve(run));
+  const nb::Replay vented = nb::replayRun(run, nb::CellParams{}, {});
+  ASSERT_TRUE(metered.ok && vented.ok) << vented.message;
+  // The model's own vent valve empties it: the height falls in the vent as the data's does.
+  auto at = [&](double t) {
+    std::size_t i = 0;
+    while (i + 1 < run.size() && run.t_s[i] < t) ++i;
+    return i;
+  };
+  EXPECT_LT(vented.h_m[at(38.0)], vented.h_m[at(30.0)] - 0.02);  // 30 s: hold, 38 s: venting
+  EXPECT_NEAR(vented.h_m[at(38.0)], metered.h_m[at(38.0)], 0.01);
+}
+
+TEST(GapReplay, IntervalMeanFlowPutsEachPulseInItsOwnInterval) {
+  // A bed's cell reports the mean flow since its previous message; a valve pulse of a few ms
+  // shows as one sample. Replayed as interval means, the pulse's gas is in by the sample that
+  // reports it; interpolated, only half of it.
+  const nb::CellParams params;
+  nb::RunData run;
+  run.name = "pulse";
+  run.load_n = 10.6;
+  const double dt = 0.02, pulse_kg_s = 2e-4;
+  for (int i = 0; i <= 100; ++i) {
+    run.t_s.push_back(i * dt);
+    run.mdot_in_kg_s.push_back(i == 50 ? pulse_kg_s : 0.0);
+    run.p_gauge_pa.push_back(0.0);
+    run.h_m.push_back(0.135);  // near full height: the pressure shows the gas
+  }
+  auto massAt = [&](bool interval_means, std::size_t i) {
+    run.flow_interval_means = interval_means;
+    // The gas in the bag at sample i, from the replay's pressure rise over the first sample's.
+    const nb::Replay rep = nb::replayRun(run, params, {});
+    EXPECT_TRUE(rep.ok) << rep.message;
+    return rep.p_gauge_pa[i] - rep.p_gauge_pa[0];
+  };
+  const double full_rise = massAt(true, 100);
+  ASSERT_GT(full_rise, 50.0);
+  EXPECT_NEAR(massAt(true, 100), massAt(false, 100), 0.01 * full_rise);  // the same gas in the end
+  // All of it by sample 50 (the plate, kicked, overshoots a little); interpolated, half.
+  EXPECT_GT(massAt(true, 50), 0.9 * full_rise);
+  EXPECT_LT(massAt(false, 50), 0.7 * massAt(true, 50));
+}
+
+TEST(GapReplay, MeterNoiseIsTakenWhereTheValveHeldStillNotFromValvePulses) {
+  // 20 s at 50 Hz: a steady inflow with the meter's noise (valve open), then a controller
+  // holding with 5 ms pulses in every other sample (valve_cmd the mean opening, 0.25).
+  std::mt19937 rng(3);
+  std::normal_distribution<double> meter(0.0, 2e-6);
+  nb::RunData run;
+  for (int i = 0; i < 1000; ++i) {
+    const bool pulsing = i >= 500;
+    const bool pulse = pulsing && i % 2 == 0;
+    run.t_s.push_back(0.02 * i);
+    run.valve_cmd.push_back(pulsing ? (pulse ? 0.25 : 0.0) : 1.0);
+    run.mdot_in_kg_s.push_back(pulsing ? (pulse ? 1e-4 : 0.0) : 5e-5 + meter(rng));
+  }
+  run.p_gauge_pa.assign(run.size(), 0.0);
+  run.h_m.assign(run.size(), 0.1);
+  const std::vector<double> noise = nb::meterNoise(run, run.mdot_in_kg_s, 25);
+  EXPECT_NEAR(noise[250], 2e-6, 0.5e-6);  // steady: the meter's noise
+  EXPECT_LT(noise[800], 4e-6);            // pulses: not noise; the run's steady estimate
+  // Without valve_cmd the pulses cannot be told from noise: they count.
+  run.valve_cmd.clear();
+  EXPECT_GT(nb::meterNoise(run, run.mdot_in_kg_s, 25)[800], 1e-5);
+}
+
+TEST(GapReplay, PooledResidualUsesTheRangeOverAllRuns) {
+  const nb::RunData a = synthRun({}, 1.0, 0), b = synthRun({}, 1.0, 3);
+  const nb::Replay ra = nb::replayRun(a, nb::CellParams{}, {}), rb = nb::replayRun(b, nb::CellParams{}, {});
+  const nb::RunResidual pooled = nb::pooledResidual({&a, &b}, {&ra, &rb});
+  EXPECT_GE(pooled.range_p_pa, std::max(nb::runResidual(a, ra).range_p_pa, nb::runResidual(b, rb).range_p_pa));
+  EXPECT_EQ(pooled.samples, nb::runResidual(a, ra).samples + nb::runResidual(b, rb).samples);
+}
+
+TEST(GapReplay, HiddenEffectsFromTextAreCheckedAndNamed) {
+  EXPECT_TRUE(nb::effectsFromText("", 1).empty());
+  const auto two = nb::effectsFromText("leak:leak_area_m2=5e-9; heat_transfer", 3);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0]->name(), "heat_transfer");  // catalogue order
+  EXPECT_EQ(two[1]->name(), "leak");
+  EXPECT_DOUBLE_EQ(two[1]->parameters().at("leak_area_m2"), 5e-9);
+  for (const char* bad : {"lek", "leak:leak_area_m2=abc", "leak:area=1e-9", "leak:leak_area_m2=-1"}) {
+    try {
+      nb::effectsFromText(bad, 1);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).size(), 0u) << bad;
+    }
+  }
+}

@@ -1,0 +1,178 @@
+// The control-volume cell model: conservation, adiabatic law, effect hooks, convergence.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "nursing_bed/core/physics/basic_effects.h"
+#include "nursing_bed/core/physics/cell_model.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+nb::CellInputs closedInputs(double load) {
+  nb::CellInputs in;
+  in.load_n = load;
+  return in;
+}
+
+TEST(CellModel, FlatCellStartsAtAmbient) {
+  nb::CellModel m{nb::CellParams{}};
+  m.reset(0.6);
+  const nb::CellVariables& v = m.variables();
+  EXPECT_NEAR(v.gauge_pressure_pa, 0.0, 1e-6);
+  EXPECT_NEAR(v.temperature_k, 293.15, 1e-9);
+  EXPECT_LE(v.height_m, 0.0);
+  EXPECT_NEAR(v.bed_contact_force_n, 0.6, 1e-9);  // the bed carries the plate
+}
+
+TEST(CellModel, ClosedCellConservesMass) {
+  // Valves shut, plate dropped from one load to a heavier one: it bounces and settles, the gas
+  // is squeezed, but no mass may appear or vanish.
+  nb::CellModel m{nb::CellParams{}};
+  m.resetToEquilibrium(0.12, 10.6);
+  const double m0 = m.variables().mass_kg;
+  m.advance(2.0, closedInputs(20.6));
+  EXPECT_NEAR(m.variables().mass_kg, m0, 1e-9 * m0);
+  EXPECT_LT(m.variables().height_m, 0.12);  // it did compress
+}
+
+TEST(CellModel, AdiabaticCompressionFollowsPoissonsLaw) {
+  // Paper eq. 13: p V^gamma = const for the closed adiabatic cell, whatever the plate does.
+  nb::CellModel m{nb::CellParams{}};
+  m.resetToEquilibrium(0.12, 10.6);
+  const double gamma = m.params().gas.heat_capacity_ratio;
+  auto invariant = [&]() {
+    const nb::CellVariables& v = m.variables();
+    return v.pressure_pa * std::pow(v.structure.volume_m3, gamma);
+  };
+  const double c0 = invariant();
+  const double v0 = m.variables().structure.volume_m3;
+  // Load ramps 10.6 -> 20.6 N over 1 s, then holds.
+  for (int i = 1; i <= 1500; ++i) {
+    const double t = i * 1e-3;
+    m.advance(1e-3, closedInputs(10.6 + 10.0 * std::min(t, 1.0)));
+    ASSERT_NEAR(invariant(), c0, 1e-6 * c0) << "t " << t;
+  }
+  EXPECT_LT(m.variables().structure.volume_m3, 0.995 * v0);  // a real compression happened
+}
+
+TEST(CellModel, ZeroEffectsGiveBackTheNominalModelExactly) {
+  nb::CellParams params;
+  nb::CellModel nominal(params), with_effects(params);
+  with_effects.addEffect(std::make_shared<nb::HeatTransferEffect>(0.0));
+  with_effects.addEffect(std::make_shared<nb::LeakEffect>(0.0));
+  nominal.reset(10.6);
+  with_effects.reset(10.6);
+  nb::CellInputs in = closedInputs(10.6);
+  in.inlet_opening = 1.0;
+  nominal.advance(3.0, in);
+  with_effects.advance(3.0, in);
+  EXPECT_EQ(nominal.variables().height_m, with_effects.variables().height_m);
+  EXPECT_EQ(nominal.variables().pressure_pa, with_effects.variables().pressure_pa);
+}
+
+// Inflate for 5.5 s at 15.6 N, then hold closed for `hold_s`; returns the model.
+nb::CellModel inflateAndHold(const nb::CellEffectPtr& effect, double hold_s) {
+  nb::CellModel m{nb::CellParams{}};
+  if (effect) m.addEffect(effect);
+  m.reset(15.6);
+  nb::CellInputs in = closedInputs(15.6);
+  in.inlet_opening = 1.0;
+  m.advance(5.5, in);
+  in.inlet_opening = 0.0;
+  m.advance(hold_s, in);
+  return m;
+}
+
+TEST(CellModel, HeatTransferCoolsTheGasAndLowersThePressureAtHold) {
+  const nb::CellModel adiabatic = inflateAndHold(nullptr, 30.0);
+  const nb::CellModel cooled = inflateAndHold(std::make_shared<nb::HeatTransferEffect>(10.0), 30.0);
+  // Compression heated the adiabatic gas; exchange brings it back to ambient.
+  EXPECT_GT(adiabatic.variables().temperature_k, 298.0);
+  EXPECT_NEAR(cooled.variables().temperature_k, 293.15, 0.2);
+  EXPECT_LT(cooled.variables().gauge_pressure_pa, adiabatic.variables().gauge_pressure_pa - 300.0);
+  // Signature: with the inlet closed the cooled cell's pressure relaxes to a lower plateau.
+  const nb::CellModel cooled_early = inflateAndHold(std::make_shared<nb::HeatTransferEffect>(10.0), 0.5);
+  EXPECT_LT(cooled.variables().gauge_pressure_pa, cooled_early.variables().gauge_pressure_pa - 300.0);
+  const nb::CellModel adiabatic_early = inflateAndHold(nullptr, 0.5);
+  EXPECT_NEAR(adiabatic.variables().gauge_pressure_pa, adiabatic_early.variables().gauge_pressure_pa, 50.0);
+}
+
+TEST(CellModel, LeakDrainsTheCellDuringHold) {
+  const nb::CellModel sealed = inflateAndHold(nullptr, 20.0);
+  const nb::CellModel leaky = inflateAndHold(std::make_shared<nb::LeakEffect>(1e-7), 20.0);
+  EXPECT_LT(leaky.variables().mass_kg, 0.9 * sealed.variables().mass_kg);
+  EXPECT_LT(leaky.variables().height_m, sealed.variables().height_m);
+}
+
+TEST(CellModel, HalvingTheStepChangesTheHeightAt5p5sByLessThanATenthMm) {
+  for (double load : {0.6, 15.6}) {
+    double heights[2];
+    for (int k = 0; k < 2; ++k) {
+      nb::CellParams params;
+      params.time_step_s = k == 0 ? 2e-3 : 1e-3;
+      nb::CellModel m(params);
+      m.reset(load);
+      nb::CellInputs in = closedInputs(load);
+      in.inlet_opening = 1.0;
+      m.advance(5.5, in);
+      heights[k] = m.variables().height_m;
+    }
+    EXPECT_LT(std::abs(heights[0] - heights[1]), 1e-4) << "load " << load;
+  }
+}
+
+TEST(CellModel, VentingLowersTheCell) {
+  nb::CellModel m{nb::CellParams{}};
+  m.resetToEquilibrium(0.14, 15.6);
+  nb::CellInputs in = closedInputs(15.6);
+  in.vent_opening = 1.0;
+  m.advance(10.0, in);
+  EXPECT_LT(m.variables().height_m, 0.01);
+  EXPECT_LT(m.variables().gauge_pressure_pa, 1500.0);
+}
+
+TEST(CellModel, ReplayingTheInflowOfAValveRunReproducesIt) {
+  // The paper's way: drive the model with a measured inflow curve. Replaying the inflow a
+  // valve-driven run produced must give the same cell back.
+  nb::CellParams params;
+  nb::CellModel valve_run(params);
+  valve_run.reset(10.6);
+  nb::CellInputs in = closedInputs(10.6);
+  in.inlet_opening = 1.0;
+  std::vector<double> t{0.0}, q{valve_run.variables().inflow_kg_s}, h{valve_run.variables().height_m};
+  for (int i = 1; i <= 400; ++i) {
+    valve_run.advance(0.01, in);
+    t.push_back(valve_run.time());
+    q.push_back(valve_run.variables().inflow_kg_s);
+    h.push_back(valve_run.variables().height_m);
+  }
+  const nb::TimeSeries inflow(t, q);
+  nb::CellModel replay(params);
+  replay.reset(10.6);
+  nb::CellInputs rin = closedInputs(10.6);
+  rin.prescribed_inflow = &inflow;
+  double worst = 0.0;
+  for (int i = 1; i <= 400; ++i) {
+    replay.advance(0.01, rin);
+    worst = std::max(worst, std::abs(replay.variables().height_m - h[i]));
+  }
+  EXPECT_LT(worst, 2e-3);  // 10 ms samples of a 2.5 g/s flow
+  EXPECT_NEAR(replay.variables().mass_kg, valve_run.variables().mass_kg, 0.01 * valve_run.variables().mass_kg);
+}
+
+TEST(CellModel, InvalidParametersAreRefusedByName) {
+  nb::CellParams params;
+  params.inlet_area_m2 = -1.0;
+  params.time_step_s = 0.0;
+  try {
+    nb::CellModel m(params);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("inlet_area_m2"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("time_step_s"), std::string::npos);
+  }
+}
+
+}  // namespace

@@ -1,0 +1,125 @@
+// Pillow structure: volume, effective area and film forces are consistent derivatives of one
+// geometry (so the model conserves energy), and the h(p, load) characteristic behaves.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "nursing_bed/core/physics/pillow_structure.h"
+#include "nursing_bed/core/physics/units.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+const nb::PillowParams kParams;
+
+// Film energy of the whole cell, written from the model's definition: n A0 t W(2 l^2 + l^-4).
+double filmEnergy(const nb::PillowParams& p, double stretch) {
+  const double loop = 2.0 * (p.face_side_m + p.gusset_height_m);
+  return p.chambers * 0.5 * loop * loop * p.film_thickness_m * p.material.equibiaxialEnergy(stretch);
+}
+
+TEST(PillowStructure, DerivativesAreConsistentWithTheVolume) {
+  const nb::PillowStructure s(kParams);
+  for (double h : {0.02, 0.08, 0.14}) {
+    for (double l : {1.0, 1.05, 1.12}) {
+      double q[1] = {l};
+      const nb::StructureEval e = s.evaluate(h, q);
+      const double dh = 1e-7, dl = 1e-7;
+      const double v_hp = s.evaluate(h + dh, q).volume_m3, v_hm = s.evaluate(h - dh, q).volume_m3;
+      EXPECT_NEAR(e.effective_area_m2, (v_hp - v_hm) / (2 * dh), 1e-6 * std::abs(e.effective_area_m2) + 1e-10)
+          << "h " << h << " l " << l;
+      double qp[1] = {l + dl}, qm[1] = {l - dl};
+      const double dv_dl = (s.evaluate(h, qp).volume_m3 - s.evaluate(h, qm).volume_m3) / (2 * dl);
+      EXPECT_NEAR(e.dvolume_dshape[0], dv_dl, 1e-6 * std::abs(dv_dl) + 1e-12);
+      const double dw_dl = (filmEnergy(kParams, l + dl) - filmEnergy(kParams, l - dl)) / (2 * dl);
+      EXPECT_NEAR(e.elastic_force[0], dw_dl, 1e-5 * std::abs(dw_dl) + 1e-6);
+    }
+  }
+}
+
+TEST(PillowStructure, FlatCellHoldsOnlyItsDeadVolume) {
+  const nb::PillowStructure s(kParams);
+  const auto rest = s.restShape();
+  const nb::StructureEval e = s.evaluate(0.0, rest.data());
+  EXPECT_DOUBLE_EQ(e.volume_m3, kParams.dead_volume_m3);
+  const double half_loop = kParams.face_side_m + kParams.gusset_height_m;
+  EXPECT_NEAR(e.contact_area_m2, half_loop * half_loop, 1e-15);
+  EXPECT_NEAR(e.effective_area_m2, half_loop * half_loop, 1e-15);
+  EXPECT_EQ(e.elastic_force[0], 0.0);
+  // Below the bed surface the geometry stays flat.
+  EXPECT_DOUBLE_EQ(s.evaluate(-0.01, rest.data()).volume_m3, kParams.dead_volume_m3);
+}
+
+TEST(PillowStructure, EffectiveAreaShrinksAsTheCellRises) {
+  // The load-bearing area must fall with height for h(p) to be single-valued.
+  const nb::PillowStructure s(kParams);
+  double q[1] = {1.05};
+  double previous = 1e9;
+  for (double h = 0.0; h < 0.9 * s.heightLimit(q); h += 0.005) {
+    const double a = s.evaluate(h, q).effective_area_m2;
+    EXPECT_LT(a, previous) << "h " << h;
+    previous = a;
+  }
+  EXPECT_NEAR(s.evaluate(s.heightLimit(q), q).effective_area_m2, 0.0, 1e-12);
+}
+
+TEST(PillowStructure, EquilibriumHeightRisesWithPressureAndFallsWithLoad) {
+  const nb::PillowStructure s(kParams);
+  for (double load : {0.6, 10.6, 20.6}) {
+    double previous = -1.0;
+    for (double p = 2000.0; p <= 30000.0; p += 2000.0) {
+      const nb::StructureEquilibrium e = s.equilibriumAtPressure(p, load);
+      ASSERT_TRUE(e.converged);
+      EXPECT_GT(e.height_m, previous) << "load " << load << " p " << p;
+      previous = e.height_m;
+      // Forces balance at the returned state.
+      EXPECT_NEAR(p * e.eval.effective_area_m2, load, 1e-6 * load + 1e-9);
+    }
+  }
+  for (double p : {3000.0, 10000.0, 25000.0}) {
+    double previous = 1e9;
+    for (double load : {0.6, 5.0, 10.6, 15.6, 20.6, 30.0}) {
+      const double h = s.equilibriumAtPressure(p, load).height_m;
+      EXPECT_LT(h, previous) << "p " << p << " load " << load;
+      previous = h;
+    }
+  }
+}
+
+TEST(PillowStructure, UnloadedCellReachesThePapersHeightAtTheValvePressure) {
+  // Calibration target (paper section 2.1): 150 mm at the 20 kPa valve setting, plate only.
+  const nb::PillowStructure s(kParams);
+  EXPECT_NEAR(s.equilibriumAtPressure(20e3, 0.6).height_m, 0.150, 0.002);
+}
+
+TEST(PillowStructure, PressureCannotLiftALoadBelowTheFlatCellsArea) {
+  const nb::PillowStructure s(kParams);
+  const double half_loop = kParams.face_side_m + kParams.gusset_height_m;
+  const double lift_off_pa = 20.6 / (half_loop * half_loop);
+  EXPECT_EQ(s.equilibriumAtPressure(0.95 * lift_off_pa, 20.6).height_m, 0.0);
+  EXPECT_GT(s.equilibriumAtPressure(1.05 * lift_off_pa, 20.6).height_m, 0.0);
+}
+
+TEST(PillowStructure, HeightAndPressureEquilibriaAreInverse) {
+  const nb::PillowStructure s(kParams);
+  for (double h : {0.03, 0.10, 0.14}) {
+    const nb::StructureEquilibrium at_h = s.equilibriumAtHeight(h, 15.6);
+    ASSERT_TRUE(at_h.converged);
+    const nb::StructureEquilibrium at_p = s.equilibriumAtPressure(at_h.gauge_pressure_pa, 15.6);
+    EXPECT_NEAR(at_p.height_m, h, 1e-6);
+  }
+  EXPECT_FALSE(s.equilibriumAtHeight(0.5, 15.6).converged);  // beyond any height the film allows
+}
+
+TEST(PillowStructure, ParamsValidationNamesTheField) {
+  nb::PillowParams p;
+  EXPECT_TRUE(p.validate().empty());
+  p.film_thickness_m = 0.0;
+  p.chambers = 0;
+  const std::string err = p.validate();
+  EXPECT_NE(err.find("film_thickness_m"), std::string::npos);
+  EXPECT_NE(err.find("chambers"), std::string::npos);
+}
+
+}  // namespace
