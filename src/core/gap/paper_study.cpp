@@ -1,6 +1,7 @@
 #include "nursing_bed/core/gap/paper_study.h"
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <iomanip>
@@ -51,41 +52,56 @@ std::vector<double> staticHeights(const CellParams& params, double load_n, const
   return h;
 }
 
-}  // namespace
+/// Golden-section search of the minimum of `cost` over [a, b]: the middle of the last bracket.
+double goldenSection(const std::function<double(double)>& cost, double a, double b, int iterations) {
+  const double r = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int it = 0; it < iterations; ++it) {
+    const double c = b - r * (b - a), d = a + r * (b - a);
+    if (cost(c) < cost(d)) b = d;
+    else a = c;
+  }
+  return 0.5 * (a + b);
+}
 
-PaperCurveStudy studyPaperEq24(const CellParams& params) {
-  PaperCurveStudy s;
-  s.load_n = kPaperEq24LoadN;
-  for (double p = kGridLoPa; p <= kGridHiPa + 1e-6; p += kGridStepPa) {
-    s.pressure_pa.push_back(p);
-    s.paper_height_m.push_back(paperEq24HeightM(p));
-  }
-  // A slow constant inflow over 300 s
-  // (3 L of air at 30 kPa gauge: more than the cell holds at full height)
-  const double full_mass = 3.0e-3 * (params.ambient_pressure_pa + 30.0e3) / 287.0 / params.ambient_temperature_k;
-  s.inflow_kg_s = full_mass / kDurationS;
+/// A run of `inflow` (kg/s at each time) with nothing measured: the replay's input only.
+RunData inflowOnlyRun(const std::string& name, double load_n, const std::vector<double>& t_s,
+                      const std::vector<double>& inflow_kg_s) {
   RunData run;
-  run.name = "eq24_quasi_static";
-  run.load_n = s.load_n;
-  for (double t = 0.0; t <= kDurationS + 1e-9; t += kSampleS) {
-    run.t_s.push_back(t);
-    run.mdot_in_kg_s.push_back(s.inflow_kg_s);
-    run.p_gauge_pa.push_back(std::numeric_limits<double>::quiet_NaN());
-    run.h_m.push_back(std::numeric_limits<double>::quiet_NaN());
-  }
-  const Replay nominal = replayRun(run, params, {});
-  s.model_height_m = risingHeightAt(nominal, s.pressure_pa);
-  s.nominal_rms_m = rms(s.model_height_m, s.paper_height_m);
+  run.name = name;
+  run.load_n = load_n;
+  run.t_s = t_s;
+  run.mdot_in_kg_s = inflow_kg_s;
+  run.p_gauge_pa.assign(t_s.size(), std::numeric_limits<double>::quiet_NaN());
+  run.h_m.assign(t_s.size(), std::numeric_limits<double>::quiet_NaN());
+  return run;
+}
+
+/// A slow constant inflow over kDurationS (3 L of air at 30 kPa gauge: more than the cell holds
+/// at full height): the quasi-static rising curve.
+RunData quasiStaticRun(const CellParams& params, PaperCurveStudy* s) {
+  const double full_mass = 3.0e-3 * (params.ambient_pressure_pa + 30.0e3) / 287.0 / params.ambient_temperature_k;
+  s->inflow_kg_s = full_mass / kDurationS;
+  std::vector<double> t;
+  for (double x = 0.0; x <= kDurationS + 1e-9; x += kSampleS) t.push_back(x);
+  return inflowOnlyRun("eq24_quasi_static", s->load_n, t, std::vector<double>(t.size(), s->inflow_kg_s));
+}
+
+/// Mean height difference (model - paper) in 3 kPa bands.
+void heightBands(PaperCurveStudy* s) {
   for (double lo = kGridLoPa; lo < kGridHiPa; lo += 3.0e3) {
     double sum = 0.0;
     int n = 0;
-    for (std::size_t g = 0; g < s.pressure_pa.size(); ++g)
-      if (s.pressure_pa[g] >= lo && s.pressure_pa[g] < lo + 3.0e3 && std::isfinite(s.model_height_m[g])) {
-        sum += s.model_height_m[g] - s.paper_height_m[g];
+    for (std::size_t g = 0; g < s->pressure_pa.size(); ++g)
+      if (s->pressure_pa[g] >= lo && s->pressure_pa[g] < lo + 3.0e3 && std::isfinite(s->model_height_m[g])) {
+        sum += s->model_height_m[g] - s->paper_height_m[g];
         ++n;
       }
-    s.bands.push_back({lo, lo + 3.0e3, n ? sum / n : std::numeric_limits<double>::quiet_NaN()});
+    s->bands.push_back({lo, lo + 3.0e3, n ? sum / n : std::numeric_limits<double>::quiet_NaN()});
   }
+}
+
+/// Every candidate at the middle of its plausible range: how far it moves the quasi-static curve.
+void candidatesAtMidRange(const CellParams& params, const RunData& run, PaperCurveStudy* s) {
   for (const auto& name : candidateEffectNames()) {
     const EffectSpec& spec = effectSpec(name);
     std::map<std::string, double> values;
@@ -95,67 +111,70 @@ PaperCurveStudy studyPaperEq24(const CellParams& params) {
     // quasi-static h(p)): the scale error alone.
     if (values.count("offset_kg_s")) values["offset_kg_s"] = 0.0;
     const Replay rep = replayRun(run, params, {makeEffect(name, values)});
-    s.candidates.push_back({name, describeEffect(name, values), rms(risingHeightAt(rep, s.pressure_pa), s.paper_height_m)});
+    s->candidates.push_back(
+        {name, describeEffect(name, values), rms(risingHeightAt(rep, s->pressure_pa), s->paper_height_m)});
   }
-  // The paper's curve comes from 5.5 s inflations, not a quasi-static one. Dynamic check: the
-  // paper-shaped inflow carrying the gas that rests at eq. 24's top (92 mm), nominal and with a
-  // supply line whose restriction is fitted (pressure read upstream of it while the gas flows).
-  {
-    const PillowStructure structure(params.structure);
-    const StructureEquilibrium top = structure.equilibriumAtHeight(paperEq24HeightM(kGridHiPa), s.load_n);
-    const double mass = (params.ambient_pressure_pa + top.gauge_pressure_pa) * top.eval.volume_m3 /
-                        (params.gas.gas_constant_j_kg_k * params.ambient_temperature_k);
-    const TimeSeries inflow = paperShapedInflow(mass, 1.0, 5.5, 0.01);
-    RunData pulse;
-    pulse.name = "eq24_paper_inflation";
-    pulse.load_n = s.load_n;
-    for (std::size_t i = 0; i < inflow.size(); ++i) {
-      pulse.t_s.push_back(inflow.times()[i]);
-      pulse.mdot_in_kg_s.push_back(inflow.values()[i]);
-      pulse.p_gauge_pa.push_back(std::numeric_limits<double>::quiet_NaN());
-      pulse.h_m.push_back(std::numeric_limits<double>::quiet_NaN());
-    }
-    s.dynamic_mass_kg = mass;
-    s.dynamic_nominal_rms_m = rms(risingHeightAt(replayRun(pulse, params, {}), s.pressure_pa), s.paper_height_m);
-    const EffectSpec& line = effectSpec("supply_line");
-    const double volume = std::sqrt(line.param("line_volume_m3")->lo * line.param("line_volume_m3")->hi);
-    auto line_cost = [&](double log_area) {
-      const Replay rep = replayRun(pulse, params,
-                                   {makeEffect("supply_line", {{"line_volume_m3", volume}, {"line_area_m2", std::exp(log_area)}})});
-      // Pressures the inflation never reaches count as a full-height miss.
-      std::vector<double> h = risingHeightAt(rep, s.pressure_pa);
-      for (double& x : h)
-        if (!std::isfinite(x)) x = 0.3;
-      return rms(h, s.paper_height_m);
-    };
-    double a = std::log(1e-7), b = std::log(1e-4);
-    const double r = 0.5 * (std::sqrt(5.0) - 1.0);
-    for (int it = 0; it < 30; ++it) {
-      const double c = b - r * (b - a), d = a + r * (b - a);
-      if (line_cost(c) < line_cost(d)) b = d;
-      else a = c;
-    }
-    s.line_volume_m3 = volume;
-    s.line_area_m2 = std::exp(0.5 * (a + b));
-    s.line_rms_m = line_cost(0.5 * (a + b));
-    s.line_height_m = risingHeightAt(
-        replayRun(pulse, params, {makeEffect("supply_line", {{"line_volume_m3", volume}, {"line_area_m2", s.line_area_m2}})}),
-        s.pressure_pa);
-  }
-  // Friction needed: golden-section search of the extra load while rising, 0-300 N.
-  double a = 0.0, b = 300.0;
-  const double r = 0.5 * (std::sqrt(5.0) - 1.0);
+}
+
+/// The paper's curve comes from 5.5 s inflations, not a quasi-static one. Dynamic check: the
+/// paper-shaped inflow carrying the gas that rests at eq. 24's top (92 mm), nominal and with a
+/// supply line whose restriction is fitted (pressure read upstream of it while the gas flows).
+void dynamicCheck(const CellParams& params, PaperCurveStudy* s) {
+  const PillowStructure structure(params.structure);
+  const StructureEquilibrium top = structure.equilibriumAtHeight(paperEq24HeightM(kGridHiPa), s->load_n);
+  const double mass = (params.ambient_pressure_pa + top.gauge_pressure_pa) * top.eval.volume_m3 /
+                      (params.gas.gas_constant_j_kg_k * params.ambient_temperature_k);
+  const TimeSeries inflow = paperShapedInflow(mass, 1.0, 5.5, 0.01);
+  const RunData pulse = inflowOnlyRun("eq24_paper_inflation", s->load_n, inflow.times(), inflow.values());
+  s->dynamic_mass_kg = mass;
+  s->dynamic_nominal_rms_m = rms(risingHeightAt(replayRun(pulse, params, {}), s->pressure_pa), s->paper_height_m);
+  const EffectSpec& line = effectSpec("supply_line");
+  const double volume = std::sqrt(line.param("line_volume_m3")->lo * line.param("line_volume_m3")->hi);
+  auto line_heights = [&](double area) {
+    return risingHeightAt(
+        replayRun(pulse, params, {makeEffect("supply_line", {{"line_volume_m3", volume}, {"line_area_m2", area}})}),
+        s->pressure_pa);
+  };
+  auto line_cost = [&](double log_area) {
+    // Pressures the inflation never reaches count as a full-height miss.
+    std::vector<double> h = line_heights(std::exp(log_area));
+    for (double& x : h)
+      if (!std::isfinite(x)) x = 0.3;
+    return rms(h, s->paper_height_m);
+  };
+  const double log_area = goldenSection(line_cost, std::log(1e-7), std::log(1e-4), 30);
+  s->line_volume_m3 = volume;
+  s->line_area_m2 = std::exp(log_area);
+  s->line_rms_m = line_cost(log_area);
+  s->line_height_m = line_heights(s->line_area_m2);
+}
+
+/// Friction needed: golden-section search of the extra load while rising, 0-300 N.
+void frictionNeeded(const CellParams& params, PaperCurveStudy* s) {
   auto cost = [&](double f) {
-    const double e = rms(staticHeights(params, s.load_n + f, s.pressure_pa), s.paper_height_m);
+    const double e = rms(staticHeights(params, s->load_n + f, s->pressure_pa), s->paper_height_m);
     return std::isfinite(e) ? e : 1e9;
   };
-  for (int it = 0; it < 40; ++it) {
-    const double c = b - r * (b - a), d = a + r * (b - a);
-    if (cost(c) < cost(d)) b = d;
-    else a = c;
+  s->friction_needed_n = goldenSection(cost, 0.0, 300.0, 40);
+  s->friction_rms_m = cost(s->friction_needed_n);
+}
+
+}  // namespace
+
+PaperCurveStudy studyPaperEq24(const CellParams& params) {
+  PaperCurveStudy s;
+  s.load_n = kPaperEq24LoadN;
+  for (double p = kGridLoPa; p <= kGridHiPa + 1e-6; p += kGridStepPa) {
+    s.pressure_pa.push_back(p);
+    s.paper_height_m.push_back(paperEq24HeightM(p));
   }
-  s.friction_needed_n = 0.5 * (a + b);
-  s.friction_rms_m = cost(s.friction_needed_n);
+  const RunData run = quasiStaticRun(params, &s);
+  s.model_height_m = risingHeightAt(replayRun(run, params, {}), s.pressure_pa);
+  s.nominal_rms_m = rms(s.model_height_m, s.paper_height_m);
+  heightBands(&s);
+  candidatesAtMidRange(params, run, &s);
+  dynamicCheck(params, &s);
+  frictionNeeded(params, &s);
   return s;
 }
 

@@ -131,13 +131,19 @@ std::string reportJson(const DiagnosisReport& r) {
   return j.str();
 }
 
-std::string reportMarkdown(const DiagnosisReport& r) {
-  std::ostringstream m;
+namespace {
+
+/// report.md: the dataset and its roles.
+void headerSection(std::ostream& m, const DiagnosisReport& r) {
   m << "# Sim-to-real gap diagnosis\n\n";
   m << "Dataset: `" << r.dataset << "` — " << r.fit_runs.size() + r.withheld_runs.size() << " runs, "
     << r.fit_runs.size() << " used to fit the candidate effects, " << r.withheld_runs.size()
     << " withheld to check them" << (r.roles_chosen ? " (the dataset gave no roles; the diagnosis chose them)" : "")
     << ". Diagnosed in " << fixed(r.elapsed_s, 1) << " s.\n\n";
+}
+
+/// report.md: the verdict and the reasons behind it, and the noise.
+void verdictSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## Verdict\n\n";
   if (r.status == "explained") {
     m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "). ";
@@ -156,7 +162,10 @@ std::string reportMarkdown(const DiagnosisReport& r) {
   for (const auto& line : r.reasons) m << "- " << line << "\n";
   m << "\nNoise (robust estimate from the runs): pressure " << general(r.noise_p_pa) << " Pa, height "
     << general(r.noise_h_m * 1e3) << " mm.\n\n";
+}
 
+/// report.md: answer 1: where the gap lies.
+void whereSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## 1. Where the model and the data part\n\n";
   m << "Each run was replayed through the nominal model with its measured inflow and load. The table splits the "
        "squared residual (each signal normalised by its measured range over all runs) by signal, phase and load; "
@@ -170,7 +179,10 @@ std::string reportMarkdown(const DiagnosisReport& r) {
   m << "\nPhases: *deploy* = bag unfolding (height rising at low pressure), *pressurize* = inflating near full "
        "height, *hold* = inlet closed, *vent* = gas leaving through the inlet (samples after the plate has landed "
        "are left out).\n\n";
+}
 
+/// report.md: answer 2: the candidates' fits.
+void whichEffectSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## 2. Which effect\n\n";
   m << "Every candidate (and pairs of the best three) was fitted to the fit runs by Ceres (Levenberg-Marquardt "
        "on whole replays, started from a grid over the plausible range). BIC Δ < 0 means better than the "
@@ -187,6 +199,10 @@ std::string reportMarkdown(const DiagnosisReport& r) {
       << general(r.fit_samples > 0 ? c.chi2 / r.fit_samples : NAN) << " | " << fixed(c.fit_nrmse, 4) << " | "
       << fixed(c.withheld_nrmse, 4) << " |\n";
   }
+}
+
+/// report.md: answer 3: the withheld runs before and after.
+void shrinkSection(std::ostream& m, const DiagnosisReport& r) {
   m << "\n## 3. How far the gap shrinks on withheld runs\n\n";
   if (r.withheld_runs.empty()) {
     m << "No run was withheld, so there is no independent check.\n\n";
@@ -201,18 +217,39 @@ std::string reportMarkdown(const DiagnosisReport& r) {
     if (r.status != "explained") m << "(Nothing was named, so \"after\" is the nominal model.)\n\n";
   }
   m << "nrmse = RMS(measured − simulated) / range of the measured signal, averaged over pressure and height.\n\n";
+}
+
+/// report.md: per-run numbers.
+void runsSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## Runs\n\n| run | role | load [N] | length [s] | noise p [Pa] | noise h [mm] | nrmse before | nrmse after |\n"
        "|---|---|---|---|---|---|---|---|\n";
   for (const auto& s : r.runs)
     m << "| " << s.name << " | " << s.role << " | " << fixed(s.load_n, 1) << " | " << fixed(s.duration_s, 1) << " | "
       << general(s.noise_p_pa) << " | " << general(s.noise_h_m * 1e3) << " | " << fixed(s.before.nrmse(), 4) << " | "
       << fixed(s.after.nrmse(), 4) << " |\n";
+}
+
+/// report.md: the plots written beside report.md.
+void figuresSection(std::ostream& m, const DiagnosisReport&) {
   m << "\n## Figures\n\n";
   m << "- `traces.png`: measured pressure and height against the nominal model (dashed) and the model with the "
        "named effect (solid), phases shaded.\n";
   m << "- `residual_by_phase.png`: the localisation shares, and the RMS residual per phase before and after.\n";
   m << "- `hp_loops.png`: height against pressure — the loops that friction and viscoelasticity open.\n\n";
   m << "![traces](traces.png)\n\n![residual by phase](residual_by_phase.png)\n\n![h(p) loops](hp_loops.png)\n";
+}
+
+}  // namespace
+
+std::string reportMarkdown(const DiagnosisReport& r) {
+  std::ostringstream m;
+  headerSection(m, r);
+  verdictSection(m, r);
+  whereSection(m, r);
+  whichEffectSection(m, r);
+  shrinkSection(m, r);
+  runsSection(m, r);
+  figuresSection(m, r);
   return m.str();
 }
 

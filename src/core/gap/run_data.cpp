@@ -83,126 +83,152 @@ double RunData::loadAt(std::size_t i) const {
   return load_n;
 }
 
-RunData readRunCsv(const std::string& path) {
-  auto fail = [&path](std::size_t line, const std::string& what) -> std::runtime_error {
-    return std::runtime_error(path + ":" + std::to_string(line) + ": " + what);
-  };
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path + ": cannot open run file");
+namespace {
 
-  RunData run;
-  run.name = fileName(path);
-  run.source = path;
-  std::map<std::string, std::size_t> meta_line;
-  std::vector<std::string> header;
-  std::size_t header_line = 0;
-  std::vector<std::vector<double>*> target;  // per column: where its values go (null: ignored)
-  std::size_t line_no = 0;
-  std::size_t last_time_line = 0;
-  int time_column = -1;
+/// Reads one run CSV line by line: metadata, the header, the data rows (run-data.md). Every
+/// error names the file and line (and the column where there is one).
+class RunCsvReader {
+ public:
+  explicit RunCsvReader(const std::string& path) : path_(path) {
+    run_.name = fileName(path);
+    run_.source = path;
+  }
 
-  auto checkVersionAndLoad = [&](std::size_t at_line) {
-    const auto v = run.meta.find(kVersionKey);
-    if (v == run.meta.end())
+  RunData read() {
+    std::ifstream in(path_);
+    if (!in) throw std::runtime_error(path_ + ": cannot open run file");
+    std::string line;
+    while (std::getline(in, line)) {
+      ++line_no_;
+      const std::string text = trim(line);
+      if (header_.empty()) {
+        if (text.empty()) continue;
+        if (text[0] == '#') metadataLine(text);
+        else headerLine(text);
+      } else if (!text.empty() && text[0] != '#') {
+        dataRow(text);
+      }
+    }
+    if (in.bad()) throw std::runtime_error(path_ + ": read error");
+    const std::size_t last = std::max<std::size_t>(line_no_, 1);
+    if (header_.empty()) {
+      checkVersionAndLoad(last);
+      throw fail(last, "no header line (expected t_s,mdot_in_kg_s,p_gauge_pa,h_m)");
+    }
+    if (run_.t_s.size() < 2)
+      throw fail(line_no_, std::to_string(run_.t_s.size()) + " data row(s), a run needs at least 2");
+    return std::move(run_);
+  }
+
+ private:
+  std::runtime_error fail(std::size_t line, const std::string& what) const {
+    return std::runtime_error(path_ + ":" + std::to_string(line) + ": " + what);
+  }
+
+  /// "# key: value" before the header; a line without a colon is a plain comment.
+  void metadataLine(const std::string& text) {
+    const std::string body = trim(text.substr(1));
+    const auto colon = body.find(':');
+    if (colon == std::string::npos) return;
+    const std::string key = trim(body.substr(0, colon));
+    if (key.empty()) return;
+    run_.meta[key] = trim(body.substr(colon + 1));
+    meta_line_[key] = line_no_;
+  }
+
+  /// The known metadata, checked once the header (or the end of the file) is reached.
+  void checkVersionAndLoad(std::size_t at_line) {
+    const auto v = run_.meta.find(kVersionKey);
+    if (v == run_.meta.end())
       throw fail(at_line, std::string("missing format version: the file must start with '# ") + kVersionKey + ": " +
                               std::to_string(kRunCsvVersion) + "'");
     if (v->second != std::to_string(kRunCsvVersion))
-      throw fail(meta_line[kVersionKey], "unsupported format version '" + v->second + "' (this reader knows " +
-                                             std::to_string(kRunCsvVersion) + ")");
-    const auto l = run.meta.find("load_n");
-    if (l != run.meta.end()) {
+      throw fail(meta_line_[kVersionKey], "unsupported format version '" + v->second + "' (this reader knows " +
+                                              std::to_string(kRunCsvVersion) + ")");
+    const auto l = run_.meta.find("load_n");
+    if (l != run_.meta.end()) {
       double value = 0.0;
       if (parseNumber(l->second, &value) != ParseResult::kOk || !std::isfinite(value))
-        throw fail(meta_line["load_n"],
-                   "metadata load_n: expected a finite number of newtons, got '" + l->second + "'");
-      run.load_n = value;
+        throw fail(meta_line_["load_n"], "metadata load_n: expected a finite number of newtons, got '" + l->second + "'");
+      run_.load_n = value;
     }
-    const auto a = run.meta.find("airbag");
-    if (a != run.meta.end()) run.airbag = a->second;
-    const auto s = run.meta.find(kFlowSamplingKey);
-    if (s != run.meta.end()) {
+    const auto a = run_.meta.find("airbag");
+    if (a != run_.meta.end()) run_.airbag = a->second;
+    const auto s = run_.meta.find(kFlowSamplingKey);
+    if (s != run_.meta.end()) {
       if (s->second != "instant" && s->second != "interval_mean")
-        throw fail(meta_line[kFlowSamplingKey], std::string("metadata ") + kFlowSamplingKey +
-                                                   ": expected instant or interval_mean, got '" + s->second + "'");
-      run.flow_interval_means = s->second == "interval_mean";
+        throw fail(meta_line_[kFlowSamplingKey], std::string("metadata ") + kFlowSamplingKey +
+                                                     ": expected instant or interval_mean, got '" + s->second + "'");
+      run_.flow_interval_means = s->second == "interval_mean";
     }
-  };
+  }
 
-  std::string line;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string text = trim(line);
-    if (header.empty()) {
-      if (text.empty()) continue;
-      if (text[0] == '#') {
-        const std::string body = trim(text.substr(1));
-        const auto colon = body.find(':');
-        if (colon == std::string::npos) continue;  // a plain comment
-        const std::string key = trim(body.substr(0, colon));
-        if (key.empty()) continue;
-        run.meta[key] = trim(body.substr(colon + 1));
-        meta_line[key] = line_no;
-        continue;
-      }
-      // The header.
-      header_line = line_no;
-      checkVersionAndLoad(line_no);
-      header = splitFields(text);
-      std::set<std::string> seen;
-      const std::map<std::string, std::vector<double>*> known = {{"t_s", &run.t_s},
-                                                                 {"mdot_in_kg_s", &run.mdot_in_kg_s},
-                                                                 {"p_gauge_pa", &run.p_gauge_pa},
-                                                                 {"h_m", &run.h_m},
-                                                                 {"load_n", &run.load_n_series},
-                                                                 {"valve_cmd", &run.valve_cmd},
-                                                                 {"p_supply_gauge_pa", &run.p_supply_gauge_pa},
-                                                                 {"t_gas_k", &run.t_gas_k}};
-      for (std::size_t c = 0; c < header.size(); ++c) {
-        const std::string& name = header[c];
-        if (name.empty()) throw fail(line_no, "column " + std::to_string(c + 1) + " has no name");
-        if (!seen.insert(name).second)
-          throw fail(line_no, "column '" + name + "' (" + std::to_string(c + 1) + ") appears twice");
-        const auto k = known.find(name);
-        std::vector<double>* dst = k == known.end() ? nullptr : k->second;
-        if (name == "t_s") time_column = static_cast<int>(c);
-        target.push_back(dst);
-      }
-      for (const char* required : kRequiredColumns)
-        if (!seen.count(required)) throw fail(line_no, std::string("missing required column '") + required + "'");
-      if (std::isnan(run.load_n) && !seen.count("load_n"))
-        throw fail(line_no, "missing load_n: give '# load_n: <N>' before the header or a load_n column");
-      continue;
+  /// The header: every column named once, the required ones present, each bound to its series.
+  void headerLine(const std::string& text) {
+    header_line_ = line_no_;
+    checkVersionAndLoad(line_no_);
+    header_ = splitFields(text);
+    std::set<std::string> seen;
+    const std::map<std::string, std::vector<double>*> known = {{"t_s", &run_.t_s},
+                                                               {"mdot_in_kg_s", &run_.mdot_in_kg_s},
+                                                               {"p_gauge_pa", &run_.p_gauge_pa},
+                                                               {"h_m", &run_.h_m},
+                                                               {"load_n", &run_.load_n_series},
+                                                               {"valve_cmd", &run_.valve_cmd},
+                                                               {"p_supply_gauge_pa", &run_.p_supply_gauge_pa},
+                                                               {"t_gas_k", &run_.t_gas_k}};
+    for (std::size_t c = 0; c < header_.size(); ++c) {
+      const std::string& name = header_[c];
+      if (name.empty()) throw fail(line_no_, "column " + std::to_string(c + 1) + " has no name");
+      if (!seen.insert(name).second)
+        throw fail(line_no_, "column '" + name + "' (" + std::to_string(c + 1) + ") appears twice");
+      const auto k = known.find(name);
+      if (name == "t_s") time_column_ = static_cast<int>(c);
+      target_.push_back(k == known.end() ? nullptr : k->second);
     }
-    if (text.empty() || text[0] == '#') continue;
+    for (const char* required : kRequiredColumns)
+      if (!seen.count(required)) throw fail(line_no_, std::string("missing required column '") + required + "'");
+    if (std::isnan(run_.load_n) && !seen.count("load_n"))
+      throw fail(line_no_, "missing load_n: give '# load_n: <N>' before the header or a load_n column");
+  }
+
+  void dataRow(const std::string& text) {
     const std::vector<std::string> fields = splitFields(text);
-    if (fields.size() != header.size())
-      throw fail(line_no, "expected " + std::to_string(header.size()) + " fields (header at line " +
-                              std::to_string(header_line) + "), got " + std::to_string(fields.size()));
+    if (fields.size() != header_.size())
+      throw fail(line_no_, "expected " + std::to_string(header_.size()) + " fields (header at line " +
+                               std::to_string(header_line_) + "), got " + std::to_string(fields.size()));
     for (std::size_t c = 0; c < fields.size(); ++c) {
-      if (!target[c]) continue;
+      if (!target_[c]) continue;
       double value = 0.0;
       const ParseResult r = parseNumber(fields[c], &value);
-      const std::string where = "column '" + header[c] + "' (" + std::to_string(c + 1) + "): ";
-      if (r == ParseResult::kNotNumeric) throw fail(line_no, where + "non-numeric field '" + fields[c] + "'");
-      if (r == ParseResult::kNotFinite) throw fail(line_no, where + "field '" + fields[c] + "' is not finite");
-      if (static_cast<int>(c) == time_column) {
-        if (std::isnan(value)) throw fail(line_no, where + "time missing (t_s must be given on every row)");
-        if (!run.t_s.empty() && !(value > run.t_s.back()))
-          throw fail(line_no, where + "time not strictly increasing (" + formatNumber(value) + " s after " +
-                                  formatNumber(run.t_s.back()) + " s on line " + std::to_string(last_time_line) + ")");
-        last_time_line = line_no;
-      }
-      target[c]->push_back(value);
+      const std::string where = "column '" + header_[c] + "' (" + std::to_string(c + 1) + "): ";
+      if (r == ParseResult::kNotNumeric) throw fail(line_no_, where + "non-numeric field '" + fields[c] + "'");
+      if (r == ParseResult::kNotFinite) throw fail(line_no_, where + "field '" + fields[c] + "' is not finite");
+      if (static_cast<int>(c) == time_column_) checkTime(value, where);
+      target_[c]->push_back(value);
     }
   }
-  if (in.bad()) throw std::runtime_error(path + ": read error");
-  if (header.empty()) {
-    checkVersionAndLoad(std::max<std::size_t>(line_no, 1));
-    throw fail(std::max<std::size_t>(line_no, 1), "no header line (expected t_s,mdot_in_kg_s,p_gauge_pa,h_m)");
+
+  void checkTime(double value, const std::string& where) {
+    if (std::isnan(value)) throw fail(line_no_, where + "time missing (t_s must be given on every row)");
+    if (!run_.t_s.empty() && !(value > run_.t_s.back()))
+      throw fail(line_no_, where + "time not strictly increasing (" + formatNumber(value) + " s after " +
+                               formatNumber(run_.t_s.back()) + " s on line " + std::to_string(last_time_line_) + ")");
+    last_time_line_ = line_no_;
   }
-  if (run.t_s.size() < 2) throw fail(line_no, std::to_string(run.t_s.size()) + " data row(s), a run needs at least 2");
-  return run;
-}
+
+  const std::string path_;
+  RunData run_;
+  std::map<std::string, std::size_t> meta_line_;
+  std::vector<std::string> header_;
+  std::size_t header_line_ = 0, line_no_ = 0, last_time_line_ = 0;
+  std::vector<std::vector<double>*> target_;  ///< per column: where its values go (null: ignored)
+  int time_column_ = -1;
+};
+
+}  // namespace
+
+RunData readRunCsv(const std::string& path) { return RunCsvReader(path).read(); }
 
 void writeRunCsv(const std::string& path, const RunData& run) {
   const std::size_t n = run.t_s.size();

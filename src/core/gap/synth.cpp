@@ -265,6 +265,100 @@ void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::u
   }
 }
 
+namespace {
+
+void sayProtocol(const SynthOptions& o, const SynthResult& result) {
+  *o.progress << "gap synth: protocol " << o.protocol << ", " << result.protocol.runs.size() << " runs of "
+              << result.protocol.durationS() << " s at " << result.protocol.sample_hz << " Hz, seed " << o.seed
+              << ", noise scale " << o.noise_scale << "\n";
+  *o.progress << "gap synth: truth effects:";
+  if (result.effect_names.empty()) *o.progress << " none (nominal model)";
+  for (std::size_t i = 0; i < result.effect_names.size(); ++i)
+    *o.progress << " " << describeEffect(result.effect_names[i], result.effect_params[i]);
+  *o.progress << "\n";
+}
+
+void sayRun(const SynthOptions& o, const SynthResult& result, std::size_t k, const RunData& run) {
+  const SynthRunPlan& plan = result.protocol.runs[k];
+  double h_max = -1e300, p_max = -1e300;
+  for (std::size_t i = 0; i < run.size(); ++i) {
+    h_max = std::max(h_max, run.h_m[i]);
+    p_max = std::max(p_max, run.p_gauge_pa[i]);
+  }
+  *o.progress << "  [" << k + 1 << "/" << result.protocol.runs.size() << "] " << plan.name << ": load " << plan.load_n
+              << " N, " << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, max height " << std::setprecision(4)
+              << h_max * 1e3 << " mm, max pressure " << std::setprecision(5) << p_max / 1e3 << " kPa (" << plan.role
+              << ")\n";
+}
+
+void writeDatasetYaml(const SynthOptions& o, const SynthResult& result, const fs::path& dir) {
+  std::ofstream y(dir / "dataset.yaml");
+  y << "# Written by gap synth (protocol " << o.protocol << "). Roles: fit runs train the diagnosis, withheld\n"
+    << "# runs only judge it.\n";
+  y << "airbag: " << o.airbag_file << "\n";
+  y << "runs:\n";
+  for (const auto& plan : result.protocol.runs) y << "  " << plan.name << ": " << plan.role << "\n";
+  if (!y) throw std::runtime_error("gap synth: cannot write " + (dir / "dataset.yaml").string());
+}
+
+std::string noiseJson(const SensorNoise& n) {
+  std::ostringstream j;
+  j << "{\"pressure_sd_pa\": " << jsonNumber(n.pressure_sd_pa) << ", \"pressure_step_pa\": " << jsonNumber(n.pressure_step_pa)
+    << ", \"height_sd_m\": " << jsonNumber(n.height_sd_m) << ", \"height_step_m\": " << jsonNumber(n.height_step_m)
+    << ", \"flow_relative_sd\": " << jsonNumber(n.flow_relative_sd) << ", \"flow_sd_kg_s\": " << jsonNumber(n.flow_sd_kg_s)
+    << ", \"flow_step_kg_s\": " << jsonNumber(n.flow_step_kg_s) << "}";
+  return j.str();
+}
+
+std::string effectsJson(const SynthResult& result) {
+  std::ostringstream j;
+  j << "[";
+  for (std::size_t i = 0; i < result.effect_names.size(); ++i) {
+    j << (i ? "," : "") << "\n    {\"name\": " << jsonString(result.effect_names[i])
+      << ", \"candidate\": " << (effectSpec(result.effect_names[i]).candidate ? "true" : "false") << ", \"params\": {";
+    bool first = true;
+    for (const auto& [k, v] : result.effect_params[i]) {
+      j << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
+      first = false;
+    }
+    j << "}}";
+  }
+  j << (result.effect_names.empty() ? "" : "\n  ") << "]";
+  return j.str();
+}
+
+std::string runsJson(const SynthProtocol& protocol) {
+  std::ostringstream j;
+  j << "[";
+  for (std::size_t i = 0; i < protocol.runs.size(); ++i) {
+    const SynthRunPlan& r = protocol.runs[i];
+    j << (i ? "," : "") << "\n    {\"file\": " << jsonString(r.name) << ", \"load_n\": " << jsonNumber(r.load_n)
+      << ", \"flow\": " << jsonString(r.flow) << ", \"target_height_m\": " << jsonNumber(r.target_height_m)
+      << ", \"inflow_mass_kg\": " << jsonNumber(r.inflow_mass_kg) << ", \"role\": " << jsonString(r.role) << "}";
+  }
+  j << "\n  ]";
+  return j.str();
+}
+
+/// truth.json: what was hidden in the runs (never read by the diagnosis).
+void writeTruthJson(const SynthOptions& o, const SynthResult& result, const SensorNoise& noise, const fs::path& dir) {
+  const SynthProtocol& p = result.protocol;
+  std::ofstream j(dir / "truth.json");
+  j << "{\n  \"format\": \"nursing_bed_gap_truth/1\",\n";
+  j << "  \"protocol\": " << jsonString(o.protocol) << ",\n";
+  j << "  \"seed\": " << o.seed << ",\n";
+  j << "  \"noise_scale\": " << jsonNumber(o.noise_scale) << ",\n";
+  j << "  \"noise\": " << noiseJson(noise) << ",\n";
+  j << "  \"effects\": " << effectsJson(result) << ",\n";
+  j << "  \"runs\": " << runsJson(p) << ",\n";
+  j << "  \"timing\": {\"inflate_s\": " << jsonNumber(p.inflate_s) << ", \"peak_s\": " << jsonNumber(p.peak_s)
+    << ", \"hold_s\": " << jsonNumber(p.hold_s) << ", \"vent_s\": " << jsonNumber(p.vent_s)
+    << ", \"sample_hz\": " << jsonNumber(p.sample_hz) << "}\n}\n";
+  if (!j) throw std::runtime_error("gap synth: cannot write " + (dir / "truth.json").string());
+}
+
+}  // namespace
+
 SynthResult synthesizeDataset(const SynthOptions& o) {
   if (o.out_dir.empty()) throw std::invalid_argument("gap synth: an output directory is required");
   if (!(o.noise_scale >= 0.0) || !std::isfinite(o.noise_scale))
@@ -280,17 +374,7 @@ SynthResult synthesizeDataset(const SynthOptions& o) {
   if (ec) throw std::runtime_error("gap synth: cannot create " + o.out_dir + ": " + ec.message());
   const fs::path dir(o.out_dir);
   const SensorNoise noise = SensorNoise{}.scaled(o.noise_scale);
-
-  if (o.progress) {
-    *o.progress << "gap synth: protocol " << o.protocol << ", " << result.protocol.runs.size() << " runs of "
-                << result.protocol.durationS() << " s at " << result.protocol.sample_hz << " Hz, seed " << o.seed
-                << ", noise scale " << o.noise_scale << "\n";
-    *o.progress << "gap synth: truth effects:";
-    if (result.effect_names.empty()) *o.progress << " none (nominal model)";
-    for (std::size_t i = 0; i < result.effect_names.size(); ++i)
-      *o.progress << " " << describeEffect(result.effect_names[i], result.effect_params[i]);
-    *o.progress << "\n";
-  }
+  if (o.progress) sayProtocol(o, result);
   for (std::size_t k = 0; k < result.protocol.runs.size(); ++k) {
     const SynthRunPlan& plan = result.protocol.runs[k];
     std::seed_seq seq{o.seed, static_cast<std::uint32_t>(k), 0x5eedu};
@@ -300,70 +384,11 @@ SynthResult synthesizeDataset(const SynthOptions& o) {
     const fs::path file = dir / plan.name;
     writeRunCsv(file.string(), run);
     run.source = file.string();
-    if (o.progress) {
-      double h_max = -1e300, p_max = -1e300;
-      for (std::size_t i = 0; i < run.size(); ++i) {
-        h_max = std::max(h_max, run.h_m[i]);
-        p_max = std::max(p_max, run.p_gauge_pa[i]);
-      }
-      *o.progress << "  [" << k + 1 << "/" << result.protocol.runs.size() << "] " << plan.name << ": load "
-                  << plan.load_n << " N, " << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, max height "
-                  << std::setprecision(4) << h_max * 1e3 << " mm, max pressure " << std::setprecision(5) << p_max / 1e3
-                  << " kPa (" << plan.role << ")\n";
-    }
+    if (o.progress) sayRun(o, result, k, run);
     result.runs.push_back(std::move(run));
   }
-
-  {
-    std::ofstream y(dir / "dataset.yaml");
-    y << "# Written by gap synth (protocol " << o.protocol << "). Roles: fit runs train the diagnosis, withheld\n"
-      << "# runs only judge it.\n";
-    y << "airbag: " << o.airbag_file << "\n";
-    y << "runs:\n";
-    for (const auto& plan : result.protocol.runs) y << "  " << plan.name << ": " << plan.role << "\n";
-    if (!y) throw std::runtime_error("gap synth: cannot write " + (dir / "dataset.yaml").string());
-  }
-  {
-    const SensorNoise& n = noise;
-    std::ofstream j(dir / "truth.json");
-    j << "{\n  \"format\": \"nursing_bed_gap_truth/1\",\n";
-    j << "  \"protocol\": " << jsonString(o.protocol) << ",\n";
-    j << "  \"seed\": " << o.seed << ",\n";
-    j << "  \"noise_scale\": " << jsonNumber(o.noise_scale) << ",\n";
-    j << "  \"noise\": {\"pressure_sd_pa\": " << jsonNumber(n.pressure_sd_pa)
-      << ", \"pressure_step_pa\": " << jsonNumber(n.pressure_step_pa)
-      << ", \"height_sd_m\": " << jsonNumber(n.height_sd_m) << ", \"height_step_m\": " << jsonNumber(n.height_step_m)
-      << ", \"flow_relative_sd\": " << jsonNumber(n.flow_relative_sd)
-      << ", \"flow_sd_kg_s\": " << jsonNumber(n.flow_sd_kg_s)
-      << ", \"flow_step_kg_s\": " << jsonNumber(n.flow_step_kg_s) << "},\n";
-    j << "  \"effects\": [";
-    for (std::size_t i = 0; i < result.effect_names.size(); ++i) {
-      j << (i ? "," : "") << "\n    {\"name\": " << jsonString(result.effect_names[i])
-        << ", \"candidate\": " << (effectSpec(result.effect_names[i]).candidate ? "true" : "false")
-        << ", \"params\": {";
-      bool first = true;
-      for (const auto& [k, v] : result.effect_params[i]) {
-        j << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
-        first = false;
-      }
-      j << "}}";
-    }
-    j << (result.effect_names.empty() ? "" : "\n  ") << "],\n";
-    j << "  \"runs\": [";
-    for (std::size_t i = 0; i < result.protocol.runs.size(); ++i) {
-      const SynthRunPlan& r = result.protocol.runs[i];
-      j << (i ? "," : "") << "\n    {\"file\": " << jsonString(r.name) << ", \"load_n\": " << jsonNumber(r.load_n)
-        << ", \"flow\": " << jsonString(r.flow) << ", \"target_height_m\": " << jsonNumber(r.target_height_m)
-        << ", \"inflow_mass_kg\": " << jsonNumber(r.inflow_mass_kg) << ", \"role\": " << jsonString(r.role) << "}";
-    }
-    j << "\n  ],\n";
-    j << "  \"timing\": {\"inflate_s\": " << jsonNumber(result.protocol.inflate_s)
-      << ", \"peak_s\": " << jsonNumber(result.protocol.peak_s)
-      << ", \"hold_s\": " << jsonNumber(result.protocol.hold_s)
-      << ", \"vent_s\": " << jsonNumber(result.protocol.vent_s)
-      << ", \"sample_hz\": " << jsonNumber(result.protocol.sample_hz) << "}\n}\n";
-    if (!j) throw std::runtime_error("gap synth: cannot write " + (dir / "truth.json").string());
-  }
+  writeDatasetYaml(o, result, dir);
+  writeTruthJson(o, result, noise, dir);
   if (o.progress)
     *o.progress << "gap synth: wrote " << result.runs.size() << " runs, dataset.yaml and truth.json to " << o.out_dir
                 << "\n";

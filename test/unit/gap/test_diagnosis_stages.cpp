@@ -1,0 +1,179 @@
+// The stages of diagnoseRuns() one by one (diagnosis_stages.h), on short runs of the small
+// protocol: roles, the candidate list, the nominal replay, the noise model, the fits, the
+// scores and the shrinkage.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/synth.h"
+
+#include "../../test_helpers.h"
+
+namespace nb = nursing_bed;
+namespace gs = nursing_bed::gap;
+
+namespace {
+
+/// The small protocol's runs, noisy, with `effects` hidden in the cell; with the protocol's roles
+/// or none.
+std::vector<nb::RunData> smallRuns(const std::vector<nb::CellEffectPtr>& effects, std::uint32_t seed,
+                                   bool with_roles = false) {
+  nb::CellParams params;
+  const nb::SynthProtocol protocol = nb::synthProtocol("small", params);
+  std::mt19937 rng(seed);
+  std::vector<nb::RunData> runs;
+  for (const auto& spec : protocol.runs) {
+    runs.push_back(nb::simulateSynthRun(params, effects, protocol, spec, nb::SensorNoise{}, &rng));
+    if (with_roles) runs.back().role = spec.role;
+  }
+  return runs;
+}
+
+nb::DiagnosisOptions leakOnly() {
+  nb::DiagnosisOptions o;
+  o.candidates = {"leak", "heat_transfer"};
+  o.pair_pool = 0;
+  return o;
+}
+
+TEST(DiagnosisStages, PrepareRunsChoosesAQuarterWithheldWhenNoRoleIsGiven) {
+  const gs::PreparedRuns p = gs::prepareRuns(smallRuns({}, 1));
+  EXPECT_TRUE(p.roles_chosen);
+  EXPECT_EQ(p.fit.size() + p.withheld.size(), p.runs.size());
+  EXPECT_GE(p.withheld.size(), 1u);
+  EXPECT_GT(p.fit.size(), p.withheld.size());
+  EXPECT_EQ(p.noises.size(), p.runs.size());
+  EXPECT_EQ(p.measured_flow.size(), p.runs.size());
+  for (std::size_t i : p.withheld) EXPECT_EQ(p.runs[i].role, "withheld");
+  for (const auto& n : p.noises) EXPECT_GT(n.p_pa, 0.0);
+}
+
+TEST(DiagnosisStages, PrepareRunsKeepsGivenRolesAndRefusesBadOnes) {
+  std::vector<nb::RunData> runs = smallRuns({}, 2);
+  runs[0].role = "withheld";  // the others have none: fit runs
+  const gs::PreparedRuns p = gs::prepareRuns(runs);
+  EXPECT_FALSE(p.roles_chosen);
+  EXPECT_EQ(p.withheld, std::vector<std::size_t>{0});
+
+  runs[1].role = "training";
+  EXPECT_THROW(
+      {
+        try {
+          gs::prepareRuns(runs);
+        } catch (const std::invalid_argument& e) {
+          EXPECT_NE(std::string(e.what()).find("training"), std::string::npos) << e.what();
+          throw;
+        }
+      },
+      std::invalid_argument);
+  for (auto& r : runs) r.role = "withheld";
+  EXPECT_THROW(gs::prepareRuns(runs), std::invalid_argument);  // no fit run
+  EXPECT_THROW(gs::prepareRuns({}), std::invalid_argument);
+  EXPECT_THROW(gs::prepareRuns({smallRuns({}, 3)[0]}), std::invalid_argument);  // one run, no roles
+}
+
+TEST(DiagnosisStages, CandidateListIsTheCatalogueOrTheGivenNamesAndRefusesUnknownOnes) {
+  nb::DiagnosisOptions o;
+  EXPECT_EQ(gs::candidateList(o), nb::candidateEffectNames());
+  o.candidates = {"leak"};
+  EXPECT_EQ(gs::candidateList(o), std::vector<std::string>{"leak"});
+  o.candidates = {"leak", "gremlins"};
+  EXPECT_THROW(gs::candidateList(o), std::invalid_argument);
+}
+
+/// The stages up to the fits on one dataset, shared by the tests below.
+class DiagnosisStagesOnALeak : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const nb::CellParams params;
+    state_ = new State{gs::prepareRuns(smallRuns({nb::makeEffect("leak", {{"leak_area_m2", 1e-8}})}, 7, true)), params,
+                       {}, {}};
+    state_->nominal = gs::replayNominal(state_->prepared, params, leakOnly(), &state_->report);
+  }
+  static void TearDownTestSuite() {
+    delete state_;
+    state_ = nullptr;
+  }
+  struct State {
+    gs::PreparedRuns prepared;
+    nb::CellParams params;
+    nb::DiagnosisReport report;
+    std::vector<nb::Replay> nominal;
+  };
+  static State* state_;
+};
+DiagnosisStagesOnALeak::State* DiagnosisStagesOnALeak::state_ = nullptr;
+
+TEST_F(DiagnosisStagesOnALeak, ReplayNominalFillsEveryRunAndLocatesTheGap) {
+  const auto& s = *state_;
+  ASSERT_EQ(s.nominal.size(), s.prepared.runs.size());
+  ASSERT_EQ(s.report.runs.size(), s.prepared.runs.size());
+  for (const auto& r : s.nominal) EXPECT_TRUE(r.ok) << r.message;
+  EXPECT_GT(s.report.noise_p_pa, 0.0);
+  EXPECT_FALSE(s.report.localization.empty());
+}
+
+TEST_F(DiagnosisStagesOnALeak, TheNoiseModelSeesTheLeakAsAGapAndTheFitsFindIt) {
+  const auto& s = *state_;
+  const gs::NoiseModel noise = gs::buildNoiseModel(s.prepared, s.params, leakOnly());
+  EXPECT_EQ(noise.fit.runs.size(), s.prepared.fit.size());
+  EXPECT_EQ(noise.held.runs.size(), s.prepared.withheld.size());
+  const int n = noise.fitResidualCount();
+  ASSERT_GT(n, 0);
+  EXPECT_GT(noise.chi2_nominal / n, 5.0) << "a 1e-8 m2 leak is far outside the noise";
+  EXPECT_TRUE(std::isfinite(noise.withheld_chi2_per_sample));
+
+  const auto fits = gs::fitCandidates(noise, {"leak", "heat_transfer"}, leakOnly(), nullptr);
+  ASSERT_EQ(fits.size(), 2u);  // no pairs with pair_pool 0
+  EXPECT_EQ(fits[0].model.effects, std::vector<std::string>{"leak"});
+  ASSERT_TRUE(fits[0].outcome.ok) << fits[0].outcome.message;
+  EXPECT_LT(fits[0].outcome.chi2 / n, 1.5);
+
+  const auto scored = gs::scoreCandidates(fits, s.prepared, noise, s.params, leakOnly());
+  ASSERT_EQ(scored.size(), 2u);
+  EXPECT_EQ(scored[0].first.effects, std::vector<std::string>{"leak"});  // lowest BIC first
+  EXPECT_LE(scored[0].first.bic_delta, scored[1].first.bic_delta);
+  EXPECT_NEAR(scored[0].first.params.at("leak_area_m2"), 1e-8, 0.3e-8);
+  EXPECT_LT(scored[0].first.withheld_chi2_per_sample, noise.withheld_chi2_per_sample);
+}
+
+TEST_F(DiagnosisStagesOnALeak, PairsAreFittedFromTheirSinglesInCatalogueOrder) {
+  const auto& s = *state_;
+  nb::DiagnosisOptions o = leakOnly();
+  o.pair_pool = 2;
+  o.max_iterations = 3;  // the pair's fit itself is not under test here
+  const gs::NoiseModel noise = gs::buildNoiseModel(s.prepared, s.params, o);
+  const auto fits = gs::fitCandidates(noise, {"heat_transfer", "leak"}, o, nullptr);
+  ASSERT_EQ(fits.size(), 3u);
+  std::vector<std::string> catalogue_order;
+  for (const auto& e : nb::effectCatalog())
+    if (e.name == "leak" || e.name == "heat_transfer") catalogue_order.push_back(e.name);
+  EXPECT_EQ(fits[2].model.effects, catalogue_order);
+}
+
+TEST_F(DiagnosisStagesOnALeak, ShrinkageWithoutEffectsKeepsTheNominalReplays) {
+  auto s = *state_;
+  gs::shrinkage(s.prepared, s.params, {}, s.nominal, leakOnly(), &s.report);
+  ASSERT_EQ(s.report.traces.size(), s.prepared.runs.size());
+  EXPECT_EQ(s.report.withheld_before, s.report.withheld_after);
+  EXPECT_EQ(s.report.traces[0].p_after_pa, s.report.traces[0].p_nominal_pa);
+
+  auto t = *state_;
+  gs::shrinkage(t.prepared, t.params, {nb::makeEffect("leak", {{"leak_area_m2", 1e-8}})}, t.nominal, leakOnly(),
+                &t.report);
+  EXPECT_LT(t.report.withheld_after, 0.5 * t.report.withheld_before);
+}
+
+TEST(DiagnosisStages, MedianAndFmt) {
+  EXPECT_DOUBLE_EQ(gs::median({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_DOUBLE_EQ(gs::median({4.0, 1.0, 2.0, 3.0}), 2.5);
+  EXPECT_TRUE(std::isnan(gs::median({})));
+  EXPECT_EQ(gs::fmt(1.23456), "1.23");
+  EXPECT_EQ(gs::fmt(1.23456, 5), "1.2346");
+}
+
+}  // namespace
