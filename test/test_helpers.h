@@ -2,6 +2,9 @@
 #pragma once
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
 
 #include <filesystem>
 #include <fstream>
@@ -42,6 +45,31 @@ inline std::string slurp(const std::filesystem::path& path) {
 inline void expectContains(const std::string& message, const std::vector<std::string>& fragments) {
   EXPECT_FALSE(message.empty()) << "no error";
   for (const auto& f : fragments) EXPECT_NE(message.find(f), std::string::npos) << "'" << f << "' not in: " << message;
+}
+
+/// A shell word: `s` in single quotes.
+inline std::string shellQuote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+struct ToolResult {
+  int code = -1;       ///< exit code (-1: did not exit normally)
+  std::string output;  ///< stdout and stderr together
+};
+
+/// Runs a shell command, capturing stdout and stderr together.
+inline ToolResult runCommand(const std::string& command) {
+  ToolResult r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  std::size_t n = 0;
+  while ((n = std::fread(buf, 1, sizeof(buf), pipe)) > 0) r.output.append(buf, n);
+  const int status = ::pclose(pipe);
+  if (status != -1 && WIFEXITED(status)) r.code = WEXITSTATUS(status);
+  return r;
 }
 
 }  // namespace test

@@ -44,67 +44,49 @@ EffectParamSpec param(const std::string& name, const std::string& unit, const st
   return p;
 }
 
-/// One catalogue entry.
-EffectSpec entry(const std::string& name, bool candidate, const std::string& description, const std::string& signature,
-                 const std::string& switch_param, std::vector<EffectParamSpec> params) {
-  EffectSpec e;
-  e.name = name;
-  e.candidate = candidate;
-  e.description = description;
-  e.signature = signature;
-  e.switch_param = switch_param;
-  e.params = std::move(params);
-  return e;
-}
-
 std::vector<EffectSpec> makeCatalog() {
   constexpr bool kCandidate = true, kTestOnly = false;  // test-only: out-of-library effects for the blind check
-  std::vector<EffectSpec> c;
-  c.push_back(entry("heat_transfer", kCandidate,
-                    "gas exchanges heat with the film at ambient temperature: Q = h_c A_surface (T_amb - T)",
-                    "pressure relaxes towards a lower plateau after inflow stops", "heat_transfer_coefficient_w_m2_k",
-                    {param("heat_transfer_coefficient_w_m2_k", "W/(m^2 K)", "heat transfer coefficient h_c", 0.0, 2.0,
-                           25.0, true, 0.0, 500.0)}));
-  c.push_back(entry("leak", kCandidate, "extra leak to ambient through an orifice (seams, film, valve seat)",
-                    "pressure and height keep falling during hold", "leak_area_m2",
-                    {param("leak_area_m2", "m^2", "effective leak area Cd*A", 0.0, 3e-9, 5e-8, true, 0.0, 1e-5)}));
-  c.push_back(entry("membrane_viscoelasticity", kCandidate,
-                    "standard-linear-solid branch on the film: creep and stress relaxation of the TPU",
-                    "height creeps at constant mass; loading/unloading loops differ", "relative_stiffness",
-                    {param("relaxation_time_s", "s", "relaxation time tau of the branch (any value is off when g = 0)",
-                           10.0, 3.0, 60.0, true, 0.01, 3600.0),
-                     param("relative_stiffness", "-", "branch stiffness g relative to the film's elastic law", 0.0, 0.1,
-                           0.5, true, 0.0, 5.0)}));
-  c.push_back(entry("pressure_sensor_lag", kCandidate, "first-order lag of the pressure reading (sensor, tubing)",
-                    "pressure trace phase-shifted, worst where dp/dt is large", "time_constant_s",
-                    {param("time_constant_s", "s", "time constant of the reading", 0.0, 0.05, 1.0, true, 0.0, 10.0)}));
-  c.push_back(entry("supply_line", kCandidate,
-                    "tube between meter/valve and cell: isothermal dead volume and an orifice; pressure read in it",
-                    "pressure reads high while flowing (low while venting), drops when the flow stops",
-                    "line_volume_m3",
-                    {param("line_volume_m3", "m^3", "gas volume of the line", 0.0, 5e-6, 1e-4, true, 0.0, 1e-3),
-                     param("line_area_m2", "m^2",
-                           "effective area Cd*A between line and cell (any value is off when "
-                           "the volume is 0)",
-                           1e-5, 2e-6, 3e-5, true, 1e-7, 1e-3)}));
-  c.push_back(
-      entry("inflow_bias", kCandidate, "flow meter reads (1 + k) q_true + b",
-            "accumulated mass error grows with integrated flow (and with time through b)", "",
-            {param("scale_error", "-", "relative scale error k of the flow meter", 0.0, -0.15, 0.15, false, -0.5, 0.5),
-             param("offset_kg_s", "kg/s", "zero offset b of the flow meter", 0.0, -2e-5, 2e-5, false, -1e-3, 1e-3)}));
-  c.push_back(entry("plate_friction", kCandidate, "Coulomb friction in the plate guide, F = -F_c tanh(v / 1 mm/s)",
-                    "pressure offset +-F_c/A_eff that flips sign with the motion; h(p) loop widens", "friction_force_n",
-                    {param("friction_force_n", "N", "Coulomb friction force F_c", 0.0, 0.6, 3.0, true, 0.0, 50.0)}));
-  c.push_back(entry("ambient_drift", kTestOnly,
-                    "gas exchanges heat (8 W/(m^2 K)) with surroundings whose temperature drifts linearly",
-                    "pressure drifts during hold, up or down, steadily over the whole run", "drift_k_s",
-                    {param("drift_k_s", "K/s", "drift rate of the surroundings' temperature", 0.0, 0.02, 0.1, false,
-                           -1.0, 1.0, true)}));
-  c.push_back(entry(
-      "pressure_offset_drift", kTestOnly, "the pressure sensor's zero drifts linearly with time",
-      "pressure reading offset growing linearly with time, whatever the cell does", "drift_pa_s",
-      {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)}));
-  return c;
+  return {
+      {"heat_transfer", kCandidate,
+       "gas exchanges heat with the film at ambient temperature: Q = h_c A_surface (T_amb - T)",
+       "pressure relaxes towards a lower plateau after inflow stops", "heat_transfer_coefficient_w_m2_k",
+       {param("heat_transfer_coefficient_w_m2_k", "W/(m^2 K)", "heat transfer coefficient h_c", 0.0, 2.0, 25.0, true,
+              0.0, 500.0)}},
+      {"leak", kCandidate, "extra leak to ambient through an orifice (seams, film, valve seat)",
+       "pressure and height keep falling during hold", "leak_area_m2",
+       {param("leak_area_m2", "m^2", "effective leak area Cd*A", 0.0, 3e-9, 5e-8, true, 0.0, 1e-5)}},
+      {"membrane_viscoelasticity", kCandidate,
+       "standard-linear-solid branch on the film: creep and stress relaxation of the TPU",
+       "height creeps at constant mass; loading/unloading loops differ", "relative_stiffness",
+       {param("relaxation_time_s", "s", "relaxation time tau of the branch (any value is off when g = 0)", 10.0, 3.0,
+              60.0, true, 0.01, 3600.0),
+        param("relative_stiffness", "-", "branch stiffness g relative to the film's elastic law", 0.0, 0.1, 0.5, true,
+              0.0, 5.0)}},
+      {"pressure_sensor_lag", kCandidate, "first-order lag of the pressure reading (sensor, tubing)",
+       "pressure trace phase-shifted, worst where dp/dt is large", "time_constant_s",
+       {param("time_constant_s", "s", "time constant of the reading", 0.0, 0.05, 1.0, true, 0.0, 10.0)}},
+      {"supply_line", kCandidate,
+       "tube between meter/valve and cell: isothermal dead volume and an orifice; pressure read in it",
+       "pressure reads high while flowing (low while venting), drops when the flow stops", "line_volume_m3",
+       {param("line_volume_m3", "m^3", "gas volume of the line", 0.0, 5e-6, 1e-4, true, 0.0, 1e-3),
+        param("line_area_m2", "m^2", "effective area Cd*A between line and cell (any value is off when the volume is 0)",
+              1e-5, 2e-6, 3e-5, true, 1e-7, 1e-3)}},
+      {"inflow_bias", kCandidate, "flow meter reads (1 + k) q_true + b",
+       "accumulated mass error grows with integrated flow (and with time through b)", "",
+       {param("scale_error", "-", "relative scale error k of the flow meter", 0.0, -0.15, 0.15, false, -0.5, 0.5),
+        param("offset_kg_s", "kg/s", "zero offset b of the flow meter", 0.0, -2e-5, 2e-5, false, -1e-3, 1e-3)}},
+      {"plate_friction", kCandidate, "Coulomb friction in the plate guide, F = -F_c tanh(v / 1 mm/s)",
+       "pressure offset +-F_c/A_eff that flips sign with the motion; h(p) loop widens", "friction_force_n",
+       {param("friction_force_n", "N", "Coulomb friction force F_c", 0.0, 0.6, 3.0, true, 0.0, 50.0)}},
+      {"ambient_drift", kTestOnly,
+       "gas exchanges heat (8 W/(m^2 K)) with surroundings whose temperature drifts linearly",
+       "pressure drifts during hold, up or down, steadily over the whole run", "drift_k_s",
+       {param("drift_k_s", "K/s", "drift rate of the surroundings' temperature", 0.0, 0.02, 0.1, false, -1.0, 1.0,
+              true)}},
+      {"pressure_offset_drift", kTestOnly, "the pressure sensor's zero drifts linearly with time",
+       "pressure reading offset growing linearly with time, whatever the cell does", "drift_pa_s",
+       {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)}},
+  };
 }
 
 }  // namespace

@@ -27,43 +27,17 @@
 
 namespace nb = nursing_bed;
 namespace fs = std::filesystem;
-using nursing_bed::test::expectContains;
+using namespace nursing_bed::test;  // expectContains, runCommand, shellQuote, slurp, writeFile
 
 namespace {
 
-using nursing_bed::test::slurp;
-using nursing_bed::test::writeFile;
 
 fs::path tmpDir(const std::string& name, bool create = true) {
   return nursing_bed::test::freshTestDir("gap_diagnose", name, create);
 }
 
-std::string shellQuote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
 /// The gap tool: built beside test_core (both go to <devel>/lib/nursing_bed).
 fs::path gapTool() { return fs::read_symlink("/proc/self/exe").parent_path() / "gap"; }
-
-struct ToolResult {
-  int code = -1;       ///< exit code (-1: did not exit normally)
-  std::string output;  ///< stdout and stderr together
-};
-
-/// Runs a shell command, capturing stdout and stderr together.
-ToolResult runCommand(const std::string& command) {
-  ToolResult r;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  std::size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof(buf), pipe)) > 0) r.output.append(buf, n);
-  const int status = ::pclose(pipe);
-  if (status != -1 && WIFEXITED(status)) r.code = WEXITSTATUS(status);
-  return r;
-}
 
 ToolResult runGap(const std::vector<std::string>& args) {
   std::string command = shellQuote(gapTool().string());
