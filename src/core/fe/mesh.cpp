@@ -65,20 +65,36 @@ double surfaceArea(const MembraneMesh& mesh, const Eigen::Matrix3Xd& x) {
 
 void appendMesh(MembraneMesh* mesh, const MembraneMesh& other, double merge_tol_m) {
   using Key = std::tuple<long, long, long>;
-  auto key = [merge_tol_m](const Eigen::Vector3d& p) {
-    return Key(std::lround(p.x() / merge_tol_m), std::lround(p.y() / merge_tol_m), std::lround(p.z() / merge_tol_m));
+  auto key = [merge_tol_m](const Eigen::Vector3d& p, int dx, int dy, int dz) {
+    return Key(std::lround(p.x() / merge_tol_m) + dx, std::lround(p.y() / merge_tol_m) + dy,
+               std::lround(p.z() / merge_tol_m) + dz);
   };
-  std::map<Key, int> existing;
-  for (int i = 0; i < mesh->nodeCount(); ++i) existing.emplace(key(mesh->initial.col(i)), i);
+  std::map<Key, std::vector<int>> existing;
+  auto remember = [&](const Eigen::Vector3d& p, int id) { existing[key(p, 0, 0, 0)].push_back(id); };
+  // Nodes closer than half the tolerance merge, whichever side of a grid line they fall.
+  auto find = [&](const Eigen::Vector3d& p) {
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = existing.find(key(p, dx, dy, dz));
+          if (it == existing.end()) continue;
+          for (int id : it->second) {
+            const Eigen::Vector3d q = id < mesh->nodeCount() ? Eigen::Vector3d(mesh->initial.col(id))
+                                                             : Eigen::Vector3d(p);
+            if ((q - p).norm() < 0.5 * merge_tol_m) return id;
+          }
+        }
+    return -1;
+  };
+  for (int i = 0; i < mesh->nodeCount(); ++i) remember(mesh->initial.col(i), i);
   std::vector<int> map(other.nodeCount());
   std::vector<int> added;
   for (int i = 0; i < other.nodeCount(); ++i) {
-    const auto it = existing.find(key(other.initial.col(i)));
-    if (it != existing.end()) {
-      map[i] = it->second;
+    const int found = find(other.initial.col(i));
+    if (found >= 0) {
+      map[i] = found;
     } else {
       map[i] = mesh->nodeCount() + static_cast<int>(added.size());
-      existing.emplace(key(other.initial.col(i)), map[i]);
       added.push_back(i);
     }
   }
