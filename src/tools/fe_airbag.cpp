@@ -1,1 +1,219 @@
-int main() { return 0; }
+// fe_airbag: the FE membrane model of one airbag (issue #13, doc/fe_membrane.md).
+//   fe_airbag verify    [--out DIR]                       sphere and tube against closed forms
+//   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT]
+//   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
+//   fe_airbag table     [--geometry G] [--elements N] [--table FILE]
+// G is pillows (two flat square pillows joined in the middle) or gusseted. Writes CSV, VTK
+// (ParaView) and YAML into --out (default doc/fe); prints progress, wall time and memory.
+// --threads T (default 1: OpenMP threads; use 2 on an idle two-core machine).
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/fe/airbag_fe.h"
+#include "nursing_bed/core/fe/fe_output.h"
+#include "nursing_bed/core/fe/verification.h"
+#include "nursing_bed/core/physics/paper_experiment.h"
+#include "nursing_bed/core/physics/units.h"
+
+namespace nb = nursing_bed;
+namespace fe = nursing_bed::fe;
+
+namespace {
+
+struct Args {
+  std::string mode, geometry = "pillows", out = "doc/fe", table;
+  int elements = 12;
+  int threads = 1;
+  std::vector<double> loads{0.6, 10.6, 15.6, 20.6};
+  double damping = 1000.0, p_lo_kpa = 1.0, p_hi_kpa = 30.0, tolerance = 1e-4, inflow_mass_kg = 0.0, load = 0.6;
+  int p_count = 24;
+};
+
+std::vector<double> numbers(const std::string& s) {
+  std::vector<double> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) v.push_back(std::stod(item));
+  return v;
+}
+
+Args parse(int argc, char** argv) {
+  Args a;
+  if (argc < 2) throw std::invalid_argument("usage: fe_airbag verify|hp|transient|table [options]");
+  a.mode = argv[1];
+  for (int i = 2; i + 1 < argc; i += 2) {
+    const std::string k = argv[i], v = argv[i + 1];
+    if (k == "--geometry") a.geometry = v;
+    else if (k == "--out") a.out = v;
+    else if (k == "--table") a.table = v;
+    else if (k == "--elements") a.elements = std::stoi(v);
+    else if (k == "--threads") a.threads = std::stoi(v);
+    else if (k == "--loads") a.loads = numbers(v);
+    else if (k == "--load") a.load = std::stod(v);
+    else if (k == "--tolerance") a.tolerance = std::stod(v);
+    else if (k == "--damping") a.damping = std::stod(v);
+    else if (k == "--inflow-mass-kg") a.inflow_mass_kg = std::stod(v);
+    else if (k == "--pressures-kpa") {
+      const auto p = numbers(v);
+      if (p.size() != 3) throw std::invalid_argument("--pressures-kpa needs LO,HI,COUNT");
+      a.p_lo_kpa = p[0], a.p_hi_kpa = p[1], a.p_count = static_cast<int>(p[2]);
+    } else throw std::invalid_argument("unknown option " + k);
+  }
+  if (a.geometry != "pillows" && a.geometry != "gusseted") throw std::invalid_argument("--geometry: pillows or gusseted");
+  return a;
+}
+
+fe::AirbagFeOptions bagOptions(const Args& a) {
+  fe::AirbagFeOptions o;
+  o.geometry = a.geometry == "pillows" ? fe::AirbagGeometry::flatPillows() : fe::AirbagGeometry::gusseted();
+  o.geometry.elements_per_side = a.elements;
+  o.relax.tolerance = a.tolerance;
+  o.membrane.threads = a.threads;
+  o.relax.damping_per_s = a.damping;
+  return o;
+}
+
+std::string tag(const Args& a) { return a.geometry + "_n" + std::to_string(a.elements); }
+
+double peakMemoryMb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss / 1024.0;
+}
+
+void verify(const Args& a) {
+  std::ofstream f(a.out + "/verification.csv");
+  f << "shape,resolution,elements,stretch,p_fe_pa,p_exact_pa,rel_error,converged\n";
+  for (auto shape : {fe::VerificationCase::Shape::kSphere, fe::VerificationCase::Shape::kTube}) {
+    const bool sphere = shape == fe::VerificationCase::Shape::kSphere;
+    for (int res : sphere ? std::vector<int>{2, 3, 4} : std::vector<int>{24, 48, 96}) {
+      fe::VerificationCase c;
+      c.shape = shape;
+      c.resolution = res;
+      for (double s = 1.05; s < 2.21; s += 0.05) c.stretches.push_back(s);
+      const auto pts = fe::runVerification(c, fe::FilmMaterial{});
+      const int elements = sphere ? 20 << (2 * res) : 2 * res * 2;
+      double worst = 0.0;
+      for (const auto& p : pts) {
+        f << (sphere ? "sphere," : "tube,") << res << ',' << elements << ',' << p.stretch << ',' << p.fe_pressure_pa << ','
+          << p.exact_pressure_pa << ',' << p.relative_error << ',' << p.converged << '\n';
+        worst = std::max(worst, std::abs(p.relative_error));
+      }
+      std::printf("%s resolution %d (%d triangles): max |error| %.3f %%\n", sphere ? "sphere" : "tube", res, elements, 100 * worst);
+    }
+  }
+}
+
+void heightVsPressure(const Args& a) {
+  fe::AirbagFe bag(bagOptions(a));
+  std::printf("%s: %d nodes, %d triangles, explicit step %.3g s\n", bag.options().geometry.describe().c_str(),
+              bag.model().nodeCount(), bag.model().mesh().triangleCount(), bag.model().stableTimeStep());
+  for (double load : a.loads) {
+    const auto start = std::chrono::steady_clock::now();
+    bag.reset();
+    std::vector<double> pressures;
+    for (int i = 0; i < a.p_count; ++i) pressures.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+    std::ostringstream name;
+    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N";
+    std::ofstream f(name.str() + ".csv");
+    f << "p_gauge_pa,h_m,volume_m3,plate_force_n,max_stretch,wrinkled_fraction,rim_inset_m,converged,iterations,eq24_h_m\n";
+    int k = 0;
+    fe::heightVsPressure(&bag, load, pressures, [&](const fe::QuasiStaticPoint& p) {
+      f << p.gauge_pressure_pa << ',' << p.height_m << ',' << p.volume_m3 << ',' << p.plate_force_n << ',' << p.max_stretch
+        << ',' << p.wrinkled_fraction << ',' << p.rim_inset_m << ',' << p.converged << ',' << p.iterations << ','
+        << nb::paperEq24HeightM(p.gauge_pressure_pa) << '\n' << std::flush;
+      std::printf("  load %.1f N  p %5.1f kPa  h %6.1f mm  %s (%d it)\n", load, p.gauge_pressure_pa / 1e3, p.height_m * 1e3,
+                  p.converged ? "ok" : p.message.c_str(), p.iterations);
+      std::fflush(stdout);
+      if (++k == static_cast<int>(pressures.size()) || k == static_cast<int>(pressures.size()) / 2) {
+        fe::writeVtk(name.str() + "_p" + std::to_string(static_cast<int>(p.gauge_pressure_pa / 1e3)) + "kPa.vtk", bag.model(),
+                     "FE airbag " + tag(a));
+      }
+    });
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("h(p) load %.1f N: %zu pressures, wall %.1f s, peak memory %.0f MB\n", load, pressures.size(), wall, peakMemoryMb());
+  }
+}
+
+void transient(const Args& a) {
+  fe::AirbagFe bag(bagOptions(a));
+  fe::TransientSetup s;
+  nb::TimeSeries inflow;
+  if (a.inflow_mass_kg > 0.0) {
+    inflow = nb::paperShapedInflow(a.inflow_mass_kg);
+    s.prescribed_inflow = &inflow;
+  }
+  s.load_n = a.load;
+  const auto start = std::chrono::steady_clock::now();
+  std::ostringstream name;
+  name << a.out << "/transient_" << tag(a) << "_load_" << a.load << "N";
+  double next_vtk = 0.0;
+  const fe::TransientResult r = fe::runTransient(&bag, s, [&](double done) {
+    if (done >= next_vtk) {
+      std::printf("  %3.0f %%  h %.1f mm\n", 100 * done, bag.model().plate().height_m * 1e3);
+      std::fflush(stdout);
+      fe::writeVtk(name.str() + "_t" + std::to_string(static_cast<int>(std::lround(done * 11))) + ".vtk", bag.model(), "transient");
+      next_vtk += 1.0 / 11.0;
+    }
+  });
+  std::ofstream f(name.str() + ".csv");
+  f << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3,mass_kg,t_gas_k,rim_inset_m\n";
+  for (const auto& x : r.samples) {
+    f << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3 << ','
+      << x.mass_kg << ',' << x.temperature_k << ',' << x.rim_inset_m << '\n';
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("transient %s: %s, %ld steps, wall %.1f s, peak memory %.0f MB\n", tag(a).c_str(), r.message.c_str(), r.steps, wall,
+              peakMemoryMb());
+  if (!r.ok) throw std::runtime_error(r.message);
+}
+
+void table(const Args& a) {
+  fe::AirbagFe bag(bagOptions(a));
+  fe::StructureTable t;
+  t.description = bag.options().geometry.describe();
+  for (double h = 0.01; h < 0.1601; h += 0.01) t.heights_m.push_back(h);
+  for (double p : {1e3, 2.5e3, 5e3, 7.5e3, 10e3, 12.5e3, 15e3, 20e3, 25e3, 30e3}) t.pressures_pa.push_back(p);
+  for (double h : t.heights_m) {
+    bag.reset();
+    std::vector<double> v, force;
+    for (double p : t.pressures_pa) {
+      const fe::QuasiStaticPoint q = bag.solveAtHeight(h, p);
+      if (!q.converged) std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
+      v.push_back(q.volume_m3);
+      force.push_back(q.plate_force_n);
+    }
+    std::printf("  table row h %.0f mm done\n", h * 1e3);
+    std::fflush(stdout);
+    t.volume_m3.push_back(v);
+    t.plate_force_n.push_back(force);
+  }
+  fe::writeStructureTable(a.table.empty() ? a.out + "/table_" + tag(a) + ".yaml" : a.table, t);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const Args a = parse(argc, argv);
+    std::filesystem::create_directories(a.out);
+    if (a.mode == "verify") verify(a);
+    else if (a.mode == "hp") heightVsPressure(a);
+    else if (a.mode == "transient") transient(a);
+    else if (a.mode == "table") table(a);
+    else throw std::invalid_argument("unknown mode " + a.mode);
+  } catch (const std::exception& e) {
+    std::cerr << "fe_airbag: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

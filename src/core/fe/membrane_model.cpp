@@ -14,6 +14,8 @@ namespace fe {
 std::string MembraneOptions::validate() const {
   std::ostringstream err;
   if (!(cfl > 0.0 && cfl <= 1.0)) err << "cfl must be in (0, 1], got " << cfl;
+  else if (!(stiffening_factor >= 1.0 && stiffening_factor <= 100.0))
+    err << "stiffening_factor must be in [1, 100], got " << stiffening_factor;
   else if (!(contact_stiffness_scale > 0.0 && contact_stiffness_scale <= 1.0))
     err << "contact_stiffness_scale must be in (0, 1], got " << contact_stiffness_scale;
   else if (!(contact_damping_ratio >= 0.0 && contact_damping_ratio <= 1.0))
@@ -46,8 +48,9 @@ void MembraneModel::buildReferences() {
   node_elements_.assign(n, {});
   Eigen::VectorXd node_area = Eigen::VectorXd::Zero(n);
   // Explicit stability: dilatational wave speed of the film, with margin for the Yeoh
-  // stiffening at large stretch (tangent modulus up to ~2x the initial 6 C10).
-  const double wave_speed = std::sqrt(2.0 * material_.yeoh.youngsModulus() / material_.density_kg_m3);
+  // stiffening at large stretch (tangent modulus up to stiffening_factor x the initial 6 C10).
+  const double wave_speed =
+      std::sqrt(options_.stiffening_factor * material_.yeoh.youngsModulus() / material_.density_kg_m3);
   double dt = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < mesh_.triangles.size(); ++i) {
     const auto& r = mesh_.rest[i];

@@ -19,6 +19,7 @@ std::string RelaxOptions::validate() const {
   else if (max_iterations < 1 || min_iterations < 0 || min_iterations > max_iterations)
     err << "need 0 <= min_iterations <= max_iterations, max_iterations >= 1";
   else if (!(plate_mass_ratio > 0.0)) err << "plate_mass_ratio must be positive, got " << plate_mass_ratio;
+  else if (!(damping_per_s >= 0.0)) err << "damping_per_s must be >= 0, got " << damping_per_s;
   return err.str();
 }
 
@@ -68,7 +69,8 @@ RelaxResult relax(MembraneModel* model, const PressureControl& control, const Re
       result.message = "converged";
       break;
     }
-    model->step(dt, 0.0);
+    model->step(dt, options.damping_per_s);
+    if (options.damping_per_s > 0.0) continue;
     // Kinetic damping: at each peak of kinetic energy the motion has passed an energy
     // minimum along its path; stop it there.
     const double kinetic = model->kineticEnergy();

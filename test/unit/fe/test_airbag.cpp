@@ -1,19 +1,120 @@
+// The FE airbag on a coarse mesh: geometry, a loaded quasi-static state, failure reporting.
 #include <gtest/gtest.h>
+
+#include <map>
+#include <stdexcept>
 
 #include "nursing_bed/core/fe/airbag_fe.h"
 
 namespace nursing_bed {
 namespace fe {
+namespace {
 
-TEST(FeAirbag, Explore) {
+AirbagFeOptions coarse() {
   AirbagFeOptions o;
-  o.geometry.elements_per_side = 12;
-  AirbagFe bag(o);
-  std::printf("nodes %d tris %d dt %g V0 %g top %g\n", bag.model().nodeCount(), bag.model().mesh().triangleCount(), bag.model().stableTimeStep(), bag.model().volume(), bag.model().plate().height_m);
-  for (double p : {2e3, 5e3, 10e3, 15e3, 20e3, 25e3}) {
-    auto q = bag.solveLoaded(p, 10.6);
-    std::printf("p %.0f h %.2f mm V %.3g F %.2f it %d lmax %.3f wr %.2f inset %.2f %s\n", p, q.height_m*1e3, q.volume_m3, q.plate_force_n, q.iterations, q.max_stretch, q.wrinkled_fraction, q.rim_inset_m*1e3, q.message.c_str());
+  o.geometry.elements_per_side = 8;
+  o.geometry.connection_side_m = 0.025;
+  o.membrane.threads = 1;
+  return o;
+}
+
+}  // namespace
+
+TEST(FeAirbag, FlatPillowsAreClosedAndStartNearlyFlat) {
+  const AirbagGeometry g = coarse().geometry;
+  const MembraneMesh m = buildAirbagMesh(g);
+  EXPECT_EQ(m.validate(), "");
+  // Two chambers of 2 x 8 x 8 x 2 triangles, the connection patch counted once.
+  int patch = 0;
+  for (std::size_t i = 0; i < m.triangles.size(); ++i) patch += m.part[i] == kConnection;
+  EXPECT_GT(patch, 0);
+  EXPECT_EQ(m.triangleCount(), 4 * 128 - patch);
+  // Closed: every edge of the pressurised surface plus the patch is shared by two triangles.
+  std::map<std::pair<int, int>, int> edges;
+  for (const auto& t : m.triangles) {
+    for (int k = 0; k < 3; ++k) ++edges[std::minmax(t[k], t[(k + 1) % 3])];
   }
+  for (const auto& [e, count] : edges) EXPECT_GE(count, 2) << e.first << "-" << e.second;
+  EXPECT_LT(initialTop(m), 4.1 * g.layerGap());
+  EXPECT_GT(enclosedVolume(m, m.initial), 0.0);
+}
+
+TEST(FeAirbag, GussetedChambersStartAsErectedBoxes) {
+  AirbagGeometry g = coarse().geometry;
+  g.gusset_height_m = 0.04;
+  const MembraneMesh m = buildAirbagMesh(g);
+  EXPECT_EQ(m.validate(), "");
+  // Box volume a^2 g per chamber, plus at most the a^2 x 2 gap slab between the chambers.
+  const double v = enclosedVolume(m, m.initial), boxes = 2 * 0.1 * 0.1 * 0.04;
+  EXPECT_GT(v, boxes);
+  EXPECT_LT(v, boxes + 0.1 * 0.1 * 2 * g.layerGap());
+}
+
+TEST(FeAirbag, LoadedPlateRisesWithPressure) {
+  AirbagFe bag(coarse());
+  const QuasiStaticPoint low = bag.solveLoaded(5e3, 10.6);
+  const QuasiStaticPoint high = bag.solveLoaded(20e3, 10.6);
+  ASSERT_TRUE(low.converged) << low.message;
+  ASSERT_TRUE(high.converged) << high.message;
+  EXPECT_NEAR(high.plate_force_n, 10.6, 0.05);
+  EXPECT_GT(high.height_m, low.height_m);
+  EXPECT_GT(high.height_m, 0.05);
+  EXPECT_LT(high.height_m, 0.15);
+}
+
+TEST(FeAirbag, NonConvergenceIsReportedNotHidden) {
+  AirbagFeOptions o = coarse();
+  o.relax.max_iterations = 200;
+  o.relax.min_iterations = 10;
+  AirbagFe bag(o);
+  const QuasiStaticPoint p = bag.solveLoaded(20e3, 10.6);
+  EXPECT_FALSE(p.converged);
+  EXPECT_NE(p.message.find("not converged"), std::string::npos);
+}
+
+TEST(FeAirbag, BadGeometryIsRefusedByName) {
+  auto refused = [](AirbagGeometry g, const std::string& field) {
+    try {
+      buildAirbagMesh(g);
+      ADD_FAILURE() << field << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  AirbagGeometry g = coarse().geometry;
+  g.face_side_m = -0.1;
+  refused(g, "face_side_m");
+  g = coarse().geometry;
+  g.film_thickness_m = 0.02;
+  refused(g, "film_thickness_m");
+  g = coarse().geometry;
+  g.connection_side_m = 0.099;
+  refused(g, "connection_side_m");
+  g = coarse().geometry;
+  g.elements_per_side = 7;
+  refused(g, "elements_per_side");
+  g = coarse().geometry;
+  g.chambers = 0;
+  refused(g, "chambers");
+  AirbagFeOptions o = coarse();
+  o.material.yeoh.c10_pa = 0.0;
+  EXPECT_THROW(AirbagFe{o}, std::invalid_argument);
+}
+
+TEST(FeAirbag, TransientInflatesAndConservesTheInjectedMass) {
+  AirbagFe bag(coarse());
+  TransientSetup s;
+  TimeSeries inflow({0.0, 0.1, 0.2}, {0.0, 2e-3, 0.0});
+  s.prescribed_inflow = &inflow;
+  s.duration_s = 0.2;
+  const TransientResult r = runTransient(&bag, s);
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_NEAR(r.samples.back().mass_kg - r.samples.front().mass_kg, inflow.integral(), 0.01 * inflow.integral());
+  EXPECT_GT(r.samples.back().height_m, r.samples.front().height_m + 0.01);
+  EXPECT_GT(r.samples.back().gauge_pressure_pa, 0.0);
+  TransientSetup bad = s;
+  bad.duration_s = -1.0;
+  EXPECT_THROW(runTransient(&bag, bad), std::invalid_argument);
 }
 
 }  // namespace fe

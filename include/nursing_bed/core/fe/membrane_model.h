@@ -18,6 +18,9 @@ namespace fe {
 /// Numerical options of the membrane model.
 struct MembraneOptions {
   double cfl = 0.5;                         ///< fraction of the stable explicit step [-]
+  /// Tangent modulus bound for the explicit step, times the initial 6 C10: 2 covers the Yeoh
+  /// stiffening up to stretch ~1.6, 4 up to ~2.2 [-]
+  double stiffening_factor = 2.0;
   double contact_stiffness_scale = 0.2;     ///< penalty k = scale * m_node / dt^2 (so k dt^2/m is fixed) [-]
   double contact_damping_ratio = 0.5;       ///< damping of penetrating nodes, fraction of critical [-]
   bool bed_contact = true;                  ///< rigid bed at z = bed_height_m

@@ -33,6 +33,9 @@ struct RelaxOptions {
   /// Plate mass during the relaxation, times the film mass (a fictitious mass: only the
   /// equilibrium counts, and a light plate converges fastest) [-].
   double plate_mass_ratio = 1.0;
+  /// 0: kinetic damping (velocities zeroed at kinetic-energy peaks); > 0: viscous damping at
+  /// this rate instead (near the slowest mode's critical damping 2 omega_1) [1/s].
+  double damping_per_s = 0.0;
 
   /// Empty when valid, else what is wrong (names the field).
   std::string validate() const;
