@@ -2,13 +2,15 @@
 //   fe_airbag verify    [--out DIR]                       sphere and tube against closed forms
 //   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT]
 //   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
-//   fe_airbag table     [--geometry G] [--elements N] [--table FILE]
+//   fe_airbag table     [--geometry G] [--elements N] [--table FILE] [--heights-mm LO,HI,COUNT]
+//   fe_airbag check     --table FILE [--geometry G] [--elements N]   cell on the table vs the FE h(p) CSVs
 // G is pillows (two flat square pillows joined in the middle) or gusseted. Writes CSV, VTK
 // (ParaView) and YAML into --out (default doc/fe); prints progress, wall time and memory.
 // --threads T (default 1: OpenMP threads; use 2 on an idle two-core machine).
 #include <sys/resource.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -22,6 +24,7 @@
 #include "nursing_bed/core/fe/fe_output.h"
 #include "nursing_bed/core/fe/verification.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
+#include "nursing_bed/core/physics/tabulated_structure.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nb = nursing_bed;
@@ -36,6 +39,8 @@ struct Args {
   std::vector<double> loads{0.6, 10.6, 15.6, 20.6};
   double damping = 1000.0, p_lo_kpa = 1.0, p_hi_kpa = 30.0, tolerance = 1e-4, inflow_mass_kg = 0.0, load = 0.6;
   int p_count = 24;
+  double h_lo_mm = 10.0, h_hi_mm = 130.0;
+  int h_count = 13;
 };
 
 std::vector<double> numbers(const std::string& s) {
@@ -66,6 +71,10 @@ Args parse(int argc, char** argv) {
       const auto p = numbers(v);
       if (p.size() != 3) throw std::invalid_argument("--pressures-kpa needs LO,HI,COUNT");
       a.p_lo_kpa = p[0], a.p_hi_kpa = p[1], a.p_count = static_cast<int>(p[2]);
+    } else if (k == "--heights-mm") {
+      const auto h = numbers(v);
+      if (h.size() != 3) throw std::invalid_argument("--heights-mm needs LO,HI,COUNT");
+      a.h_lo_mm = h[0], a.h_hi_mm = h[1], a.h_count = static_cast<int>(h[2]);
     } else throw std::invalid_argument("unknown option " + k);
   }
   if (a.geometry != "pillows" && a.geometry != "gusseted") throw std::invalid_argument("--geometry: pillows or gusseted");
@@ -177,11 +186,38 @@ void transient(const Args& a) {
   if (!r.ok) throw std::runtime_error(r.message);
 }
 
+// The cell's quasi-static h(p) on the FE table (physics' TabulatedStructure) against the FE's
+// own h(p) (the hp CSVs of the same geometry and mesh).
+void check(const Args& a) {
+  const nb::TabulatedStructure cell(nb::TabulatedStructure::load(a.table));
+  std::ofstream f(a.out + "/table_check_" + tag(a) + ".csv");
+  f << "load_n,p_gauge_pa,h_fe_m,h_table_m\n";
+  double worst = 0.0;
+  for (double load : a.loads) {
+    std::ostringstream name;
+    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N.csv";
+    std::ifstream in(name.str());
+    if (!in) throw std::runtime_error("cannot read " + name.str() + " (run the hp mode first)");
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      const auto v = numbers(line);
+      const double p = v[0], h_fe = v[1];
+      if (p < cell.table().pressures_pa.front() || v[7] == 0.0) continue;  // outside the table, or not converged
+      const nb::StructureEquilibrium eq = cell.equilibriumAtPressure(p, load);
+      f << load << ',' << p << ',' << h_fe << ',' << (eq.converged ? eq.height_m : NAN) << '\n';
+      if (eq.converged) worst = std::max(worst, std::abs(eq.height_m - h_fe));
+      else std::printf("  load %.1f N p %.1f kPa: the table cell has no equilibrium (outside its heights)\n", load, p / 1e3);
+    }
+  }
+  std::printf("table cell vs FE h(p): max |dh| = %.2f mm\n", worst * 1e3);
+}
+
 void table(const Args& a) {
   fe::AirbagFe bag(bagOptions(a));
   fe::StructureTable t;
   t.description = bag.options().geometry.describe();
-  for (double h = 0.01; h < 0.1601; h += 0.01) t.heights_m.push_back(h);
+  for (int i = 0; i < a.h_count; ++i) t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
   for (double p : {1e3, 2.5e3, 5e3, 7.5e3, 10e3, 12.5e3, 15e3, 20e3, 25e3, 30e3}) t.pressures_pa.push_back(p);
   for (double h : t.heights_m) {
     bag.reset();
@@ -210,6 +246,7 @@ int main(int argc, char** argv) {
     else if (a.mode == "hp") heightVsPressure(a);
     else if (a.mode == "transient") transient(a);
     else if (a.mode == "table") table(a);
+    else if (a.mode == "check") check(a);
     else throw std::invalid_argument("unknown mode " + a.mode);
   } catch (const std::exception& e) {
     std::cerr << "fe_airbag: " << e.what() << "\n";

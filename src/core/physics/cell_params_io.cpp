@@ -48,26 +48,6 @@ ParamTable<CellParams> makeFields() {
 }
 #undef NB_FIELD
 
-// The text keys that select the structure (not in the numeric table):
-//   structure/type: pillow | table   (default pillow)
-//   structure/table_file: path of the FE table; relative paths are taken from `base_dir`.
-void applyStructureSelection(FlatParams* flat, const std::string& source, const std::string& base_dir,
-                             CellParams* params) {
-  const auto type = flat->find("structure/type");
-  if (type != flat->end()) {
-    params->structure_type = type->second.text;
-    flat->erase(type);
-  }
-  const auto file = flat->find("structure/table_file");
-  if (file != flat->end()) {
-    const std::filesystem::path path(file->second.text);
-    params->structure_table_file = path.is_relative() && !base_dir.empty() ? (std::filesystem::path(base_dir) / path).string()
-                                                                           : path.string();
-    flat->erase(file);
-  }
-  (void)source;
-}
-
 }  // namespace
 
 const ParamTable<CellParams>& cellParamFields() {
@@ -79,7 +59,7 @@ CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& 
                                const CellParams& defaults) {
   CellParams params = defaults;
   FlatParams flat = flattenYamlText(yaml_text, source);
-  applyStructureSelection(&flat, source, "", &params);
+  applyStructureSelection(&flat, "", &params);
   applyFlatParams(flat, source, cellParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(source + ": invalid parameters: " + error);
@@ -89,11 +69,27 @@ CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& 
 CellParams loadCellParamsYaml(const std::string& path, const CellParams& defaults) {
   CellParams params = defaults;
   FlatParams flat = flattenYamlFile(path);
-  applyStructureSelection(&flat, path, std::filesystem::path(path).parent_path().string(), &params);
+  applyStructureSelection(&flat, std::filesystem::path(path).parent_path().string(), &params);
   applyFlatParams(flat, path, cellParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(path + ": invalid parameters: " + error);
   return params;
+}
+
+void applyStructureSelection(FlatParams* flat, const std::string& base_dir, CellParams* params,
+                             const std::string& prefix) {
+  const auto type = flat->find(prefix + "structure/type");
+  if (type != flat->end()) {
+    params->structure_type = type->second.text;
+    flat->erase(type);
+  }
+  const auto file = flat->find(prefix + "structure/table_file");
+  if (file != flat->end()) {
+    const std::filesystem::path path(file->second.text);
+    params->structure_table_file =
+        path.is_relative() && !base_dir.empty() ? (std::filesystem::path(base_dir) / path).string() : path.string();
+    flat->erase(file);
+  }
 }
 
 std::string cellParamsToYaml(const CellParams& params) { return paramsToYaml(params, cellParamFields()); }

@@ -36,6 +36,10 @@ std::pair<std::size_t, double> locate(const std::vector<double>& axis, double x)
   return {i, (x - axis[i]) / (axis[i + 1] - axis[i])};
 }
 
+// The shape coordinate is the film's relaxed pressure in units of 10 kPa (an O(1) coordinate,
+// as CellStructure's solvers expect).
+constexpr double kShapeUnitPa = 1.0e4;
+
 }  // namespace
 
 std::string StructureTableData::validate() const {
@@ -81,11 +85,13 @@ double TabulatedStructure::interpolate(const std::vector<std::vector<double>>& g
   return (1 - a) * ((1 - b) * g[i][j] + b * g[i][j + 1]) + a * ((1 - b) * g[i + 1][j] + b * g[i + 1][j + 1]);
 }
 
-std::array<double, kMaxShapeDofs> TabulatedStructure::restShape() const { return {table_.pressures_pa.front()}; }
+std::array<double, kMaxShapeDofs> TabulatedStructure::restShape() const {
+  return {table_.pressures_pa.front() / kShapeUnitPa};
+}
 
 StructureEval TabulatedStructure::evaluate(double height_m, const double* shape) const {
   StructureEval e;
-  const double q = std::clamp(shape[0], table_.pressures_pa.front(), table_.pressures_pa.back());
+  const double q = std::clamp(shape[0] * kShapeUnitPa, table_.pressures_pa.front(), table_.pressures_pa.back());
   const double h0 = table_.heights_m.front();
   e.effective_area_m2 = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
   // Volume: the table, extended below its lowest height along the lowest row's area.
@@ -97,9 +103,11 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   const double dp = table_.pressures_pa[j + 1] - table_.pressures_pa[j];
   const double dvdq = (interpolate(table_.volume_m3, height_m, table_.pressures_pa[j + 1]) -
                        interpolate(table_.volume_m3, height_m, table_.pressures_pa[j])) / dp;
-  e.dvolume_dshape[0] = std::max(dvdq, 1e-3 * e.volume_m3 / table_.pressures_pa.back());
-  e.elastic_force[0] = shape[0] * e.dvolume_dshape[0];  // balance at q = p
-  e.shape_damping[0] = relaxation_time_s_ * e.dvolume_dshape[0];
+  const double dvdp = std::max(dvdq, 1e-3 * e.volume_m3 / table_.pressures_pa.back());
+  e.dvolume_dshape[0] = dvdp * kShapeUnitPa;
+  e.elastic_force[0] = shape[0] * kShapeUnitPa * e.dvolume_dshape[0];  // balance at q = p
+  // dq/dt = (p - q) dV/dq / damping: q follows p with the film's relaxation time.
+  e.shape_damping[0] = relaxation_time_s_ * e.dvolume_dshape[0] * kShapeUnitPa;
   e.contact_area_m2 = e.effective_area_m2;
   e.surface_area_m2 = 4.0 * e.volume_m3 / std::max(height_m, h0);  // rough: for heat exchange only
   return e;

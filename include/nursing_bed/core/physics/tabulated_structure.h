@@ -22,7 +22,7 @@ struct StructureTableData {
 };
 
 /**
- * One shape coordinate q: the gauge pressure the film is relaxed to [Pa]. evaluate(h, q) gives
+ * One shape coordinate q: the gauge pressure the film is relaxed to, in units of 10 kPa. evaluate(h, q) gives
  * V(h, q) and A_eff = F(h, q) / q by bilinear interpolation (the plate force of the FE bag
  * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
  * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
