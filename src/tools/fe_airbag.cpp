@@ -3,6 +3,7 @@
 //   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT]
 //   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
 //   fe_airbag table     [--geometry G] [--elements N] [--table FILE] [--heights-mm LO,HI,COUNT]
+//   fe_airbag reduced   [--inflow-mass-kg M] [--load L]          today's reduced model on the same axes
 //   fe_airbag check     --table FILE [--geometry G] [--elements N]   cell on the table vs the FE h(p) CSVs
 // G is pillows (two flat square pillows joined in the middle) or gusseted. Writes CSV, VTK
 // (ParaView) and YAML into --out (default doc/fe); prints progress, wall time and memory.
@@ -24,6 +25,7 @@
 #include "nursing_bed/core/fe/fe_output.h"
 #include "nursing_bed/core/fe/verification.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
+#include "nursing_bed/core/physics/pillow_structure.h"
 #include "nursing_bed/core/physics/tabulated_structure.h"
 #include "nursing_bed/core/physics/units.h"
 
@@ -186,13 +188,34 @@ void transient(const Args& a) {
   if (!r.ok) throw std::runtime_error(r.message);
 }
 
+// Every height where the table's plate force p A_eff(h, p) equals the load (the FE bag snaps
+// between branches: F(h) is not monotone there, and an h(p) continuation follows one of them).
+std::vector<double> tableRoots(const nb::TabulatedStructure& cell, double p, double load) {
+  std::vector<double> roots;
+  const double q = p / 1e4;  // shape coordinate: the relaxed pressure in 10 kPa
+  auto excess = [&](double h) { return p * cell.evaluate(h, &q).effective_area_m2 - load; };
+  const double h_max = cell.heightLimit(&q);
+  double h0 = 0.0, f0 = excess(0.0);
+  for (int i = 1; i <= 2000; ++i) {
+    const double h1 = h_max * i / 2000.0, f1 = excess(h1);
+    if ((f0 > 0.0) != (f1 > 0.0)) {
+      double lo = h0, hi = h1;
+      for (int k = 0; k < 60; ++k) ((excess(0.5 * (lo + hi)) > 0.0) == (f0 > 0.0) ? lo : hi) = 0.5 * (lo + hi);
+      roots.push_back(0.5 * (lo + hi));
+    }
+    h0 = h1, f0 = f1;
+  }
+  if (roots.empty() && excess(0.0) <= 0.0) roots.push_back(0.0);  // the plate rests on the flat bag
+  return roots;
+}
+
 // The cell's quasi-static h(p) on the FE table (physics' TabulatedStructure) against the FE's
 // own h(p) (the hp CSVs of the same geometry and mesh).
 void check(const Args& a) {
   const nb::TabulatedStructure cell(nb::TabulatedStructure::load(a.table));
   std::ofstream f(a.out + "/table_check_" + tag(a) + ".csv");
-  f << "load_n,p_gauge_pa,h_fe_m,h_table_m\n";
-  double worst = 0.0;
+  f << "load_n,p_gauge_pa,h_fe_m,h_table_m,h_table_nearest_root_m,roots\n";
+  double worst = 0.0, worst_nearest = 0.0;
   for (double load : a.loads) {
     std::ostringstream name;
     name << a.out << "/hp_" << tag(a) << "_load_" << load << "N.csv";
@@ -205,12 +228,56 @@ void check(const Args& a) {
       const double p = v[0], h_fe = v[1];
       if (p < cell.table().pressures_pa.front() || v[7] == 0.0) continue;  // outside the table, or not converged
       const nb::StructureEquilibrium eq = cell.equilibriumAtPressure(p, load);
-      f << load << ',' << p << ',' << h_fe << ',' << (eq.converged ? eq.height_m : NAN) << '\n';
+      const std::vector<double> roots = tableRoots(cell, p, load);
+      double nearest = NAN;
+      for (double r : roots) if (!(std::abs(r - h_fe) >= std::abs(nearest - h_fe))) nearest = r;
+      f << load << ',' << p << ',' << h_fe << ',' << (eq.converged ? eq.height_m : NAN) << ',' << nearest << ','
+        << roots.size() << '\n';
+      if (std::isfinite(nearest)) worst_nearest = std::max(worst_nearest, std::abs(nearest - h_fe));
       if (eq.converged) worst = std::max(worst, std::abs(eq.height_m - h_fe));
       else std::printf("  load %.1f N p %.1f kPa: the table cell has no equilibrium (outside its heights)\n", load, p / 1e3);
     }
   }
-  std::printf("table cell vs FE h(p): max |dh| = %.2f mm\n", worst * 1e3);
+  std::printf("table cell vs FE h(p): max |dh| = %.2f mm (cell's own root), %.2f mm (nearest of the table's equilibria)\n",
+              worst * 1e3, worst_nearest * 1e3);
+}
+
+// Today's reduced model (PillowStructure, config defaults) on the same axes: h(p) per load
+// and the unloaded transient with the same paper-shaped inflow.
+void reduced(const Args& a) {
+  const nb::CellParams params;
+  const nb::PillowStructure pillow(params.structure);
+  std::ofstream f(a.out + "/reduced_hp.csv");
+  f << "load_n,p_gauge_pa,h_m,converged\n";
+  for (double load : a.loads) {
+    for (int i = 0; i < a.p_count; ++i) {
+      const double p = 1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1));
+      const nb::StructureEquilibrium eq = pillow.equilibriumAtPressure(p, load);
+      f << load << ',' << p << ',' << eq.height_m << ',' << eq.converged << '\n';
+    }
+  }
+  {
+    const nb::StructureEquilibrium full = pillow.equilibriumAtPressure(20e3, 0.6);
+    const double rt = params.gas.gas_constant_j_kg_k * params.ambient_temperature_k;
+    const double rest = pillow.evaluate(0.0, pillow.restShape().data()).volume_m3;
+    std::printf("reduced model: unloaded at 20 kPa h %.1f mm, V %.3g m^3, air added %.3g kg (isothermal)\n",
+                full.height_m * 1e3, full.eval.volume_m3,
+                ((params.ambient_pressure_pa + 20e3) * full.eval.volume_m3 - params.ambient_pressure_pa * rest) / rt);
+  }
+  if (a.inflow_mass_kg > 0.0) {
+    const nb::TimeSeries inflow = nb::paperShapedInflow(a.inflow_mass_kg);
+    nb::InflationSetup setup;
+    setup.load_n = a.load;
+    setup.prescribed_inflow = &inflow;
+    const nb::InflationTrace trace = nb::runInflation(params, setup);
+    std::ostringstream name;
+    name << a.out << "/reduced_transient_load_" << a.load << "N_mass_" << a.inflow_mass_kg * 1e3 << "g.csv";
+    std::ofstream t(name.str());
+    t << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3\n";
+    for (const auto& x : trace.samples) {
+      t << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3 << '\n';
+    }
+  }
 }
 
 void table(const Args& a) {
@@ -218,13 +285,18 @@ void table(const Args& a) {
   fe::StructureTable t;
   t.description = bag.options().geometry.describe();
   for (int i = 0; i < a.h_count; ++i) t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
-  for (double p : {1e3, 2.5e3, 5e3, 7.5e3, 10e3, 12.5e3, 15e3, 20e3, 25e3, 30e3}) t.pressures_pa.push_back(p);
+  for (int i = 0; i < a.p_count; ++i) t.pressures_pa.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+  int unconverged = 0;
+  const auto start = std::chrono::steady_clock::now();
   for (double h : t.heights_m) {
     bag.reset();
     std::vector<double> v, force;
     for (double p : t.pressures_pa) {
       const fe::QuasiStaticPoint q = bag.solveAtHeight(h, p);
-      if (!q.converged) std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
+      if (!q.converged) {
+        std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
+        ++unconverged;
+      }
       v.push_back(q.volume_m3);
       force.push_back(q.plate_force_n);
     }
@@ -234,6 +306,9 @@ void table(const Args& a) {
     t.plate_force_n.push_back(force);
   }
   fe::writeStructureTable(a.table.empty() ? a.out + "/table_" + tag(a) + ".yaml" : a.table, t);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("table %s: %zu x %zu states, %d not converged (kept, flagged above), wall %.0f s\n", tag(a).c_str(),
+              t.heights_m.size(), t.pressures_pa.size(), unconverged, wall);
 }
 
 }  // namespace
@@ -247,6 +322,7 @@ int main(int argc, char** argv) {
     else if (a.mode == "transient") transient(a);
     else if (a.mode == "table") table(a);
     else if (a.mode == "check") check(a);
+    else if (a.mode == "reduced") reduced(a);
     else throw std::invalid_argument("unknown mode " + a.mode);
   } catch (const std::exception& e) {
     std::cerr << "fe_airbag: " << e.what() << "\n";

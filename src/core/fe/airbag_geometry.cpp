@@ -112,6 +112,18 @@ void addGussets(const AirbagGeometry& g, double z0, MembraneMesh* bag, double to
   }
 }
 
+// x, y held at the nodes within one element of the face centre, on the lowest and highest face.
+void pinCentres(const AirbagGeometry& g, MembraneMesh* bag) {
+  const double c = 0.5 * g.face_side_m, reach = 1.01 * g.elementSize();
+  const double z_lo = bag->initial.row(2).minCoeff(), z_hi = bag->initial.row(2).maxCoeff();
+  for (int j = 0; j < bag->nodeCount(); ++j) {
+    const Eigen::Vector3d x = bag->initial.col(j);
+    const bool centre = std::abs(x.x() - c) <= reach && std::abs(x.y() - c) <= reach;
+    const bool outer = std::abs(x.z() - z_lo) < 1e-9 || std::abs(x.z() - z_hi) < 1e-9;
+    if (centre && outer) bag->fixed[j][0] = bag->fixed[j][1] = true;
+  }
+}
+
 }  // namespace
 
 MembraneMesh buildAirbagMesh(const AirbagGeometry& g) {
@@ -133,6 +145,7 @@ MembraneMesh buildAirbagMesh(const AirbagGeometry& g) {
     appendMesh(&bag, facePanel(g, top), tol);
     z = gussets ? top_z + gap : z + 2.0 * gap;
   }
+  if (g.pin_centres) pinCentres(g, &bag);
   return bag;
 }
 

@@ -105,3 +105,26 @@ TEST(TabulatedStructure, SelectedFromTheCellYamlWithARelativePath) {
 }
 
 }  // namespace nursing_bed
+
+namespace nursing_bed {
+
+// The shipped FE cell: its YAML loads, and a cell inflated on it settles where its own
+// quasi-static h(p) says (the same table, two solvers: the dynamic cell and the equilibrium).
+TEST(TabulatedStructure, ShippedFeCellRunsAndSettlesOnItsCharacteristic) {
+  const CellParams params = loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
+  ASSERT_EQ(params.structure_type, "table");
+  CellModel cell(params);
+  CellInputs in;
+  in.inlet_opening = 1.0;
+  in.load_n = 10.6;
+  cell.reset(in.load_n);
+  cell.advance(8.0, in);
+  const double p = cell.variables().gauge_pressure_pa, h = cell.variables().height_m;
+  EXPECT_GT(h, 0.05);
+  EXPECT_NEAR(p, params.supply_pressure_pa, 0.05 * params.supply_pressure_pa);
+  const StructureEquilibrium eq = cell.structure().equilibriumAtPressure(p, in.load_n);
+  ASSERT_TRUE(eq.converged);
+  EXPECT_NEAR(h, eq.height_m, 2e-3);
+}
+
+}  // namespace nursing_bed

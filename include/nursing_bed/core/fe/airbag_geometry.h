@@ -22,7 +22,11 @@ struct AirbagGeometry {
   /// reduced model's gussets are 0.079 m (PillowParams).
   double gusset_height_m = 0.0;
   double film_thickness_m = 0.50e-3; ///< TPU film (PillowParams default)
-  int elements_per_side = 16;        ///< grid cells along a face side
+  int elements_per_side = 12;        ///< grid cells along a face side (default mesh)
+  /// Hold the centre of the bottom face (the inlet fitting on the bed) and of the top face
+  /// (stuck to the plate by friction) horizontally: without it the frictionless bag slides or
+  /// tips under the plate (the gusseted bag tipped over in a transient).
+  bool pin_centres = true;
 
   /// Two pillows without gussets (reading (a) of the paper's bag).
   static AirbagGeometry flatPillows();

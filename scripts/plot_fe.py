@@ -1,0 +1,150 @@
+#!/usr/bin/env python3
+"""Figures of the FE airbag (doc/fe_membrane.md) from the CSVs fe_airbag writes into doc/fe.
+
+usage: /usr/bin/python3 scripts/plot_fe.py [doc/fe]
+"""
+import csv
+import glob
+import os
+import sys
+
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+# Paper eq. 24 with x read as bar (specs/paper-targets.md point 7).
+EQ24 = [-4.603e5, 4.099e5, -1.349e5, 1.955e4, -9.741e2]
+
+
+def eq24_mm(p_pa):
+    x = p_pa * 1e-5
+    return sum(c * x ** (4 - i) for i, c in enumerate(EQ24))
+
+
+def rows(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def col(rs, key, scale=1.0):
+    return [float(r[key]) * scale for r in rs]
+
+
+def verification(d):
+    rs = rows(os.path.join(d, "verification.csv"))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    for shape, marker in (("sphere", "o"), ("tube", "s")):
+        sub = [r for r in rs if r["shape"] == shape and r["converged"] == "1"]
+        res = sorted({int(r["resolution"]) for r in sub})
+        finest = [r for r in sub if int(r["resolution"]) == res[-1]]
+        ax[0].plot(col(finest, "stretch"), col(finest, "p_exact_pa", 1e-3), "-", label=f"{shape}: closed form")
+        ax[0].plot(col(finest, "stretch"), col(finest, "p_fe_pa", 1e-3), marker, mfc="none", label=f"{shape}: FE ({finest[0]['elements']} tri)")
+        n = [int(next(r for r in sub if int(r["resolution"]) == k)["elements"]) for k in res]
+        err = [max(abs(float(r["rel_error"])) for r in sub if int(r["resolution"]) == k) * 100 for k in res]
+        ax[1].loglog(n, err, marker + "-", label=shape)
+    ax[0].set_xlabel("stretch [-]")
+    ax[0].set_ylabel("gauge pressure [kPa]")
+    ax[0].set_title("Yeoh balloon (R 50 mm) and tube (axial stretch 1), t 0.5 mm")
+    ax[0].legend(fontsize=8)
+    ax[1].axhline(1.0, color="k", lw=0.8, ls="--")
+    ax[1].set_xlabel("triangles")
+    ax[1].set_ylabel("max |p_FE / p_exact - 1| [%]")
+    ax[1].set_title("mesh convergence (1 % line dashed)")
+    ax[1].legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "verification.png"), dpi=110)
+
+
+def height_vs_pressure(d):
+    reduced = rows(os.path.join(d, "reduced_hp.csv"))
+    loads = sorted({float(r["load_n"]) for r in reduced})
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), sharey=False)
+    for ax, geom in zip(axes, ("pillows", "gusseted")):
+        for i, load in enumerate(loads):
+            color = f"C{i}"
+            path = os.path.join(d, f"hp_{geom}_n12_load_{load:g}N.csv")
+            if os.path.exists(path):
+                rs = [r for r in rows(path) if r["converged"] == "1"]
+                ax.plot(col(rs, "p_gauge_pa", 1e-3), col(rs, "h_m", 1e3), "o-", color=color, ms=3, label=f"FE {load:g} N")
+            red = [r for r in reduced if float(r["load_n"]) == load and r["converged"] == "1"]
+            ax.plot(col(red, "p_gauge_pa", 1e-3), col(red, "h_m", 1e3), "--", color=color, lw=1, label=f"reduced {load:g} N")
+        ps = [10e3 + i * 250 for i in range(73)]
+        ax.plot([p * 1e-3 for p in ps], [eq24_mm(p) for p in ps], "k-", lw=2, label="paper eq. 24 (x in bar), 10.4 N")
+        ax.axvspan(10, 22, color="grey", alpha=0.12, label="fig. 4 span 10-22 kPa")
+        ax.set_xlabel("gauge pressure [kPa]")
+        ax.set_ylabel("plate height [mm]")
+        ax.set_title(f"h(p): FE {geom} vs reduced model")
+        ax.set_ylim(0, 300 if geom == "gusseted" else 200)
+        ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "hp_compare.png"), dpi=110)
+
+
+def mesh_convergence(d):
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for path in sorted(glob.glob(os.path.join(d, "mesh_n*", "hp_pillows_n*_load_10.6N.csv"))):
+        n = path.split("_n")[-1].split("_")[0]
+        rs = [r for r in rows(path) if r["converged"] == "1"]
+        ax.plot(col(rs, "p_gauge_pa", 1e-3), col(rs, "h_m", 1e3), "o-", ms=3, label=f"{n} elements per side")
+    ax.set_xlabel("gauge pressure [kPa]")
+    ax.set_ylabel("plate height [mm]")
+    ax.set_title("FE pillows, 10.6 N: three meshes")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "mesh_convergence.png"), dpi=110)
+
+
+def transients(d):
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
+    for path in sorted(glob.glob(os.path.join(d, "transient_*_load_0.6N.csv"))):
+        rs = rows(path)
+        label = "FE " + os.path.basename(path).split("_")[1]
+        ax[0].plot(col(rs, "t_s"), col(rs, "h_m", 1e3), label=label)
+        ax[1].plot(col(rs, "t_s"), col(rs, "p_gauge_pa", 1e-3), label=label)
+    for path in sorted(glob.glob(os.path.join(d, "reduced_transient_load_0.6N_*.csv"))):
+        rs = rows(path)
+        ax[0].plot(col(rs, "t_s"), col(rs, "h_m", 1e3), "--", label="reduced model")
+        ax[1].plot(col(rs, "t_s"), col(rs, "p_gauge_pa", 1e-3), "--", label="reduced model")
+    ax[0].axhline(150, color="k", lw=0.8, ls=":", label="paper: ~150 mm at 5.5 s")
+    ax[0].set_ylabel("plate height [mm]")
+    ax[1].set_ylabel("gauge pressure [kPa]")
+    for a in ax:
+        a.set_xlabel("time [s]")
+        a.legend(fontsize=8)
+    ax[0].set_title("unloaded (0.6 N) inflation, paper-shaped inflow")
+    fig.tight_layout()
+    fig.savefig(os.path.join(d, "transient_unloaded.png"), dpi=110)
+
+
+def main():
+    d = sys.argv[1] if len(sys.argv) > 1 else "doc/fe"
+    for name, fn in (("verification", verification), ("h(p)", height_vs_pressure), ("mesh", mesh_convergence),
+                     ("transient", transients)):
+        try:
+            fn(d)
+            print("plotted", name)
+        except (OSError, StopIteration, IndexError, ValueError) as e:
+            print(f"skipped {name}: {e}")
+
+
+if __name__ == "__main__":
+    main()
+
+
+def pressure_dips(path, min_kpa=1.0, min_drop_kpa=0.2):
+    """Drops of the gauge pressure below its running maximum while air flows in: (t, h, drop)."""
+    rs = rows(path)
+    dips, run_max, start = [], 0.0, None
+    for r in rs:
+        p, t = float(r["p_gauge_pa"]) * 1e-3, float(r["t_s"])
+        if p >= run_max:
+            if start is not None and start[2] >= min_drop_kpa:
+                dips.append(start)
+            run_max, start = p, None
+        elif run_max >= min_kpa and float(r["inflow_kg_s"]) > 0:
+            drop = run_max - p
+            if start is None or drop > start[2]:
+                start = (t, float(r["h_m"]) * 1e3, drop, run_max)
+    if start is not None and start[2] >= min_drop_kpa:
+        dips.append(start)
+    return dips
