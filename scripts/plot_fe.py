@@ -148,3 +148,48 @@ def pressure_dips(path, min_kpa=1.0, min_drop_kpa=0.2):
     if start is not None and start[2] >= min_drop_kpa:
         dips.append(start)
     return dips
+
+
+def read_vtk_points(path):
+    """Node positions and triangles of a legacy VTK file written by fe_airbag."""
+    with open(path) as f:
+        lines = f.read().split("\n")
+    i = next(k for k, l in enumerate(lines) if l.startswith("POINTS"))
+    n = int(lines[i].split()[1])
+    pts = [tuple(map(float, lines[i + 1 + k].split())) for k in range(n)]
+    j = next(k for k, l in enumerate(lines) if l.startswith("POLYGONS"))
+    m = int(lines[j].split()[1])
+    tris = [tuple(map(int, lines[j + 1 + k].split()[1:])) for k in range(m)]
+    return pts, [t for t in tris if len(t) == 3]
+
+
+def section(pts, tris, y0):
+    """Segments where the plane y = y0 cuts the triangles: [(x1, z1, x2, z2)]."""
+    segs = []
+    for t in tris:
+        cut = []
+        for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):
+            pa, pb = pts[a], pts[b]
+            if (pa[1] - y0) * (pb[1] - y0) < 0:
+                s = (y0 - pa[1]) / (pb[1] - pa[1])
+                cut.append((pa[0] + s * (pb[0] - pa[0]), pa[2] + s * (pb[2] - pa[2])))
+        if len(cut) == 2:
+            segs.append((cut[0][0], cut[0][1], cut[1][0], cut[1][1]))
+    return segs
+
+
+def profiles(files, out, title):
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for i, path in enumerate(files):
+        pts, tris = read_vtk_points(path)
+        label = os.path.basename(path).split("_p")[-1].replace("hPa.vtk", "")
+        for k, (x1, z1, x2, z2) in enumerate(section(pts, tris, 0.0501)):
+            ax.plot([x1 * 1e3, x2 * 1e3], [z1 * 1e3, z2 * 1e3], color=f"C{i}", lw=1.2,
+                    label=f"{float(label) / 10:.1f} kPa" if k == 0 else None)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)

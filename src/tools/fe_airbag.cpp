@@ -1,11 +1,12 @@
 // fe_airbag: the FE membrane model of one airbag (issue #13, doc/fe_membrane.md).
 //   fe_airbag verify    [--out DIR]                       sphere and tube against closed forms
-//   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT]
+//   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT] [--vtk-all 1]
 //   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
 //   fe_airbag table     [--geometry G] [--elements N] [--table FILE] [--heights-mm LO,HI,COUNT]
 //   fe_airbag reduced   [--inflow-mass-kg M] [--load L]          today's reduced model on the same axes
 //   fe_airbag check     --table FILE [--geometry G] [--elements N]   cell on the table vs the FE h(p) CSVs
-// G is pillows (two flat square pillows joined in the middle) or gusseted. Writes CSV, VTK
+// G is pillows (two flat square pillows joined in the middle) or gusseted (--gusset-mm H
+// overrides the 79 mm gusset height). Writes CSV, VTK
 // (ParaView) and YAML into --out (default doc/fe); prints progress, wall time and memory.
 // --threads T (default 1: OpenMP threads; use 2 on an idle two-core machine).
 #include <sys/resource.h>
@@ -41,6 +42,8 @@ struct Args {
   std::vector<double> loads{0.6, 10.6, 15.6, 20.6};
   double damping = 1000.0, p_lo_kpa = 1.0, p_hi_kpa = 30.0, tolerance = 1e-4, inflow_mass_kg = 0.0, load = 0.6;
   int p_count = 24;
+  bool vtk_all = false;
+  double gusset_mm = -1.0;
   double h_lo_mm = 10.0, h_hi_mm = 130.0;
   int h_count = 13;
 };
@@ -67,6 +70,8 @@ Args parse(int argc, char** argv) {
     else if (k == "--loads") a.loads = numbers(v);
     else if (k == "--load") a.load = std::stod(v);
     else if (k == "--tolerance") a.tolerance = std::stod(v);
+    else if (k == "--vtk-all") a.vtk_all = v == "1";
+    else if (k == "--gusset-mm") a.gusset_mm = std::stod(v);
     else if (k == "--damping") a.damping = std::stod(v);
     else if (k == "--inflow-mass-kg") a.inflow_mass_kg = std::stod(v);
     else if (k == "--pressures-kpa") {
@@ -87,13 +92,17 @@ fe::AirbagFeOptions bagOptions(const Args& a) {
   fe::AirbagFeOptions o;
   o.geometry = a.geometry == "pillows" ? fe::AirbagGeometry::flatPillows() : fe::AirbagGeometry::gusseted();
   o.geometry.elements_per_side = a.elements;
+  if (a.gusset_mm >= 0.0) o.geometry.gusset_height_m = 1e-3 * a.gusset_mm;
   o.relax.tolerance = a.tolerance;
   o.membrane.threads = a.threads;
   o.relax.damping_per_s = a.damping;
   return o;
 }
 
-std::string tag(const Args& a) { return a.geometry + "_n" + std::to_string(a.elements); }
+std::string tag(const Args& a) {
+  const std::string g = a.gusset_mm >= 0.0 ? "_g" + std::to_string(static_cast<int>(a.gusset_mm)) : "";
+  return a.geometry + g + "_n" + std::to_string(a.elements);
+}
 
 double peakMemoryMb() {
   rusage u{};
@@ -145,8 +154,9 @@ void heightVsPressure(const Args& a) {
       std::printf("  load %.1f N  p %5.1f kPa  h %6.1f mm  %s (%d it)\n", load, p.gauge_pressure_pa / 1e3, p.height_m * 1e3,
                   p.converged ? "ok" : p.message.c_str(), p.iterations);
       std::fflush(stdout);
-      if (++k == static_cast<int>(pressures.size()) || k == static_cast<int>(pressures.size()) / 2) {
-        fe::writeVtk(name.str() + "_p" + std::to_string(static_cast<int>(p.gauge_pressure_pa / 1e3)) + "kPa.vtk", bag.model(),
+      ++k;
+      if (a.vtk_all || k == static_cast<int>(pressures.size()) || k == static_cast<int>(pressures.size()) / 2) {
+        fe::writeVtk(name.str() + "_p" + std::to_string(static_cast<int>(std::lround(p.gauge_pressure_pa / 100.0))) + "hPa.vtk", bag.model(),
                      "FE airbag " + tag(a));
       }
     });

@@ -79,24 +79,23 @@ QuasiStaticPoint AirbagFe::solve(double gauge_pressure_pa) {
   return p;
 }
 
-QuasiStaticPoint AirbagFe::solveLoaded(double gauge_pressure_pa, double load_n) {
-  if (!(load_n > 0.0) || !std::isfinite(gauge_pressure_pa)) {
-    throw std::invalid_argument("AirbagFe::solveLoaded: load_n must be positive and the pressure finite");
+QuasiStaticPoint AirbagFe::solveWithPlate(PlateState::Mode mode, double value, double gauge_pressure_pa) {
+  if (!(value > 0.0) || !std::isfinite(gauge_pressure_pa)) {
+    throw std::invalid_argument(std::string("AirbagFe: ") + (mode == PlateState::Mode::kLoaded ? "load_n" : "height_m") +
+                                " must be positive and the pressure finite");
   }
   PlateState& plate = model_->plate();
-  plate.mode = PlateState::Mode::kLoaded;
-  plate.load_n = load_n;
+  plate.mode = mode;
+  (mode == PlateState::Mode::kLoaded ? plate.load_n : plate.height_m) = value;
   return solve(gauge_pressure_pa);
 }
 
+QuasiStaticPoint AirbagFe::solveLoaded(double gauge_pressure_pa, double load_n) {
+  return solveWithPlate(PlateState::Mode::kLoaded, load_n, gauge_pressure_pa);
+}
+
 QuasiStaticPoint AirbagFe::solveAtHeight(double height_m, double gauge_pressure_pa) {
-  if (!(height_m > 0.0) || !std::isfinite(gauge_pressure_pa)) {
-    throw std::invalid_argument("AirbagFe::solveAtHeight: height_m must be positive and the pressure finite");
-  }
-  PlateState& plate = model_->plate();
-  plate.mode = PlateState::Mode::kFixed;
-  plate.height_m = height_m;
-  return solve(gauge_pressure_pa);
+  return solveWithPlate(PlateState::Mode::kFixed, height_m, gauge_pressure_pa);
 }
 
 std::vector<QuasiStaticPoint> heightVsPressure(AirbagFe* bag, double load_n, const std::vector<double>& pressures_pa,

@@ -1,6 +1,7 @@
 // The FE airbag on a coarse mesh: geometry, a loaded quasi-static state, failure reporting.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <map>
 #include <stdexcept>
 
@@ -81,21 +82,19 @@ TEST(FeAirbag, BadGeometryIsRefusedByName) {
       EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
     }
   };
-  AirbagGeometry g = coarse().geometry;
-  g.face_side_m = -0.1;
-  refused(g, "face_side_m");
-  g = coarse().geometry;
-  g.film_thickness_m = 0.02;
-  refused(g, "film_thickness_m");
-  g = coarse().geometry;
-  g.connection_side_m = 0.099;
-  refused(g, "connection_side_m");
-  g = coarse().geometry;
-  g.elements_per_side = 7;
-  refused(g, "elements_per_side");
-  g = coarse().geometry;
-  g.chambers = 0;
-  refused(g, "chambers");
+  const std::vector<std::pair<std::string, std::function<void(AirbagGeometry&)>>> cases = {
+      {"face_side_m", [](AirbagGeometry& g) { g.face_side_m = -0.1; }},
+      {"film_thickness_m", [](AirbagGeometry& g) { g.film_thickness_m = 0.02; }},
+      {"connection_side_m", [](AirbagGeometry& g) { g.connection_side_m = 0.099; }},
+      {"elements_per_side", [](AirbagGeometry& g) { g.elements_per_side = 7; }},
+      {"chambers", [](AirbagGeometry& g) { g.chambers = 0; }},
+      {"gusset_height_m", [](AirbagGeometry& g) { g.gusset_height_m = 0.5; }},
+  };
+  for (const auto& [field, spoil] : cases) {
+    AirbagGeometry g = coarse().geometry;
+    spoil(g);
+    refused(g, field);
+  }
   AirbagFeOptions o = coarse();
   o.material.yeoh.c10_pa = 0.0;
   EXPECT_THROW(AirbagFe{o}, std::invalid_argument);

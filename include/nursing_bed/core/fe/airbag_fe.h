@@ -71,6 +71,7 @@ class AirbagFe {
 
  private:
   QuasiStaticPoint solve(double gauge_pressure_pa);
+  QuasiStaticPoint solveWithPlate(PlateState::Mode mode, double load_or_height, double gauge_pressure_pa);
   AirbagFeOptions options_;
   std::unique_ptr<MembraneModel> model_;
   std::vector<int> rim_nodes_;   // welded rim of the lowest chamber, mid-edge
