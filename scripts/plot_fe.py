@@ -96,9 +96,10 @@ def mesh_convergence(d):
 
 def transients(d):
     fig, ax = plt.subplots(1, 2, figsize=(12, 4.4))
-    for path in sorted(glob.glob(os.path.join(d, "transient_*_load_0.6N.csv"))):
+    for path in sorted(glob.glob(os.path.join(d, "transient_*_load_*N.csv"))):
         rs = rows(path)
-        label = "FE " + os.path.basename(path).split("_")[1]
+        parts = os.path.basename(path)[:-4].split("_")
+        label = f"FE {parts[1]} {parts[-1]}"
         ax[0].plot(col(rs, "t_s"), col(rs, "h_m", 1e3), label=label)
         ax[1].plot(col(rs, "t_s"), col(rs, "p_gauge_pa", 1e-3), label=label)
     for path in sorted(glob.glob(os.path.join(d, "reduced_transient_load_0.6N_*.csv"))):
@@ -111,7 +112,7 @@ def transients(d):
     for a in ax:
         a.set_xlabel("time [s]")
         a.legend(fontsize=8)
-    ax[0].set_title("unloaded (0.6 N) inflation, paper-shaped inflow")
+    ax[0].set_title("inflation with the paper-shaped inflow (reduced: unloaded)")
     fig.tight_layout()
     fig.savefig(os.path.join(d, "transient_unloaded.png"), dpi=110)
 
