@@ -44,8 +44,8 @@ struct AirbagGeometry {
 /**
  * Builds the closed bag. Each face is a grid panel whose rest shape is its flat pattern. Flat
  * pillows: the rims of a chamber's two faces are shared nodes (the weld); the faces start a
- * layer gap apart (a ramp over the outer cells, film strain < 1 %) so that the layers do not
- * start in contact. Gusseted chambers start as erected boxes (stress-free: a box of flat
+ * layer gap apart (a ramp over the outer two cells, <= 2 % strain there at the start; the
+ * rest shapes stay flat) so that the layers do not start in contact. Gusseted chambers start as erected boxes (stress-free: a box of flat
  * panels is isometric to its net). Neighbouring chambers share the connection patch: one set
  * of triangles of double thickness, gas on both sides (not pressurised, outside eq. 11).
  * Throws std::invalid_argument (naming the field) for a bad geometry.
