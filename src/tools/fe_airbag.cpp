@@ -3,6 +3,7 @@
 //   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT] [--vtk-all 1]
 //   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
 //   fe_airbag table     [--geometry G] [--elements N] [--table FILE] [--heights-mm LO,HI,COUNT]
+//                       [--branch inflation|flat]
 //   fe_airbag reduced   [--inflow-mass-kg M] [--load L]          today's reduced model on the same axes
 //   fe_airbag check     --table FILE [--geometry G] [--elements N]   cell on the table vs the FE h(p) CSVs
 // G is pillows (two flat square pillows joined in the middle) or gusseted (--gusset-mm H
@@ -11,6 +12,7 @@
 // --threads T (default 1: OpenMP threads; use 2 on an idle two-core machine).
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -36,7 +38,7 @@ namespace fe = nursing_bed::fe;
 namespace {
 
 struct Args {
-  std::string mode, geometry = "pillows", out = "doc/fe", table;
+  std::string mode, geometry = "pillows", out = "doc/fe", table, branch = "inflation";
   int elements = 12;
   int threads = 1;
   std::vector<double> loads{0.6, 10.6, 15.6, 20.6};
@@ -65,6 +67,7 @@ Args parse(int argc, char** argv) {
     if (k == "--geometry") a.geometry = v;
     else if (k == "--out") a.out = v;
     else if (k == "--table") a.table = v;
+    else if (k == "--branch") a.branch = v;
     else if (k == "--elements") a.elements = std::stoi(v);
     else if (k == "--threads") a.threads = std::stoi(v);
     else if (k == "--loads") a.loads = numbers(v);
@@ -85,6 +88,7 @@ Args parse(int argc, char** argv) {
     } else throw std::invalid_argument("unknown option " + k);
   }
   if (a.geometry != "pillows" && a.geometry != "gusseted") throw std::invalid_argument("--geometry: pillows or gusseted");
+  if (a.branch != "inflation" && a.branch != "flat") throw std::invalid_argument("--branch: inflation or flat");
   return a;
 }
 
@@ -290,19 +294,55 @@ void reduced(const Args& a) {
   }
 }
 
+// States of the inflation branch (the h(p) procedure: loaded plate, pressure raised step by
+// step from the flat bag) for a spread of loads, per pressure: (plate height, film positions).
+using BranchStates = std::vector<std::vector<std::pair<double, Eigen::Matrix3Xd>>>;
+
+BranchStates inflationBranch(fe::AirbagFe* bag, const std::vector<double>& pressures) {
+  BranchStates states(pressures.size());
+  for (double load : {0.6, 3.0, 6.0, 10.6, 15.6, 20.6, 30.0, 45.0}) {
+    bag->reset();
+    for (std::size_t j = 0; j < pressures.size(); ++j) {
+      const fe::QuasiStaticPoint q = bag->solveLoaded(pressures[j], load);
+      if (q.converged) states[j].emplace_back(q.height_m, bag->model().positions());
+    }
+    std::printf("  inflation branch under %.1f N done\n", load);
+    std::fflush(stdout);
+  }
+  return states;
+}
+
+// Table rows: the plate held at each height. "inflation" starts each state from the nearest
+// inflation-branch state at that pressure (so the table lies on the branch the h(p) curves
+// follow through the snaps); "flat" inflates each row from the flat bag.
 void table(const Args& a) {
   fe::AirbagFe bag(bagOptions(a));
   fe::StructureTable t;
-  t.description = bag.options().geometry.describe();
+  t.description = bag.options().geometry.describe() + ", " + a.branch + " branch";
   for (int i = 0; i < a.h_count; ++i) t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
   for (int i = 0; i < a.p_count; ++i) t.pressures_pa.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
   int unconverged = 0;
   const auto start = std::chrono::steady_clock::now();
+  const BranchStates branch = a.branch == "inflation" ? inflationBranch(&bag, t.pressures_pa) : BranchStates{};
   for (double h : t.heights_m) {
     bag.reset();
     std::vector<double> v, force;
-    for (double p : t.pressures_pa) {
-      const fe::QuasiStaticPoint q = bag.solveAtHeight(h, p);
+    for (std::size_t j = 0; j < t.pressures_pa.size(); ++j) {
+      const double p = t.pressures_pa[j];
+      if (!branch.empty() && !branch[j].empty()) {
+        const auto nearest = std::min_element(branch[j].begin(), branch[j].end(), [h](const auto& x, const auto& y) {
+          return std::abs(x.first - h) < std::abs(y.first - h);
+        });
+        // Only a nearby branch state: lowering the plate far onto an inflated bag crushes it.
+        if (std::abs(nearest->first - h) <= 2.0 * bag.options().geometry.elementSize()) {
+          bag.model().setPositions(nearest->second);
+        }
+      }
+      fe::QuasiStaticPoint q = bag.solveAtHeight(h, p);
+      if (!bag.model().positions().allFinite()) {  // diverged from the start it was given: from flat
+        bag.reset();
+        q = bag.solveAtHeight(h, p);
+      }
       if (!q.converged) {
         std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
         ++unconverged;
