@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Figures of the FE airbag (doc/fe_membrane.md) from the CSVs fe_airbag writes into doc/fe.
 
-usage: /usr/bin/python3 scripts/plot_fe.py [doc/fe]
+usage: /usr/bin/python3 scripts/plot_fe.py [doc/fe] [--profiles DIR]
+  --profiles DIR: mid-plane sections from the VTKs of
+      fe_airbag hp --loads 10.6 --pressures-kpa 1,30,20 --vtk-all 1 --out DIR
 """
 import csv
 import glob
@@ -118,7 +120,17 @@ def transients(d):
 
 
 def main():
-    d = sys.argv[1] if len(sys.argv) > 1 else "doc/fe"
+    args = sys.argv[1:]
+    if "--profiles" in args:
+        i = args.index("--profiles")
+        src = args[i + 1]
+        del args[i:i + 2]
+        d = args[0] if args else "doc/fe"
+        base = os.path.join(src, "hp_pillows_n12_load_10.6N_p")
+        profiles([base + k + "hPa.vtk" for k in ("56", "86", "102", "208")],
+                 os.path.join(d, "profiles_pillows_10.6N.png"), "FE pillows under 10.6 N: mid-plane sections (y = 50 mm)")
+        print("plotted profiles")
+    d = args[0] if args else "doc/fe"
     for name, fn in (("verification", verification), ("h(p)", height_vs_pressure), ("mesh", mesh_convergence),
                      ("transient", transients)):
         try:
@@ -126,10 +138,11 @@ def main():
             print("plotted", name)
         except (OSError, StopIteration, IndexError, ValueError) as e:
             print(f"skipped {name}: {e}")
+    for path in sorted(glob.glob(os.path.join(d, "transient_*N.csv"))):
+        for t, h, drop, peak in pressure_dips(path):
+            print(f"{os.path.basename(path)}: pressure dip {drop:.2f} kPa from {peak:.2f} kPa at {t:.2f} s, h {h:.1f} mm")
 
 
-if __name__ == "__main__":
-    main()
 
 
 def pressure_dips(path, min_kpa=1.0, min_drop_kpa=0.2):
@@ -194,3 +207,7 @@ def profiles(files, out, title):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
+
+
+if __name__ == "__main__":
+    main()
