@@ -1,4 +1,5 @@
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/tabulated_structure.h"
 
 #include <algorithm>
 #include <cmath>
@@ -34,6 +35,11 @@ std::string CellParams::validate() const {
   positive("supply_temperature_k", supply_temperature_k);
   const std::string structure_error = structure.validate();
   if (!structure_error.empty()) err << structure_error << "; ";
+  if (structure_type != "pillow" && structure_type != "table") {
+    err << "structure_type must be 'pillow' or 'table', got '" << structure_type << "'; ";
+  } else if (structure_type == "table" && structure_table_file.empty()) {
+    err << "structure_table_file must be set when structure_type is 'table'; ";
+  }
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
   positive("bed_contact_stiffness_n_m", bed_contact_stiffness_n_m);
@@ -58,6 +64,10 @@ CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructu
     : params_(params), structure_(std::move(structure)) {
   const std::string error = params_.validate();
   if (!error.empty()) throw std::invalid_argument("cell parameters: " + error);
+  if (!structure_ && params_.structure_type == "table") {
+    structure_ = std::make_shared<TabulatedStructure>(TabulatedStructure::load(params_.structure_table_file),
+                                                      params_.structure.film_relaxation_time_s);
+  }
   if (!structure_) structure_ = std::make_shared<PillowStructure>(params_.structure);
   shape_dofs_ = structure_->shapeDofs();
   reset();

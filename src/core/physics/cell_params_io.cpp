@@ -1,6 +1,7 @@
 #include "nursing_bed/core/physics/cell_params_io.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <map>
@@ -57,7 +58,9 @@ const ParamTable<CellParams>& cellParamFields() {
 CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& source,
                                const CellParams& defaults) {
   CellParams params = defaults;
-  applyFlatParams(flattenYamlText(yaml_text, source), source, cellParamFields(), &params);
+  FlatParams flat = flattenYamlText(yaml_text, source);
+  applyStructureSelection(&flat, "", &params);
+  applyFlatParams(flat, source, cellParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(source + ": invalid parameters: " + error);
   return params;
@@ -65,10 +68,28 @@ CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& 
 
 CellParams loadCellParamsYaml(const std::string& path, const CellParams& defaults) {
   CellParams params = defaults;
-  applyFlatParams(flattenYamlFile(path), path, cellParamFields(), &params);
+  FlatParams flat = flattenYamlFile(path);
+  applyStructureSelection(&flat, std::filesystem::path(path).parent_path().string(), &params);
+  applyFlatParams(flat, path, cellParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(path + ": invalid parameters: " + error);
   return params;
+}
+
+void applyStructureSelection(FlatParams* flat, const std::string& base_dir, CellParams* params,
+                             const std::string& prefix) {
+  const auto type = flat->find(prefix + "structure/type");
+  if (type != flat->end()) {
+    params->structure_type = type->second.text;
+    flat->erase(type);
+  }
+  const auto file = flat->find(prefix + "structure/table_file");
+  if (file != flat->end()) {
+    const std::filesystem::path path(file->second.text);
+    params->structure_table_file =
+        path.is_relative() && !base_dir.empty() ? (std::filesystem::path(base_dir) / path).string() : path.string();
+    flat->erase(file);
+  }
 }
 
 std::string cellParamsToYaml(const CellParams& params) { return paramsToYaml(params, cellParamFields()); }

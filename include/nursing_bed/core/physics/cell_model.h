@@ -25,6 +25,11 @@ struct CellParams {
   double supply_temperature_k = kRoomTemperatureK;   ///< temperature of the supplied air
 
   PillowParams structure;                             ///< geometry and film
+  /// Structure model: "pillow" (PillowStructure from `structure`) or "table" (a
+  /// TabulatedStructure read from structure_table_file, e.g. written by fe_airbag; the film
+  /// shape then relaxes in structure.film_relaxation_time_s).
+  std::string structure_type = "pillow";
+  std::string structure_table_file;                   ///< table path (YAML keys structure/type, structure/table_file)
 
   double plate_mass_kg = 0.6 / kGravity;              ///< loading plate (0.6 N, paper section 2.2)
   double plate_damping_n_s_m = 20.0;                  ///< viscous damping of the plate guide

@@ -28,6 +28,17 @@ CellParams loadCellParamsYaml(const std::string& path, const CellParams& default
 CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& source,
                                const CellParams& defaults = CellParams{});
 
+/**
+ * The two text keys that select the structure (CellParams::structure_type, structure_table_file),
+ * taken out of `flat` before the numeric table is applied:
+ *   structure/type: pillow | table    which CellStructure the cell runs on (default pillow)
+ *   structure/table_file: <path>      FE structure table (fe_airbag --mode table); a relative
+ *                                     path is taken from `base_dir` (the YAML's folder)
+ * The YAML loaders here call it; `prefix` serves nested tables (e.g. "cell/").
+ */
+void applyStructureSelection(FlatParams* flat, const std::string& base_dir, CellParams* params,
+                             const std::string& prefix = "");
+
 /// The parameters as YAML (every key, one comment each).
 std::string cellParamsToYaml(const CellParams& params);
 

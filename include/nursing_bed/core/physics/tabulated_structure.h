@@ -1,0 +1,57 @@
+// A CellStructure from a table of gas volume and plate force over plate height and gauge
+// pressure, computed by the FE membrane model (fe_airbag --mode table; doc/fe_membrane.md).
+// Physics reads the file only: it does not depend on the FE code.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/physics/cell_structure.h"
+
+namespace nursing_bed {
+
+struct StructureTableData {
+  std::string description;
+  std::vector<double> heights_m;                    ///< strictly increasing, > 0
+  std::vector<double> pressures_pa;                 ///< strictly increasing, > 0
+  std::vector<std::vector<double>> volume_m3;       ///< [height][pressure], > 0
+  std::vector<std::vector<double>> plate_force_n;   ///< [height][pressure]
+
+  /// Empty when consistent, else what is wrong (names the field).
+  std::string validate() const;
+};
+
+/**
+ * One shape coordinate q: the gauge pressure the film is relaxed to, in units of 10 kPa. evaluate(h, q) gives
+ * V(h, q) and A_eff = F(h, q) / q by bilinear interpolation (the plate force of the FE bag
+ * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
+ * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
+ * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row is
+ * used for A_eff and V is extended linearly; above the highest height the cell is outside its
+ * limits (withinLimits false).
+ */
+class TabulatedStructure : public CellStructure {
+ public:
+  /// Throws std::invalid_argument naming the field when the table is inconsistent.
+  TabulatedStructure(StructureTableData table, double film_relaxation_time_s = 2.0e-3);
+  /// Reads the YAML table; throws std::runtime_error naming the file and the key.
+  static StructureTableData load(const std::string& path);
+
+  int shapeDofs() const override { return 1; }
+  std::array<double, kMaxShapeDofs> restShape() const override;
+  StructureEval evaluate(double height_m, const double* shape) const override;
+  double heightLimit(const double* shape) const override;
+  bool withinLimits(double height_m, const double* shape) const override;
+  std::string describe() const override;
+
+  const StructureTableData& table() const { return table_; }
+
+ private:
+  /// Bilinear value of grid g at (h, p), h and p clamped to the table.
+  double interpolate(const std::vector<std::vector<double>>& g, double h, double p) const;
+
+  StructureTableData table_;
+  double relaxation_time_s_;
+};
+
+}  // namespace nursing_bed

@@ -1,0 +1,129 @@
+#include "nursing_bed/core/physics/tabulated_structure.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace nursing_bed {
+namespace {
+
+bool increasingPositive(const std::vector<double>& v) {
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!(v[i] > 0.0) || !std::isfinite(v[i]) || (i > 0 && !(v[i] > v[i - 1]))) return false;
+  }
+  return v.size() >= 2;
+}
+
+std::string gridError(const std::vector<std::vector<double>>& g, std::size_t rows, std::size_t cols, bool positive) {
+  if (g.size() != rows) return "needs one row per height";
+  for (const auto& row : g) {
+    if (row.size() != cols) return "needs one column per pressure";
+    for (double x : row) {
+      if (!std::isfinite(x) || (positive && !(x > 0.0))) return positive ? "values must be positive" : "values must be finite";
+    }
+  }
+  return "";
+}
+
+// Index i with axis[i] <= x < axis[i+1] (clamped) and the fraction within.
+std::pair<std::size_t, double> locate(const std::vector<double>& axis, double x) {
+  x = std::clamp(x, axis.front(), axis.back());
+  std::size_t i = std::upper_bound(axis.begin(), axis.end(), x) - axis.begin();
+  i = std::min(std::max<std::size_t>(i, 1), axis.size() - 1) - 1;
+  return {i, (x - axis[i]) / (axis[i + 1] - axis[i])};
+}
+
+// The shape coordinate is the film's relaxed pressure in units of 10 kPa (an O(1) coordinate,
+// as CellStructure's solvers expect).
+constexpr double kShapeUnitPa = 1.0e4;
+
+}  // namespace
+
+std::string StructureTableData::validate() const {
+  if (!increasingPositive(heights_m)) return "heights_m must have >= 2 positive, strictly increasing values";
+  if (!increasingPositive(pressures_pa)) return "pressures_pa must have >= 2 positive, strictly increasing values";
+  std::string e = gridError(volume_m3, heights_m.size(), pressures_pa.size(), true);
+  if (!e.empty()) return "volume_m3 " + e;
+  e = gridError(plate_force_n, heights_m.size(), pressures_pa.size(), false);
+  if (!e.empty()) return "plate_force_n " + e;
+  return "";
+}
+
+TabulatedStructure::TabulatedStructure(StructureTableData table, double film_relaxation_time_s)
+    : table_(std::move(table)), relaxation_time_s_(film_relaxation_time_s) {
+  const std::string e = table_.validate();
+  if (!e.empty()) throw std::invalid_argument("TabulatedStructure: " + e);
+  if (!(relaxation_time_s_ > 0.0)) throw std::invalid_argument("TabulatedStructure: film_relaxation_time_s must be positive");
+}
+
+StructureTableData TabulatedStructure::load(const std::string& path) {
+  StructureTableData t;
+  try {
+    const YAML::Node root = YAML::LoadFile(path);
+    for (const char* key : {"heights_m", "pressures_pa", "volume_m3", "plate_force_n"}) {
+      if (!root[key]) throw std::runtime_error(std::string("missing key '") + key + "'");
+    }
+    if (root["description"]) t.description = root["description"].as<std::string>();
+    t.heights_m = root["heights_m"].as<std::vector<double>>();
+    t.pressures_pa = root["pressures_pa"].as<std::vector<double>>();
+    t.volume_m3 = root["volume_m3"].as<std::vector<std::vector<double>>>();
+    t.plate_force_n = root["plate_force_n"].as<std::vector<std::vector<double>>>();
+  } catch (const std::exception& e) {
+    throw std::runtime_error("structure table " + path + ": " + e.what());
+  }
+  const std::string e = t.validate();
+  if (!e.empty()) throw std::runtime_error("structure table " + path + ": " + e);
+  return t;
+}
+
+double TabulatedStructure::interpolate(const std::vector<std::vector<double>>& g, double h, double p) const {
+  const auto [i, a] = locate(table_.heights_m, h);
+  const auto [j, b] = locate(table_.pressures_pa, p);
+  return (1 - a) * ((1 - b) * g[i][j] + b * g[i][j + 1]) + a * ((1 - b) * g[i + 1][j] + b * g[i + 1][j + 1]);
+}
+
+std::array<double, kMaxShapeDofs> TabulatedStructure::restShape() const {
+  return {table_.pressures_pa.front() / kShapeUnitPa};
+}
+
+StructureEval TabulatedStructure::evaluate(double height_m, const double* shape) const {
+  StructureEval e;
+  const double q = std::clamp(shape[0] * kShapeUnitPa, table_.pressures_pa.front(), table_.pressures_pa.back());
+  const double h0 = table_.heights_m.front();
+  e.effective_area_m2 = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
+  // Volume: the table, extended below its lowest height along the lowest row's area.
+  e.volume_m3 = interpolate(table_.volume_m3, height_m, q);
+  if (height_m < h0) e.volume_m3 = std::max(1e-9, e.volume_m3 - (h0 - height_m) * e.effective_area_m2);
+  // dV/dq from the bracketing pressure columns (floored: q must keep relaxing to p).
+  const auto [j, b] = locate(table_.pressures_pa, q);
+  (void)b;
+  const double dp = table_.pressures_pa[j + 1] - table_.pressures_pa[j];
+  const double dvdq = (interpolate(table_.volume_m3, height_m, table_.pressures_pa[j + 1]) -
+                       interpolate(table_.volume_m3, height_m, table_.pressures_pa[j])) / dp;
+  const double dvdp = std::max(dvdq, 1e-3 * e.volume_m3 / table_.pressures_pa.back());
+  e.dvolume_dshape[0] = dvdp * kShapeUnitPa;
+  e.elastic_force[0] = shape[0] * kShapeUnitPa * e.dvolume_dshape[0];  // balance at q = p
+  // dq/dt = (p - q) dV/dq / damping: q follows p with the film's relaxation time.
+  e.shape_damping[0] = relaxation_time_s_ * e.dvolume_dshape[0] * kShapeUnitPa;
+  e.contact_area_m2 = e.effective_area_m2;
+  e.surface_area_m2 = 4.0 * e.volume_m3 / std::max(height_m, h0);  // rough: for heat exchange only
+  return e;
+}
+
+double TabulatedStructure::heightLimit(const double* /*shape*/) const { return table_.heights_m.back(); }
+
+bool TabulatedStructure::withinLimits(double height_m, const double* /*shape*/) const {
+  return height_m <= table_.heights_m.back() * (1.0 + 1e-9);
+}
+
+std::string TabulatedStructure::describe() const {
+  std::ostringstream s;
+  s << "FE table (" << table_.heights_m.size() << " heights x " << table_.pressures_pa.size() << " pressures): "
+    << table_.description;
+  return s.str();
+}
+
+}  // namespace nursing_bed

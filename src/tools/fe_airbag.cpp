@@ -1,0 +1,382 @@
+// fe_airbag: the FE membrane model of one airbag (issue #13, doc/fe_membrane.md).
+//   fe_airbag verify    [--out DIR]                       sphere and tube against closed forms
+//   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT] [--vtk-all 1]
+//   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
+//   fe_airbag table     [--geometry G] [--elements N] [--table FILE] [--heights-mm LO,HI,COUNT]
+//                       [--branch inflation|flat]
+//   fe_airbag reduced   [--inflow-mass-kg M] [--load L]          today's reduced model on the same axes
+//   fe_airbag check     --table FILE [--geometry G] [--elements N]   cell on the table vs the FE h(p) CSVs
+// G is pillows (two flat square pillows joined in the middle) or gusseted (--gusset-mm H
+// overrides the 79 mm gusset height). Writes CSV, VTK
+// (ParaView) and YAML into --out (default doc/fe); prints progress, wall time and memory.
+// --threads T (default 1: OpenMP threads; use 2 on an idle two-core machine).
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/fe/airbag_fe.h"
+#include "nursing_bed/core/fe/fe_output.h"
+#include "nursing_bed/core/fe/verification.h"
+#include "nursing_bed/core/physics/paper_experiment.h"
+#include "nursing_bed/core/physics/pillow_structure.h"
+#include "nursing_bed/core/physics/tabulated_structure.h"
+#include "nursing_bed/core/physics/units.h"
+
+namespace nb = nursing_bed;
+namespace fe = nursing_bed::fe;
+
+namespace {
+
+struct Args {
+  std::string mode, geometry = "pillows", out = "doc/fe", table, branch = "inflation";
+  int elements = 12;
+  int threads = 1;
+  std::vector<double> loads{0.6, 10.6, 15.6, 20.6};
+  double damping = 1000.0, p_lo_kpa = 1.0, p_hi_kpa = 30.0, tolerance = 1e-4, inflow_mass_kg = 0.0, load = 0.6;
+  int p_count = 24;
+  bool vtk_all = false;
+  double gusset_mm = -1.0;
+  double h_lo_mm = 10.0, h_hi_mm = 130.0;
+  int h_count = 13;
+};
+
+std::vector<double> numbers(const std::string& s) {
+  std::vector<double> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) v.push_back(std::stod(item));
+  return v;
+}
+
+Args parse(int argc, char** argv) {
+  Args a;
+  if (argc < 2) throw std::invalid_argument("usage: fe_airbag verify|hp|transient|table [options]");
+  a.mode = argv[1];
+  for (int i = 2; i + 1 < argc; i += 2) {
+    const std::string k = argv[i], v = argv[i + 1];
+    if (k == "--geometry") a.geometry = v;
+    else if (k == "--out") a.out = v;
+    else if (k == "--table") a.table = v;
+    else if (k == "--branch") a.branch = v;
+    else if (k == "--elements") a.elements = std::stoi(v);
+    else if (k == "--threads") a.threads = std::stoi(v);
+    else if (k == "--loads") a.loads = numbers(v);
+    else if (k == "--load") a.load = std::stod(v);
+    else if (k == "--tolerance") a.tolerance = std::stod(v);
+    else if (k == "--vtk-all") a.vtk_all = v == "1";
+    else if (k == "--gusset-mm") a.gusset_mm = std::stod(v);
+    else if (k == "--damping") a.damping = std::stod(v);
+    else if (k == "--inflow-mass-kg") a.inflow_mass_kg = std::stod(v);
+    else if (k == "--pressures-kpa") {
+      const auto p = numbers(v);
+      if (p.size() != 3) throw std::invalid_argument("--pressures-kpa needs LO,HI,COUNT");
+      a.p_lo_kpa = p[0], a.p_hi_kpa = p[1], a.p_count = static_cast<int>(p[2]);
+    } else if (k == "--heights-mm") {
+      const auto h = numbers(v);
+      if (h.size() != 3) throw std::invalid_argument("--heights-mm needs LO,HI,COUNT");
+      a.h_lo_mm = h[0], a.h_hi_mm = h[1], a.h_count = static_cast<int>(h[2]);
+    } else throw std::invalid_argument("unknown option " + k);
+  }
+  if (a.geometry != "pillows" && a.geometry != "gusseted") throw std::invalid_argument("--geometry: pillows or gusseted");
+  if (a.branch != "inflation" && a.branch != "flat") throw std::invalid_argument("--branch: inflation or flat");
+  return a;
+}
+
+fe::AirbagFeOptions bagOptions(const Args& a) {
+  fe::AirbagFeOptions o;
+  o.geometry = a.geometry == "pillows" ? fe::AirbagGeometry::flatPillows() : fe::AirbagGeometry::gusseted();
+  o.geometry.elements_per_side = a.elements;
+  if (a.gusset_mm >= 0.0) o.geometry.gusset_height_m = 1e-3 * a.gusset_mm;
+  o.relax.tolerance = a.tolerance;
+  o.membrane.threads = a.threads;
+  o.relax.damping_per_s = a.damping;
+  return o;
+}
+
+std::string tag(const Args& a) {
+  const std::string g = a.gusset_mm >= 0.0 ? "_g" + std::to_string(static_cast<int>(a.gusset_mm)) : "";
+  return a.geometry + g + "_n" + std::to_string(a.elements);
+}
+
+double peakMemoryMb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss / 1024.0;
+}
+
+void verify(const Args& a) {
+  std::ofstream f(a.out + "/verification.csv");
+  f << "shape,resolution,elements,stretch,p_fe_pa,p_exact_pa,rel_error,converged\n";
+  for (auto shape : {fe::VerificationCase::Shape::kSphere, fe::VerificationCase::Shape::kTube}) {
+    const bool sphere = shape == fe::VerificationCase::Shape::kSphere;
+    for (int res : sphere ? std::vector<int>{2, 3, 4} : std::vector<int>{24, 48, 96}) {
+      fe::VerificationCase c;
+      c.shape = shape;
+      c.resolution = res;
+      for (double s = 1.05; s < 2.21; s += 0.05) c.stretches.push_back(s);
+      const auto pts = fe::runVerification(c, fe::FilmMaterial{});
+      const int elements = sphere ? 20 << (2 * res) : 2 * res * 2;
+      double worst = 0.0;
+      for (const auto& p : pts) {
+        f << (sphere ? "sphere," : "tube,") << res << ',' << elements << ',' << p.stretch << ',' << p.fe_pressure_pa << ','
+          << p.exact_pressure_pa << ',' << p.relative_error << ',' << p.converged << '\n';
+        worst = std::max(worst, std::abs(p.relative_error));
+      }
+      std::printf("%s resolution %d (%d triangles): max |error| %.3f %%\n", sphere ? "sphere" : "tube", res, elements, 100 * worst);
+    }
+  }
+}
+
+void heightVsPressure(const Args& a) {
+  fe::AirbagFe bag(bagOptions(a));
+  std::printf("%s: %d nodes, %d triangles, explicit step %.3g s\n", bag.options().geometry.describe().c_str(),
+              bag.model().nodeCount(), bag.model().mesh().triangleCount(), bag.model().stableTimeStep());
+  for (double load : a.loads) {
+    const auto start = std::chrono::steady_clock::now();
+    bag.reset();
+    std::vector<double> pressures;
+    for (int i = 0; i < a.p_count; ++i) pressures.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+    std::ostringstream name;
+    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N";
+    std::ofstream f(name.str() + ".csv");
+    f << "p_gauge_pa,h_m,volume_m3,plate_force_n,max_stretch,wrinkled_fraction,rim_inset_m,converged,iterations,eq24_h_m\n";
+    int k = 0;
+    fe::heightVsPressure(&bag, load, pressures, [&](const fe::QuasiStaticPoint& p) {
+      f << p.gauge_pressure_pa << ',' << p.height_m << ',' << p.volume_m3 << ',' << p.plate_force_n << ',' << p.max_stretch
+        << ',' << p.wrinkled_fraction << ',' << p.rim_inset_m << ',' << p.converged << ',' << p.iterations << ','
+        << nb::paperEq24HeightM(p.gauge_pressure_pa) << '\n' << std::flush;
+      std::printf("  load %.1f N  p %5.1f kPa  h %6.1f mm  %s (%d it)\n", load, p.gauge_pressure_pa / 1e3, p.height_m * 1e3,
+                  p.converged ? "ok" : p.message.c_str(), p.iterations);
+      std::fflush(stdout);
+      ++k;
+      if (a.vtk_all || k == static_cast<int>(pressures.size()) || k == static_cast<int>(pressures.size()) / 2) {
+        fe::writeVtk(name.str() + "_p" + std::to_string(static_cast<int>(std::lround(p.gauge_pressure_pa / 100.0))) + "hPa.vtk", bag.model(),
+                     "FE airbag " + tag(a));
+      }
+    });
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf("h(p) load %.1f N: %zu pressures, wall %.1f s, peak memory %.0f MB\n", load, pressures.size(), wall, peakMemoryMb());
+  }
+}
+
+void transient(const Args& a) {
+  fe::AirbagFe bag(bagOptions(a));
+  fe::TransientSetup s;
+  nb::TimeSeries inflow;
+  if (a.inflow_mass_kg > 0.0) {
+    inflow = nb::paperShapedInflow(a.inflow_mass_kg);
+    s.prescribed_inflow = &inflow;
+  }
+  s.load_n = a.load;
+  const auto start = std::chrono::steady_clock::now();
+  std::ostringstream name;
+  name << a.out << "/transient_" << tag(a) << "_load_" << a.load << "N";
+  double next_vtk = 0.0;
+  const fe::TransientResult r = fe::runTransient(&bag, s, [&](double done) {
+    if (done >= next_vtk) {
+      std::printf("  %3.0f %%  h %.1f mm\n", 100 * done, bag.model().plate().height_m * 1e3);
+      std::fflush(stdout);
+      fe::writeVtk(name.str() + "_t" + std::to_string(static_cast<int>(std::lround(done * 11))) + ".vtk", bag.model(), "transient");
+      next_vtk += 1.0 / 11.0;
+    }
+  });
+  std::ofstream f(name.str() + ".csv");
+  f << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3,mass_kg,t_gas_k,rim_inset_m\n";
+  for (const auto& x : r.samples) {
+    f << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3 << ','
+      << x.mass_kg << ',' << x.temperature_k << ',' << x.rim_inset_m << '\n';
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("transient %s: %s, %ld steps, wall %.1f s, peak memory %.0f MB\n", tag(a).c_str(), r.message.c_str(), r.steps, wall,
+              peakMemoryMb());
+  if (!r.ok) throw std::runtime_error(r.message);
+}
+
+// Every height where the table's plate force p A_eff(h, p) equals the load (the FE bag snaps
+// between branches: F(h) is not monotone there, and an h(p) continuation follows one of them).
+std::vector<double> tableRoots(const nb::TabulatedStructure& cell, double p, double load) {
+  std::vector<double> roots;
+  const double q = p / 1e4;  // shape coordinate: the relaxed pressure in 10 kPa
+  auto excess = [&](double h) { return p * cell.evaluate(h, &q).effective_area_m2 - load; };
+  const double h_max = cell.heightLimit(&q);
+  double h0 = 0.0, f0 = excess(0.0);
+  for (int i = 1; i <= 2000; ++i) {
+    const double h1 = h_max * i / 2000.0, f1 = excess(h1);
+    if ((f0 > 0.0) != (f1 > 0.0)) {
+      double lo = h0, hi = h1;
+      for (int k = 0; k < 60; ++k) ((excess(0.5 * (lo + hi)) > 0.0) == (f0 > 0.0) ? lo : hi) = 0.5 * (lo + hi);
+      roots.push_back(0.5 * (lo + hi));
+    }
+    h0 = h1, f0 = f1;
+  }
+  if (roots.empty() && excess(0.0) <= 0.0) roots.push_back(0.0);  // the plate rests on the flat bag
+  return roots;
+}
+
+// The cell's quasi-static h(p) on the FE table (physics' TabulatedStructure) against the FE's
+// own h(p) (the hp CSVs of the same geometry and mesh).
+void check(const Args& a) {
+  const nb::TabulatedStructure cell(nb::TabulatedStructure::load(a.table));
+  std::ofstream f(a.out + "/table_check_" + tag(a) + ".csv");
+  f << "load_n,p_gauge_pa,h_fe_m,h_table_m,h_table_nearest_root_m,roots\n";
+  double worst = 0.0, worst_nearest = 0.0;
+  for (double load : a.loads) {
+    std::ostringstream name;
+    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N.csv";
+    std::ifstream in(name.str());
+    if (!in) throw std::runtime_error("cannot read " + name.str() + " (run the hp mode first)");
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      const auto v = numbers(line);
+      const double p = v[0], h_fe = v[1];
+      if (p < cell.table().pressures_pa.front() || v[7] == 0.0) continue;  // outside the table, or not converged
+      const nb::StructureEquilibrium eq = cell.equilibriumAtPressure(p, load);
+      const std::vector<double> roots = tableRoots(cell, p, load);
+      double nearest = NAN;
+      for (double r : roots) if (!(std::abs(r - h_fe) >= std::abs(nearest - h_fe))) nearest = r;
+      f << load << ',' << p << ',' << h_fe << ',' << (eq.converged ? eq.height_m : NAN) << ',' << nearest << ','
+        << roots.size() << '\n';
+      if (std::isfinite(nearest)) worst_nearest = std::max(worst_nearest, std::abs(nearest - h_fe));
+      if (eq.converged) worst = std::max(worst, std::abs(eq.height_m - h_fe));
+      else std::printf("  load %.1f N p %.1f kPa: the table cell has no equilibrium (outside its heights)\n", load, p / 1e3);
+    }
+  }
+  std::printf("table cell vs FE h(p): max |dh| = %.2f mm (cell's own root), %.2f mm (nearest of the table's equilibria)\n",
+              worst * 1e3, worst_nearest * 1e3);
+}
+
+// Today's reduced model (PillowStructure, config defaults) on the same axes: h(p) per load
+// and the unloaded transient with the same paper-shaped inflow.
+void reduced(const Args& a) {
+  const nb::CellParams params;
+  const nb::PillowStructure pillow(params.structure);
+  std::ofstream f(a.out + "/reduced_hp.csv");
+  f << "load_n,p_gauge_pa,h_m,converged\n";
+  for (double load : a.loads) {
+    for (int i = 0; i < a.p_count; ++i) {
+      const double p = 1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1));
+      const nb::StructureEquilibrium eq = pillow.equilibriumAtPressure(p, load);
+      f << load << ',' << p << ',' << eq.height_m << ',' << eq.converged << '\n';
+    }
+  }
+  {
+    const nb::StructureEquilibrium full = pillow.equilibriumAtPressure(20e3, 0.6);
+    const double rt = params.gas.gas_constant_j_kg_k * params.ambient_temperature_k;
+    const double rest = pillow.evaluate(0.0, pillow.restShape().data()).volume_m3;
+    std::printf("reduced model: unloaded at 20 kPa h %.1f mm, V %.3g m^3, air added %.3g kg (isothermal)\n",
+                full.height_m * 1e3, full.eval.volume_m3,
+                ((params.ambient_pressure_pa + 20e3) * full.eval.volume_m3 - params.ambient_pressure_pa * rest) / rt);
+  }
+  if (a.inflow_mass_kg > 0.0) {
+    const nb::TimeSeries inflow = nb::paperShapedInflow(a.inflow_mass_kg);
+    nb::InflationSetup setup;
+    setup.load_n = a.load;
+    setup.prescribed_inflow = &inflow;
+    const nb::InflationTrace trace = nb::runInflation(params, setup);
+    std::ostringstream name;
+    name << a.out << "/reduced_transient_load_" << a.load << "N_mass_" << a.inflow_mass_kg * 1e3 << "g.csv";
+    std::ofstream t(name.str());
+    t << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3\n";
+    for (const auto& x : trace.samples) {
+      t << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3 << '\n';
+    }
+  }
+}
+
+// States of the inflation branch (the h(p) procedure: loaded plate, pressure raised step by
+// step from the flat bag) for a spread of loads, per pressure: (plate height, film positions).
+using BranchStates = std::vector<std::vector<std::pair<double, Eigen::Matrix3Xd>>>;
+
+BranchStates inflationBranch(fe::AirbagFe* bag, const std::vector<double>& pressures) {
+  BranchStates states(pressures.size());
+  for (double load : {0.6, 3.0, 6.0, 10.6, 15.6, 20.6, 30.0, 45.0}) {
+    bag->reset();
+    for (std::size_t j = 0; j < pressures.size(); ++j) {
+      const fe::QuasiStaticPoint q = bag->solveLoaded(pressures[j], load);
+      if (q.converged) states[j].emplace_back(q.height_m, bag->model().positions());
+    }
+    std::printf("  inflation branch under %.1f N done\n", load);
+    std::fflush(stdout);
+  }
+  return states;
+}
+
+// Table rows: the plate held at each height. "inflation" starts each state from the nearest
+// inflation-branch state at that pressure (so the table lies on the branch the h(p) curves
+// follow through the snaps); "flat" inflates each row from the flat bag.
+void table(const Args& a) {
+  fe::AirbagFe bag(bagOptions(a));
+  fe::StructureTable t;
+  t.description = bag.options().geometry.describe() + ", " + a.branch + " branch";
+  for (int i = 0; i < a.h_count; ++i) t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
+  for (int i = 0; i < a.p_count; ++i) t.pressures_pa.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+  int unconverged = 0;
+  const auto start = std::chrono::steady_clock::now();
+  const BranchStates branch = a.branch == "inflation" ? inflationBranch(&bag, t.pressures_pa) : BranchStates{};
+  for (double h : t.heights_m) {
+    bag.reset();
+    std::vector<double> v, force;
+    for (std::size_t j = 0; j < t.pressures_pa.size(); ++j) {
+      const double p = t.pressures_pa[j];
+      if (!branch.empty() && !branch[j].empty()) {
+        const auto nearest = std::min_element(branch[j].begin(), branch[j].end(), [h](const auto& x, const auto& y) {
+          return std::abs(x.first - h) < std::abs(y.first - h);
+        });
+        // Only a nearby branch state: lowering the plate far onto an inflated bag crushes it.
+        if (std::abs(nearest->first - h) <= 2.0 * bag.options().geometry.elementSize()) {
+          bag.model().setPositions(nearest->second);
+        }
+      }
+      fe::QuasiStaticPoint q = bag.solveAtHeight(h, p);
+      if (!bag.model().positions().allFinite()) {  // diverged from the start it was given: from flat
+        bag.reset();
+        q = bag.solveAtHeight(h, p);
+      }
+      if (!q.converged) {
+        std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
+        ++unconverged;
+      }
+      v.push_back(q.volume_m3);
+      force.push_back(q.plate_force_n);
+    }
+    std::printf("  table row h %.0f mm done\n", h * 1e3);
+    std::fflush(stdout);
+    t.volume_m3.push_back(v);
+    t.plate_force_n.push_back(force);
+  }
+  fe::writeStructureTable(a.table.empty() ? a.out + "/table_" + tag(a) + ".yaml" : a.table, t);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("table %s: %zu x %zu states, %d not converged (kept, flagged above), wall %.0f s\n", tag(a).c_str(),
+              t.heights_m.size(), t.pressures_pa.size(), unconverged, wall);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const Args a = parse(argc, argv);
+    std::filesystem::create_directories(a.out);
+    if (a.mode == "verify") verify(a);
+    else if (a.mode == "hp") heightVsPressure(a);
+    else if (a.mode == "transient") transient(a);
+    else if (a.mode == "table") table(a);
+    else if (a.mode == "check") check(a);
+    else if (a.mode == "reduced") reduced(a);
+    else throw std::invalid_argument("unknown mode " + a.mode);
+  } catch (const std::exception& e) {
+    std::cerr << "fe_airbag: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
