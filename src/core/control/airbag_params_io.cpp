@@ -56,7 +56,12 @@ const ParamTable<AirbagCellParams>& airbagParamFields() {
 
 AirbagCellParams airbagParamsFrom(const FlatParams& values, const std::string& source, const AirbagCellParams& base) {
   AirbagCellParams params = base;
-  applyFlatParams(values, source, airbagParamFields(), &params);
+  // The structure's text keys (cell/structure/type, cell/structure/table_file) first. Parameters
+  // from the server carry no file location: a relative table path is taken from the package's
+  // config/ folder, where the shipped cell files live (an absolute path is taken as it is).
+  FlatParams numeric = values;
+  applyStructureSelection(&numeric, std::string(NURSING_BED_SOURCE_DIR) + "/config", &params.cell, "cell/");
+  applyFlatParams(numeric, source, airbagParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(source + ": invalid airbag parameters: " + error);
   return params;

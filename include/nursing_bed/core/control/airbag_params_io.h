@@ -14,7 +14,9 @@ namespace nursing_bed {
 const ParamTable<AirbagCellParams>& airbagParamFields();
 
 /// Applies flattened values (from YAML or the parameter server) on top of `base` and
-/// validates; throws std::runtime_error naming `source` and the offending key.
+/// validates; throws std::runtime_error naming `source` and the offending key. The structure
+/// selection keys (cell/structure/type, cell/structure/table_file; cell_params_io.h) are read
+/// too, a relative table path from the package's config/ folder.
 AirbagCellParams airbagParamsFrom(const FlatParams& values, const std::string& source,
                                   const AirbagCellParams& base = AirbagCellParams{});
 
