@@ -85,4 +85,21 @@ TEST(AirbagParamsIo, NestedCellKeysAndErrors) {
   expect_error("controller:\n  period_s: fast\n", "must be a number, got 'fast'");
 }
 
+TEST(AirbagParamsIo, StructureSelectionFromTheParameterServerResolvesAgainstConfig) {
+  const nb::AirbagCellParams p = nb::airbagParamsFrom(
+      nb::flattenYamlText("cell:\n  structure:\n    type: table\n    table_file: ../data/fe/t.yaml\n", "t"), "t");
+  EXPECT_EQ(p.cell.structure_type, "table");
+  EXPECT_EQ(p.cell.structure_table_file, std::string(NURSING_BED_SOURCE_DIR) + "/config/../data/fe/t.yaml");
+  const nb::AirbagCellParams abs = nb::airbagParamsFrom(
+      nb::flattenYamlText("cell:\n  structure:\n    type: table\n    table_file: /abs/t.yaml\n", "t"), "t");
+  EXPECT_EQ(abs.cell.structure_table_file, "/abs/t.yaml");
+  try {
+    nb::airbagParamsFrom(nb::flattenYamlText("cell:\n  structure:\n    type: balloon\n", "node.yaml"), "node.yaml");
+    FAIL() << "an unknown structure type was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("structure_type must be 'pillow' or 'table', got 'balloon'"), std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
