@@ -234,3 +234,55 @@ TEST(FlowLimit, MinimumTimeGrowsWithTheMove) {
 }
 
 }  // namespace
+
+namespace {
+
+// Loads: what a cell accepts, and that nothing it refuses changes it.
+TEST(AirbagCellSafety, AbsurdLoadsAreRefusedAndChangeNothing) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.10, 10.6);
+  for (double bad : std::vector<double>{std::nan(""), HUGE_VAL, -HUGE_VAL, -1.0, 1e9, -1e9, 1000.1, 1e6}) {
+    const std::string error = cell.setLoad(bad);
+    EXPECT_NE(error.find("max_load_n"), std::string::npos) << bad << ": " << error;
+    EXPECT_EQ(cell.load(), 10.6) << bad;
+  }
+  EXPECT_EQ(cell.setLoad(300.0), "");
+  EXPECT_EQ(cell.load(), 300.0);
+}
+
+// A solve that leaves the plant in an invalid state resets the cell into a fault; a new
+// height request recovers it.
+TEST(AirbagCellSafety, AnInvalidPlantStateResetsIntoAFaultAndRecovers) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.10, 10.6);
+  nb::CellModel::StateVector broken = cell.model().state();
+  broken[nb::CellModel::kEnergy] = -1.0;  // what 1e9 N did before: a negative temperature
+  const_cast<nb::CellModel&>(cell.model()).setState(cell.time(), broken);
+  cell.advanceTo(cell.time() + 0.02);
+  EXPECT_TRUE(cell.faults() & nb::kFaultModel);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kSafe);
+  EXPECT_GT(cell.variables().structure.volume_m3, 0.0);
+  EXPECT_GT(cell.variables().temperature_k, 250.0);
+  ASSERT_EQ(cell.requestHeight(0.05, cell.time()), "");
+  EXPECT_FALSE(cell.faults() & nb::kFaultModel);
+  cell.advanceTo(cell.time() + 4.0);
+  EXPECT_NEAR(cell.measurement().height_m, 0.05, 2e-3);
+}
+
+// Bed-wide CPR: the cell vents and refuses every height until CPR is off; then it holds.
+TEST(AirbagCellSafety, CprIsExclusive) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.10, 10.6);
+  cell.setCpr(true, 0.0);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
+  EXPECT_NE(cell.requestHeight(0.15, 0.1).find("CPR"), std::string::npos);
+  EXPECT_NE(cell.retarget(0.15).find("CPR"), std::string::npos);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
+  cell.advanceTo(3.0);
+  EXPECT_LT(cell.measurement().height_m, 0.01);
+  cell.setCpr(false, 3.0);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kIdle);
+  EXPECT_EQ(cell.requestHeight(0.05, 3.0), "");
+}
+
+}  // namespace
