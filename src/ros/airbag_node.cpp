@@ -8,7 +8,6 @@
 #include <sstream>
 
 #include "nursing_bed/core/control/airbag_params_io.h"
-#include "nursing_bed/core/control/rate_limiter.h"
 #include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
@@ -119,13 +118,7 @@ AirbagNode::~AirbagNode() {
 
 void AirbagNode::update(const ros::Time& now) {
   std::lock_guard<std::mutex> lock(mutex_);
-  const double before_s = cell_->time();
   cell_->advanceTo(elapsed(now));
-  // The ramp: the target moves towards the request at the configured rate, whoever asked.
-  if (cell_->mode() == AirbagMode::kHeight && std::isfinite(requested_m_) && ramped_m_ != requested_m_) {
-    ramped_m_ = limitRate(ramped_m_, requested_m_, params_.airbag.safety.max_height_rate_m_s, cell_->time() - before_s);
-    cell_->retarget(ramped_m_);
-  }
 }
 
 void AirbagNode::publish(const ros::Time& now) {
@@ -199,16 +192,7 @@ bool AirbagNode::ownedByManager(const ros::Time& now) const {
 }
 
 std::string AirbagNode::request(double height_m, const ros::Time& now) {
-  const std::string error = cell_->checkHeight(height_m);
-  if (!error.empty()) return error;
-  if (cell_->mode() != AirbagMode::kHeight || !std::isfinite(ramped_m_)) {
-    // The ramp starts where the cell is (after CPR, a fault or at rest without a target).
-    const HeightControllerParams& c = params_.airbag.controller;
-    const double h = cell_->measurement().height_m;
-    ramped_m_ = std::isfinite(h) ? std::clamp(h, c.min_height_m, c.max_height_m) : height_m;
-  }
-  requested_m_ = height_m;
-  return cell_->requestHeight(ramped_m_, elapsed(now));
+  return cell_->requestHeight(height_m, elapsed(now));
 }
 
 bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
@@ -222,7 +206,7 @@ bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
         << "coming: ask /bed_manager/set_airbag_height, which makes it a custom target";
   } else {
     const std::string error = request(req.height_m, now);
-    if (error.empty()) msg << "height setpoint " << req.height_m << " m accepted (reached at " << params_.airbag.safety.max_height_rate_m_s << " m/s at most)";
+    if (error.empty()) msg << "height setpoint " << req.height_m << " m accepted (no bed manager runs this cell)";
     else msg << error;
     res.success = error.empty();
   }
@@ -268,7 +252,6 @@ void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
 void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
   std::lock_guard<std::mutex> lock(mutex_);
   cell_->requestVent(elapsed(ros::Time::now()));
-  requested_m_ = ramped_m_ = std::numeric_limits<double>::quiet_NaN();
 }
 
 void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
@@ -276,7 +259,6 @@ void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   if (msg->data == cell_->cpr()) return;
   ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
-  requested_m_ = ramped_m_ = std::numeric_limits<double>::quiet_NaN();
 }
 
 void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) {

@@ -52,14 +52,13 @@ class AirbagNode {
   static AirbagNodeParams loadParams(const ros::NodeHandle& private_nh);
 
  private:
-  /// Advances the cell to `now`, moving its target along the rate-limited ramp (called by the
-  /// process's CellTicker on its simulation thread).
+  /// Advances the cell to `now` (called by the process's CellTicker on its simulation thread).
   void update(const ros::Time& now);
   /// Publishes the state the cell has reached, stamped with its simulated time (the ticker's
   /// publishing thread, so a slow simulation round never silences the cell).
   void publish(const ros::Time& now);
-  /// A height request from the service or the manager's topic: validated, then reached along the
-  /// ramp at safety/max_height_rate_m_s. Empty when accepted, else why not (nothing changes).
+  /// A height request from the service or the manager's topic (the manager has rate-limited it):
+  /// empty when accepted, else why not (nothing changes).
   std::string request(double height_m, const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
@@ -85,8 +84,6 @@ class AirbagNode {
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
   std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have
-  double requested_m_ = std::numeric_limits<double>::quiet_NaN();  ///< where the ramp goes (NaN: none)
-  double ramped_m_ = std::numeric_limits<double>::quiet_NaN();     ///< the ramp's present target
   ros::Time manager_setpoint_at_;        ///< last setpoint on the manager's topic
   /// The command watchdog is armed by the first streamed command (heartbeat or setpoint topic):
   /// it guards a commander that streams, not a one-off service call.

@@ -49,7 +49,9 @@ class Args {
     double v = 0.0;
     if (!parseDecimal(it->second, &v)) {
       const std::string lower = lowered(it->second);
-      if (lower.find("nan") != std::string::npos || lower.find("inf") != std::string::npos) fail(key + " must be finite");
+      if (lower.find("nan") != std::string::npos || lower.find("inf") != std::string::npos ||
+          std::isinf(std::strtod(it->second.c_str(), nullptr)))
+        fail(key + " must be finite");
       fail(key + " must be a number (decimal digits only), got '" + it->second + "'");
     }
     if (v < lo || v > hi) {

@@ -93,13 +93,6 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   return "";
 }
 
-std::string AirbagCell::retarget(double height_m) {
-  const std::string error = checkHeight(height_m);
-  if (!error.empty()) return error;
-  if (controller_.hasTarget() && controller_.target() != height_m) controller_.setTarget(height_m);
-  return "";
-}
-
 void AirbagCell::setCpr(bool on, double now_s) {
   if (on) requestVent(now_s);
   else if (cpr_ && mode_ == AirbagMode::kVent) mode_ = AirbagMode::kIdle;

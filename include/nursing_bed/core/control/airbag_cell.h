@@ -23,8 +23,8 @@ struct AirbagSafetyParams {
   /// Largest external load a cell accepts [N]; larger, negative or non-finite loads are refused
   /// (a 100 mm face at the relief pressure carries about 300 N; default 1000 N).
   double max_load_n = 1000.0;
-  /// Fastest change of the height target the airbag node lets through, whoever asks; the bed
-  /// manager limits its plans with the same value [m/s] (the core cell takes targets as given).
+  /// Fastest change of a cell's height target outside CPR: the bed manager limits every target
+  /// it sends with it [m/s] (the core cell takes targets as given).
   double max_height_rate_m_s = 0.02;
   std::string validate() const;
 };
@@ -71,9 +71,6 @@ class AirbagCell {
   std::string checkHeight(double height_m) const;
   /// Sets the height setpoint at time `now_s`; returns checkHeight's message (empty: done).
   std::string requestHeight(double height_m, double now_s);
-  /// Moves the target of a cell that holds a height (a rate-limited ramp's next step): no mode
-  /// change and no watchdog refresh; refused like requestHeight.
-  std::string retarget(double height_m);
   /// Vents the cell as fast as the vent allows (CPR); a height request ends it.
   void requestVent(double now_s);
   /// Bed-wide CPR: while on, the cell vents and refuses every height (nothing inflates it);
