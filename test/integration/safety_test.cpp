@@ -327,3 +327,36 @@ TEST_F(SafetyFixture, BedManagerKilledCellsHoldCprWorksAndTheRestartResumesThePl
 
 }  // namespace test
 }  // namespace nursing_bed
+
+namespace nursing_bed {
+namespace test {
+
+TEST_F(SafetyFixture, LoadStepsOnAnInflatedCellStayWithinTheRelief) {
+  ros::Publisher load = nh_.advertise<std_msgs::Float64>("/airbag_0_0/load", 1, true);
+  ASSERT_TRUE(waitFor([&] { return load.getNumSubscribers() > 0; }, 5.0));
+  const double limit = 1.1 * 35000.0;  // safety/relief_pressure_pa + 10 %
+  for (double step : {150.0, 300.0}) {
+    std_msgs::Float64 m;
+    m.data = 10.6;
+    load.publish(m);
+    waitFor([] { return false; }, 1.0);
+    ASSERT_TRUE(callCell("/airbag_0_0", 0, 0.10).success);
+    ASSERT_TRUE(settle({{0, 0.10}}, 2e-3, 0.5, 20.0)) << "cell at " << states_[0].height_m;
+    m.data = step;
+    load.publish(m);
+    double peak = 0.0;
+    waitFor(
+        [&] {
+          peak = std::max(peak, states_[0].gauge_pressure_pa);
+          return false;
+        },
+        3.0);
+    EXPECT_LE(peak, limit) << step << " N";
+    EXPECT_EQ(states_[0].faults & AirbagState::FAULT_SENSOR, 0u);
+    std::printf("load step 10.6 -> %.0f N on a cell at 100 mm: peak %.1f kPa (relief 35 kPa)\n", step, 1e-3 * peak);
+    RecordProperty("peak_kpa_" + std::to_string(static_cast<int>(step)), std::to_string(1e-3 * peak));
+  }
+}
+
+}  // namespace test
+}  // namespace nursing_bed

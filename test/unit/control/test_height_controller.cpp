@@ -1,6 +1,7 @@
 // Height controller and the airbag cell's safety layer, on the plant model (no ROS).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "nursing_bed/core/control/airbag_cell.h"
@@ -282,6 +283,39 @@ TEST(AirbagCellSafety, CprIsExclusive) {
   cell.setCpr(false, 3.0);
   EXPECT_EQ(cell.mode(), nb::AirbagMode::kIdle);
   EXPECT_EQ(cell.requestHeight(0.05, 3.0), "");
+}
+
+}  // namespace
+
+namespace {
+
+// Peak gauge pressure [Pa] of a cell holding 0.10 m under 10.6 N when the outside load steps to
+// `load_n` over `rise_s`.
+double peakPressureUnderLoadStep(const nb::AirbagCellParams& params, double load_n, double rise_s) {
+  nb::AirbagCell cell(params);
+  cell.resetToHeight(0.10, 10.6);
+  EXPECT_EQ(cell.requestHeight(0.10, 0.0), "");
+  cell.advanceTo(1.0);
+  double peak = 0.0;
+  for (double t = 1.0; t < 3.0; t += 0.001) {
+    const double f = rise_s > 0.0 ? std::min(1.0, (t - 1.0) / rise_s) : 1.0;
+    cell.setLoad(10.6 + f * (load_n - 10.6));
+    cell.advanceTo(t);
+    peak = std::max(peak, cell.variables().gauge_pressure_pa);
+  }
+  return peak;
+}
+
+// Relief under outside load: the relief valve (ISO 6358, beside the vent) holds a sudden 300 N
+// on an inflated cell within relief + 10 %; without it the vent alone is outrun.
+TEST(AirbagCellSafety, ReliefValveHoldsSuddenOutsideLoads) {
+  nb::AirbagCellParams params;
+  params.cell.supply_pressure_pa = 30000.0;  // the bed's supply (sim.launch)
+  const double limit = 1.1 * params.safety.relief_pressure_pa;
+  for (double load : {150.0, 300.0})
+    for (double rise : {0.0, 0.05}) EXPECT_LE(peakPressureUnderLoadStep(params, load, rise), limit) << load << " N";
+  params.cell.relief_sonic_conductance_m3_s_pa = 0.0;
+  EXPECT_GT(peakPressureUnderLoadStep(params, 300.0, 0.0), limit) << "the vent alone would have held it";
 }
 
 }  // namespace
