@@ -118,6 +118,8 @@ AirbagNode::~AirbagNode() {
 
 void AirbagNode::update(const ros::Time& now) {
   std::lock_guard<std::mutex> lock(mutex_);
+  const double load = pending_load_n_.exchange(kNoLoad);
+  if (load != kNoLoad) cell_->setLoad(load);  // checked in applyLoad
   cell_->advanceTo(elapsed(now));
 }
 
@@ -233,9 +235,15 @@ void AirbagNode::feedWatchdog(const ros::Time& now) {
 }
 
 void AirbagNode::applyLoad(double load_n, const char* source) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const std::string error = cell_->setLoad(load_n);
-  if (!error.empty()) ROS_ERROR_THROTTLE(1.0, "%s: %s from %s", layout_.link_name.c_str(), error.c_str(), source);
+  // Loads arrive for every cell at the simulator's rate: the callback only checks and buffers
+  // (checkLoad reads the fixed parameters), the simulation thread applies it. A worker thread
+  // never waits for a cell that is being advanced.
+  const std::string error = cell_->checkLoad(load_n);
+  if (!error.empty()) {
+    ROS_ERROR_THROTTLE(1.0, "%s: %s from %s", layout_.link_name.c_str(), error.c_str(), source);
+    return;
+  }
+  pending_load_n_ = load_n;
 }
 
 void AirbagNode::onLoad(const std_msgs::Float64::ConstPtr& msg) { applyLoad(msg->data, "its load topic"); }

@@ -2,17 +2,10 @@
 
 #include <ros/ros.h>
 
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <memory>
 
 namespace nursing_bed {
-namespace {
-constexpr int kAdvanceNice = 5;  // niceness of the simulation thread above the process's
-}  // namespace
 
 CellTicker& CellTicker::instance(double rate_hz) {
   static std::once_flag once;
@@ -45,10 +38,6 @@ void CellTicker::remove(int handle) {
 }
 
 void CellTicker::run(Tick Entry::*which, std::mutex* round) {
-  // The simulated plants yield to everything else in the process (publishing, the cells'
-  // callbacks, the bed manager): on a busy machine the physics falls behind, not the liveness.
-  if (which == &Entry::advance && setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), kAdvanceNice) != 0)
-    ROS_WARN("airbag ticker: could not lower the simulation thread's priority");
   // ros::Rate follows /clock under use_sim_time; before ROS time is valid, wait.
   while (!stop_ && !ros::Time::isValid()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ros::Rate rate(rate_hz_);

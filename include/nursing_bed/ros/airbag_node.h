@@ -5,6 +5,7 @@
 
 #include <ros/ros.h>
 
+#include <atomic>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -81,6 +82,8 @@ class AirbagNode {
   CellLayout layout_;
   std::unique_ptr<AirbagCell> cell_;
   std::mutex mutex_;  // callbacks may run on several nodelet worker threads
+  static constexpr double kNoLoad = -1.0;
+  std::atomic<double> pending_load_n_{kNoLoad};  ///< a checked load for the next update (kNoLoad: none)
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
   std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have
