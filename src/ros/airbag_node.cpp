@@ -117,17 +117,18 @@ AirbagNode::~AirbagNode() {
 }
 
 void AirbagNode::update(const ros::Time& now) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::timed_mutex> lock(mutex_);
   const double load = pending_load_n_.exchange(kNoLoad);
   if (load != kNoLoad) cell_->setLoad(load);  // checked in applyLoad
   cell_->advanceTo(elapsed(now));
 }
 
 void AirbagNode::publish(const ros::Time& now) {
-  // Never wait for the simulation thread: a cell it is advancing now publishes next round
-  // (both threads walk the cells in the same order; waiting would pace publishing by it).
-  std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
-  if (!lock.owns_lock()) return;
+  // Wait for the simulation thread only briefly (one cell's period takes well under a ms): a
+  // cell it is stuck on publishes next round (both threads walk the cells in the same order;
+  // waiting for as long as it takes would pace publishing by the slowest cell).
+  std::unique_lock<std::timed_mutex> lock(mutex_, std::defer_lock);
+  if (!lock.try_lock_for(std::chrono::milliseconds(5))) return;
   const double since_s = (now - last_publish_wall_).toSec();
   if (since_s < 1.0 / params_.publish_rate_hz - 0.5 / params_.update_rate_hz) return;
   // A state is published when the simulation has moved on, and repeated (same stamp) while a
@@ -198,7 +199,7 @@ std::string AirbagNode::request(double height_m, const ros::Time& now) {
 }
 
 bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::timed_mutex> lock(mutex_);
   const ros::Time now = ros::Time::now();
   std::ostringstream msg;
   if (req.cell_id != layout_.id) {
@@ -217,7 +218,7 @@ bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
 }
 
 void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::timed_mutex> lock(mutex_);
   const ros::Time now = ros::Time::now();
   const std::string error = request(msg->data, now);
   if (!error.empty()) {
@@ -258,19 +259,19 @@ void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
 }
 
 void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::timed_mutex> lock(mutex_);
   cell_->requestVent(elapsed(ros::Time::now()));
 }
 
 void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::timed_mutex> lock(mutex_);
   if (msg->data == cell_->cpr()) return;
   ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
 }
 
 void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) {
-  std::lock_guard<std::mutex> lock(mutex_);
+  std::lock_guard<std::timed_mutex> lock(mutex_);
   feedWatchdog(ros::Time::now());
 }
 

@@ -81,7 +81,7 @@ class AirbagNode {
   AirbagNodeParams params_;
   CellLayout layout_;
   std::unique_ptr<AirbagCell> cell_;
-  std::mutex mutex_;  // callbacks may run on several nodelet worker threads
+  std::timed_mutex mutex_;  // callbacks may run on several nodelet worker threads
   static constexpr double kNoLoad = -1.0;
   std::atomic<double> pending_load_n_{kNoLoad};  ///< a checked load for the next update (kNoLoad: none)
   ros::Time start_, last_publish_, last_publish_wall_;

@@ -263,16 +263,19 @@ bool parseDecimal(const std::string& text, double* value) {
   return true;
 }
 
-std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body) {
+std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body, double support_half_width_m) {
   std::vector<double> w(grid.cells(), 0.0);
   const int first = std::max(0, body.first_row), last = std::min(grid.rows - 1, body.last_row);
-  if (grid.cols < 2 || last < first) return w;
+  std::vector<int> cols;
+  for (int c = 0; c < grid.cols; ++c)
+    if (std::fabs(grid.y(c) - body.center_y_m) <= support_half_width_m + 1e-9) cols.push_back(c);
+  if (cols.size() < 2 || last < first) return w;
   double mean_y = 0.0, syy = 0.0;
-  for (int c = 0; c < grid.cols; ++c) mean_y += grid.y(c) / grid.cols;
-  for (int c = 0; c < grid.cols; ++c) syy += (grid.y(c) - mean_y) * (grid.y(c) - mean_y);
+  for (int c : cols) mean_y += grid.y(c) / cols.size();
+  for (int c : cols) syy += (grid.y(c) - mean_y) * (grid.y(c) - mean_y);
   const int rows = last - first + 1;
   for (int r = first; r <= last; ++r)
-    for (int c = 0; c < grid.cols; ++c) w[grid.id(r, c)] = (grid.y(c) - mean_y) / (syy * rows);
+    for (int c : cols) w[grid.id(r, c)] = (grid.y(c) - mean_y) / (syy * rows);
   return w;
 }
 

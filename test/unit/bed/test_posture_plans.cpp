@@ -168,7 +168,13 @@ TEST(PosturePlans, RollSlopeWeightsGiveTheLateralSlopeUnderTheBody) {
   const nb::PlanTargets t = turn->targets(100.0);  // dwell
   double turned = 0.0;
   for (std::size_t i = 0; i < w.size(); ++i) turned += w[i] * t.heights_m[i];
-  EXPECT_NEAR(std::atan(turned) * 180.0 / M_PI, -10.0, 0.5);
+  EXPECT_NEAR(std::atan(turned) * 180.0 / M_PI, -10.0, 1e-9);  // the columns under the trunk are not clamped
+  // Only the columns within the support width count; too narrow a support has no slope.
+  const std::vector<double> narrow = nb::rollSlopeWeights(kGrid, kBody, 0.05);
+  for (double x : narrow) EXPECT_EQ(x, 0.0);
+  int counted = 0;
+  for (int c = 0; c < kGrid.cols; ++c) counted += w[kGrid.id(5, c)] != 0.0 || std::fabs(kGrid.y(c)) < 1e-9;
+  EXPECT_EQ(counted, 5);  // y = -0.2 .. 0.2 m
 }
 
 }  // namespace
