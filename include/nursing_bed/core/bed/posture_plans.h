@@ -81,6 +81,17 @@ std::unique_ptr<PosturePlan> makePlan(const PlanRequest& request, const PlanConf
 std::unique_ptr<PosturePlan> makeSafeLevelPlan(const BedGrid& grid, double height_m);
 std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m);
 
+/// Weights w (per cell id) of the least-squares lateral slope dh/dy of the cells that carry the
+/// trunk (rows body.first_row..last_row, columns within `support_half_width_m` of the body's
+/// midline): sum w_i h_i is that slope, atan of it the roll the patient's trunk follows (what the
+/// rate limiter bounds). Outer columns are left out: a turn clamps them at the height limits, so
+/// a slope over the whole width would understate the tilt under the body.
+std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body, double support_half_width_m = 0.25);
+
+/// Parses a plan argument strictly: a decimal number filling the whole text (no hex, no
+/// "inf"/"nan", no trailing characters). False when it is not one.
+bool parseDecimal(const std::string& text, double* value);
+
 /// Keys of PlanConfig for YAML and the parameter server ("plans/..." in the bed manager).
 const ParamTable<PlanConfig>& planConfigFields();
 
