@@ -24,7 +24,8 @@ struct AirbagSafetyParams {
   /// (a 100 mm face at the relief pressure carries about 300 N; default 1000 N).
   double max_load_n = 1000.0;
   /// Fastest change of a cell's height target outside CPR: the bed manager limits every target
-  /// it sends with it [m/s] (the core cell takes targets as given).
+  /// it sends with it, the airbag node ramps direct set_height calls with it [m/s] (the core
+  /// cell takes targets as given).
   double max_height_rate_m_s = 0.02;
   std::string validate() const;
 };
