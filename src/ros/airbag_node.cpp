@@ -8,7 +8,9 @@
 #include <sstream>
 
 #include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/control/rate_limiter.h"
 #include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/ros/bed_topics.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"
@@ -94,11 +96,11 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   set_height_srv_ = private_nh_.advertiseService(names::kSetHeight, &AirbagNode::setHeight, this);
   setpoint_sub_ = private_nh_.subscribe(names::kHeightSetpoint, 10, &AirbagNode::onSetpoint, this);
   load_sub_ = private_nh_.subscribe(names::kLoad, 10, &AirbagNode::onLoad, this);
-  cell_loads_sub_ = nh_.subscribe(names::kCellLoads, 2, &AirbagNode::onCellLoads, this,
-                                  ros::TransportHints().tcpNoDelay());
   vent_sub_ = private_nh_.subscribe(names::kVent, 10, &AirbagNode::onVent, this);
   heartbeat_sub_ = private_nh_.subscribe(names::kHeartbeat, 10, &AirbagNode::onHeartbeat, this);
-  bed_heartbeat_sub_ = nh_.subscribe(names::kBedHeartbeat, 2, &AirbagNode::onHeartbeat, this);
+  // The bed-wide loads and heartbeat come through the process's one subscription (BedTopics).
+  bed_topics_handle_ = BedTopics::instance().add(BedTopics::Handlers{
+      [this](const std_msgs::Float64MultiArray& loads) { onCellLoads(loads); }, [this] { onBedHeartbeat(); }});
   cpr_sub_ = nh_.subscribe(names::kCpr, 2, &AirbagNode::onCpr, this);
   start_ = ros::Time::now();
   last_publish_ = start_;
@@ -113,6 +115,7 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
 }
 
 AirbagNode::~AirbagNode() {
+  if (bed_topics_handle_ >= 0) BedTopics::instance().remove(bed_topics_handle_);
   if (ticker_handle_ >= 0) CellTicker::instance(params_.update_rate_hz).remove(ticker_handle_);
 }
 
@@ -120,7 +123,24 @@ void AirbagNode::update(const ros::Time& now) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   const double load = pending_load_n_.exchange(kNoLoad);
   if (load != kNoLoad) cell_->setLoad(load);  // checked in applyLoad
-  cell_->advanceTo(elapsed(now));
+  // At most kCatchUpPeriods per round: when simulating the bed costs more than real time for a
+  // moment (180 cells lifting off flat at once after CPR), a cell runs late and catches up over
+  // the next rounds instead of jumping: its states keep coming, each stamped with the time it
+  // describes, never more than kCatchUpPeriods periods apart (doc/safety.md).
+  const double period_s = 1.0 / params_.update_rate_hz;
+  const double until_s = std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s);
+  stepDirectRamp(until_s);
+  cell_->advanceTo(until_s);
+}
+
+void AirbagNode::stepDirectRamp(double now_s) {
+  if (!std::isfinite(direct_target_m_)) return;
+  direct_ramp_m_ = limitRate(direct_ramp_m_, direct_target_m_, params_.airbag.safety.max_height_rate_m_s,
+                             now_s - direct_ramp_at_s_);
+  direct_ramp_at_s_ = now_s;
+  // A ramp point the cell refuses (CPR started meanwhile) ends the call.
+  if (!cell_->requestHeight(direct_ramp_m_, now_s).empty() || direct_ramp_m_ == direct_target_m_)
+    direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
 }
 
 void AirbagNode::publish(const ros::Time& now) {
@@ -208,13 +228,26 @@ bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
     msg << "cell " << layout_.id << " (" << layout_.link_name << ") is run by the bed manager, whose setpoints keep "
         << "coming: ask /bed_manager/set_airbag_height, which makes it a custom target";
   } else {
-    const std::string error = request(req.height_m, now);
-    if (error.empty()) msg << "height setpoint " << req.height_m << " m accepted (no bed manager runs this cell)";
-    else msg << error;
+    const std::string error = cell_->checkHeight(req.height_m);
+    if (error.empty()) {
+      startDirectRamp(req.height_m, elapsed(now));
+      msg << "height setpoint " << req.height_m << " m accepted (no bed manager runs this cell), reached at "
+          << params_.airbag.safety.max_height_rate_m_s << " m/s at most";
+    } else {
+      msg << error;
+    }
     res.success = error.empty();
   }
   res.message = msg.str();
   return true;
+}
+
+void AirbagNode::startDirectRamp(double height_m, double now_s) {
+  // From the height the cell is going to (or is at, when it has no target).
+  const double from = std::isfinite(cell_->setpoint()) ? cell_->setpoint() : cell_->variables().height_m;
+  direct_ramp_m_ = std::isfinite(direct_target_m_) ? direct_ramp_m_ : std::max(from, 0.0);
+  direct_target_m_ = height_m;
+  direct_ramp_at_s_ = now_s;
 }
 
 void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
@@ -225,6 +258,7 @@ void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
     ROS_WARN_THROTTLE(1.0, "%s: setpoint %g refused: %s", layout_.link_name.c_str(), msg->data, error.c_str());
     return;
   }
+  direct_target_m_ = std::numeric_limits<double>::quiet_NaN();  // the manager owns the cell now
   manager_setpoint_at_ = now;
   feedWatchdog(now);
 }
@@ -249,28 +283,32 @@ void AirbagNode::applyLoad(double load_n, const char* source) {
 
 void AirbagNode::onLoad(const std_msgs::Float64::ConstPtr& msg) { applyLoad(msg->data, "its load topic"); }
 
-void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
-  if (msg->data.size() != bed_cells_) {
+void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray& msg) {
+  if (msg.data.size() != bed_cells_) {
     ROS_ERROR_THROTTLE(1.0, "%s: %s refused: %zu loads for a bed of %zu cells", layout_.link_name.c_str(),
-                       names::kCellLoads, msg->data.size(), bed_cells_);
+                       names::kCellLoads, msg.data.size(), bed_cells_);
     return;
   }
-  applyLoad(msg->data[layout_.id], names::kCellLoads);
+  applyLoad(msg.data[layout_.id], names::kCellLoads);
 }
 
 void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
+  direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
   cell_->requestVent(elapsed(ros::Time::now()));
 }
 
 void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   if (msg->data == cell_->cpr()) return;
+  direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
   ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
 }
 
-void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) {
+void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) { onBedHeartbeat(); }
+
+void AirbagNode::onBedHeartbeat() {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   feedWatchdog(ros::Time::now());
 }

@@ -145,7 +145,11 @@ void BedManager::onState(const AirbagState::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (msg->cell_id >= last_state_.size()) return;
   last_state_[msg->cell_id] = *msg;
-  last_seen_[msg->cell_id] = ros::Time::now();
+  const ros::Time now = ros::Time::now();
+  // What the dead-cell timeout has as margin: the longest silence of a live cell.
+  if (!last_seen_[msg->cell_id].isZero())
+    largest_state_gap_s_ = std::max(largest_state_gap_s_, (now - last_seen_[msg->cell_id]).toSec());
+  last_seen_[msg->cell_id] = now;
 }
 
 void BedManager::publishJointStates(const ros::TimerEvent&) {
@@ -165,6 +169,7 @@ void BedManager::start(std::shared_ptr<PosturePlan> plan, const PlanRequest& req
   if (plan->name() == "max_inflate" && running_.plan && running_.plan->name() != "max_inflate") interrupted_ = running_;
   else if (plan->name() != "max_inflate") interrupted_ = Running{};
   running_ = Running{std::move(plan), now, request};
+  largest_state_gap_s_ = 0.0;
   std::fill(sent_at_.begin(), sent_at_.end(), ros::Time());  // send every target at once
   if (running_.plan->name() == "cpr") publishCpr(true);
   else if (cpr_published_ == 1) publishCpr(false);
@@ -177,22 +182,28 @@ void BedManager::startSafeLevel(double height_m, const ros::Time& now) {
 }
 
 void BedManager::saveResume() const {
-  const PlanRequest& r = running_.request;
+  const std::string ns = std::string(names::kResumeParam) + "/";
+  saveRunning(ns, running_);
+  // What max_inflate interrupted, so a restarted manager still goes back to it.
+  if (interrupted_.plan) saveRunning(ns + "interrupted/", interrupted_);
+  else private_nh_.deleteParam(ns + "interrupted");
+}
+
+void BedManager::saveRunning(const std::string& ns, const Running& running) const {
+  const PlanRequest& r = running.request;
   std::vector<std::string> keys, values;
   for (const auto& kv : r.args) {
     keys.push_back(kv.first);
     values.push_back(kv.second);
   }
-  const std::string ns = std::string(names::kResumeParam) + "/";
   private_nh_.setParam(ns + "plan", r.plan);
   private_nh_.setParam(ns + "keys", keys);
   private_nh_.setParam(ns + "values", values);
   private_nh_.setParam(ns + "heights_m", r.heights_m);
-  private_nh_.setParam(ns + "start_s", running_.start.toSec());
+  private_nh_.setParam(ns + "start_s", running.start.toSec());
 }
 
-bool BedManager::resume() {
-  const std::string ns = std::string(names::kResumeParam) + "/";
+bool BedManager::loadRunning(const std::string& ns, Running* running, std::string* why) const {
   PlanRequest request;
   std::vector<std::string> keys, values;
   double start_s = 0.0;
@@ -202,22 +213,37 @@ bool BedManager::resume() {
   private_nh_.getParam(ns + "heights_m", request.heights_m);
   private_nh_.getParam(ns + "start_s", start_s);
   for (std::size_t i = 0; i < keys.size() && i < values.size(); ++i) request.args[keys[i]] = values[i];
-  std::string why;
   std::unique_ptr<PosturePlan> plan;
   if (request.plan == "safe_level" && request.heights_m.size() == 1)
     plan = makeSafeLevelPlan(grid(), request.heights_m[0]);
   else
-    plan = makePlan(request, params_.plans, grid(), params_.body, &why);
-  const ros::Time now = ros::Time::now();
-  if (!plan || !(start_s > 0.0) || start_s > now.toSec()) {
+    plan = makePlan(request, params_.plans, grid(), params_.body, why);
+  if (plan && (!(start_s > 0.0) || start_s > ros::Time::now().toSec())) {
+    *why = "bad start time " + std::to_string(start_s);
+    plan.reset();
+  }
+  if (!plan) {
     ROS_ERROR("bed_manager: restarted, but the saved plan '%s' cannot be resumed (%s)", request.plan.c_str(),
-              why.empty() ? "bad start time" : why.c_str());
+              why->c_str());
     return false;
   }
+  *running = Running{std::shared_ptr<PosturePlan>(std::move(plan)), ros::Time(start_s), request};
+  return true;
+}
+
+bool BedManager::resume() {
+  const std::string ns = std::string(names::kResumeParam) + "/";
+  Running saved, interrupted;
+  std::string why;
+  if (!loadRunning(ns, &saved, &why)) return false;
+  const bool has_interrupted = loadRunning(ns + "interrupted/", &interrupted, &why);
   resumed_ = true;
-  start(std::shared_ptr<PosturePlan>(std::move(plan)), request, ros::Time(start_s));
-  ROS_WARN("bed_manager: restarted: resuming plan %s (%s), started %.1f s ago", request.plan.c_str(),
-           running_.plan->describe().c_str(), now.toSec() - start_s);
+  const ros::Time now = ros::Time::now();
+  if (has_interrupted && saved.plan->name() == "max_inflate") running_ = interrupted;  // start() keeps it
+  start(saved.plan, saved.request, saved.start);
+  ROS_WARN("bed_manager: restarted: resuming plan %s (%s), started %.1f s ago%s", saved.request.plan.c_str(),
+           running_.plan->describe().c_str(), (now - saved.start).toSec(),
+           interrupted_.plan ? (", then back to " + interrupted_.request.plan).c_str() : "");
   return true;
 }
 
@@ -336,6 +362,7 @@ void BedManager::step(const ros::TimerEvent&) {
   watchCells(now);
   BedState state;
   state.header.stamp = now;
+  state.largest_state_gap_s = largest_state_gap_s_;
   if (running_.plan) {
     PlanTargets t = running_.plan->targets((now - running_.start).toSec());
     if (t.finished && running_.plan->name() == "max_inflate") {

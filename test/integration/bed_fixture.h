@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <cmath>
 #include <map>
 #include <string>
 
@@ -34,6 +35,9 @@ class BedFixture : public ::testing::Test {
           ros::WallTime& last = arrived_[m->cell_id];
           if (!last.isZero()) max_gap_s_ = std::max(max_gap_s_, (now - last).toSec());
           last = now;
+          trackStamp(*m);
+          max_lag_s_ = std::max(max_lag_s_, (ros::Time::now() - m->header.stamp).toSec());
+          trackSetpointRate(*m);
         };
         subs_.push_back(nh_.subscribe<AirbagState>(ns + "/state", 10, on_state));
       }
@@ -70,6 +74,35 @@ class BedFixture : public ::testing::Test {
         timeout_s);
   }
 
+  /// The largest step between two consecutive stamps of a cell: how far its simulated plant
+  /// jumped between two states (the sender's stall, without this process's own scheduling).
+  void trackStamp(const AirbagState& m) {
+    ros::Time& last = last_stamp_[m.cell_id];
+    if (!last.isZero() && m.header.stamp > last) {
+      const double gap = (m.header.stamp - last).toSec();
+      max_stamp_gap_s_ = std::max(max_stamp_gap_s_, gap);
+      ++stamp_steps_;
+      if (gap > 0.06) ++stamp_steps_over_60ms_;
+    }
+    if (m.header.stamp > last) last = m.header.stamp;
+  }
+
+  /// The fastest a cell's height setpoint changed over windows of >= 0.5 s of its stamps
+  /// (the manager sends steps at 10 Hz; a window smooths them). CPR's NaN restarts the window.
+  void trackSetpointRate(const AirbagState& m) {
+    auto& [at, value] = setpoint_anchor_[m.cell_id];
+    if (!std::isfinite(m.height_setpoint_m) || !std::isfinite(value) || at.isZero()) {
+      at = m.header.stamp;
+      value = m.height_setpoint_m;
+      return;
+    }
+    const double dt = (m.header.stamp - at).toSec();
+    if (dt < 0.5) return;
+    max_setpoint_rate_m_s_ = std::max(max_setpoint_rate_m_s_, std::fabs(m.height_setpoint_m - value) / dt);
+    at = m.header.stamp;
+    value = m.height_setpoint_m;
+  }
+
   SetHeight::Response callCell(const std::string& cell_ns, uint32_t id, double height) {
     SetHeight srv;
     srv.request.cell_id = id;
@@ -95,6 +128,12 @@ class BedFixture : public ::testing::Test {
   std::map<uint32_t, int> counts_;
   std::map<uint32_t, ros::WallTime> arrived_;  ///< when each cell's last state arrived
   double max_gap_s_ = 0.0;                     ///< largest gap between two states of a cell [s]
+  std::map<uint32_t, ros::Time> last_stamp_;
+  double max_stamp_gap_s_ = 0.0;      ///< largest step of a cell's state stamps [s]
+  double max_lag_s_ = 0.0;            ///< longest a state arrived after the time it describes [s]
+  long stamp_steps_ = 0, stamp_steps_over_60ms_ = 0;  ///< steps of the stamps, and those over 60 ms
+  std::map<uint32_t, std::pair<ros::Time, double>> setpoint_anchor_;
+  double max_setpoint_rate_m_s_ = 0.0;  ///< fastest setpoint change of any cell [m/s]
 };
 
 /// BedFixture with the bed manager's state and its posture service.

@@ -64,9 +64,10 @@ class AirbagNode {
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
-  void onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
+  void onCellLoads(const std_msgs::Float64MultiArray& msg);
   void onVent(const std_msgs::Empty::ConstPtr& msg);
   void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
+  void onBedHeartbeat();
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
   /// Applies an external load from a topic, refusing bad ones with a throttled error naming `source`.
   void applyLoad(double load_n, const char* source);
@@ -75,6 +76,10 @@ class AirbagNode {
   /// A streamed command or heartbeat arrived: feed (and on the first one arm) the watchdog.
   void feedWatchdog(const ros::Time& now);
   void publishState(const ros::Time& stamp);
+  /// Moves a direct call's ramp one period on (simulation thread, mutex held).
+  void stepDirectRamp(double now_s);
+  /// Starts (or retargets) a direct call's ramp to `height_m` (checked; mutex held).
+  void startDirectRamp(double height_m, double now_s);
   double elapsed(const ros::Time& now) const { return (now - start_).toSec(); }
 
   ros::NodeHandle nh_, private_nh_;
@@ -83,20 +88,28 @@ class AirbagNode {
   std::unique_ptr<AirbagCell> cell_;
   std::timed_mutex mutex_;  // callbacks may run on several nodelet worker threads
   static constexpr double kNoLoad = -1.0;
+  static constexpr double kCatchUpPeriods = 2.0;  ///< most update periods a cell advances per round
   std::atomic<double> pending_load_n_{kNoLoad};  ///< a checked load for the next update (kNoLoad: none)
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
   std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have
   ros::Time manager_setpoint_at_;        ///< last setpoint on the manager's topic
+  /// A direct set_height call's final height and the ramp towards it, moved at
+  /// safety/max_height_rate_m_s (NaN: no direct call in progress). The manager's stream is
+  /// limited by the manager, so only direct calls ramp here.
+  double direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
+  double direct_ramp_m_ = std::numeric_limits<double>::quiet_NaN();
+  double direct_ramp_at_s_ = 0.0;
   /// The command watchdog is armed by the first streamed command (heartbeat or setpoint topic):
   /// it guards a commander that streams, not a one-off service call.
   bool watchdog_armed_ = false;
   double metered_mass_at_publish_kg_ = 0.0;  ///< the cell's flow totaliser at the last AirbagState
   double inlet_opening_at_publish_s_ = 0.0, vent_opening_at_publish_s_ = 0.0;  ///< valve integrals then
   ros::Publisher state_pub_, pressure_pub_;
-  ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_, bed_heartbeat_sub_, cpr_sub_;
+  ros::Subscriber setpoint_sub_, load_sub_, vent_sub_, heartbeat_sub_, cpr_sub_;
   ros::ServiceServer set_height_srv_;
   int ticker_handle_ = -1;
+  int bed_topics_handle_ = -1;  ///< registration with the process's BedTopics
 };
 
 }  // namespace nursing_bed

@@ -71,8 +71,12 @@ class BedManager {
   void start(std::shared_ptr<PosturePlan> plan, const PlanRequest& request, const ros::Time& now);
   /// The manager's own level plan at `height_m` (safe_level), with its request.
   void startSafeLevel(double height_m, const ros::Time& now);
-  /// Saves the running plan's request and start under ~resume.
+  /// Saves the running plan's request and start under ~resume (and what max_inflate
+  /// interrupted under ~resume/interrupted).
   void saveResume() const;
+  void saveRunning(const std::string& ns, const Running& running) const;
+  /// A plan saved under `ns` by saveRunning; false (with why, logged) when none or not valid.
+  bool loadRunning(const std::string& ns, Running* running, std::string* why) const;
   /// Resumes the plan a previous manager saved under ~resume; false when there is none.
   bool resume();
   /// Height the bed levels at when a cell fails: the mean of the healthy cells' heights, within
@@ -99,6 +103,7 @@ class BedManager {
   std::vector<ros::Time> sent_at_;            // when it was sent
   std::vector<ros::Time> below_target_since_; // leak watch, by cell id
   std::vector<bool> dead_, faulty_;
+  double largest_state_gap_s_ = 0.0;  ///< longest wait between two states of one cell since the plan started [s]
   std::vector<std::string> alarms_;
   Running running_, interrupted_;
   ros::Time started_;

@@ -1,0 +1,53 @@
+// One subscription per process to the bed-wide topics every airbag listens to (/airbag_loads,
+// the bed manager's heartbeat), fanned out to the airbags of the process. With one subscription
+// per airbag nodelet, every message became 180 callbacks, each queued and woken on a worker
+// thread: at 50 Hz of loads and 10 Hz of heartbeats that was 10800 callbacks/s, and their thread
+// switches took a fifth of the cells' process (perf, doc/safety.md). Handlers run on this class's
+// own spinner thread, so a busy nodelet worker never delays them.
+#pragma once
+
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <ros/spinner.h>
+#include <std_msgs/Empty.h>
+#include <std_msgs/Float64MultiArray.h>
+
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+namespace nursing_bed {
+
+class BedTopics {
+ public:
+  struct Handlers {
+    std::function<void(const std_msgs::Float64MultiArray&)> loads;  ///< every /airbag_loads message
+    std::function<void()> heartbeat;                                ///< every bed manager heartbeat
+  };
+
+  /// The process's fan-out, subscribing on first use.
+  static BedTopics& instance();
+
+  /// Registers an airbag's handlers; returns a handle for remove(). Thread-safe.
+  int add(Handlers handlers);
+  /// Unregisters; when it returns, the handlers are not running and will not run again.
+  void remove(int handle);
+
+  ~BedTopics();
+
+ private:
+  BedTopics();
+  void onLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
+  void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
+
+  std::mutex mutex_;  // held while handlers run and while the list changes
+  std::vector<std::pair<int, Handlers>> entries_;
+  int next_handle_ = 0;
+  ros::CallbackQueue queue_;
+  std::unique_ptr<ros::NodeHandle> nh_;
+  ros::Subscriber loads_sub_, heartbeat_sub_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
+};
+
+}  // namespace nursing_bed
