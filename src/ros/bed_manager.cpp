@@ -298,9 +298,14 @@ void BedManager::watchCells(const ros::Time& now) {
     const bool never = last_seen_[c.id].isZero();
     const bool dead = never ? past_grace : (now - last_seen_[c.id]).toSec() > params_.cell_timeout_s;
     const bool faulty = !dead && !never && (last_state_[c.id].faults & (AirbagState::FAULT_SENSOR | kFaultModel));
-    if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id]))
+    if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id])) {
+      const AirbagState& s = last_state_[c.id];
       failed.push_back("cell " + std::to_string(c.id) + " (" + names::airbagName(c.row, c.col) + ") " +
-                       (dead ? "stopped reporting" : "reports a sensor or model fault"));
+                       (dead ? "stopped reporting"
+                             : "reports a sensor or model fault (faults " + std::to_string(s.faults) + ", " +
+                                   std::to_string(s.gauge_pressure_pa) + " Pa, " + std::to_string(s.height_m) +
+                                   " m, load " + std::to_string(s.external_load_n) + " N)"));
+    }
     dead_[c.id] = dead;
     faulty_[c.id] = faulty;
     watchLeak(c, dead || never, now);

@@ -15,6 +15,7 @@ std::string AirbagSafetyParams::validate() const {
   if (!(command_timeout_s >= 0.0)) err << "command_timeout_s must be >= 0; ";
   if (!(sensor_pressure_max_pa > sensor_pressure_min_pa)) err << "sensor pressure range is empty; ";
   if (!(sensor_height_max_m > sensor_height_min_m)) err << "sensor height range is empty; ";
+  if (!(sensor_fault_periods >= 1 && sensor_fault_periods <= 100)) err << "sensor_fault_periods must lie in 1..100; ";
   if (!(max_load_n > 0.0 && std::isfinite(max_load_n))) err << "max_load_n must be a positive finite load; ";
   if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
     err << "max_height_rate_m_s must be a positive finite rate; ";
@@ -201,13 +202,19 @@ void AirbagCell::controlStep() {
   const double p = measurement_.gauge_pressure_pa, h = measurement_.height_m;
   const bool sensor_ok = std::isfinite(p) && std::isfinite(h) && p >= s.sensor_pressure_min_pa &&
                          p <= s.sensor_pressure_max_pa && h >= s.sensor_height_min_m && h <= s.sensor_height_max_m;
-  // Sensor fault: shut both valves (hold the gas) until the sensors read sane values again.
+  // A reading out of range holds the gas at once (both valves shut); it is a sensor fault once
+  // it persists for sensor_fault_periods, until the sensors read sane values again. A single
+  // out-of-range sample is what a plate lifting off a flat cell gives for a few ms (the gas
+  // sucked below -50 kPa for up to 15 ms), and a fault there levelled the whole bed.
   if (!sensor_ok) {
-    faults_ |= kFaultSensor;
-    mode_ = AirbagMode::kSafe;
     valves_ = ValveCommand{};
+    if (++bad_readings_ >= s.sensor_fault_periods) {
+      faults_ |= kFaultSensor;
+      mode_ = AirbagMode::kSafe;
+    }
     return;
   }
+  bad_readings_ = 0;
   if (faults_ & kFaultSensor) {
     faults_ &= ~kFaultSensor;
     mode_ = controller_.hasTarget() ? AirbagMode::kHeight : AirbagMode::kIdle;

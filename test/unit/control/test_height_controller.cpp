@@ -175,6 +175,24 @@ TEST(AirbagCell, SensorFaultClosesTheValves) {
   EXPECT_NEAR(cell.variables().height_m, 0.12, 1e-3);
 }
 
+TEST(AirbagCell, AShortBadReadingHoldsTheGasWithoutASensorFault) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.03, 15.6);
+  cell.requestHeight(0.12, 0.0);
+  cell.advanceTo(0.1);
+  ASSERT_GT(cell.valves().inlet, 0.0);
+  cell.setSensorFailure(true);  // 4 control periods of NaN readings, fewer than sensor_fault_periods
+  cell.advanceTo(0.12);
+  EXPECT_EQ(cell.valves().inlet, 0.0);
+  EXPECT_EQ(cell.valves().vent, 0.0);
+  EXPECT_EQ(cell.faults() & nb::kFaultSensor, 0u);
+  cell.setSensorFailure(false);
+  cell.advanceTo(3.0);
+  EXPECT_EQ(cell.faults() & nb::kFaultSensor, 0u);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kHeight);
+  EXPECT_NEAR(cell.variables().height_m, 0.12, 1e-3);
+}
+
 TEST(AirbagCell, ReadingsAreOfTheStateAtTheCellsTime) {
   // What advanceTo leaves in measurement() is the state at time(): a recording stamps it with
   // that time and a replay compares it there (read at the period's start, it lagged by a period).

@@ -20,6 +20,9 @@ struct AirbagSafetyParams {
   double sensor_pressure_max_pa = 150000.0;
   double sensor_height_min_m = -0.02;     ///< [m]
   double sensor_height_max_m = 0.40;      ///< [m]
+  /// Consecutive control periods a reading must stay out of range to be a sensor fault [-]
+  /// (meanwhile the valves hold the gas).
+  int sensor_fault_periods = 10;
   /// Largest external load a cell accepts [N]; larger, negative or non-finite loads are refused
   /// (a 100 mm face at the relief pressure carries about 300 N; default 1000 N).
   double max_load_n = 1000.0;
@@ -147,6 +150,7 @@ class AirbagCell {
   double last_command_s_ = 0.0;
   bool sensor_failed_ = false;
   bool cpr_ = false;
+  int bad_readings_ = 0;  ///< consecutive control periods with an out-of-range reading
   std::mt19937 rng_;
   std::normal_distribution<double> unit_noise_{0.0, 1.0};
 };
