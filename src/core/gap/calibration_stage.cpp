@@ -44,30 +44,76 @@ std::vector<double> jointStart(const ModelSpec& joint, const std::map<std::strin
   return coordinatesOf(joint, values);
 }
 
+/// Levenberg-Marquardt iterations of a profile refit (a moved parameter held at nominal).
+constexpr int kProfileIterations = 8;
+
+/// `f`'s effects with the calibrated parameters `names` free (the others nominal), refitted from
+/// `values`.
+ModelFit refitWith(const NoiseModel& noise, const ModelFit& f, const std::vector<std::string>& names,
+                   const std::map<std::string, double>& values, int max_iterations) {
+  ModelFit r;
+  r.model = makeModelSpec(f.model.effects, calibrationAxes(names, noise.fit.params));
+  if (r.model.axes.empty()) {
+    r.outcome.ok = true;
+    r.outcome.chi2 = noise.chi2_nominal;
+    return r;
+  }
+  r.outcome = fitModel(noise.fit, r.model, {jointStart(r.model, values, f)}, max_iterations);
+  if (!r.outcome.ok) r.outcome.chi2 = INFINITY;
+  return r;
+}
+
+/// The moved parameters' names, in axis order.
+std::vector<std::string> movedNames(const ModelFit& f, const CalibrationSummary& s) {
+  const auto moved = s.movedValues();
+  std::vector<std::string> names;
+  for (const auto& a : f.model.axes)
+    if (a.calibration && moved.count(a.spec.name)) names.push_back(a.spec.name);
+  return names;
+}
+
+/// The BIC gain of each moved parameter, by a profile refit with it held at nominal: a move
+/// whose chi2 gain (scaled by chi2/n where above 1) does not exceed ln n by significant_bic_drop
+/// is not kept. (The Wald z of judgeCalibration() rests on forward-difference derivatives, which
+/// the replay's step control can make too steep for a weakly told parameter.)
+void profileMoves(const NoiseModel& noise, const DiagnosisOptions& options, CalibrationFit* c) {
+  const ModelFit& f = c->fit;
+  const int n = noise.fitResidualCount();
+  const double scale = std::max(1.0, f.outcome.chi2 / n), log_n = std::log(static_cast<double>(n));
+  const auto values = valuesOf(f.model, f.outcome.u);
+  const std::vector<std::string> moved = movedNames(f, c->summary);
+  for (const auto& name : moved) {
+    std::vector<std::string> others;
+    for (const auto& m : moved)
+      if (m != name) others.push_back(m);
+    const double gain = (refitWith(noise, f, others, values, kProfileIterations).outcome.chi2 - f.outcome.chi2) / scale;
+    if (gain - log_n > options.significant_bic_drop) continue;
+    for (auto& p : c->summary.parameters)
+      if (p.name == name) {
+        p.moved = false;
+        p.value = p.nominal;
+      }
+    c->summary.notes.push_back(name + ": fitted " + fmt(values.at(name), 4) + ", but holding it at nominal costs chi2 " +
+                               fmt(gain, 3) + " only (ln n + " + fmt(options.significant_bic_drop) + " needed): kept");
+  }
+}
+
 /// The model with only the moved calibrated parameters free (and the effects), refitted from
 /// `fit` when some did not move; fills moved_model, moved_u, moved_chi2.
 void settleMoved(const NoiseModel& noise, const DiagnosisOptions& options, CalibrationFit* c) {
+  profileMoves(noise, options, c);
   const ModelFit& f = c->fit;
-  const auto moved = c->summary.movedValues();
-  if (static_cast<int>(moved.size()) == calibrationAxisCount(f.model)) {
+  const std::vector<std::string> names = movedNames(f, c->summary);
+  if (names.size() == f.model.calibration.size()) {
     c->moved_model = f.model;
     c->moved_u = f.outcome.u;
     c->moved_chi2 = f.outcome.chi2;
     return;
   }
-  std::vector<std::string> names;
-  for (const auto& a : f.model.axes)
-    if (a.calibration && moved.count(a.spec.name)) names.push_back(a.spec.name);
-  c->moved_model = makeModelSpec(f.model.effects, calibrationAxes(names, noise.fit.params));
-  if (c->moved_model.axes.empty()) {
-    c->moved_u.clear();
-    c->moved_chi2 = noise.chi2_nominal;
-    return;
-  }
-  const FitOutcome refit = fitModel(noise.fit, c->moved_model, {jointStart(c->moved_model, moved, f)},
-                                    options.max_iterations);
-  c->moved_u = refit.u;
-  c->moved_chi2 = refit.ok ? refit.chi2 : INFINITY;
+  const ModelFit refit = refitWith(noise, f, names, valuesOf(f.model, f.outcome.u), options.max_iterations);
+  c->moved_model = refit.model;
+  c->moved_u = refit.outcome.u;
+  c->moved_chi2 = refit.outcome.chi2;
   // The moved parameters at their refitted values.
   const auto values = valuesOf(c->moved_model, c->moved_u);
   for (auto& p : c->summary.parameters)
@@ -188,6 +234,12 @@ std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noi
   auto bic = [&](int i) { return (*fits)[i].outcome.chi2 + (*fits)[i].model.axes.size() * log_n; };
   std::sort(order.begin(), order.end(), [&](int a, int b) { return bic(a) < bic(b); });
   order.resize(std::min<std::size_t>(order.size(), std::max(0, options.joint_pool)));
+  // A fit already within the noise leaves the calibration nothing to settle.
+  order.erase(std::remove_if(order.begin(), order.end(),
+                             [&](int i) {
+                               return (*fits)[i].outcome.chi2 / noise.fitResidualCount() <= options.joint_refit_chi2;
+                             }),
+              order.end());
   std::vector<CalibrationFit> joint(order.size());
   parallelFor(static_cast<int>(order.size()), options.threads,
               [&](int k) { joint[k] = refitJointly(noise, (*fits)[order[k]], base, options); });

@@ -40,6 +40,8 @@ struct DiagnosisOptions {
   /// This many best candidates (by BIC on top of the calibration) are refitted with the calibrated
   /// parameters free as well, so that calibration and effects settle together.
   int joint_pool = 3;
+  /// ... unless their chi2/n is already at most this (within the noise: nothing left to settle).
+  double joint_refit_chi2 = 1.1;
   /// A calibrated move counts when |fitted - nominal| exceeds this many standard errors and its
   /// chi2 gain, (move / SE)^2, exceeds ln n (BIC's price) by significant_bic_drop, as an effect's
   /// must (about 5.3 SE with a few thousand residuals).
