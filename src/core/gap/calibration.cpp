@@ -73,11 +73,7 @@ const std::vector<CalibrationParamDef>& calibrationCatalog() {
 }
 
 const CalibrationParamDef& calibrationParam(const std::string& name) {
-  for (const auto& d : calibrationCatalog())
-    if (d.name == name) return d;
-  std::string known;
-  for (const auto& d : calibrationCatalog()) known += (known.empty() ? "" : ", ") + d.name;
-  throw std::invalid_argument("unknown calibration parameter '" + name + "' (known: " + known + ")");
+  return catalogEntry(calibrationCatalog(), name, "calibration parameter");
 }
 
 std::vector<std::vector<std::string>> structurallyUnidentifiable() {

@@ -225,15 +225,16 @@ std::vector<std::string> calibrationList(const PreparedRuns& prepared, const Dia
 }
 
 std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
-                                                           std::vector<ModelFit>* fits, const DiagnosisOptions& options,
+                                                           std::vector<ModelFit>* fits, std::size_t effects, int pool,
+                                                           const DiagnosisOptions& options,
                                                            const std::function<void(const std::string&)>& progress) {
   const double log_n = std::log(static_cast<double>(noise.fitResidualCount()));
   std::vector<int> order;
   for (std::size_t i = 0; i < fits->size(); ++i)
-    if ((*fits)[i].outcome.ok) order.push_back(static_cast<int>(i));
+    if ((*fits)[i].outcome.ok && (*fits)[i].model.effects.size() == effects) order.push_back(static_cast<int>(i));
   auto bic = [&](int i) { return (*fits)[i].outcome.chi2 + (*fits)[i].model.axes.size() * log_n; };
   std::sort(order.begin(), order.end(), [&](int a, int b) { return bic(a) < bic(b); });
-  order.resize(std::min<std::size_t>(order.size(), std::max(0, options.joint_pool)));
+  order.resize(std::min<std::size_t>(order.size(), std::max(0, pool)));
   // A fit already within the noise leaves the calibration nothing to settle.
   order.erase(std::remove_if(order.begin(), order.end(),
                              [&](int i) {

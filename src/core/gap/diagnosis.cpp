@@ -39,15 +39,31 @@ std::vector<int> singlesByBic(const std::vector<ModelFit>& fits, int n) {
   return order;
 }
 
-/// The start of a pair's fit: each single's fitted coordinates.
-std::vector<double> pairStart(const ModelSpec& pair, const ModelFit& a, const ModelFit& b) {
-  std::map<std::string, double> start;
-  for (const ModelFit* single : {&a, &b})
-    for (std::size_t j = 0; j < single->model.axes.size(); ++j)
-      start[single->model.axes[j].spec.name] = single->outcome.u[j];
-  std::vector<double> u;
-  for (const auto& axis : pair.axes) u.push_back(start.at(axis.spec.name));
-  return u;
+/// The starts of a pair's fit: each single's fitted coordinates, and each effect also at the
+/// middle of its plausible range and near off (its lower bound), in every combination. A single
+/// fitted alone soaks up part of the other effect's signature (a leak fitted alone also bends to
+/// the heat transfer's relaxation), so its own fit can be a poor start for the pair.
+std::vector<std::vector<double>> pairStarts(const ModelSpec& pair, const ModelFit& a, const ModelFit& b) {
+  std::map<std::string, double> fitted;
+  std::map<std::string, int> owner;  // 0: a's parameter, 1: b's
+  for (int k = 0; k < 2; ++k) {
+    const ModelFit* single = k == 0 ? &a : &b;
+    for (std::size_t j = 0; j < single->model.axes.size(); ++j) {
+      fitted[single->model.axes[j].spec.name] = single->outcome.u[j];
+      owner[single->model.axes[j].spec.name] = k;
+    }
+  }
+  std::vector<std::vector<double>> starts;
+  for (int la = 0; la < 3; ++la)
+    for (int lb = 0; lb < 3; ++lb) {
+      std::vector<double> u;
+      for (const auto& axis : pair.axes) {
+        const int level = owner.at(axis.spec.name) == 0 ? la : lb;
+        u.push_back(level == 0 ? fitted.at(axis.spec.name) : level == 1 ? 0.5 : std::max(axis.u_min, 0.0));
+      }
+      starts.push_back(u);
+    }
+  return starts;
 }
 
 /// A fitted model's values split into the effects' parameters and the calibrated cell's (fixed
@@ -98,6 +114,10 @@ void nominalReasons(const DiagnosisReport& rep, const PreparedRuns& prepared, co
       << (!withheld_residuals ? "" : ", " + fmt(rep.nominal_withheld_chi2_per_sample) + " on the withheld runs")
       << "; fit-run nrmse " << fmt(rep.nominal_fit_nrmse);
   reasons->push_back(why.str());
+  if (rep.pressure_only)
+    reasons->push_back("no run has a height reading: the diagnosis works on pressure alone; effects whose "
+                       "signature lies in the height (plate_friction, membrane_viscoelasticity's creep) and the "
+                       "gusset height against the film's stiffness are then far harder to tell apart");
   if (prepared.gated_runs > 0)
     reasons->push_back("in " + std::to_string(prepared.gated_runs) + " of " + std::to_string(prepared.runs.size()) +
                        " runs the flow meter read noise around zero while the inlet was closed; the replay "
@@ -228,7 +248,8 @@ NoiseModel buildNoiseModel(const PreparedRuns& prepared, const CellParams& param
 
 std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<std::string>& candidates,
                                     const DiagnosisOptions& options,
-                                    const std::function<void(const std::string&)>& progress) {
+                                    const std::function<void(const std::string&)>& progress,
+                                    const std::function<void(std::vector<ModelFit>*)>& after_singles) {
   auto say = [&](const std::string& line) {
     if (progress) progress(line);
   };
@@ -246,6 +267,7 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
         "): chi2/n " + fmt(fits[i].outcome.chi2 / n) + ", " + std::to_string(fits[i].outcome.evaluations) + " replays" +
         (std::getenv("NB_GAP_VERBOSE") ? " [" + fits[i].outcome.message + "]" : std::string()));
   });
+  if (after_singles) after_singles(&fits);
   const std::vector<int> order = singlesByBic(fits, n);
   const int pool = std::min(options.pair_pool, singles);
   std::vector<std::pair<int, int>> pairs;
@@ -263,7 +285,7 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
   const int pair_count = static_cast<int>(pairs.size());
   parallelFor(pair_count, options.threads, [&](int k) {
     ModelFit& f = fits[singles + k];
-    f.outcome = fitModel(noise.fit, f.model, {pairStart(f.model, fits[pairs[k].first], fits[pairs[k].second])},
+    f.outcome = fitModel(noise.fit, f.model, pairStarts(f.model, fits[pairs[k].first], fits[pairs[k].second]),
                          options.max_iterations);
     std::lock_guard<std::mutex> lock(say_mutex);
     say("fitted pair " + joinNames(f.model.effects) + " (" + std::to_string(++done) + "/" + std::to_string(pair_count) +
@@ -439,6 +461,7 @@ void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const D
   start->prepared = prepareRuns(std::move(runs));
   const PreparedRuns& prepared = start->prepared;
   rep->roles_chosen = prepared.roles_chosen;
+  rep->pressure_only = std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
   for (std::size_t i : prepared.fit) rep->fit_runs.push_back(prepared.runs[i].name);
   for (std::size_t i : prepared.withheld) rep->withheld_runs.push_back(prepared.runs[i].name);
   start->calibrated = calibrationList(prepared, options);
@@ -498,9 +521,17 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     calibration = calibrateModel(noise, s.calibrated, options, say);
     rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
   }
-  std::vector<ModelFit> fits = fitCandidates(noise, candidateList(options), options, say);
-  const auto joint = s.calibrated.empty() ? std::map<std::string, CalibrationSummary>{}
-                                          : refitBestJointly(noise, calibration, &fits, options, say);
+  // The best singles, then the best pair, refitted with the calibration free as well.
+  std::map<std::string, CalibrationSummary> joint;
+  auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
+    const auto more = refitBestJointly(noise, calibration, fits, effects, pool, options, say);
+    joint.insert(more.begin(), more.end());
+  };
+  std::vector<ModelFit> fits =
+      fitCandidates(noise, candidateList(options), options, say, [&](std::vector<ModelFit>* singles) {
+        if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
+      });
+  if (!s.calibrated.empty()) settle(&fits, 2, 1);
   const std::vector<ScoredCandidate> scored = scoreCandidates(fits, prepared, noise, params, options);
   for (const auto& c : scored) rep.candidates.push_back(c.first);
 

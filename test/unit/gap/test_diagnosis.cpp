@@ -451,6 +451,28 @@ TEST(GapDecision, APairOnlyWhereNoSingleExplainsTheGap) {
   EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
 }
 
+TEST(GapDecision, APairWithinTheNoiseBeatsASingleThatOnlyRemovesMostOfADeepGap) {
+  // A deep gap (chi2/n 241): a single leaves 1.99 (99.6 % of the excess removed: it "explains"
+  // it), the pair leaves 1.0 on the fit runs and lowers the withheld chi2 too: both effects.
+  const auto nominal = nominalScore(241.0, 100.0);
+  const auto lag = fitOf({"pressure_sensor_lag"}, 1.99, 2.0, nominal);
+  const auto pair = fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.0, 1.0, nominal);
+  auto c = byBic({lag, pair});
+  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+  // Not when the pair does no better on the withheld runs (it only bends to the fit runs).
+  c = byBic({lag, fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.0, 2.0, nominal)});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
+  // Nor when the single is within the noise itself (the simpler answer).
+  c = byBic({fitOf({"pressure_sensor_lag"}, 1.3, 1.3, nominal), pair});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
+}
+
 TEST(GapDecision, AGapNothingRemovesIsUnexplainedAndImplausibleFitsDoNotCount) {
   const auto nominal = nominalScore(5.0, 5.0);
   auto partial = fitOf({"heat_transfer"}, 3.0, 3.5, nominal);  // significant, but leaves chi2/n 3

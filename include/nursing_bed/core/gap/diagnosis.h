@@ -37,8 +37,9 @@ struct DiagnosisOptions {
   bool calibrate = true;  ///< false: the effects on top of the nominal model alone (as before calibration)
   /// Cell parameters to calibrate (calibrationCatalog() names); empty: defaultCalibrationParams().
   std::vector<std::string> calibration_params;
-  /// This many best candidates (by BIC on top of the calibration) are refitted with the calibrated
-  /// parameters free as well, so that calibration and effects settle together.
+  /// This many best single candidates (by BIC on top of the calibration; then the best pair) are
+  /// refitted with the calibrated parameters free as well, so that calibration and effects settle
+  /// together; the pairs are chosen after that.
   int joint_pool = 3;
   /// ... unless their chi2/n is already at most this (within the noise: nothing left to settle).
   double joint_refit_chi2 = 1.1;

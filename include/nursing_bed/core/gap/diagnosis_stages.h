@@ -81,9 +81,12 @@ struct ModelFit {
 /// Fits every single candidate from a grid, then the pairs among the `options.pair_pool` best
 /// singles (by BIC) from the singles' fits. Singles first, in `candidates` order, then the pairs.
 /// `progress` (may be empty) gets a line per fit.
+/// `after_singles` (may be empty) may refit the singles (jointly with the calibration) before
+/// the pairs are chosen from them.
 std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<std::string>& candidates,
                                     const DiagnosisOptions& options,
-                                    const std::function<void(const std::string&)>& progress);
+                                    const std::function<void(const std::string&)>& progress,
+                                    const std::function<void(std::vector<ModelFit>*)>& after_singles = {});
 
 // ---- calibration (calibration_stage.cpp) ------------------------------------------------------
 
@@ -121,11 +124,12 @@ void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& ca
 /// defaultCalibrationParams(); none when options.calibrate is false. Throws std::invalid_argument.
 std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options);
 
-/// Refits the options.joint_pool best fits (by BIC) jointly with the calibration (refitJointly)
-/// and replaces each by its joint fit where that fits better; the joint fits' calibration
-/// summaries by joinNames(effects).
+/// Refits the `pool` best fits of `effects` effects (by BIC) whose chi2/n is above
+/// options.joint_refit_chi2 jointly with the calibration (refitJointly) and replaces each by its
+/// joint fit where that fits better; the joint fits' calibration summaries by joinNames(effects).
 std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
-                                                           std::vector<ModelFit>* fits, const DiagnosisOptions& options,
+                                                           std::vector<ModelFit>* fits, std::size_t effects, int pool,
+                                                           const DiagnosisOptions& options,
                                                            const std::function<void(const std::string&)>& progress);
 
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
