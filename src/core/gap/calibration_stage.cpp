@@ -241,11 +241,15 @@ std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noi
                                return (*fits)[i].outcome.chi2 / noise.fitResidualCount() <= options.joint_refit_chi2;
                              }),
               order.end());
-  std::vector<CalibrationFit> joint(order.size());
-  parallelFor(static_cast<int>(order.size()), options.threads,
-              [&](int k) { joint[k] = refitJointly(noise, (*fits)[order[k]], base, options); });
-  std::map<std::string, CalibrationSummary> summaries;
+  // The best first: when it lands within the noise the others (worse on the biased calibration)
+  // are not refitted.
   const int n = noise.fitResidualCount();
+  std::vector<CalibrationFit> joint(order.size());
+  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options);
+  if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
+  parallelFor(static_cast<int>(order.size()) - 1, options.threads,
+              [&](int k) { joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options); });
+  std::map<std::string, CalibrationSummary> summaries;
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelFit& f = (*fits)[order[k]];
     const CalibrationFit& j = joint[k];

@@ -531,7 +531,11 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
       fitCandidates(noise, candidateList(options), options, say, [&](std::vector<ModelFit>* singles) {
         if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
       });
-  if (!s.calibrated.empty()) settle(&fits, 2, 1);
+  // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
+  const bool single_within = std::any_of(fits.begin(), fits.end(), [&](const ModelFit& f) {
+    return f.outcome.ok && f.model.effects.size() == 1 && f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;
+  });
+  if (!s.calibrated.empty() && !single_within) settle(&fits, 2, 1);
   const std::vector<ScoredCandidate> scored = scoreCandidates(fits, prepared, noise, params, options);
   for (const auto& c : scored) rep.candidates.push_back(c.first);
 

@@ -140,6 +140,38 @@ class GapDiagnoseCli : public ::testing::Test {
 fs::path* GapDiagnoseCli::valid_dir_ = nullptr;
 std::vector<std::string> GapDiagnoseCli::run_names_;
 
+TEST_F(GapDiagnoseCli, CalibrationParametersAreCheckedBeforeAnythingIsWritten) {
+  const std::string dataset = valid_dir_->string();
+  const fs::path out = tmpDir("calibrate_out", false);
+  {
+    SCOPED_TRACE("unknown parameter: a command-line error");
+    const ToolResult r = runGap({"calibrate", dataset, "--out", out.string(), "--params", "film_stiffness_scale,bogus"});
+    EXPECT_EQ(r.code, 2) << r.output;
+    expectContains(r.output, {"--params", "unknown calibration parameter 'bogus'", "usage: gap calibrate"});
+    expectNoReport(out);
+    EXPECT_FALSE(fs::exists(out / "calibrated_airbag.yaml"));
+  }
+  {
+    SCOPED_TRACE("empty name");
+    expectUsageError({dataset, "--out", out.string(), "--params", "film_stiffness_scale,"}, {"--params", "empty name"});
+  }
+  {
+    SCOPED_TRACE("a valve parameter of flow-metered runs: a data error");
+    const ToolResult r = runGap({"calibrate", dataset, "--out", out.string(), "--params", "inlet_area_m2"});
+    EXPECT_EQ(r.code, 1) << r.output;
+    expectContains(r.output, {"inlet_area_m2", "valve_cmd and p_supply_gauge_pa", "flow-metered"});
+    expectNoReport(out);
+    EXPECT_FALSE(fs::exists(out / "calibrated_airbag.yaml"));
+  }
+  {
+    SCOPED_TRACE("--airbag-param of gap synth");
+    const ToolResult r = runGap({"synth", "--out", out.string(), "--airbag-param", "film_stiffnes=1.1"});
+    EXPECT_EQ(r.code, 2) << r.output;
+    expectContains(r.output, {"--airbag-param", "film_stiffnes"});
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
 TEST_F(GapDiagnoseCli, CommandLineMistakesExitWith2AndSayWhat) {
   const std::string dataset = valid_dir_->string();
   const fs::path out = tmpDir("usage_out", false);
