@@ -23,7 +23,7 @@ struct DiagnosisOptions {
   /// Effects to try (canonical candidate names); empty: every candidate of the catalogue.
   std::vector<std::string> candidates;
   /// Pairs are tried among this many best single candidates (0: no pairs).
-  int pair_pool = 3;
+  int pair_pool = 4;
   /// Residuals enter the fits at about this rate (runs are replayed at their full rate).
   double fit_sample_hz = 10.0;
   /// Largest integration step while fitting (the run's sample interval if that is shorter) and
