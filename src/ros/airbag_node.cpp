@@ -104,6 +104,7 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   cpr_sub_ = nh_.subscribe(names::kCpr, 2, &AirbagNode::onCpr, this);
   start_ = ros::Time::now();
   last_publish_ = start_;
+  takeSnapshot();
   CellTicker& ticker = CellTicker::instance(params_.update_rate_hz);
   if (ticker.rateHz() != params_.update_rate_hz)
     ROS_WARN("%s: ~update_rate_hz %g ignored: this process's airbags tick at %g Hz (the first one's rate)",
@@ -123,6 +124,8 @@ void AirbagNode::update(const ros::Time& now) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   const double load = pending_load_n_.exchange(kNoLoad);
   if (load != kNoLoad) cell_->setLoad(load);  // checked in applyLoad
+  const double heartbeat_s = pending_heartbeat_s_.exchange(kNoHeartbeat);
+  if (heartbeat_s != kNoHeartbeat) feedWatchdog(start_ + ros::Duration(heartbeat_s));
   // At most kCatchUpPeriods per round: when simulating the bed costs more than real time for a
   // moment (180 cells lifting off flat at once after CPR), a cell runs late and catches up over
   // the next rounds instead of jumping: its states keep coming, each stamped with the time it
@@ -131,6 +134,7 @@ void AirbagNode::update(const ros::Time& now) {
   const double until_s = std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s);
   stepDirectRamp(until_s);
   cell_->advanceTo(until_s);
+  takeSnapshot();
 }
 
 void AirbagNode::stepDirectRamp(double now_s) {
@@ -143,26 +147,50 @@ void AirbagNode::stepDirectRamp(double now_s) {
     direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
 }
 
+void AirbagNode::takeSnapshot() {
+  const CellVariables& v = cell_->variables();
+  CellSnapshot s;
+  s.time_s = cell_->time();
+  s.measurement = cell_->measurement();
+  s.volume_m3 = v.structure.volume_m3;
+  s.gas_mass_kg = v.mass_kg;
+  s.gas_temperature_k = v.temperature_k;
+  s.load_n = cell_->load();
+  s.metered_kg = cell_->meteredInletMassKg();
+  s.inlet_s = cell_->inletOpeningSeconds();
+  s.vent_s = cell_->ventOpeningSeconds();
+  s.valves = cell_->valves();
+  s.setpoint_m = cell_->setpoint();
+  s.mode = static_cast<uint8_t>(cell_->mode());
+  s.faults = cell_->faults();
+  std::lock_guard<std::mutex> lock(snapshot_mutex_);
+  snapshot_ = s;
+}
+
 void AirbagNode::publish(const ros::Time& now) {
-  // Wait for the simulation thread only briefly (one cell's period takes well under a ms): a
-  // cell it is stuck on publishes next round (both threads walk the cells in the same order;
-  // waiting for as long as it takes would pace publishing by the slowest cell).
-  std::unique_lock<std::timed_mutex> lock(mutex_, std::defer_lock);
-  if (!lock.try_lock_for(std::chrono::milliseconds(5))) return;
+  // The publishing thread reads the snapshot the simulation thread left after the cell's last
+  // period, never the cell itself: it never waits for a cell being advanced (waiting 5 ms per
+  // cell, it followed a slow round cell by cell: 0.4 s gaps after CPR).
+  CellSnapshot s;
+  {
+    std::lock_guard<std::mutex> lock(snapshot_mutex_);
+    s = snapshot_;
+  }
   const double since_s = (now - last_publish_wall_).toSec();
   if (since_s < 1.0 / params_.publish_rate_hz - 0.5 / params_.update_rate_hz) return;
   // A state is published when the simulation has moved on, and repeated (same stamp) while a
   // slow simulation round holds it back: the cell's controller is alive, its plant is late.
-  const bool advanced = cell_->time() != last_published_time_s_;
-  if (!advanced && since_s < 2.0 / params_.publish_rate_hz) return;
-  publishState(start_ + ros::Duration(cell_->time()));
-  last_published_time_s_ = cell_->time();
+  // Repeats only when late, so a cell that keeps up never publishes a stamp twice.
+  const bool advanced = s.time_s != last_published_time_s_;
+  const bool late = elapsed(now) - s.time_s > 1.5 / params_.update_rate_hz;
+  if (!advanced && !late) return;
+  publishState(s, start_ + ros::Duration(s.time_s));
+  last_published_time_s_ = s.time_s;
   last_publish_wall_ = now;
 }
 
-void AirbagNode::publishState(const ros::Time& stamp) {
-  const CellVariables& v = cell_->variables();
-  const Measurement& m = cell_->measurement();
+void AirbagNode::publishState(const CellSnapshot& s, const ros::Time& stamp) {
+  const Measurement& m = s.measurement;
   // Published as a shared pointer: the bed manager nodelet in the same manager gets it without a copy.
   const boost::shared_ptr<AirbagState> out = boost::make_shared<AirbagState>();
   AirbagState& msg = *out;
@@ -173,34 +201,32 @@ void AirbagNode::publishState(const ros::Time& stamp) {
   msg.col = layout_.col;
   msg.gauge_pressure_pa = m.gauge_pressure_pa;
   msg.height_m = m.height_m;
-  msg.volume_m3 = v.structure.volume_m3;
-  msg.gas_mass_kg = v.mass_kg;
-  msg.gas_temperature_k = v.temperature_k;
+  msg.volume_m3 = s.volume_m3;
+  msg.gas_mass_kg = s.gas_mass_kg;
+  msg.gas_temperature_k = s.gas_temperature_k;
   // Mean metered inflow since the previous message (from the totaliser): what a logged flow
   // meter gives, and what a replay of the recording can integrate (doc/airbag_node.md).
   const double interval_s = (stamp - last_publish_).toSec();
-  const double metered_kg = cell_->meteredInletMassKg();
-  msg.inflow_kg_s = interval_s > 0.0 ? (metered_kg - metered_mass_at_publish_kg_) / interval_s : m.inflow_kg_s;
-  metered_mass_at_publish_kg_ = metered_kg;
-  msg.external_load_n = cell_->load();
+  msg.inflow_kg_s = interval_s > 0.0 ? (s.metered_kg - metered_mass_at_publish_kg_) / interval_s : m.inflow_kg_s;
+  metered_mass_at_publish_kg_ = s.metered_kg;
+  msg.external_load_n = s.load_n;
   // Mean valve openings since the previous message, for the same reason: a 200 Hz valve
   // sampled at 50 Hz would misstate the gas it let through.
-  const double inlet_s = cell_->inletOpeningSeconds(), vent_s = cell_->ventOpeningSeconds();
-  msg.inlet_valve_cmd = interval_s > 0.0 ? (inlet_s - inlet_opening_at_publish_s_) / interval_s : cell_->valves().inlet;
-  msg.vent_valve_cmd = interval_s > 0.0 ? (vent_s - vent_opening_at_publish_s_) / interval_s : cell_->valves().vent;
+  msg.inlet_valve_cmd = interval_s > 0.0 ? (s.inlet_s - inlet_opening_at_publish_s_) / interval_s : s.valves.inlet;
+  msg.vent_valve_cmd = interval_s > 0.0 ? (s.vent_s - vent_opening_at_publish_s_) / interval_s : s.valves.vent;
   msg.inlet_valve_cmd = std::clamp(msg.inlet_valve_cmd, 0.0, 1.0);
   msg.vent_valve_cmd = std::clamp(msg.vent_valve_cmd, 0.0, 1.0);
-  inlet_opening_at_publish_s_ = inlet_s;
-  vent_opening_at_publish_s_ = vent_s;
-  msg.height_setpoint_m = cell_->setpoint();
-  msg.mode = static_cast<uint8_t>(cell_->mode());
-  msg.faults = cell_->faults();
+  inlet_opening_at_publish_s_ = s.inlet_s;
+  vent_opening_at_publish_s_ = s.vent_s;
+  msg.height_setpoint_m = s.setpoint_m;
+  msg.mode = s.mode;
+  msg.faults = s.faults;
   last_publish_ = stamp;
   state_pub_.publish(out);
   if (pressure_pub_.getNumSubscribers() > 0) {
     sensor_msgs::FluidPressure p;
     p.header = msg.header;
-    p.fluid_pressure = cell_->params().cell.ambient_pressure_pa + m.gauge_pressure_pa;  // absolute, per the message
+    p.fluid_pressure = params_.airbag.cell.ambient_pressure_pa + m.gauge_pressure_pa;  // absolute, per the message
     pressure_pub_.publish(p);
   }
 }
@@ -296,6 +322,7 @@ void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
   cell_->requestVent(elapsed(ros::Time::now()));
+  takeSnapshot();
 }
 
 void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
@@ -304,13 +331,15 @@ void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
   ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
+  takeSnapshot();
 }
 
 void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) { onBedHeartbeat(); }
 
 void AirbagNode::onBedHeartbeat() {
-  std::lock_guard<std::timed_mutex> lock(mutex_);
-  feedWatchdog(ros::Time::now());
+  // Buffered like the loads: the simulation thread feeds the watchdog, so the process's one
+  // heartbeat thread never waits for a cell being advanced.
+  pending_heartbeat_s_ = elapsed(ros::Time::now());
 }
 
 }  // namespace nursing_bed

@@ -16,8 +16,8 @@ CellTicker& CellTicker::instance(double rate_hz) {
 
 CellTicker::CellTicker(double rate_hz)
     : rate_hz_(rate_hz),
-      advance_thread_(&CellTicker::run, this, &Entry::advance, &advance_round_),
-      publish_thread_(&CellTicker::run, this, &Entry::publish, &publish_round_) {}
+      advance_thread_(&CellTicker::run, this, &Entry::advance, &advance_round_, false),
+      publish_thread_(&CellTicker::run, this, &Entry::publish, &publish_round_, true) {}
 
 CellTicker::~CellTicker() {
   stop_ = true;
@@ -37,7 +37,7 @@ void CellTicker::remove(int handle) {
                  entries_.end());
 }
 
-void CellTicker::run(Tick Entry::*which, std::mutex* round) {
+void CellTicker::run(Tick Entry::*which, std::mutex* round, bool reverse) {
   // ros::Rate follows /clock under use_sim_time; before ROS time is valid, wait.
   while (!stop_ && !ros::Time::isValid()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ros::Rate rate(rate_hz_);
@@ -45,7 +45,11 @@ void CellTicker::run(Tick Entry::*which, std::mutex* round) {
     {
       std::lock_guard<std::mutex> lock(*round);
       const ros::Time now = ros::Time::now();
-      for (const Entry& e : entries_) (e.*which)(now);
+      if (reverse) {
+        for (auto e = entries_.rbegin(); e != entries_.rend(); ++e) ((*e).*which)(now);
+      } else {
+        for (const Entry& e : entries_) (e.*which)(now);
+      }
     }
     rate.sleep();
   }

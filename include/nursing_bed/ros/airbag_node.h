@@ -75,7 +75,20 @@ class AirbagNode {
   bool ownedByManager(const ros::Time& now) const;
   /// A streamed command or heartbeat arrived: feed (and on the first one arm) the watchdog.
   void feedWatchdog(const ros::Time& now);
-  void publishState(const ros::Time& stamp);
+  /// What the publishing thread reads of the cell: its state after its last period.
+  struct CellSnapshot {
+    double time_s = -1.0;
+    Measurement measurement;
+    double volume_m3 = 0.0, gas_mass_kg = 0.0, gas_temperature_k = 0.0, load_n = 0.0;
+    double metered_kg = 0.0, inlet_s = 0.0, vent_s = 0.0;  ///< the flow and valve totalisers
+    ValveCommand valves;
+    double setpoint_m = std::numeric_limits<double>::quiet_NaN();
+    uint8_t mode = 0;
+    uint32_t faults = 0;
+  };
+  /// Copies the cell's state for the publishing thread (mutex_ held).
+  void takeSnapshot();
+  void publishState(const CellSnapshot& snapshot, const ros::Time& stamp);
   /// Moves a direct call's ramp one period on (simulation thread, mutex held).
   void stepDirectRamp(double now_s);
   /// Starts (or retargets) a direct call's ramp to `height_m` (checked; mutex held).
@@ -87,9 +100,13 @@ class AirbagNode {
   CellLayout layout_;
   std::unique_ptr<AirbagCell> cell_;
   std::timed_mutex mutex_;  // callbacks may run on several nodelet worker threads
+  std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
+  CellSnapshot snapshot_;
   static constexpr double kNoLoad = -1.0;
   static constexpr double kCatchUpPeriods = 2.0;  ///< most update periods a cell advances per round
-  std::atomic<double> pending_load_n_{kNoLoad};  ///< a checked load for the next update (kNoLoad: none)
+  std::atomic<double> pending_load_n_{kNoLoad};
+  static constexpr double kNoHeartbeat = -1.0;
+  std::atomic<double> pending_heartbeat_s_{kNoHeartbeat};  ///< a heartbeat's time for the next update [s since start]  ///< a checked load for the next update (kNoLoad: none)
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
   std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have

@@ -40,8 +40,10 @@ class CellTicker {
     Tick advance, publish;
   };
   explicit CellTicker(double rate_hz);
-  /// Calls `which` of every entry at `rate_hz_`, holding `round` during each round.
-  void run(Tick Entry::*which, std::mutex* round);
+  /// Calls `which` of every entry at `rate_hz_`, holding `round` during each round; `reverse`
+  /// walks the entries backwards (the publishing thread: it meets the simulation thread once
+  /// per round instead of following it from cell to cell).
+  void run(Tick Entry::*which, std::mutex* round, bool reverse);
 
   double rate_hz_;
   std::mutex advance_round_, publish_round_;  // the list changes only with both held
