@@ -95,7 +95,7 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   RateLimits limits;
   limits.max_rate_per_s = params_.max_height_rate_m_s;
   limits.slope_weights = rollSlopeWeights(grid(), params_.body);
-  limits.max_angle_rate_rad_s = params_.plans.max_tilt_rate_deg_s * M_PI / 180.0;
+  limits.max_angle_rate_rad_s = params_.plans.bed_tilt_rate_fraction * params_.plans.max_tilt_rate_deg_s * M_PI / 180.0;
   limiter_ = std::make_unique<RateLimiter>(limits, n);
   std::string prefix = params_.cells_ns;
   if (prefix.empty() || prefix.back() != '/') prefix += '/';

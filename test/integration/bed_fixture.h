@@ -87,19 +87,21 @@ class BedFixture : public ::testing::Test {
     if (m.header.stamp > last) last = m.header.stamp;
   }
 
-  /// The fastest a cell's height setpoint changed over windows of >= 0.5 s of its stamps
-  /// (the manager sends steps at 10 Hz; a window smooths them). CPR's NaN restarts the window.
+  /// The fastest a cell's height setpoint changed over windows of >= 1 s of arrival times (the
+  /// manager sends steps at 10 Hz, on the wall clock; a late plant's stamps would compress them).
+  /// CPR's NaN restarts the window.
   void trackSetpointRate(const AirbagState& m) {
     auto& [at, value] = setpoint_anchor_[m.cell_id];
+    const ros::Time now = ros::Time::now();
     if (!std::isfinite(m.height_setpoint_m) || !std::isfinite(value) || at.isZero()) {
-      at = m.header.stamp;
+      at = now;
       value = m.height_setpoint_m;
       return;
     }
-    const double dt = (m.header.stamp - at).toSec();
-    if (dt < 0.5) return;
+    const double dt = (now - at).toSec();
+    if (dt < 1.0) return;
     max_setpoint_rate_m_s_ = std::max(max_setpoint_rate_m_s_, std::fabs(m.height_setpoint_m - value) / dt);
-    at = m.header.stamp;
+    at = now;
     value = m.height_setpoint_m;
   }
 

@@ -262,6 +262,7 @@ TEST_F(SafetyFixture, BodyRollRateIsLimitedThroughPlanSwitchesAndACellFault) {
   ASSERT_TRUE(posture("flat").success);
   ASSERT_TRUE(waitFor([&] { return std::isfinite(roll_rad); }, 15.0)) << "no body roll from the simulator";
   ASSERT_TRUE(settle(uniform(0.10), 5e-3, 0.5, 30.0));
+  max_setpoint_rate_m_s_ = 0.0;
   // Worst roll rate over 1 s windows of the samples since `from` [deg/s] (the samples are
   // stamped on receipt, which bunches them; a shorter window measures that).
   auto worst_rate = [&](double from) {
@@ -281,12 +282,13 @@ TEST_F(SafetyFixture, BodyRollRateIsLimitedThroughPlanSwitchesAndACellFault) {
     return rate;
   };
   ASSERT_TRUE(posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"left", "20", "20", "600"}).success);
-  const double ramp = phase("turn left 20 deg", 25.0);
+  // The plan's ramp asks 1 deg/s; the bed slows its own slope to bed_tilt_rate_fraction of it.
+  const double ramp = phase("turn left 20 deg", 45.0);
   EXPECT_NEAR(-roll_rad * 180.0 / M_PI, 20.0, 2.5);
   ASSERT_TRUE(posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"right", "20", "20", "600"}).success);
-  const double to_other_side = phase("switched to turn right 20 deg", 12.0);
+  const double to_other_side = phase("switched to turn right 20 deg", 18.0);
   ASSERT_TRUE(posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"left", "15", "15", "600"}).success);
-  const double back = phase("switched back to turn left 15 deg", 12.0);
+  const double back = phase("switched back to turn left 15 deg", 18.0);
   const double settled = phase("... holding", 20.0);
   (void)settled;
   // A cell under the pelvis dies during the turn: the bed levels, at the limited rate.
@@ -297,7 +299,8 @@ TEST_F(SafetyFixture, BodyRollRateIsLimitedThroughPlanSwitchesAndACellFault) {
   EXPECT_EQ(bed_.plan, "safe_level");
   const double limit = 1.0;  // plans/max_tilt_rate_deg_s
   for (double rate : {ramp, to_other_side, back, fault}) EXPECT_LE(rate, limit);
-  EXPECT_LE(max_setpoint_rate_m_s_, 0.02 * 1.05) << "a cell's setpoint moved faster than safety/max_height_rate_m_s";
+  // Windows of >= 1 s of arrival times: 10 % for the arrivals' bunching.
+  EXPECT_LE(max_setpoint_rate_m_s_, 0.02 * 1.1) << "a cell's setpoint moved faster than safety/max_height_rate_m_s";
   std::printf("fastest setpoint change of any cell: %.4f m/s\n", max_setpoint_rate_m_s_);
   RecordProperty("roll_rate_switch_deg_s", std::to_string(to_other_side));
   RecordProperty("roll_rate_fault_deg_s", std::to_string(fault));

@@ -20,6 +20,7 @@ std::string PlanConfig::validate() const {
     err << "nominal_height_m must lie in [min_height_m, max_height_m]; ";
   if (!(max_tilt_deg > 0.0 && max_tilt_deg <= kHardMaxTiltDeg)) err << "max_tilt_deg must lie in (0, 40]; ";
   if (!(max_tilt_rate_deg_s > 0.0)) err << "max_tilt_rate_deg_s must be positive; ";
+  if (!(bed_tilt_rate_fraction > 0.0 && bed_tilt_rate_fraction <= 1.0)) err << "bed_tilt_rate_fraction must lie in (0, 1]; ";
   if (!(turn_ramp_s > 0.0 && turn_dwell_s >= 0.0)) err << "turn_ramp_s must be positive, turn_dwell_s >= 0; ";
   if (!(alternating_low_m >= min_height_m && alternating_high_m <= max_height_m && alternating_low_m < alternating_high_m))
     err << "alternating heights must satisfy min <= low < high <= max; ";
@@ -296,6 +297,8 @@ const ParamTable<PlanConfig>& planConfigFields() {
       NB_FIELD("max_height_m", "highest height a plan commands [m]", p.max_height_m),
       NB_FIELD("max_tilt_deg", "configured maximum lateral turn (hard cap 40) [deg]", p.max_tilt_deg),
       NB_FIELD("max_tilt_rate_deg_s", "fastest change of the turn angle [deg/s]", p.max_tilt_rate_deg_s),
+      NB_FIELD("bed_tilt_rate_fraction", "fraction of max_tilt_rate_deg_s the bed's slope under the trunk changes at [-]",
+               p.bed_tilt_rate_fraction),
       NB_FIELD("turn_ramp_s", "default ramp time of a turn [s]", p.turn_ramp_s),
       NB_FIELD("turn_dwell_s", "default dwell at the turned angle [s]", p.turn_dwell_s),
       NB_FIELD("alternating_period_s", "default alternating cycle [s]", p.alternating_period_s),

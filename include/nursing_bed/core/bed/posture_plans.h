@@ -23,6 +23,10 @@ struct PlanConfig {
   double max_height_m = 0.15;            ///< highest height a plan commands [m]
   double max_tilt_deg = 30.0;            ///< configured maximum lateral turn [deg] (<= 40)
   double max_tilt_rate_deg_s = 1.0;      ///< fastest change of the turn angle [deg/s]
+  /// Fraction of max_tilt_rate_deg_s at which the bed's own slope under the trunk may change:
+  /// the patient rolls faster than the bed's slope (he follows the cells' lag and shifting
+  /// contact; measured up to 1.83 times at a plan switch, doc/safety.md) [-].
+  double bed_tilt_rate_fraction = 0.5;
   double turn_ramp_s = 60.0;             ///< default ramp time of a turn [s]
   double turn_dwell_s = 600.0;           ///< default dwell at the turned angle [s]
   double alternating_period_s = 600.0;   ///< default alternating cycle [s]
