@@ -323,6 +323,7 @@ TEST_F(SafetyFixture, BedManagerKilledCellsHoldCprWorksAndTheRestartResumesThePl
   EXPECT_TRUE(held) << "not every cell went SAFE";
   EXPECT_LE(safe_s, 2.0);
   std::printf("bed manager killed: every cell SAFE after %.2f s\n", safe_s);
+  RecordProperty("all_cells_safe_after_s", std::to_string(safe_s));
   // Bed-wide CPR without the manager: every cell listens to /cpr.
   ros::Publisher cpr = nh_.advertise<std_msgs::Bool>("/cpr", 1, true);
   ASSERT_TRUE(waitFor([&] { return cpr.getNumSubscribers() >= static_cast<uint32_t>(cells()); }, 5.0));

@@ -166,7 +166,8 @@ bool AirbagCell::plantStep(const CellInputs& in) {
     return false;
   }
   // What an absurd input left behind (seen: volume -0.05 m^3, 1.4 K). No upper bound on the
-  // temperature: a fast compression heats the gas for a moment, and it recovers by itself.
+  // temperature: the nominal model heats the last milligram of gas to ~1400 K for a few ms when
+  // CPR's vacuum empties the cell onto its dead volume, and recovers by itself (doc/safety.md).
   const CellVariables& v = model_.variables();
   return model_.state().allFinite() && v.structure.volume_m3 > 0.0 && v.mass_kg > 0.0 && v.temperature_k > 10.0 &&
          std::isfinite(v.gauge_pressure_pa) && std::isfinite(v.height_m);

@@ -233,10 +233,7 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
                                     relief_kg_s * cp * v.temperature_k;
   dx[kMass] = v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - relief_kg_s + terms.mass_flow_kg_s;
   // Film shape relaxes towards dW/dq = p_gauge dV/dq.
-  // Compression work follows the volume itself: a bottomed plate pressing into the bed does no
-  // work on the gas (with A_eff there, CPR's emptied cell heated its last milligram to 1800 K,
-  // and cells carrying only their plate never lifted off again: doc/safety.md).
-  double volume_rate = s.volume_slope_m2 * v.velocity_m_s;
+  double volume_rate = s.effective_area_m2 * v.velocity_m_s;
   for (int i = 0; i < shape_dofs_; ++i) {
     const double imbalance = s.elastic_force[i] + terms.shape_force[i] - v.gauge_pressure_pa * s.dvolume_dshape[i];
     dx[kShape + i] = -imbalance / s.shape_damping[i];

@@ -60,7 +60,6 @@ StructureEval PillowStructure::evaluate(double height_m, const double* shape) co
   const double chamber_volume = w * w * c + 0.5 * kPi * w * c * c + kPi / 6.0 * c * c * c;
   e.volume_m3 = params_.dead_volume_m3 + n * chamber_volume;
   e.effective_area_m2 = w * w - kCornerAreaFactor * c * c;
-  e.volume_slope_m2 = height_m > 0.0 ? e.effective_area_m2 : 0.0;
   // dV/dlambda = n (L0/2) dV_chamber/dw.
   e.dvolume_dshape[0] = n * 0.5 * loop_length_m_ * (2.0 * w * c + 0.5 * kPi * c * c);
   const double energy_slope = params_.material.equibiaxialEnergyDerivative(stretch);

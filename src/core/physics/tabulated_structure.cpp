@@ -96,12 +96,7 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   e.effective_area_m2 = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
   // Volume: the table, extended below its lowest height along the lowest row's area.
   e.volume_m3 = interpolate(table_.volume_m3, height_m, q);
-  e.volume_slope_m2 = e.effective_area_m2;
-  if (height_m < h0) {
-    const double extended = e.volume_m3 - (h0 - height_m) * e.effective_area_m2;
-    e.volume_m3 = std::max(1e-9, extended);
-    if (extended < 1e-9) e.volume_slope_m2 = 0.0;
-  }
+  if (height_m < h0) e.volume_m3 = std::max(1e-9, e.volume_m3 - (h0 - height_m) * e.effective_area_m2);
   // dV/dq from the bracketing pressure columns (floored: q must keep relaxing to p).
   const auto [j, b] = locate(table_.pressures_pa, q);
   (void)b;

@@ -34,7 +34,7 @@ struct CellParams {
   double plate_mass_kg = 0.6 / kGravity;              ///< loading plate (0.6 N, paper section 2.2)
   double plate_damping_n_s_m = 20.0;                  ///< viscous damping of the plate guide
   double bed_contact_stiffness_n_m = 2.0e5;           ///< folded film stack under a bottomed plate
-  double bed_contact_damping_n_s_m = 2000.0;
+  double bed_contact_damping_n_s_m = 100.0;
 
   double supply_pressure_pa = 20.0e3;                 ///< pressure-reducing valve setting (gauge)
   double regulator_time_constant_s = 1.2;             ///< first-order response of that valve's outlet

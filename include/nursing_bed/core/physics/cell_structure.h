@@ -20,9 +20,6 @@ constexpr int kMaxShapeDofs = 4;
 struct StructureEval {
   double volume_m3 = 0.0;               ///< gas volume, dead volume included (paper eq. 11)
   double effective_area_m2 = 0.0;       ///< dV/dh at fixed shape; plate force = p_gauge * this
-  /// dV/dh at fixed shape where it differs from effective_area_m2: 0 below the flat cell (h < 0,
-  /// the plate pressing the folded film into the bed), whose volume no longer changes there.
-  double volume_slope_m2 = 0.0;
   std::array<double, kMaxShapeDofs> dvolume_dshape{};  ///< dV/dq_i [m^3 per unit q_i]
   std::array<double, kMaxShapeDofs> elastic_force{};   ///< dW/dq_i of the film energy [J per unit q_i]
   std::array<double, kMaxShapeDofs> shape_damping{};   ///< viscous resistance of q_i [J s per unit q_i^2]
