@@ -110,7 +110,13 @@ const std::vector<EffectSpec>& effectCatalog() {
   return catalog;
 }
 
-const EffectSpec& effectSpec(const std::string& name) { return catalogEntry(effectCatalog(), name, "effect"); }
+const EffectSpec& effectSpec(const std::string& name) {
+  for (const auto& e : effectCatalog())
+    if (e.name == name) return e;
+  std::string known;
+  for (const auto& e : effectCatalog()) known += (known.empty() ? "" : ", ") + e.name;
+  throw std::invalid_argument("unknown effect '" + name + "' (known: " + known + ")");
+}
 
 std::vector<std::string> candidateEffectNames() {
   std::vector<std::string> out;

@@ -1,7 +1,5 @@
 #include "nursing_bed/core/gap/noise_model.h"
 
-#include "nursing_bed/core/gap/calibration.h"
-
 #include <Eigen/Cholesky>
 
 #include <algorithm>
@@ -113,7 +111,6 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
                            const CellParams& params, double sample_hz) {
   FitData::Run r;
   r.data = &run;
-  r.has_height = !runHasNoHeight(run);
   const Replay nominal = replayRun(run, params, {});
   if (!nominal.ok) throw std::invalid_argument(nominal.message);
   std::vector<double> dp_dm, dh_dm;
@@ -142,17 +139,15 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
     if (i > 0 && run.mdot_in_kg_s[i] != 0.0)
       walk_var += std::pow(std::max(flow_noise[i], 0.0) * (run.t_s[i] - run.t_s[i - 1]), 2);
     if (i % stride != 0 || nominal.phases[i] == RunPhase::kLanded) continue;
-    if (!std::isfinite(run.p_gauge_pa[i]) || (r.has_height && !std::isfinite(run.h_m[i]))) continue;
+    if (!std::isfinite(run.p_gauge_pa[i]) || !std::isfinite(run.h_m[i])) continue;
     r.index.push_back(i);
     walk.push_back(walk_var);
     white_p.push_back(std::pow(noise.p_pa, 2) + std::pow(kModelAccuracyShare * range.range_p_pa, 2) + timing_p[i]);
-    // No height sensor: its slots are uncorrelated unit noise whose residual is 0.
-    white_h.push_back(r.has_height ? std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing_h[i]
-                                   : 1.0);
+    white_h.push_back(std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing_h[i]);
     gain_p.push_back(dp_dm[i]);
-    gain_h.push_back(r.has_height ? dh_dm[i] : 0.0);
+    gain_h.push_back(dh_dm[i]);
     g0_p.push_back(start_p[i]);
-    g0_h.push_back(r.has_height ? start_h[i] : 0.0);
+    g0_h.push_back(start_h[i]);
     r.sigma_p_pa.push_back(std::sqrt(white_p.back() + dp_dm[i] * dp_dm[i] * walk_var + start_p[i] * start_p[i] * start_var));
     r.sigma_h_m.push_back(std::sqrt(white_h.back() + dh_dm[i] * dh_dm[i] * walk_var + start_h[i] * start_h[i] * start_var));
   }
