@@ -148,10 +148,25 @@ TEST(BagRuns, ErrorsNameTheBagAndTopic) {
     rosbag::Bag bag(backwards.string(), rosbag::bagmode::Write);
     bag.write("/a/state", ros::Time(1.0), state(10.0, 0, 0, 0, 1, 0, 0));
     bag.write("/a/state", ros::Time(2.0), state(10.5, 0, 0, 0, 1, 0, 0));
-    bag.write("/a/state", ros::Time(3.0), state(10.5, 0, 0, 0, 1, 0, 0));
+    bag.write("/a/state", ros::Time(3.0), state(10.4, 0, 0, 0, 1, 0, 0));
   }
   expectContains(readError(backwards),
                  {"backwards.bag", "topic /a/state", "time not strictly increasing", "message 2"});
+}
+
+TEST(BagRuns, ARepeatedStateIsSkipped) {
+  // A late cell repeats its last state with the same stamp (doc/safety.md): read once.
+  const fs::path path = tmpBag("repeat.bag");
+  {
+    rosbag::Bag bag(path.string(), rosbag::bagmode::Write);
+    bag.write("/a/state", ros::Time(1.0), state(10.0, 0, 0, 0, 1, 0, 0));
+    bag.write("/a/state", ros::Time(2.0), state(10.5, 0, 0, 0, 1, 0, 0));
+    bag.write("/a/state", ros::Time(3.0), state(10.5, 0, 0, 0, 1, 0, 0));
+    bag.write("/a/state", ros::Time(4.0), state(11.0, 0, 0, 0, 1, 0, 0));
+  }
+  const std::vector<nb::RunData> runs = nb::readRunsFromBag(path.string());
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0].t_s, (std::vector<double>{0.0, 0.5, 1.0}));
 }
 
 }  // namespace
