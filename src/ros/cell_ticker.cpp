@@ -40,7 +40,10 @@ void CellTicker::remove(int handle) {
 void CellTicker::run(Tick Entry::*which, std::mutex* round, bool reverse) {
   // ros::Rate follows /clock under use_sim_time; before ROS time is valid, wait.
   while (!stop_ && !ros::Time::isValid()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  ros::Rate rate(rate_hz_);
+  // The publishing thread looks twice per period: a cell the simulation had not yet advanced
+  // when it looked publishes half a period later, not a period later (each airbag's publish()
+  // keeps its own rate).
+  ros::Rate rate(reverse ? 2.0 * rate_hz_ : rate_hz_);
   while (!stop_ && ros::ok()) {
     {
       std::lock_guard<std::mutex> lock(*round);
