@@ -156,11 +156,19 @@ TEST(AirbagCell, CommandTimeoutHoldsTheGas) {
   EXPECT_NEAR(cell.variables().height_m, 0.12, 1e-3);
 }
 
-TEST(AirbagCell, SensorFaultClosesTheValves) {
+namespace {
+// A cell filling from 30 mm towards 120 mm under 15.6 N, 0.1 s into the fill (inlet open).
+nb::AirbagCell fillingCell() {
   nb::AirbagCell cell{nb::AirbagCellParams{}};
   cell.resetToHeight(0.03, 15.6);
   cell.requestHeight(0.12, 0.0);
   cell.advanceTo(0.1);
+  return cell;
+}
+}  // namespace
+
+TEST(AirbagCell, SensorFaultClosesTheValves) {
+  nb::AirbagCell cell = fillingCell();
   ASSERT_GT(cell.valves().inlet, 0.0);
   cell.setSensorFailure(true);
   cell.advanceTo(0.2);
@@ -176,10 +184,7 @@ TEST(AirbagCell, SensorFaultClosesTheValves) {
 }
 
 TEST(AirbagCell, AShortBadReadingHoldsTheGasWithoutASensorFault) {
-  nb::AirbagCell cell{nb::AirbagCellParams{}};
-  cell.resetToHeight(0.03, 15.6);
-  cell.requestHeight(0.12, 0.0);
-  cell.advanceTo(0.1);
+  nb::AirbagCell cell = fillingCell();
   ASSERT_GT(cell.valves().inlet, 0.0);
   cell.setSensorFailure(true);  // 4 control periods of NaN readings, fewer than sensor_fault_periods
   cell.advanceTo(0.12);
