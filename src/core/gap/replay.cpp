@@ -69,8 +69,42 @@ InitialHeight initialHeight(const RunData& run) {
   return {std::accumulate(h.begin(), h.end(), 0.0) / h.size(), static_cast<int>(h.size())};
 }
 
+namespace {
+
+/// Advances `model` over one interval of `dt` with `in`; an interval-mean inflow or vent opening
+/// is spread over it, or (IntervalShape) concentrated into a pulse at its start or end with
+/// `duty` (0..1] the share of the interval the valve was open.
+void advanceInterval(CellModel* model, double dt, const CellInputs& in, IntervalShape shape, double duty) {
+  const bool pulsed = shape != IntervalShape::kSpread && duty > 0.0 && duty < 1.0 &&
+                      ((std::isfinite(in.prescribed_inflow_kg_s) && in.prescribed_inflow_kg_s != 0.0) ||
+                       in.vent_opening > 0.0);
+  if (!pulsed) {
+    model->advance(dt, in);
+    return;
+  }
+  CellInputs open = in, shut = in;
+  if (std::isfinite(in.prescribed_inflow_kg_s)) {
+    open.prescribed_inflow_kg_s = in.prescribed_inflow_kg_s / duty;
+    shut.prescribed_inflow_kg_s = 0.0;
+  }
+  open.vent_opening = in.vent_opening > 0.0 ? 1.0 : 0.0;
+  shut.vent_opening = 0.0;
+  const bool at_start = shape == IntervalShape::kPulseAtStart;
+  model->advance((at_start ? duty : 1.0 - duty) * dt, at_start ? open : shut);
+  model->advance((at_start ? 1.0 - duty : duty) * dt, at_start ? shut : open);
+}
+
+/// The share of interval i its valve was open: the mean opening the run reports (valve_cmd), 0.5
+/// without one.
+double valveDuty(const RunData& run, std::size_t i) {
+  if (run.valve_cmd.size() != run.size() || !std::isfinite(run.valve_cmd[i])) return 0.5;
+  return std::min(1.0, std::fabs(run.valve_cmd[i]));
+}
+
+}  // namespace
+
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                 long max_substeps) {
+                 long max_substeps, IntervalShape shape) {
   Replay out;
   out.phases = classifyPhases(run);
   const std::size_t n = run.size();
@@ -118,7 +152,8 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
         const bool interval_mean = run.flow_interval_means && std::isfinite(run.mdot_in_kg_s[i]);
         in.prescribed_inflow = interval_mean ? nullptr : &inflow;
         in.prescribed_inflow_kg_s = interval_mean ? run.mdot_in_kg_s[i] : NAN;
-        model.advance(run.t_s[i] - run.t_s[i - 1], in);
+        if (interval_mean) advanceInterval(&model, run.t_s[i] - run.t_s[i - 1], in, shape, valveDuty(run, i));
+        else model.advance(run.t_s[i] - run.t_s[i - 1], in);
       }
       const Measurement m = model.measure();
       out.p_gauge_pa[i] = m.gauge_pressure_pa;

@@ -177,3 +177,57 @@ TEST(DiagnosisStages, MedianAndFmt) {
 }
 
 }  // namespace
+
+namespace {
+
+/// A bed cell's recording of a lift-off from flat at 50 Hz: valve pulses reported as interval
+/// means (alternating full and half intervals, as the controller's pulses come out), then 5 s
+/// sealed.
+nb::RunData pulsedLiftOff(bool interval_means) {
+  nb::RunData run;
+  run.name = "lift_off";
+  run.load_n = 10.6;
+  run.flow_interval_means = interval_means;
+  for (int i = 0; i <= 300; ++i) {
+    run.t_s.push_back(0.02 * i);
+    const bool inflating = i >= 10 && i < 60;
+    run.mdot_in_kg_s.push_back(inflating ? (i % 3 == 0 ? 1.8e-3 : 3.7e-3) : 0.0);
+    run.valve_cmd.push_back(inflating ? (i % 3 == 0 ? 0.5 : 1.0) : 0.0);
+    run.p_gauge_pa.push_back(0.0);
+    run.h_m.push_back(0.0);
+  }
+  return run;
+}
+
+}  // namespace
+
+TEST(DiagnosisStages, TimingSpreadRingsAtTheLiftOffAndKeepsItsLastingOffsetShared) {
+  const nb::CellParams params;
+  const nb::RunData instant = pulsedLiftOff(false);
+  const nb::Replay instant_replay = nb::replayRun(instant, params, {});
+  ASSERT_TRUE(instant_replay.ok) << instant_replay.message;
+  // Instantaneous readings: the timing is known, no spread.
+  const gs::TimingSpread none = gs::timingSpread(instant, params, instant_replay);
+  EXPECT_TRUE(none.modes.empty());
+  for (double v : none.var_p) EXPECT_EQ(v, 0.0);
+
+  const nb::RunData means = pulsedLiftOff(true);
+  const nb::Replay nominal = nb::replayRun(means, params, {});
+  ASSERT_TRUE(nominal.ok) << nominal.message;
+  const gs::TimingSpread spread = gs::timingSpread(means, params, nominal);
+  ASSERT_EQ(spread.modes.size(), 2u);  // half an interval earlier and later
+  ASSERT_EQ(spread.var_p.size(), means.size());
+  // While the pulses come, the readings spread (the plate rings); sealed, the ringing is over:
+  // what the timing changed for good is in the modes, shared by every later sample, not white.
+  double pulsing = 0.0, sealed_white = 0.0, sealed_mode = 0.0;
+  for (std::size_t i = 10; i < 60; ++i) pulsing = std::max(pulsing, std::sqrt(spread.var_p[i]));
+  for (std::size_t i = 200; i < means.size(); ++i) {
+    sealed_white = std::max(sealed_white, std::sqrt(spread.var_p[i]));
+    for (const gs::ErrorMode& m : spread.modes) sealed_mode = std::max(sealed_mode, std::abs(m.p[i]));
+  }
+  std::cout << "timing spread: pulsing up to " << pulsing << " Pa, sealed white " << sealed_white << " Pa, lasting "
+            << sealed_mode << " Pa\n";
+  EXPECT_GT(pulsing, 10.0);
+  EXPECT_LT(sealed_white, 1.0);
+  EXPECT_GT(sealed_mode, 1.0);
+}

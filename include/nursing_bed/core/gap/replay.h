@@ -44,6 +44,13 @@ struct InitialHeight {
 };
 InitialHeight initialHeight(const RunData& run);
 
+/// Where an interval-mean flow's gas goes within its interval. kSpread: evenly (the replay's
+/// model of the data). The pulse shapes are the extremes of what the mean allows, for the noise
+/// model: the bed's valves are on/off, so an interval whose mean opening is d (valve_cmd; 0.5
+/// without a valve record) had its valve open d of the time, here at the interval's start or
+/// end, at the flow (or the vent's full opening) that gives the same gas.
+enum class IntervalShape { kSpread, kPulseAtStart, kPulseAtEnd };
+
 /**
  * Replays `run` through a cell with `params` and `effects`: the measured inflow is the input
  * (the paper's way), the load follows the run's load (column or constant), and the cell starts
@@ -54,7 +61,7 @@ InitialHeight initialHeight(const RunData& run);
  * ("too stiff"), as a fit may wander into parameters that make the model needlessly stiff.
  */
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                 long max_substeps = 0);
+                 long max_substeps = 0, IntervalShape shape = IntervalShape::kSpread);
 
 /// Noise of a measured signal: robust (median absolute deviation) estimate from second
 /// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.
