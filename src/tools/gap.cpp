@@ -14,10 +14,12 @@
 #include <vector>
 
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <set>
 
 #include "nursing_bed/core/physics/cell_params_io.h"
+#include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/paper_study.h"
@@ -43,7 +45,8 @@ struct Subcommand {
 
 constexpr const char* kSynthUsage =
     "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--seed N]\n"
-    "                 [--noise-scale S] [--protocol standard|small]\n"
+    "                 [--noise-scale S] [--protocol standard|small] [--airbag-param NAME=VALUE]...\n"
+    "                 [--no-flow-meter] [--no-height]\n"
     "Simulates the run-data protocol (paper-shaped inflow, 60 s hold with the inlet closed,\n"
     "10 s vent through the inlet) on the cell model with the given 'truth' effects and\n"
     "realistic sensors, and writes DIR/<run>.csv, DIR/dataset.yaml and DIR/truth.json.\n"
@@ -53,7 +56,21 @@ constexpr const char* kSynthUsage =
     "  --seed         random seed for drawn parameters and noise (default 1)\n"
     "  --noise-scale  multiplies every sensor noise and quantisation step (default 1; 0: exact)\n"
     "  --protocol     standard: 4 loads x 2 flows, 75.5 s at 100 Hz (default);\n"
-    "                 small: 2 loads x 2 flows, 30 s hold, 50 Hz (for CI)\n";
+    "                 small: 2 loads x 2 flows, 30 s hold, 50 Hz (for CI)\n"
+    "  --airbag-param the rig's airbag differs from the model's file: a calibration parameter\n"
+    "                 (gap calibrate --help) or a key of the file, e.g. film_stiffness_scale=1.15,\n"
+    "                 structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)\n"
+    "  --no-flow-meter runs driven through the valves: valve_cmd and p_supply_gauge_pa, no\n"
+    "                 mdot_in_kg_s (run-data.md)\n"
+    "  --no-height    no height sensor: h_m left out\n";
+
+std::string calibrationParamText() {
+  std::string s;
+  for (const auto& d : nb::calibrationCatalog())
+    s += "  " + d.name + " [" + d.unit + "]" + (d.valve_driven_only ? " (valve-driven runs)" : "") + ": " +
+         d.description + "\n";
+  return s;
+}
 
 std::string effectList() {
   std::string s;
@@ -119,6 +136,15 @@ int runSynth(const std::vector<std::string>& args) {
       const std::string v = value();
       o.noise_scale = parseNumber(a, v);
       if (o.noise_scale < 0.0) throw UsageError("--noise-scale: expected a number >= 0, got '" + v + "'");
+    } else if (a == "--airbag-param") {
+      const std::string v = value();
+      const auto eq = v.find('=');
+      if (eq == std::string::npos || eq == 0) throw UsageError("--airbag-param: expected NAME=VALUE, got '" + v + "'");
+      o.airbag_params[v.substr(0, eq)] = parseNumber("--airbag-param " + v.substr(0, eq), v.substr(eq + 1));
+    } else if (a == "--no-flow-meter") {
+      o.flow_meter = false;
+    } else if (a == "--no-height") {
+      o.height_sensor = false;
     } else if (a == "--protocol") {
       o.protocol = value();
       if (o.protocol != "standard" && o.protocol != "small")
@@ -128,6 +154,11 @@ int runSynth(const std::vector<std::string>& args) {
     }
   }
   if (o.out_dir.empty()) throw UsageError("--out DIR is required");
+  try {
+    nb::rigAirbag(o.params, o.airbag_params);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--airbag-param: ") + e.what());
+  }
   // Resolve (draw and check) the effects before anything is simulated or written, so that a
   // bad parameter value is a command-line error.
   {
@@ -147,7 +178,7 @@ int runSynth(const std::vector<std::string>& args) {
 
 constexpr const char* kDiagnoseUsage =
     "usage: gap diagnose DATASET --out DIR [--topic TOPIC] [--effects NAME,NAME...] [--threads N]\n"
-    "                    [--no-plots]\n"
+    "                    [--params NAME,...] [--no-calibration] [--airbag FILE] [--no-plots]\n"
     "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
     "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
     "on the fit runs, names the effect that explains the gap (or says none / unexplained) and\n"
@@ -158,6 +189,9 @@ constexpr const char* kDiagnoseUsage =
     "              CSV runs are left out then\n"
     "  --effects   candidates to try, comma-separated (default: all seven)\n"
     "  --threads   candidate fits in parallel (default 2)\n"
+    "  --params    model parameters to calibrate first (gap calibrate --help; default: those the\n"
+    "              runs can tell); --no-calibration: effects on top of the nominal model only\n"
+    "  --airbag    the nominal parameter file (default: the one the dataset names)\n"
     "  --no-plots  skip the PNG plots (they need /usr/bin/python3 with matplotlib)\n";
 
 /// Runs of a dataset directory: CSVs, bags and dataset.yaml.
@@ -199,52 +233,36 @@ std::vector<nb::RunData> runsOfTopic(std::vector<nb::RunData> runs, const std::s
   return kept;
 }
 
-int runDiagnose(const std::vector<std::string>& args) {
-  std::string dataset, out_dir, topic;
-  bool plots = true;
-  nb::DiagnosisOptions options;
-  ArgWalker walk(args);
-  while (walk.next()) {
-    const std::string& a = walk.flag();
-    auto value = [&]() { return walk.value(); };
-    if (a == "--help" || a == "-h") {
-      std::cout << kDiagnoseUsage;
-      return 0;
-    } else if (a == "--out") {
-      out_dir = value();
-    } else if (a == "--topic") {
-      topic = value();
-    } else if (a == "--effects") {
-      const std::string v = value();
-      std::set<std::string> seen;
-      std::size_t start = 0;
-      while (start <= v.size()) {
-        const std::size_t comma = std::min(v.find(',', start), v.size());
-        const std::string name = v.substr(start, comma - start);
-        bool known = false;
-        for (const auto& c : nb::candidateEffectNames()) known = known || c == name;
-        if (!known) throw UsageError("--effects: '" + name + "' is not a candidate effect; candidates:\n" + effectList());
-        if (seen.insert(name).second) options.candidates.push_back(name);
-        start = comma + 1;
-      }
-    } else if (a == "--threads") {
-      const std::string v = value();
-      const double t = parseNumber(a, v);
-      if (t < 1 || t > 64 || t != std::floor(t)) throw UsageError("--threads: expected a whole number 1..64, got '" + v + "'");
-      options.threads = static_cast<int>(t);
-    } else if (a == "--no-plots") {
-      plots = false;
-    } else if (!a.empty() && a[0] == '-') {
-      throw UsageError("unknown option '" + a + "'");
-    } else if (dataset.empty()) {
-      dataset = a;
-    } else {
-      throw UsageError("one DATASET only, got '" + dataset + "' and '" + a + "'");
-    }
+/// "a,b,c" as a list (duplicates dropped); each name checked by `check`, which throws a
+/// UsageError naming the option.
+std::vector<std::string> nameList(const std::string& option, const std::string& v,
+                                  const std::function<void(const std::string&)>& check) {
+  std::vector<std::string> names;
+  std::set<std::string> seen;
+  std::size_t start = 0;
+  while (start <= v.size()) {
+    const std::size_t comma = std::min(v.find(',', start), v.size());
+    const std::string name = v.substr(start, comma - start);
+    if (name.empty()) throw UsageError(option + ": empty name in '" + v + "'");
+    check(name);
+    if (seen.insert(name).second) names.push_back(name);
+    start = comma + 1;
   }
-  if (dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
-  if (out_dir.empty()) throw UsageError("--out DIR is required");
+  return names;
+}
 
+std::vector<std::string> calibrationParamList(const std::string& v) {
+  return nameList("--params", v, [](const std::string& name) {
+    try {
+      nb::calibrationParam(name);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--params: ") + e.what());
+    }
+  });
+}
+
+/// Runs of a dataset (or one topic of its bags) and the one airbag parameter file they name.
+std::vector<nb::RunData> datasetRuns(const std::string& dataset, const std::string& topic, std::string* airbag) {
   std::vector<nb::RunData> runs = readDatasetWithBags(dataset);
   if (!topic.empty()) runs = runsOfTopic(std::move(runs), topic, dataset);
   std::set<std::string> airbags;
@@ -255,22 +273,123 @@ int runDiagnose(const std::vector<std::string>& args) {
     throw std::runtime_error(dataset + ": runs name different airbag parameter sets (" + list.substr(1) +
                              "); diagnose each airbag's runs as a dataset of its own");
   }
-  const nb::CellParams params = nb::loadCellParamsYaml(*airbags.begin());
-  std::cout << "gap diagnose: " << runs.size() << " runs from " << dataset << ", airbag " << *airbags.begin() << "\n";
+  *airbag = *airbags.begin();
+  return runs;
+}
+
+/// Options both calibrate and diagnose take; true when `a` was one of them.
+struct CommonOptions {
+  std::string dataset, out_dir, topic, airbag_override;
+  bool plots = true;
+};
+
+bool commonOption(ArgWalker& walk, CommonOptions* c, nb::DiagnosisOptions* options) {
+  const std::string& a = walk.flag();
+  if (a == "--out") {
+    c->out_dir = walk.value();
+  } else if (a == "--topic") {
+    c->topic = walk.value();
+  } else if (a == "--airbag") {
+    c->airbag_override = walk.value();
+  } else if (a == "--params") {
+    options->calibration_params = calibrationParamList(walk.value());
+  } else if (a == "--threads") {
+    const std::string v = walk.value();
+    const double t = parseNumber(a, v);
+    if (t < 1 || t > 64 || t != std::floor(t)) throw UsageError("--threads: expected a whole number 1..64, got '" + v + "'");
+    options->threads = static_cast<int>(t);
+  } else if (a == "--no-plots") {
+    c->plots = false;
+  } else if (!a.empty() && a[0] == '-') {
+    throw UsageError("unknown option '" + a + "'");
+  } else if (c->dataset.empty()) {
+    c->dataset = a;
+  } else {
+    throw UsageError("one DATASET only, got '" + c->dataset + "' and '" + a + "'");
+  }
+  return true;
+}
+
+/// Reads the dataset and its airbag (or --airbag FILE), runs `analyse`, writes the report (and
+/// the calibrated parameter file), plots, prints the verdict.
+int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const char* name,
+                   nb::DiagnosisReport (*analyse)(std::vector<nb::RunData>, const nb::CellParams&,
+                                                  const nb::DiagnosisOptions&, const std::string&)) {
+  if (c.dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
+  if (c.out_dir.empty()) throw UsageError("--out DIR is required");
+  std::string airbag;
+  std::vector<nb::RunData> runs = datasetRuns(c.dataset, c.topic, &airbag);
+  if (!c.airbag_override.empty()) airbag = c.airbag_override;
+  const nb::CellParams params = nb::loadCellParamsYaml(airbag);
+  std::cout << "gap " << name << ": " << runs.size() << " runs from " << c.dataset << ", airbag " << airbag << "\n";
   options.progress = [](const std::string& line) { std::cout << "  " << line << std::endl; };
-  const nb::DiagnosisReport report = nb::diagnoseRuns(runs, params, options, dataset);
-  nb::writeReportFiles(out_dir, report);
-  std::cout << "wrote " << out_dir << "/report.json, report.md, traces/\n";
-  if (plots) {
+  const nb::DiagnosisReport report = analyse(runs, params, options, c.dataset);
+  nb::writeReportFiles(c.out_dir, report);
+  std::cout << "wrote " << c.out_dir << "/report.json, report.md, " << report.calibration.file << ", traces/\n";
+  if (c.plots) {
     const std::string script = std::string(NURSING_BED_SOURCE_DIR) + "/scripts/plot_gap_report.py";
-    const std::string command = "/usr/bin/python3 '" + script + "' '" + out_dir + "'";
+    const std::string command = "/usr/bin/python3 '" + script + "' '" + c.out_dir + "'";
     if (std::system(command.c_str()) != 0)
-      std::cerr << "gap diagnose: the plots failed (" << command << "); the report itself is complete\n";
+      std::cerr << "gap " << name << ": the plots failed (" << command << "); the report itself is complete\n";
   }
   std::cout << "verdict: " << report.status;
   for (const auto& e : report.verdict_effects) std::cout << " " << e;
+  for (const auto& [k, v] : report.calibration.movedValues()) std::cout << " " << k << "=" << v;
   std::cout << "\n";
   return 0;
+}
+
+constexpr const char* kCalibrateUsage =
+    "usage: gap calibrate DATASET --out DIR [--params NAME,NAME...] [--airbag FILE] [--topic TOPIC]\n"
+    "                     [--threads N] [--no-plots]\n"
+    "Fits the model's own uncertain parameters on the fit runs of DATASET (the effects are not\n"
+    "looked for) and writes DIR/calibrated_airbag.yaml (a complete parameter file: sim.launch\n"
+    "cell_params:=..., the nodes and gap diagnose --airbag accept it), DIR/report.json (the\n"
+    "calibration block: value, standard error, correlations, what the runs cannot tell apart),\n"
+    "DIR/report.md, DIR/traces/*.csv and plots.\n"
+    "  --params   parameters to calibrate (default: film_stiffness_scale, gusset_height_m,\n"
+    "             dead_volume_m3, plate_mass_kg; plus inlet_area_m2, vent_area_m2,\n"
+    "             regulator_time_constant_s for runs driven through the valves, no flow meter)\n"
+    "  --airbag   the nominal parameter file (default: the one the dataset names)\n"
+    "  --topic, --threads, --no-plots: as for gap diagnose\n";
+
+int runCalibrate(const std::vector<std::string>& args) {
+  CommonOptions c;
+  nb::DiagnosisOptions options;
+  ArgWalker walk(args);
+  while (walk.next()) {
+    if (walk.flag() == "--help" || walk.flag() == "-h") {
+      std::cout << kCalibrateUsage << "parameters:\n" << calibrationParamText();
+      return 0;
+    }
+    commonOption(walk, &c, &options);
+  }
+  return analyseDataset(c, options, "calibrate", nb::calibrateRuns);
+}
+
+int runDiagnose(const std::vector<std::string>& args) {
+  CommonOptions c;
+  nb::DiagnosisOptions options;
+  ArgWalker walk(args);
+  while (walk.next()) {
+    const std::string& a = walk.flag();
+    auto value = [&]() { return walk.value(); };
+    if (a == "--help" || a == "-h") {
+      std::cout << kDiagnoseUsage;
+      return 0;
+    } else if (a == "--no-calibration") {
+      options.calibrate = false;
+    } else if (a == "--effects") {
+      options.candidates = nameList("--effects", value(), [](const std::string& name) {
+        const auto known = nb::candidateEffectNames();
+        if (std::find(known.begin(), known.end(), name) == known.end())
+          throw UsageError("--effects: '" + name + "' is not a candidate effect; candidates:\n" + effectList());
+      });
+    } else {
+      commonOption(walk, &c, &options);
+    }
+  }
+  return analyseDataset(c, options, "diagnose", nb::diagnoseRuns);
 }
 
 constexpr const char* kEq24Usage =
@@ -305,6 +424,7 @@ int runEq24(const std::vector<std::string>& args) {
 
 const Subcommand kSubcommands[] = {
     {"synth", "write a synthetic dataset with planted effects", kSynthUsage, runSynth},
+    {"calibrate", "calibrate the model's own parameters on a dataset", kCalibrateUsage, runCalibrate},
     {"diagnose", "diagnose the gap between a dataset of runs and the model", kDiagnoseUsage, runDiagnose},
     {"eq24", "the paper's eq. 24 curve as data: where the model departs", kEq24Usage, runEq24},
 };

@@ -39,23 +39,58 @@ std::vector<int> singlesByBic(const std::vector<ModelFit>& fits, int n) {
   return order;
 }
 
-/// The start of a pair's fit: each single's fitted coordinates.
-std::vector<double> pairStart(const ModelSpec& pair, const ModelFit& a, const ModelFit& b) {
-  std::map<std::string, double> start;
-  for (const ModelFit* single : {&a, &b})
-    for (std::size_t j = 0; j < single->model.axes.size(); ++j)
-      start[single->model.axes[j].spec->name] = single->outcome.u[j];
-  std::vector<double> u;
-  for (const auto& axis : pair.axes) u.push_back(start.at(axis.spec->name));
-  return u;
+/// The starts of a pair's fit: each single's fitted coordinates, and each effect also at the
+/// middle of its plausible range and near off (its lower bound), in every combination. A single
+/// fitted alone soaks up part of the other effect's signature (a leak fitted alone also bends to
+/// the heat transfer's relaxation), so its own fit can be a poor start for the pair.
+std::vector<std::vector<double>> pairStarts(const ModelSpec& pair, const ModelFit& a, const ModelFit& b) {
+  std::map<std::string, double> fitted;
+  std::map<std::string, int> owner;  // 0: a's parameter, 1: b's
+  for (int k = 0; k < 2; ++k) {
+    const ModelFit* single = k == 0 ? &a : &b;
+    for (std::size_t j = 0; j < single->model.axes.size(); ++j) {
+      fitted[single->model.axes[j].spec.name] = single->outcome.u[j];
+      owner[single->model.axes[j].spec.name] = k;
+    }
+  }
+  std::vector<std::vector<double>> starts;
+  for (int la = 0; la < 3; ++la)
+    for (int lb = 0; lb < 3; ++lb) {
+      std::vector<double> u;
+      for (const auto& axis : pair.axes) {
+        const int level = owner.at(axis.spec.name) == 0 ? la : lb;
+        u.push_back(level == 0 ? fitted.at(axis.spec.name) : level == 1 ? 0.5 : std::max(axis.u_min, 0.0));
+      }
+      starts.push_back(u);
+    }
+  return starts;
+}
+
+/// A fitted model's values split into the effects' parameters and the calibrated cell's (fixed
+/// and fitted).
+void splitValues(const ModelSpec& m, const std::map<std::string, double>& values, CandidateFit* c) {
+  c->calibration = m.fixed_calibration;
+  for (const auto& [name, v] : values) {
+    const bool calibrated = std::find(m.calibration.begin(), m.calibration.end(), name) != m.calibration.end();
+    (calibrated ? c->calibration : c->params)[name] = v;
+  }
+  c->joint = !m.calibration.empty();
+}
+
+/// Parameters a model fits beyond the baseline's: its effects' and the calibrated ones the
+/// baseline holds at nominal.
+int extraParameters(const ModelSpec& m, const NoiseModel& noise) {
+  int k = 0;
+  for (const auto& a : m.axes) k += (!a.calibration || !noise.baseline_calibration.count(a.spec.name)) ? 1 : 0;
+  return k;
 }
 
 /// The nominal model's score that decideVerdict() compares the candidates with.
 NominalScore nominalScore(const NoiseModel& noise, double withheld_nrmse) {
   NominalScore s;
-  s.chi2 = noise.chi2_nominal;
+  s.chi2 = noise.baseline_chi2;
   s.fit_residuals = noise.fitResidualCount();
-  s.withheld_chi2_per_sample = noise.withheld_chi2_per_sample;
+  s.withheld_chi2_per_sample = noise.baseline_withheld_chi2_per_sample;
   s.withheld_residuals = noise.heldResidualCount();
   s.withheld_nrmse = withheld_nrmse;
   return s;
@@ -79,6 +114,10 @@ void nominalReasons(const DiagnosisReport& rep, const PreparedRuns& prepared, co
       << (!withheld_residuals ? "" : ", " + fmt(rep.nominal_withheld_chi2_per_sample) + " on the withheld runs")
       << "; fit-run nrmse " << fmt(rep.nominal_fit_nrmse);
   reasons->push_back(why.str());
+  if (rep.pressure_only)
+    reasons->push_back("no run has a height reading: the diagnosis works on pressure alone; effects whose "
+                       "signature lies in the height (plate_friction, membrane_viscoelasticity's creep) and the "
+                       "gusset height against the film's stiffness are then far harder to tell apart");
   if (prepared.gated_runs > 0)
     reasons->push_back("in " + std::to_string(prepared.gated_runs) + " of " + std::to_string(prepared.runs.size()) +
                        " runs the flow meter read noise around zero while the inlet was closed; the replay "
@@ -193,13 +232,15 @@ NoiseModel buildNoiseModel(const PreparedRuns& prepared, const CellParams& param
     else m.held.runs[std::find(prepared.withheld.begin(), prepared.withheld.end(), static_cast<std::size_t>(k)) -
                      prepared.withheld.begin()] = std::move(run);
   });
-  const int n_held = m.held.residualCount();
-  std::vector<double> r_held(n_held);
+  const int n_held = m.held.informativeCount();
+  std::vector<double> r_held(m.held.residualCount());
   fitResiduals(m.held, {}, r_held.data());
   m.withheld_chi2_per_sample = n_held > 0 ? sumSquares(r_held) / n_held : kNaN;
   std::vector<double> r_nominal(m.fit.residualCount());
   fitResiduals(m.fit, {}, r_nominal.data());
   m.chi2_nominal = sumSquares(r_nominal);
+  m.baseline_chi2 = m.chi2_nominal;
+  m.baseline_withheld_chi2_per_sample = m.withheld_chi2_per_sample;
   return m;
 }
 
@@ -207,13 +248,15 @@ NoiseModel buildNoiseModel(const PreparedRuns& prepared, const CellParams& param
 
 std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<std::string>& candidates,
                                     const DiagnosisOptions& options,
-                                    const std::function<void(const std::string&)>& progress) {
+                                    const std::function<void(const std::string&)>& progress,
+                                    const std::function<void(std::vector<ModelFit>*)>& after_singles) {
   auto say = [&](const std::string& line) {
     if (progress) progress(line);
   };
   const int n = noise.fitResidualCount();
   std::vector<ModelFit> fits;
   for (const auto& c : candidates) fits.push_back({makeModelSpec({c}), {}});
+  for (auto& f : fits) f.model.fixed_calibration = noise.baseline_calibration;
   std::mutex say_mutex;
   std::atomic<int> done{0};
   const int singles = static_cast<int>(fits.size());
@@ -224,6 +267,7 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
         "): chi2/n " + fmt(fits[i].outcome.chi2 / n) + ", " + std::to_string(fits[i].outcome.evaluations) + " replays" +
         (std::getenv("NB_GAP_VERBOSE") ? " [" + fits[i].outcome.message + "]" : std::string()));
   });
+  if (after_singles) after_singles(&fits);
   const std::vector<int> order = singlesByBic(fits, n);
   const int pool = std::min(options.pair_pool, singles);
   std::vector<std::pair<int, int>> pairs;
@@ -235,12 +279,13 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
     std::sort(names.begin(), names.end(),
               [](const std::string& x, const std::string& y) { return catalogPosition(x) < catalogPosition(y); });
     fits.push_back({makeModelSpec(names), {}});
+    fits.back().model.fixed_calibration = noise.baseline_calibration;
   }
   done = 0;
   const int pair_count = static_cast<int>(pairs.size());
   parallelFor(pair_count, options.threads, [&](int k) {
     ModelFit& f = fits[singles + k];
-    f.outcome = fitModel(noise.fit, f.model, {pairStart(f.model, fits[pairs[k].first], fits[pairs[k].second])},
+    f.outcome = fitModel(noise.fit, f.model, pairStarts(f.model, fits[pairs[k].first], fits[pairs[k].second]),
                          options.max_iterations);
     std::lock_guard<std::mutex> lock(say_mutex);
     say("fitted pair " + joinNames(f.model.effects) + " (" + std::to_string(++done) + "/" + std::to_string(pair_count) +
@@ -265,9 +310,9 @@ std::vector<ScoredCandidate> scoreCandidates(const std::vector<ModelFit>& fits, 
     c.chi2 = c.bic_delta = kNaN;
     c.plausible = false;
     if (c.ok) {
-      c.params = valuesOf(f.model, f.outcome.u);
+      splitValues(f.model, valuesOf(f.model, f.outcome.u), &c);
       c.chi2 = f.outcome.chi2;
-      c.bic_delta = (c.chi2 - noise.chi2_nominal) + f.model.axes.size() * std::log(static_cast<double>(n));
+      c.bic_delta = (c.chi2 - noise.baseline_chi2) + extraParameters(f.model, noise) * std::log(static_cast<double>(n));
       c.plausible = plausibleValues(f.model, c.params, options.plausible_slack);
     }
     scored.emplace_back(c, f.model);
@@ -281,11 +326,12 @@ std::vector<ScoredCandidate> scoreCandidates(const std::vector<ModelFit>& fits, 
       return;
     }
     const auto effects = buildEffects(scored[i].second, c.params);
-    c.fit_nrmse = setResidual(fit_runs, params, effects).total;
-    c.withheld_nrmse = setResidual(withheld_runs, params, effects).total;
+    const CellParams cell = applyCalibration(c.calibration, params);
+    c.fit_nrmse = setResidual(fit_runs, cell, effects).total;
+    c.withheld_nrmse = setResidual(withheld_runs, cell, effects).total;
     if (n_held > 0) {
-      std::vector<double> r(n_held);
-      fitResiduals(noise.held, effects, r.data());
+      std::vector<double> r(noise.held.residualCount());
+      fitResiduals(noise.held, applyCalibration(c.calibration, noise.held.params), effects, r.data());
       c.withheld_chi2_per_sample = sumSquares(r) / n_held;
     }
   });
@@ -298,12 +344,15 @@ std::vector<ScoredCandidate> scoreCandidates(const std::vector<ModelFit>& fits, 
 
 // ---- stage 7: shrinkage -------------------------------------------------------------------------
 
-void shrinkage(const PreparedRuns& prepared, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+void shrinkage(const PreparedRuns& prepared, const CellParams& nominal_params,
+               const std::map<std::string, double>& calibration, const std::vector<CellEffectPtr>& effects,
                const std::vector<Replay>& nominal, const DiagnosisOptions& options, DiagnosisReport* rep) {
+  const CellParams params = applyCalibration(calibration, nominal_params);
+  const bool reuse = effects.empty() && calibration.empty();
   const std::vector<RunData>& runs = prepared.runs;
   std::vector<Replay> after(runs.size());
   parallelFor(static_cast<int>(runs.size()), options.threads,
-              [&](int i) { after[i] = effects.empty() ? nominal[i] : replayRun(runs[i], params, effects); });
+              [&](int i) { after[i] = reuse ? nominal[i] : replayRun(runs[i], params, effects); });
   std::vector<const Replay*> replays_before, replays_after;
   for (std::size_t i = 0; i < runs.size(); ++i) {
     rep->runs[i].after = runResidual(runs[i], after[i]);
@@ -387,6 +436,73 @@ std::string fmt(double v, int precision) {
 
 // ---- the pipeline -------------------------------------------------------------------------------
 
+namespace {
+
+/// The runs prepared, replayed through the nominal model, and their noise model (the first
+/// stages of both diagnoseRuns and calibrateRuns).
+struct DiagnosisStart {
+  gap::PreparedRuns prepared;
+  std::vector<Replay> nominal;
+  gap::NoiseModel noise;
+  std::vector<std::string> calibrated;  ///< the parameters to calibrate
+};
+
+void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
+                    DiagnosisReport* rep, DiagnosisStart* start) {
+  using namespace gap;
+  auto say = [&](const std::string& line) {
+    if (options.progress) options.progress(line);
+  };
+  rep->options = options;
+  rep->options.progress = nullptr;
+  if (runs.empty()) throw std::invalid_argument("no runs to diagnose");
+  const std::string params_problem = params.validate();
+  if (!params_problem.empty()) throw std::invalid_argument("airbag parameters: " + params_problem);
+  start->prepared = prepareRuns(std::move(runs));
+  const PreparedRuns& prepared = start->prepared;
+  rep->roles_chosen = prepared.roles_chosen;
+  rep->pressure_only = std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
+  for (std::size_t i : prepared.fit) rep->fit_runs.push_back(prepared.runs[i].name);
+  for (std::size_t i : prepared.withheld) rep->withheld_runs.push_back(prepared.runs[i].name);
+  start->calibrated = calibrationList(prepared, options);
+  candidateList(options);  // an unknown candidate before anything is replayed
+  say("replaying " + std::to_string(prepared.runs.size()) + " runs through the nominal model");
+  start->nominal = replayNominal(prepared, params, options, rep);
+  start->noise = buildNoiseModel(prepared, params, options);
+  const int n = start->noise.fitResidualCount();
+  rep->fit_samples = n;
+  rep->nominal_chi2_per_sample = start->noise.chi2_nominal / n;
+  rep->nominal_withheld_chi2_per_sample = start->noise.withheld_chi2_per_sample;
+  rep->nominal_fit_nrmse = nominalNrmse(prepared, start->nominal, prepared.fit);
+  say("noise floor: pressure " + fmt(rep->noise_p_pa) + " Pa, height " + fmt(rep->noise_h_m * 1e3) +
+      " mm; nominal model: chi2/n = " + fmt(rep->nominal_chi2_per_sample) + " on " + std::to_string(n) +
+      " fit residuals");
+}
+
+}  // namespace
+
+DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
+                              const std::string& dataset_name) {
+  using namespace gap;
+  const auto started = std::chrono::steady_clock::now();
+  DiagnosisReport rep;
+  rep.dataset = dataset_name;
+  DiagnosisStart s;
+  startDiagnosis(std::move(runs), params, options, &rep, &s);
+  if (s.calibrated.empty()) throw std::invalid_argument("nothing to calibrate");
+  const CalibrationFit calibration = calibrateModel(s.noise, s.calibrated, options, options.progress);
+  rebaseNoiseModel(&s.noise, calibration.summary.movedValues(), calibration.moved_chi2);
+  rep.calibration = calibration.summary;
+  nominalReasons(rep, s.prepared, options, s.noise.heldResidualCount() > 0, &rep.reasons);
+  rep.status = s.noise.baseline_chi2 / s.noise.fitResidualCount() <= options.within_noise_chi2 ? "none" : "unexplained";
+  settleCalibratedStatus(s.noise, options, &rep);
+  if (rep.status == "unexplained") rep.reasons.push_back("calibration alone leaves a significant gap: run gap diagnose");
+  shrinkage(s.prepared, params, rep.calibration.movedValues(), {}, s.nominal, options, &rep);
+  calibratedOutcome(s.prepared, s.noise, params, &rep);
+  rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  return rep;
+}
+
 DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
                              const std::string& dataset_name) {
   using namespace gap;
@@ -396,45 +512,50 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   };
   DiagnosisReport rep;
   rep.dataset = dataset_name;
-  rep.options = options;
-  rep.options.progress = nullptr;
-  if (runs.empty()) throw std::invalid_argument("no runs to diagnose");
-  const std::string params_problem = params.validate();
-  if (!params_problem.empty()) throw std::invalid_argument("airbag parameters: " + params_problem);
-  const PreparedRuns prepared = prepareRuns(std::move(runs));
-  rep.roles_chosen = prepared.roles_chosen;
-  for (std::size_t i : prepared.fit) rep.fit_runs.push_back(prepared.runs[i].name);
-  for (std::size_t i : prepared.withheld) rep.withheld_runs.push_back(prepared.runs[i].name);
-  const std::vector<std::string> candidates = candidateList(options);
-
-  say("replaying " + std::to_string(prepared.runs.size()) + " runs through the nominal model");
-  const std::vector<Replay> nominal = replayNominal(prepared, params, options, &rep);
-  const NoiseModel noise = buildNoiseModel(prepared, params, options);
-  const int n = noise.fitResidualCount();
-  rep.fit_samples = n;
-  rep.nominal_chi2_per_sample = noise.chi2_nominal / n;
-  rep.nominal_withheld_chi2_per_sample = noise.withheld_chi2_per_sample;
-  rep.nominal_fit_nrmse = nominalNrmse(prepared, nominal, prepared.fit);
-  say("noise floor: pressure " + fmt(rep.noise_p_pa) + " Pa, height " + fmt(rep.noise_h_m * 1e3) +
-      " mm; nominal model: chi2/n = " + fmt(rep.nominal_chi2_per_sample) + " on " + std::to_string(n) +
-      " fit residuals");
-
-  const std::vector<ScoredCandidate> scored =
-      scoreCandidates(fitCandidates(noise, candidates, options, say), prepared, noise, params, options);
-  for (const auto& s : scored) rep.candidates.push_back(s.first);
+  DiagnosisStart s;
+  startDiagnosis(std::move(runs), params, options, &rep, &s);
+  const PreparedRuns& prepared = s.prepared;
+  NoiseModel& noise = s.noise;
+  CalibrationFit calibration;
+  if (!s.calibrated.empty()) {
+    calibration = calibrateModel(noise, s.calibrated, options, say);
+    rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
+  }
+  // The best singles, then the best pair, refitted with the calibration free as well.
+  std::map<std::string, CalibrationSummary> joint;
+  auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
+    const auto more = refitBestJointly(noise, calibration, fits, effects, pool, options, say);
+    joint.insert(more.begin(), more.end());
+  };
+  std::vector<ModelFit> fits =
+      fitCandidates(noise, candidateList(options), options, say, [&](std::vector<ModelFit>* singles) {
+        if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
+      });
+  // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
+  const bool single_within = std::any_of(fits.begin(), fits.end(), [&](const ModelFit& f) {
+    return f.outcome.ok && f.model.effects.size() == 1 && f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;
+  });
+  if (!s.calibrated.empty() && !single_within) settle(&fits, 2, 1);
+  const std::vector<ScoredCandidate> scored = scoreCandidates(fits, prepared, noise, params, options);
+  for (const auto& c : scored) rep.candidates.push_back(c.first);
 
   nominalReasons(rep, prepared, options, noise.heldResidualCount() > 0, &rep.reasons);
-  const Verdict verdict =
-      decideVerdict(rep.candidates, nominalScore(noise, nominalNrmse(prepared, nominal, prepared.withheld)), options);
+  const NominalScore baseline = nominalScore(noise, nominalNrmse(prepared, s.nominal, prepared.withheld));
+  const Verdict verdict = decideVerdict(rep.candidates, baseline, options);
   rep.reasons.insert(rep.reasons.end(), verdict.reasons.begin(), verdict.reasons.end());
   rep.status = verdict.status;
+  rep.calibration = calibration.summary;
   std::vector<CellEffectPtr> verdict_effects;
   if (verdict.winner >= 0) {
-    rep.verdict_effects = rep.candidates[verdict.winner].effects;
-    rep.verdict_params = rep.candidates[verdict.winner].params;
-    verdict_effects = buildEffects(scored[verdict.winner].second, rep.verdict_params);
+    const CandidateFit& w = rep.candidates[verdict.winner];
+    rep.verdict_effects = w.effects;
+    rep.verdict_params = w.params;
+    verdict_effects = buildEffects(scored[verdict.winner].second, w.params);
+    if (w.joint && joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
   }
-  shrinkage(prepared, params, verdict_effects, nominal, options, &rep);
+  settleCalibratedStatus(noise, options, &rep);
+  shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);
+  calibratedOutcome(prepared, noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   say("verdict: " + rep.status + (verdict.winner >= 0 ? " by " + joinNames(rep.verdict_effects) : std::string()) +
       "; withheld nrmse " + fmt(rep.withheld_before) + " -> " + fmt(rep.withheld_after) + " (" +

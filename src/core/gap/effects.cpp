@@ -110,13 +110,7 @@ const std::vector<EffectSpec>& effectCatalog() {
   return catalog;
 }
 
-const EffectSpec& effectSpec(const std::string& name) {
-  for (const auto& e : effectCatalog())
-    if (e.name == name) return e;
-  std::string known;
-  for (const auto& e : effectCatalog()) known += (known.empty() ? "" : ", ") + e.name;
-  throw std::invalid_argument("unknown effect '" + name + "' (known: " + known + ")");
-}
+const EffectSpec& effectSpec(const std::string& name) { return catalogEntry(effectCatalog(), name, "effect"); }
 
 std::vector<std::string> candidateEffectNames() {
   std::vector<std::string> out;

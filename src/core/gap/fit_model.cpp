@@ -1,8 +1,11 @@
 #include "nursing_bed/core/gap/fit_model.h"
 
+#include "nursing_bed/core/gap/calibration.h"
+
 #include <ceres/ceres.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <atomic>
@@ -21,18 +24,19 @@ constexpr double kJacobianStep = 0.02;
 }  // namespace
 
 double FitAxis::toValue(double u) const {
-  if (spec->log_scale) return spec->lo * std::pow(spec->hi / spec->lo, u);
-  return spec->lo + u * (spec->hi - spec->lo);
+  if (spec.log_scale) return spec.lo * std::pow(spec.hi / spec.lo, u);
+  return spec.lo + u * (spec.hi - spec.lo);
 }
 
 double FitAxis::toU(double x) const {
-  if (spec->log_scale) return std::log(std::max(x, 1e-300) / spec->lo) / std::log(spec->hi / spec->lo);
-  return (x - spec->lo) / (spec->hi - spec->lo);
+  if (spec.log_scale) return std::log(std::max(x, 1e-300) / spec.lo) / std::log(spec.hi / spec.lo);
+  return (x - spec.lo) / (spec.hi - spec.lo);
 }
 
-FitAxis makeAxis(const EffectParamSpec& p) {
+FitAxis makeAxis(const EffectParamSpec& p, bool calibration) {
   FitAxis a;
-  a.spec = &p;
+  a.spec = p;
+  a.calibration = calibration;
   if (p.log_scale) {
     const double lo = std::max(p.min_value, p.lo * 1e-3);
     const double hi = std::min(p.max_value, p.hi * 1e3);
@@ -45,9 +49,13 @@ FitAxis makeAxis(const EffectParamSpec& p) {
   return a;
 }
 
-ModelSpec makeModelSpec(const std::vector<std::string>& names) {
+ModelSpec makeModelSpec(const std::vector<std::string>& names, const std::vector<FitAxis>& calibration) {
   ModelSpec m;
   m.effects = names;
+  for (const auto& a : calibration) {
+    m.calibration.push_back(a.spec.name);
+    m.axes.push_back(a);
+  }
   for (const auto& n : names)
     for (const auto& p : effectSpec(n).params) m.axes.push_back(makeAxis(p));
   return m;
@@ -55,7 +63,7 @@ ModelSpec makeModelSpec(const std::vector<std::string>& names) {
 
 std::map<std::string, double> valuesOf(const ModelSpec& m, const std::vector<double>& u) {
   std::map<std::string, double> out;
-  for (std::size_t i = 0; i < m.axes.size(); ++i) out[m.axes[i].spec->name] = m.axes[i].toValue(u[i]);
+  for (std::size_t i = 0; i < m.axes.size(); ++i) out[m.axes[i].spec.name] = m.axes[i].toValue(u[i]);
   return out;
 }
 
@@ -70,14 +78,27 @@ std::vector<CellEffectPtr> buildEffects(const ModelSpec& m, const std::map<std::
   return effects;
 }
 
+CellParams modelParams(const ModelSpec& m, const std::map<std::string, double>& values, const CellParams& base) {
+  std::map<std::string, double> own = m.fixed_calibration;
+  for (const auto& name : m.calibration) own[name] = values.at(name);
+  return applyCalibration(own, base);
+}
+
+std::vector<double> coordinatesOf(const ModelSpec& m, const std::map<std::string, double>& values) {
+  std::vector<double> u;
+  for (const auto& a : m.axes) u.push_back(a.toU(values.at(a.spec.name)));
+  return u;
+}
+
 bool plausibleValues(const ModelSpec& m, const std::map<std::string, double>& values, double slack) {
   for (const auto& a : m.axes) {
-    const double x = values.at(a.spec->name);
-    if (a.spec->log_scale) {
+    if (a.calibration) continue;
+    const double x = values.at(a.spec.name);
+    if (a.spec.log_scale) {
       // Only too large is implausible: a small value is an effect that barely uses that
       // parameter (a short supply line), and the range's low end is what matters for a bed,
       // not a physical bound.
-      if (x > a.spec->hi * slack) return false;
+      if (x > a.spec.hi * slack) return false;
     } else {
       const double u = a.toU(x);
       if (u < -0.5 * (slack - 1.0) || u > 1.0 + 0.5 * (slack - 1.0)) return false;
@@ -98,20 +119,30 @@ int FitData::residualCount() const {
   return n;
 }
 
+int FitData::informativeCount() const {
+  int n = 0;
+  for (const auto& r : runs) n += (r.has_height ? 2 : 1) * static_cast<int>(r.index.size());
+  return n;
+}
+
 /// Whitened residuals of every fit sample (pressure then height per sample, scaled by the
 /// floor, then decorrelated per run); `ok` false when a replay failed (its samples then count as
 /// kFailedResidual floors off).
 bool fitResiduals(const FitData& fit, const std::vector<CellEffectPtr>& effects, double* out) {
+  return fitResiduals(fit, fit.params, effects, out);
+}
+
+bool fitResiduals(const FitData& fit, const CellParams& params, const std::vector<CellEffectPtr>& effects, double* out) {
   bool ok = true;
   int k = 0;
   for (const auto& r : fit.runs) {
-    const Replay rep = replayRun(*r.data, fit.params, effects, r.max_substeps);
+    const Replay rep = replayRun(*r.data, params, effects, r.max_substeps);
     const int m = static_cast<int>(r.index.size());
     Eigen::Map<Eigen::VectorXd> e(out + k, 2 * m);
     for (int j = 0; j < m; ++j) {
       const std::size_t i = r.index[j];
       double ep = (r.data->p_gauge_pa[i] - rep.p_gauge_pa[i]) / r.sigma_p_pa[j];
-      double eh = (r.data->h_m[i] - rep.h_m[i]) / r.sigma_h_m[j];
+      double eh = r.has_height ? (r.data->h_m[i] - rep.h_m[i]) / r.sigma_h_m[j] : 0.0;
       if (!rep.ok || !std::isfinite(ep) || !std::isfinite(eh)) {
         ok = false;
         ep = eh = kFailedResidual;
@@ -164,7 +195,8 @@ class ReplayCost : public ceres::CostFunction {
   bool residualsAt(const std::vector<double>& u, double* out) const {
     ++*evaluations_;
     try {
-      return fitResiduals(fit_, buildEffects(model_, valuesOf(model_, u)), out);
+      const auto values = valuesOf(model_, u);
+      return fitResiduals(fit_, modelParams(model_, values, fit_.params), buildEffects(model_, values), out);
     } catch (const std::invalid_argument&) {
       return false;  // outside what makeEffect() admits: Ceres shrinks its step
     }
@@ -185,7 +217,7 @@ std::vector<std::vector<double>> gridStarts(const ModelSpec& m) {
     // A log-scale parameter also starts near off (its lower bound, 3 decades below the range).
     std::vector<double> levels = k == 1 ? std::vector<double>{0.0, 0.25, 0.5, 0.75, 1.0}
                                         : std::vector<double>{0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0};
-    if (m.axes[j].spec->log_scale) levels.insert(levels.begin(), m.axes[j].u_min);
+    if (m.axes[j].spec.log_scale) levels.insert(levels.begin(), m.axes[j].u_min);
     std::vector<std::vector<double>> next;
     for (const auto& prefix : out)
       for (double l : levels) {
@@ -245,6 +277,34 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
   }
   best.evaluations = evaluations;
   return best;
+}
+
+bool fitCovariance(const FitData& fit, const ModelSpec& model, const std::vector<double>& u, Eigen::MatrixXd* cov) {
+  std::atomic<int> evaluations{0};
+  const ReplayCost cost(fit, model, &evaluations);
+  const int k = static_cast<int>(u.size()), n = fit.residualCount();
+  std::vector<double> r(n), jac(static_cast<std::size_t>(n) * k);
+  const double* parameters[] = {u.data()};
+  double* jacobians[] = {jac.data()};
+  if (!cost.Evaluate(parameters, r.data(), jacobians)) return false;
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(jac.data(), n, k);
+  const Eigen::MatrixXd jtj = J.transpose() * J;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(jtj);
+  const Eigen::VectorXd lambda = eigen.eigenvalues();
+  const Eigen::MatrixXd V = eigen.eigenvectors();
+  const double largest = lambda.cwiseAbs().maxCoeff();
+  cov->setZero(k, k);
+  std::vector<bool> unidentified(k, false);
+  for (int i = 0; i < k; ++i) {
+    if (lambda[i] > 1e-9 * largest && largest > 0.0) {
+      *cov += V.col(i) * V.col(i).transpose() / lambda[i];
+      continue;
+    }
+    for (int j = 0; j < k; ++j) unidentified[j] = unidentified[j] || std::fabs(V(j, i)) > 0.1;
+  }
+  for (int j = 0; j < k; ++j)
+    if (unidentified[j]) (*cov)(j, j) = INFINITY;
+  return true;
 }
 
 }  // namespace gap

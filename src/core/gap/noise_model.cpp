@@ -1,5 +1,7 @@
 #include "nursing_bed/core/gap/noise_model.h"
 
+#include "nursing_bed/core/gap/calibration.h"
+
 #include <Eigen/Cholesky>
 
 #include <algorithm>
@@ -160,7 +162,7 @@ Eigen::MatrixXd correlationCholesky(const FitData::Run& r, const std::vector<dou
     Eigen::VectorXd v(2 * m);
     for (int j = 0; j < m; ++j) {
       v[2 * j] = mode.p[r.index[j]] / r.sigma_p_pa[j] * std::sqrt(mode.variance);
-      v[2 * j + 1] = mode.h[r.index[j]] / r.sigma_h_m[j] * std::sqrt(mode.variance);
+      v[2 * j + 1] = r.has_height ? mode.h[r.index[j]] / r.sigma_h_m[j] * std::sqrt(mode.variance) : 0.0;
     }
     scaled.push_back(std::move(v));
   }
@@ -188,6 +190,7 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
                            const CellParams& params, double sample_hz) {
   FitData::Run r;
   r.data = &run;
+  r.has_height = !runHasNoHeight(run);
   const Replay nominal = replayRun(run, params, {});
   if (!nominal.ok) throw std::invalid_argument(nominal.message);
   std::vector<double> dp_dm, dh_dm;
@@ -216,18 +219,21 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
     if (i > 0 && run.mdot_in_kg_s[i] != 0.0)
       walk_var += std::pow(std::max(flow_noise[i], 0.0) * (run.t_s[i] - run.t_s[i - 1]), 2);
     if (i % stride != 0 || nominal.phases[i] == RunPhase::kLanded) continue;
-    if (!std::isfinite(run.p_gauge_pa[i]) || !std::isfinite(run.h_m[i])) continue;
+    if (!std::isfinite(run.p_gauge_pa[i]) || (r.has_height && !std::isfinite(run.h_m[i]))) continue;
     r.index.push_back(i);
     walk.push_back(walk_var);
     white_p.push_back(std::pow(noise.p_pa, 2) + std::pow(kModelAccuracyShare * range.range_p_pa, 2) + timing.var_p[i]);
-    white_h.push_back(std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing.var_h[i]);
+    // No height sensor: its slots are uncorrelated unit noise whose residual is 0.
+    white_h.push_back(r.has_height
+                          ? std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing.var_h[i]
+                          : 1.0);
     gain_p.push_back(dp_dm[i]);
-    gain_h.push_back(dh_dm[i]);
-    double var_p = white_p.back() + dp_dm[i] * dp_dm[i] * walk_var, var_h = white_h.back() + dh_dm[i] * dh_dm[i] * walk_var;
+    gain_h.push_back(r.has_height ? dh_dm[i] : 0.0);
+    double var_p = white_p.back() + dp_dm[i] * dp_dm[i] * walk_var, var_h = white_h.back() + gain_h.back() * gain_h.back() * walk_var;
     for (const ErrorMode& mode : modes) {
       if (mode.variance <= 0.0) continue;
       var_p += mode.p[i] * mode.p[i] * mode.variance;
-      var_h += mode.h[i] * mode.h[i] * mode.variance;
+      if (r.has_height) var_h += mode.h[i] * mode.h[i] * mode.variance;
     }
     r.sigma_p_pa.push_back(std::sqrt(var_p));
     r.sigma_h_m.push_back(std::sqrt(var_h));

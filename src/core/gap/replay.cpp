@@ -24,23 +24,33 @@ const char* phaseName(RunPhase phase) {
   return "?";
 }
 
+bool runIsValveDriven(const RunData& run) {
+  auto measured = [](const std::vector<double>& v) {
+    return std::any_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+  };
+  return !measured(run.mdot_in_kg_s) && run.valve_cmd.size() == run.size() && measured(run.valve_cmd) &&
+         run.p_supply_gauge_pa.size() == run.size() && measured(run.p_supply_gauge_pa);
+}
+
 std::vector<RunPhase> classifyPhases(const RunData& run) {
   const std::size_t n = run.size();
   std::vector<RunPhase> phases(n, RunPhase::kHold);
+  // Without a flow meter the valve command says when gas goes in or out.
+  const std::vector<double>& flow = runIsValveDriven(run) ? run.valve_cmd : run.mdot_in_kg_s;
   double peak_flow = 0.0;
-  for (double q : run.mdot_in_kg_s)
+  for (double q : flow)
     if (std::isfinite(q)) peak_flow = std::max(peak_flow, std::fabs(q));
   const double threshold = 0.02 * peak_flow;
   // Inflation: from the start to the last sample with clear inflow before the first vent.
   std::size_t vent_start = n;
   for (std::size_t i = 0; i < n; ++i)
-    if (run.mdot_in_kg_s[i] < -threshold) {
+    if (flow[i] < -threshold) {
       vent_start = i;
       break;
     }
   std::size_t inflate_end = 0;
   for (std::size_t i = 0; i < vent_start; ++i)
-    if (run.mdot_in_kg_s[i] > threshold) inflate_end = i + 1;
+    if (flow[i] > threshold) inflate_end = i + 1;
   double peak_p = 0.0;
   for (std::size_t i = 0; i < inflate_end; ++i)
     if (std::isfinite(run.p_gauge_pa[i])) peak_p = std::max(peak_p, run.p_gauge_pa[i]);
@@ -77,7 +87,7 @@ namespace {
 void advanceInterval(CellModel* model, double dt, const CellInputs& in, IntervalShape shape, double duty) {
   const bool pulsed = shape != IntervalShape::kSpread && duty > 0.0 && duty < 1.0 &&
                       ((std::isfinite(in.prescribed_inflow_kg_s) && in.prescribed_inflow_kg_s != 0.0) ||
-                       in.vent_opening > 0.0);
+                       in.inlet_opening > 0.0 || in.vent_opening > 0.0);
   if (!pulsed) {
     model->advance(dt, in);
     return;
@@ -87,7 +97,10 @@ void advanceInterval(CellModel* model, double dt, const CellInputs& in, Interval
     open.prescribed_inflow_kg_s = in.prescribed_inflow_kg_s / duty;
     shut.prescribed_inflow_kg_s = 0.0;
   }
+  // A valve-driven run (no flow meter) opens the model's own valves fully for the pulse.
+  open.inlet_opening = in.inlet_opening > 0.0 ? 1.0 : 0.0;
   open.vent_opening = in.vent_opening > 0.0 ? 1.0 : 0.0;
+  shut.inlet_opening = 0.0;
   shut.vent_opening = 0.0;
   const bool at_start = shape == IntervalShape::kPulseAtStart;
   model->advance((at_start ? duty : 1.0 - duty) * dt, at_start ? open : shut);
@@ -101,6 +114,19 @@ double valveDuty(const RunData& run, std::size_t i) {
   return std::min(1.0, std::fabs(run.valve_cmd[i]));
 }
 
+/// A run without a flow meter drives the model's own valves: valve_cmd[i] is the mean opening
+/// over the interval ending at sample i (+ inlet from the supply, - vent to ambient).
+void valveInputs(const RunData& run, std::size_t i, CellInputs* in) {
+  const double cmd = std::isfinite(run.valve_cmd[i]) ? run.valve_cmd[i] : 0.0;
+  in->prescribed_inflow = nullptr;
+  in->prescribed_inflow_kg_s = NAN;
+  in->inlet_closed = false;
+  in->inlet_opening = std::clamp(cmd, 0.0, 1.0);
+  in->vent_opening = std::clamp(-cmd, 0.0, 1.0);
+  const double supply = run.p_supply_gauge_pa[i];
+  in->supply_pressure_pa = std::isfinite(supply) ? supply : in->supply_pressure_pa;
+}
+
 }  // namespace
 
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
@@ -111,12 +137,17 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
   out.p_gauge_pa.assign(n, NAN);
   out.h_m.assign(n, NAN);
   try {
-    std::vector<double> t, q;
-    for (std::size_t i = 0; i < n; ++i)
-      if (std::isfinite(run.mdot_in_kg_s[i])) {
-        t.push_back(run.t_s[i]);
-        q.push_back(run.mdot_in_kg_s[i]);
-      }
+    const bool valve_driven = runIsValveDriven(run);
+    std::vector<double> t{run.t_s.front(), run.t_s.back()}, q{0.0, 0.0};
+    if (!valve_driven) {
+      t.clear();
+      q.clear();
+      for (std::size_t i = 0; i < n; ++i)
+        if (std::isfinite(run.mdot_in_kg_s[i])) {
+          t.push_back(run.t_s[i]);
+          q.push_back(run.mdot_in_kg_s[i]);
+        }
+    }
     if (t.size() < 2) throw std::invalid_argument("fewer than 2 inflow samples");
     const TimeSeries inflow(t, q);
     CellModel model(params);
@@ -152,8 +183,10 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
         const bool interval_mean = run.flow_interval_means && std::isfinite(run.mdot_in_kg_s[i]);
         in.prescribed_inflow = interval_mean ? nullptr : &inflow;
         in.prescribed_inflow_kg_s = interval_mean ? run.mdot_in_kg_s[i] : NAN;
-        if (interval_mean) advanceInterval(&model, run.t_s[i] - run.t_s[i - 1], in, shape, valveDuty(run, i));
-        else model.advance(run.t_s[i] - run.t_s[i - 1], in);
+        if (valve_driven) valveInputs(run, i, &in);
+        const double dt = run.t_s[i] - run.t_s[i - 1];
+        if (interval_mean || valve_driven) advanceInterval(&model, dt, in, shape, valveDuty(run, i));
+        else model.advance(dt, in);
       }
       const Measurement m = model.measure();
       out.p_gauge_pa[i] = m.gauge_pressure_pa;
@@ -341,21 +374,23 @@ RunResidual pooledResidual(const std::vector<const RunData*>& runs, const std::v
     for (std::size_t i = 0; i < run.size(); ++i) {
       if (replay.phases[i] == RunPhase::kLanded) continue;
       const double p = run.p_gauge_pa[i], h = run.h_m[i];
-      if (!std::isfinite(p) || !std::isfinite(h)) continue;
+      if (!std::isfinite(p)) continue;
       p_lo = std::min(p_lo, p);
       p_hi = std::max(p_hi, p);
+      sp += std::pow(p - replay.p_gauge_pa[i], 2);
+      ++r.samples;
+      if (!std::isfinite(h)) continue;  // no height sensor: pressure alone
       h_lo = std::min(h_lo, h);
       h_hi = std::max(h_hi, h);
-      sp += std::pow(p - replay.p_gauge_pa[i], 2);
       sh += std::pow(h - replay.h_m[i], 2);
-      ++r.samples;
+      ++r.samples_h;
     }
   }
   if (r.samples == 0) return r;
   r.range_p_pa = std::max(p_hi - p_lo, 1e-9);
   r.range_h_m = std::max(h_hi - h_lo, 1e-12);
   r.nrmse_p = std::sqrt(sp / r.samples) / r.range_p_pa;
-  r.nrmse_h = std::sqrt(sh / r.samples) / r.range_h_m;
+  r.nrmse_h = r.samples_h > 0 ? std::sqrt(sh / r.samples_h) / r.range_h_m : NAN;
   return r;
 }
 

@@ -93,6 +93,33 @@ double shrinkPercent(double before, double after) {
   return before > 0.0 ? 100.0 * (1.0 - after / before) : NAN;
 }
 
+/// The `calibration` block of gap-report.md.
+std::string calibrationJson(const CalibrationSummary& c) {
+  std::ostringstream j;
+  j << "{\n    \"parameters\": [";
+  for (std::size_t i = 0; i < c.parameters.size(); ++i) {
+    const CalibratedParam& p = c.parameters[i];
+    j << (i ? "," : "") << "\n      {\"name\": " << jsonString(p.name) << ", \"nominal\": " << jsonNumber(p.nominal)
+      << ", \"value\": " << jsonNumber(p.value) << ", \"fitted\": " << jsonNumber(p.fitted)
+      << ", \"std_error\": " << jsonNumber(p.std_error) << ", \"moved\": " << (p.moved ? "true" : "false") << "}";
+  }
+  j << (c.parameters.empty() ? "],\n" : "\n    ],\n");
+  j << "    \"correlation\": {\"names\": " << jsonStrings(c.correlation_names) << ", \"matrix\": [";
+  for (Eigen::Index a = 0; a < c.correlation.rows(); ++a) {
+    j << (a ? ", [" : "[");
+    for (Eigen::Index b = 0; b < c.correlation.cols(); ++b) j << (b ? ", " : "") << jsonNumber(c.correlation(a, b));
+    j << "]";
+  }
+  j << "]},\n";
+  j << "    \"file\": " << jsonString(c.file) << ", \"bic_delta\": " << jsonNumber(c.bic_delta)
+    << ",\n    \"withheld_nrmse_calibrated_only\": " << jsonNumber(c.withheld_nrmse)
+    << ", \"withheld_chi2_per_sample\": " << jsonNumber(c.withheld_chi2_per_sample) << ",\n";
+  j << "    \"unidentifiable\": [";
+  for (std::size_t i = 0; i < c.unidentifiable.size(); ++i) j << (i ? ", " : "") << jsonStrings(c.unidentifiable[i]);
+  j << "],\n    \"notes\": " << jsonStrings(c.notes) << "\n  }";
+  return j.str();
+}
+
 }  // namespace
 
 std::string reportJson(const DiagnosisReport& r) {
@@ -120,6 +147,7 @@ std::string reportJson(const DiagnosisReport& r) {
       << ", \"withheld_nrmse\": " << jsonNumber(c.withheld_nrmse) << "}";
   }
   j << (r.candidates.empty() ? "],\n" : "\n  ],\n");
+  if (r.calibration.done) j << "  \"calibration\": " << calibrationJson(r.calibration) << ",\n";
   j << "  \"verdict\": {\"effects\": " << jsonStrings(r.verdict_effects) << ", \"status\": " << jsonString(r.status)
     << "},\n";
   j << "  \"shrinkage\": {\"withheld_nrmse_before\": " << jsonNumber(r.withheld_before)
@@ -142,14 +170,53 @@ void headerSection(std::ostream& m, const DiagnosisReport& r) {
     << ". Diagnosed in " << fixed(r.elapsed_s, 1) << " s.\n\n";
 }
 
+/// "film_stiffness_scale 1 -> 1.15 (+- 0.01)" for every moved parameter.
+std::string calibrationText(const CalibrationSummary& c) {
+  std::string s;
+  for (const auto& p : c.parameters)
+    if (p.moved)
+      s += (s.empty() ? "" : ", ") + p.name + " " + general(p.nominal, 4) + " -> " + general(p.value, 4) + " (+- " +
+           general(p.std_error, 2) + ")";
+  return s.empty() ? "no parameter" : s;
+}
+
+/// report.md: the calibration: which parameters moved, and what the runs cannot tell apart.
+void calibrationSection(std::ostream& m, const DiagnosisReport& r) {
+  const CalibrationSummary& c = r.calibration;
+  if (!c.done) return;
+  m << "## 0. The model's own parameters (calibration)\n\n"
+    << "Fitted on the fit runs before any effect is blamed; a move counts when it exceeds 2 standard errors and "
+       "pays for itself in BIC. Parameters that did not move keep their nominal value in `"
+    << c.file << "`.\n\n| parameter | nominal | fitted | std. error | moved |\n|---|---|---|---|---|\n";
+  for (const auto& p : c.parameters)
+    m << "| " << p.name << " [" << p.unit << "] | " << general(p.nominal, 4) << " | " << general(p.fitted, 4) << " | "
+      << general(p.std_error, 2) << " | " << (p.moved ? "**yes**" : "no") << " |\n";
+  m << "\n";
+  for (const auto& g : c.unidentifiable) {
+    std::string names;
+    for (const auto& n : g) names += (names.empty() ? "" : ", ") + n;
+    m << "- The runs cannot tell apart: " << names << " (one of them is calibrated).\n";
+  }
+  for (const auto& note : c.notes) m << "- " << note << "\n";
+  m << "- The calibrated model alone: withheld nrmse " << general(c.withheld_nrmse) << " (nominal "
+    << general(r.withheld_before) << ").\n\n";
+}
+
 /// report.md: the verdict and the reasons behind it, and the noise.
 void verdictSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## Verdict\n\n";
   if (r.status == "explained") {
-    m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "). ";
+    m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "), "
+      << (r.calibration.anyMoved() ? "on top of the calibrated " + calibrationText(r.calibration) + ". "
+                                   : "no model parameter needed recalibration. ");
     m << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
       << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)
       << " % smaller).\n\n";
+  } else if (r.status == "calibrated") {
+    m << "**Calibrated: the model's own parameters were off; no missing physics is needed.** Recalibrating "
+      << calibrationText(r.calibration) << " removes the gap; the calibrated parameter file is `"
+      << r.calibration.file << "`. On the withheld runs the normalised RMS residual falls from "
+      << fixed(r.withheld_before, 3) << " to " << fixed(r.withheld_after, 3) << ".\n\n";
   } else if (r.status == "none") {
     m << "**No significant gap.** The nominal model already fits the runs within the noise, and no candidate "
          "effect improves the fit by more than its extra parameters cost.\n\n";
@@ -245,6 +312,7 @@ std::string reportMarkdown(const DiagnosisReport& r) {
   std::ostringstream m;
   headerSection(m, r);
   verdictSection(m, r);
+  calibrationSection(m, r);
   whereSection(m, r);
   whichEffectSection(m, r);
   shrinkSection(m, r);
@@ -269,6 +337,7 @@ void writeReportFiles(const std::string& dir, const DiagnosisReport& r) {
     if (old.is_regular_file() && old.path().extension() == ".csv") fs::remove(old.path(), ec);
   write(fs::path(dir) / "report.json", reportJson(r));
   write(fs::path(dir) / "report.md", reportMarkdown(r));
+  if (r.calibration.done && !r.calibrated_yaml.empty()) write(fs::path(dir) / r.calibration.file, r.calibrated_yaml);
   for (const auto& t : r.traces) {
     std::ostringstream s;
     s << "# run: " << t.name << "\n# role: " << t.role << "\n";

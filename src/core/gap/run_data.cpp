@@ -18,7 +18,10 @@ namespace fs = std::filesystem;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const char* const kVersionKey = "nursing_bed_run";
-const char* const kRequiredColumns[] = {"t_s", "mdot_in_kg_s", "p_gauge_pa", "h_m"};
+/// Always required (h_m may be empty throughout: no height sensor); mdot_in_kg_s too unless the
+/// run is valve-driven (valve_cmd and a supply pressure; run-data.md).
+const char* const kRequiredColumns[] = {"t_s", "p_gauge_pa", "h_m"};
+const char* const kSupplyKey = "p_supply_gauge_pa";
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r\n");
@@ -117,6 +120,7 @@ class RunCsvReader {
     }
     if (run_.t_s.size() < 2)
       throw fail(line_no_, std::to_string(run_.t_s.size()) + " data row(s), a run needs at least 2");
+    fillAbsentColumns();
     return std::move(run_);
   }
 
@@ -188,6 +192,14 @@ class RunCsvReader {
     }
     for (const char* required : kRequiredColumns)
       if (!seen.count(required)) throw fail(line_no_, std::string("missing required column '") + required + "'");
+    const bool supply = seen.count(kSupplyKey) || run_.meta.count(kSupplyKey);
+    if (!seen.count("mdot_in_kg_s") && !(seen.count("valve_cmd") && supply))
+      throw fail(line_no_, "missing required column 'mdot_in_kg_s' (a run without a flow meter needs the columns "
+                           "valve_cmd and p_supply_gauge_pa, or a '# p_supply_gauge_pa:' metadata key)");
+    if (!seen.count("p_supply_gauge_pa") && run_.meta.count(kSupplyKey) &&
+        parseNumber(run_.meta[kSupplyKey], &supply_) != ParseResult::kOk)
+      throw fail(meta_line_[kSupplyKey], "metadata p_supply_gauge_pa: expected a number of pascals, got '" +
+                                             run_.meta[kSupplyKey] + "'");
     if (std::isnan(run_.load_n) && !seen.count("load_n"))
       throw fail(line_no_, "missing load_n: give '# load_n: <N>' before the header or a load_n column");
   }
@@ -209,6 +221,14 @@ class RunCsvReader {
     }
   }
 
+  /// A run without a flow meter: its flow all NaN; a supply pressure given as metadata becomes a
+  /// constant column.
+  void fillAbsentColumns() {
+    const std::size_t n = run_.t_s.size();
+    if (run_.mdot_in_kg_s.empty()) run_.mdot_in_kg_s.assign(n, kNaN);
+    if (run_.p_supply_gauge_pa.empty() && std::isfinite(supply_)) run_.p_supply_gauge_pa.assign(n, supply_);
+  }
+
   void checkTime(double value, const std::string& where) {
     if (std::isnan(value)) throw fail(line_no_, where + "time missing (t_s must be given on every row)");
     if (!run_.t_s.empty() && !(value > run_.t_s.back()))
@@ -224,6 +244,7 @@ class RunCsvReader {
   std::size_t header_line_ = 0, line_no_ = 0, last_time_line_ = 0;
   std::vector<std::vector<double>*> target_;  ///< per column: where its values go (null: ignored)
   int time_column_ = -1;
+  double supply_ = kNaN;  ///< p_supply_gauge_pa from the metadata
 };
 
 }  // namespace
@@ -236,8 +257,13 @@ void writeRunCsv(const std::string& path, const RunData& run) {
     const char* name;
     const std::vector<double>* values;
   };
-  std::vector<Column> columns = {
-      {"t_s", &run.t_s}, {"mdot_in_kg_s", &run.mdot_in_kg_s}, {"p_gauge_pa", &run.p_gauge_pa}, {"h_m", &run.h_m}};
+  auto measured = [](const std::vector<double>& v) {
+    return std::any_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+  };
+  std::vector<Column> columns = {{"t_s", &run.t_s}, {"p_gauge_pa", &run.p_gauge_pa}, {"h_m", &run.h_m}};
+  // No flow meter (a valve-driven run): the column is left out.
+  if (measured(run.mdot_in_kg_s) || run.valve_cmd.empty())
+    columns.insert(columns.begin() + 1, {"mdot_in_kg_s", &run.mdot_in_kg_s});
   for (std::size_t i = 0; i < columns.size(); ++i)
     if (columns[i].values->size() != n)
       throw std::runtime_error(path + ": column " + columns[i].name + " has " +

@@ -6,12 +6,15 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <ostream>
 #include <set>
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
 #include "nursing_bed/core/physics/pillow_structure.h"
 
@@ -161,36 +164,97 @@ double quantise(double x, double step) {
   return std::round(x / step) * step;
 }
 
+namespace {
+
+/// Advances `model` over one sample interval ending at `t` on the valve-driven protocol: the
+/// inlet open to the supply (by `opening`) until the bag holds `target_mass_kg`, closed for the
+/// hold, the vent valve open for the vent. Returns the mean valve command over the interval.
+double advanceValveDriven(CellModel* model, const SynthProtocol& protocol, double t, double opening,
+                          double target_mass_kg, CellInputs* in) {
+  const double hold_end = protocol.inflate_s + protocol.hold_s;
+  in->prescribed_inflow = nullptr;
+  in->inlet_opening = in->vent_opening = 0.0;
+  const double t0 = model->time();
+  double command = 0.0;
+  if (t <= hold_end + 1e-9 && t0 < protocol.inflate_s - 1e-9) {
+    while (t - model->time() > 1e-12) {  // 1 ms steps: the valve closes once the mass is in
+      const double dt = std::min(1e-3, t - model->time());
+      in->inlet_opening = model->state()[CellModel::kMass] < target_mass_kg ? opening : 0.0;
+      command += in->inlet_opening * dt;
+      model->advance(dt, *in);
+    }
+    return command / (t - t0);
+  }
+  if (t > hold_end + 1e-9) in->vent_opening = 1.0;
+  model->advance(t - t0, *in);
+  return -in->vent_opening;
+}
+
+/// The metadata of a synthetic run.
+void synthRunHeader(const SynthProtocol& protocol, const SynthRunPlan& plan, const std::string& airbag_name,
+                    RunData* run) {
+  run->name = plan.name;
+  run->airbag = airbag_name;
+  run->load_n = plan.load_n;
+  run->meta["nursing_bed_run"] = std::to_string(kRunCsvVersion);
+  run->meta["load_n"] = shortNumber(plan.load_n);
+  run->meta["airbag"] = airbag_name;
+  std::ostringstream note;
+  note << "gap synth, protocol " << protocol.name << ": load " << plan.load_n << " N, " << plan.flow << " flow ("
+       << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, ~" << std::setprecision(3)
+       << plan.target_height_m * 1e3 << " mm at rest); inflate 0-" << protocol.inflate_s << " s, hold to "
+       << protocol.inflate_s + protocol.hold_s << " s, vent "
+       << (protocol.valve_driven ? "through the vent valve (no flow meter)" : "through the inlet") << " to "
+       << protocol.durationS() << " s";
+  run->meta["note"] = note.str();
+}
+
+/// Advances `model` over one sample interval ending at `t` on the metered protocol (prescribed
+/// paper-shaped inflow, hold, vent through the inlet); returns the valve command from `t` on.
+double advanceMetered(CellModel* model, const SynthProtocol& protocol, double t, const TimeSeries& inflow,
+                      CellInputs* in) {
+  const double hold_end = protocol.inflate_s + protocol.hold_s;
+  in->prescribed_inflow = nullptr;
+  in->inlet_opening = 0.0;
+  in->supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
+  if (t <= protocol.inflate_s + 1e-9) {
+    in->prescribed_inflow = &inflow;
+    model->advance(t - model->time(), *in);
+  } else if (t <= hold_end + 1e-9) {
+    model->advance(t - model->time(), *in);
+  } else {
+    // The inlet valve opens over kVentOpeningRampS (in 1 ms steps): a flow that starts
+    // smoothly, so that the sampled metered flow carries the mass that left.
+    in->supply_pressure_pa = 0.0;
+    while (t - model->time() > 1e-12) {
+      const double ramp_end = hold_end + kVentOpeningRampS;
+      const double dt = model->time() < ramp_end - 1e-12 ? std::min(1e-3, t - model->time()) : t - model->time();
+      in->inlet_opening = std::min(1.0, (model->time() + 0.5 * dt - hold_end) / kVentOpeningRampS);
+      model->advance(dt, *in);
+    }
+  }
+  return t < protocol.inflate_s - 1e-9 ? 1.0 : (t < hold_end - 1e-9 ? 0.0 : -1.0);
+}
+
+}  // namespace
+
 RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectPtr>& effects,
                          const SynthProtocol& protocol, const SynthRunPlan& plan, const SensorNoise& noise,
                          std::mt19937* rng, const std::string& airbag_name) {
   CellParams p = params;
-  p.regulator_time_constant_s = 0.0;  // the vent's supply sits at 0 gauge at once
+  // Metered: the vent's supply sits at 0 gauge at once. Valve-driven: the rig's regulator.
+  if (!protocol.valve_driven) p.regulator_time_constant_s = 0.0;
   CellModel model(p);
   for (const auto& e : effects) model.addEffect(e);
   model.reset(plan.load_n);
+  const double target_mass = model.state()[CellModel::kMass] + plan.inflow_mass_kg;
+  const double opening = plan.flow == "low" ? 0.5 : 1.0;
 
   const double hz = protocol.sample_hz;
   const TimeSeries inflow = paperShapedInflow(plan.inflow_mass_kg, protocol.peak_s, protocol.inflate_s, 1.0 / hz);
   const long n_total = std::lround(protocol.durationS() * hz);
-  const long n_inflate_end = std::lround(protocol.inflate_s * hz);
-  const long n_hold_end = std::lround((protocol.inflate_s + protocol.hold_s) * hz);
-
   RunData run;
-  run.name = plan.name;
-  run.airbag = airbag_name;
-  run.load_n = plan.load_n;
-  run.meta["nursing_bed_run"] = std::to_string(kRunCsvVersion);
-  run.meta["load_n"] = shortNumber(plan.load_n);
-  run.meta["airbag"] = airbag_name;
-  {
-    std::ostringstream note;
-    note << "gap synth, protocol " << protocol.name << ": load " << plan.load_n << " N, " << plan.flow << " flow ("
-         << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, ~" << std::setprecision(3)
-         << plan.target_height_m * 1e3 << " mm at rest); inflate 0-" << protocol.inflate_s << " s, hold to "
-         << protocol.inflate_s + protocol.hold_s << " s, vent through the inlet to " << protocol.durationS() << " s";
-    run.meta["note"] = note.str();
-  }
+  synthRunHeader(protocol, plan, airbag_name, &run);
   for (auto* v : {&run.t_s, &run.mdot_in_kg_s, &run.p_gauge_pa, &run.h_m, &run.valve_cmd})
     v->reserve(static_cast<std::size_t>(n_total + 1));
 
@@ -199,29 +263,10 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
   in.load_n = plan.load_n;
   for (long i = 0; i <= n_total; ++i) {
     const double t = static_cast<double>(i) / hz;
-    if (i > 0) {
-      // Inputs over the interval (t_{i-1}, t_i].
-      in.prescribed_inflow = nullptr;
-      in.inlet_opening = 0.0;
-      in.supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
-      if (i <= n_inflate_end) {
-        in.prescribed_inflow = &inflow;
-        model.advance(t - model.time(), in);
-      } else if (i <= n_hold_end) {
-        model.advance(t - model.time(), in);
-      } else {
-        // The inlet valve opens over kVentOpeningRampS (in 1 ms steps): a flow that starts
-        // smoothly, so that the sampled metered flow carries the mass that left.
-        in.supply_pressure_pa = 0.0;
-        const double vent_start = protocol.inflate_s + protocol.hold_s;
-        while (t - model.time() > 1e-12) {
-          const double ramp_end = vent_start + kVentOpeningRampS;
-          const double dt = model.time() < ramp_end - 1e-12 ? std::min(1e-3, t - model.time()) : t - model.time();
-          in.inlet_opening = std::min(1.0, (model.time() + 0.5 * dt - vent_start) / kVentOpeningRampS);
-          model.advance(dt, in);
-        }
-      }
-    }
+    double command = 0.0;
+    if (protocol.valve_driven) command = i > 0 ? advanceValveDriven(&model, protocol, t, opening, target_mass, &in) : 0.0;
+    else if (i > 0) command = advanceMetered(&model, protocol, t, inflow, &in);
+    else command = 1.0;
     const Measurement m = model.measure();
     double pressure = m.gauge_pressure_pa, height = m.height_m, flow = m.inflow_kg_s;
     if (rng) {
@@ -231,12 +276,14 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
       flow = quantise(flow * (1.0 + relative) + noise.flow_sd_kg_s * gauss(*rng), noise.flow_step_kg_s);
     }
     run.t_s.push_back(t);
-    run.mdot_in_kg_s.push_back(flow);
+    run.mdot_in_kg_s.push_back(protocol.valve_driven ? std::numeric_limits<double>::quiet_NaN() : flow);
     run.p_gauge_pa.push_back(pressure);
     run.h_m.push_back(height);
-    // The command in force from this sample on.
-    run.valve_cmd.push_back(i < n_inflate_end ? 1.0 : (i < n_hold_end ? 0.0 : -1.0));
+    // Metered: the command in force from this sample on; valve-driven: the mean opening over
+    // the interval that ends here (run-data.md).
+    run.valve_cmd.push_back(command);
   }
+  if (protocol.valve_driven) run.p_supply_gauge_pa.assign(run.size(), p.supply_pressure_pa);
   return run;
 }
 
@@ -350,6 +397,15 @@ void writeTruthJson(const SynthOptions& o, const SynthResult& result, const Sens
   j << "  \"noise_scale\": " << jsonNumber(o.noise_scale) << ",\n";
   j << "  \"noise\": " << noiseJson(noise) << ",\n";
   j << "  \"effects\": " << effectsJson(result) << ",\n";
+  j << "  \"airbag_params\": {";
+  bool first = true;
+  for (const auto& [k, v] : o.airbag_params) {
+    j << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
+    first = false;
+  }
+  j << "},\n";
+  j << "  \"flow_meter\": " << (o.flow_meter ? "true" : "false") << ", \"height_sensor\": "
+    << (o.height_sensor ? "true" : "false") << ",\n";
   j << "  \"runs\": " << runsJson(p) << ",\n";
   j << "  \"timing\": {\"inflate_s\": " << jsonNumber(p.inflate_s) << ", \"peak_s\": " << jsonNumber(p.peak_s)
     << ", \"hold_s\": " << jsonNumber(p.hold_s) << ", \"vent_s\": " << jsonNumber(p.vent_s)
@@ -359,13 +415,38 @@ void writeTruthJson(const SynthOptions& o, const SynthResult& result, const Sens
 
 }  // namespace
 
+CellParams rigAirbag(const CellParams& model, const std::map<std::string, double>& differences) {
+  CellParams rig = model;
+  for (const auto& [name, value] : differences) {
+    bool known = false;
+    for (const auto& d : calibrationCatalog())
+      if (d.name == name) {
+        rig = applyCalibration({{name, value}}, rig);
+        known = true;
+      }
+    for (const auto& f : cellParamFields())
+      if (f.key == name) {
+        f.set(rig, value);
+        known = true;
+      }
+    if (!known)
+      throw std::invalid_argument("airbag parameter '" + name +
+                                  "' is neither a calibration parameter nor a key of the parameter file");
+  }
+  const std::string problem = rig.validate();
+  if (!problem.empty()) throw std::invalid_argument("the rig's airbag parameters are invalid: " + problem);
+  return rig;
+}
+
 SynthResult synthesizeDataset(const SynthOptions& o) {
   if (o.out_dir.empty()) throw std::invalid_argument("gap synth: an output directory is required");
   if (!(o.noise_scale >= 0.0) || !std::isfinite(o.noise_scale))
     throw std::invalid_argument("gap synth: noise scale must be a finite number >= 0, got " +
                                 shortNumber(o.noise_scale));
   SynthResult result;
-  result.protocol = synthProtocol(o.protocol, o.params);
+  const CellParams rig = rigAirbag(o.params, o.airbag_params);
+  result.protocol = synthProtocol(o.protocol, rig);
+  result.protocol.valve_driven = !o.flow_meter;
   std::vector<CellEffectPtr> effects;
   resolveSynthEffects(o.effects, o.seed, &result.effect_names, &result.effect_params, &effects);
 
@@ -379,7 +460,8 @@ SynthResult synthesizeDataset(const SynthOptions& o) {
     const SynthRunPlan& plan = result.protocol.runs[k];
     std::seed_seq seq{o.seed, static_cast<std::uint32_t>(k), 0x5eedu};
     std::mt19937 rng(seq);
-    RunData run = simulateSynthRun(o.params, effects, result.protocol, plan, noise, &rng, o.airbag_name);
+    RunData run = simulateSynthRun(rig, effects, result.protocol, plan, noise, &rng, o.airbag_name);
+    if (!o.height_sensor) run.h_m.assign(run.size(), std::numeric_limits<double>::quiet_NaN());
     run.role = plan.role;
     const fs::path file = dir / plan.name;
     writeRunCsv(file.string(), run);

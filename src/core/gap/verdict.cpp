@@ -45,19 +45,27 @@ class VerdictRules {
   bool explainsAlone(const CandidateFit& c) const { return significant(c) && fitsFitRuns(c) && fitsWithheld(c); }
 
   /// A pair only where it beats the better of its two singles significantly, and neither single
-  /// explains the gap alone (the simpler answer first).
+  /// explains the gap alone (the simpler answer first) -- unless that single explains it only by
+  /// removing most of a deep gap (chi2/n above explained_chi2) while the pair leaves the fit runs
+  /// within the noise and lowers the withheld runs' chi2 by min_withheld_gain more: two effects
+  /// whose single fits each bend to the other's signature (a flow meter's bias and a sensor lag).
   bool pairEarnsItsPlace(const CandidateFit& pair) const {
     bool first = true;
     for (const CandidateFit& c : candidates_) {
       if (!c.ok || c.effects.size() != 1) continue;
       if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
-      if (explainsAlone(c)) return false;
+      if (explainsAlone(c) && !pairWithinNoiseWhereSingleIsNot(c, pair)) return false;
       if (first && (c.bic_delta - pair.bic_delta < options_.significant_bic_drop ||
                     (c.chi2 - pair.chi2) / n_ < options_.min_chi2_drop))
         return false;
       first = false;
     }
     return true;
+  }
+  bool pairWithinNoiseWhereSingleIsNot(const CandidateFit& single, const CandidateFit& pair) const {
+    const double held_gain = (single.withheld_chi2_per_sample - pair.withheld_chi2_per_sample) * nominal_.withheld_residuals;
+    return single.chi2 / n_ > options_.explained_chi2 && pair.chi2 / n_ <= options_.explained_chi2 &&
+           (!anythingWithheld() || held_gain >= options_.min_withheld_gain);
   }
   bool admissible(const CandidateFit& c) const {
     return significant(c) && (c.effects.size() == 1 || pairEarnsItsPlace(c));

@@ -114,6 +114,40 @@ class GapDiagnoseCli : public ::testing::Test {
 fs::path* GapDiagnoseCli::valid_dir_ = nullptr;
 std::vector<std::string> GapDiagnoseCli::run_names_;
 
+TEST_F(GapDiagnoseCli, CalibrationParametersAreCheckedBeforeAnythingIsWritten) {
+  const std::string dataset = valid_dir_->string();
+  const fs::path out = tmpDir("calibrate_out", false);
+  // An unknown parameter is a command-line error (2); a valve parameter of flow-metered runs a
+  // data error (1). Nothing is written either way.
+  const struct {
+    const char* params;
+    int code;
+    std::vector<std::string> fragments;
+  } cases[] = {
+      {"film_stiffness_scale,bogus", 2, {"--params", "unknown calibration parameter 'bogus'", "usage: gap calibrate"}},
+      {"inlet_area_m2", 1, {"inlet_area_m2", "valve_cmd and p_supply_gauge_pa", "flow-metered"}},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.params);
+    const ToolResult r = runGap({"calibrate", dataset, "--out", out.string(), "--params", c.params});
+    EXPECT_EQ(r.code, c.code) << r.output;
+    expectContains(r.output, c.fragments);
+    expectNoReport(out);
+    EXPECT_FALSE(fs::exists(out / "calibrated_airbag.yaml"));
+  }
+  {
+    SCOPED_TRACE("empty name");
+    expectUsageError({dataset, "--out", out.string(), "--params", "film_stiffness_scale,"}, {"--params", "empty name"});
+  }
+  {
+    SCOPED_TRACE("--airbag-param of gap synth");
+    const ToolResult r = runGap({"synth", "--out", out.string(), "--airbag-param", "film_stiffnes=1.1"});
+    EXPECT_EQ(r.code, 2) << r.output;
+    expectContains(r.output, {"--airbag-param", "film_stiffnes"});
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
 TEST_F(GapDiagnoseCli, CommandLineMistakesExitWith2AndSayWhat) {
   const std::string dataset = valid_dir_->string();
   const fs::path out = tmpDir("usage_out", false);
@@ -423,6 +457,28 @@ TEST(GapDecision, APairOnlyWhereNoSingleExplainsTheGap) {
   v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
   ASSERT_GE(v.winner, 0);
   EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+}
+
+TEST(GapDecision, APairWithinTheNoiseBeatsASingleThatOnlyRemovesMostOfADeepGap) {
+  // A deep gap (chi2/n 241): a single leaves 1.99 (99.6 % of the excess removed: it "explains"
+  // it), the pair leaves 1.0 on the fit runs and lowers the withheld chi2 too: both effects.
+  const auto nominal = nominalScore(241.0, 100.0);
+  const auto lag = fitOf({"pressure_sensor_lag"}, 1.99, 2.0, nominal);
+  const auto pair = fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.0, 1.0, nominal);
+  auto c = byBic({lag, pair});
+  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+  // Not when the pair does no better on the withheld runs (it only bends to the fit runs).
+  c = byBic({lag, fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.0, 2.0, nominal)});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
+  // Nor when the single is within the noise itself (the simpler answer).
+  c = byBic({fitOf({"pressure_sensor_lag"}, 1.3, 1.3, nominal), pair});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
 }
 
 TEST(GapDecision, AGapNothingRemovesIsUnexplainedAndImplausibleFitsDoNotCount) {

@@ -157,13 +157,13 @@ TEST_F(DiagnosisStagesOnALeak, PairsAreFittedFromTheirSinglesInCatalogueOrder) {
 
 TEST_F(DiagnosisStagesOnALeak, ShrinkageWithoutEffectsKeepsTheNominalReplays) {
   auto s = *state_;
-  gs::shrinkage(s.prepared, s.params, {}, s.nominal, leakOnly(), &s.report);
+  gs::shrinkage(s.prepared, s.params, {}, {}, s.nominal, leakOnly(), &s.report);
   ASSERT_EQ(s.report.traces.size(), s.prepared.runs.size());
   EXPECT_EQ(s.report.withheld_before, s.report.withheld_after);
   EXPECT_EQ(s.report.traces[0].p_after_pa, s.report.traces[0].p_nominal_pa);
 
   auto t = *state_;
-  gs::shrinkage(t.prepared, t.params, {nb::makeEffect("leak", {{"leak_area_m2", 1e-8}})}, t.nominal, leakOnly(),
+  gs::shrinkage(t.prepared, t.params, {}, {nb::makeEffect("leak", {{"leak_area_m2", 1e-8}})}, t.nominal, leakOnly(),
                 &t.report);
   EXPECT_LT(t.report.withheld_after, 0.5 * t.report.withheld_before);
 }

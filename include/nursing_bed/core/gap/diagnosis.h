@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/replay.h"
 #include "nursing_bed/core/gap/run_data.h"
 
@@ -22,7 +23,7 @@ struct DiagnosisOptions {
   /// Effects to try (canonical candidate names); empty: every candidate of the catalogue.
   std::vector<std::string> candidates;
   /// Pairs are tried among this many best single candidates (0: no pairs).
-  int pair_pool = 3;
+  int pair_pool = 4;
   /// Residuals enter the fits at about this rate (runs are replayed at their full rate).
   double fit_sample_hz = 10.0;
   /// Largest integration step while fitting (the run's sample interval if that is shorter) and
@@ -31,6 +32,21 @@ struct DiagnosisOptions {
   double fit_relative_tolerance = 3.0e-4;
   int max_iterations = 25;  ///< Levenberg-Marquardt iterations per candidate
   int threads = 2;          ///< candidate fits in parallel
+
+  // Calibration (doc/gap_calibration.md): the model's own parameters before any effect.
+  bool calibrate = true;  ///< false: the effects on top of the nominal model alone (as before calibration)
+  /// Cell parameters to calibrate (calibrationCatalog() names); empty: defaultCalibrationParams().
+  std::vector<std::string> calibration_params;
+  /// This many best single candidates (by BIC on top of the calibration; then the best pair) are
+  /// refitted with the calibrated parameters free as well, so that calibration and effects settle
+  /// together; the pairs are chosen after that.
+  int joint_pool = 3;
+  /// ... unless their chi2/n is already at most this (within the noise: nothing left to settle).
+  double joint_refit_chi2 = 1.1;
+  /// A calibrated move counts when |fitted - nominal| exceeds this many standard errors and its
+  /// chi2 gain, (move / SE)^2, exceeds ln n (BIC's price) by significant_bic_drop, as an effect's
+  /// must (about 5.3 SE with a few thousand residuals).
+  double calibration_z = 2.0;
 
   // Decisions (doc/gap_diagnosis.md). chi2/n is the mean squared whitened residual: residuals
   // in units of the noise floor (sensor noise, replay accuracy, and the flow meter's noise that
@@ -75,6 +91,9 @@ struct DiagnosisOptions {
 struct CandidateFit {
   std::vector<std::string> effects;       ///< canonical names, catalogue order
   std::map<std::string, double> params;   ///< fitted parameters (SI, catalogue keys)
+  /// Calibrated cell parameters this model was fitted with (moved ones; calibration.h names).
+  std::map<std::string, double> calibration;
+  bool joint = false;                     ///< refitted with the calibrated parameters free
   double chi2 = 0.0;                      ///< fit runs, sum of squared noise-scaled residuals
   double bic_delta = 0.0;                 ///< BIC minus the nominal model's (negative: better)
   double fit_nrmse = 0.0;                 ///< on the fit runs (gap-report.md's nrmse)
@@ -116,13 +135,17 @@ struct DiagnosisReport {
   double nominal_withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs (NaN: none)
   int fit_samples = 0;                    ///< residuals in the fits (both signals)
   std::vector<CandidateFit> candidates;   ///< best (lowest BIC) first
-  std::string status;                     ///< none, explained, unexplained
+  CalibrationSummary calibration;          ///< the verdict model's calibration
+  std::string calibrated_yaml;            ///< the complete calibrated parameter file (calibration.file)
+  bool pressure_only = false;             ///< no run has a height reading
+  std::string status;                     ///< none, calibrated, explained, unexplained
   std::vector<std::string> verdict_effects;
   std::map<std::string, double> verdict_params;
   std::vector<std::string> reasons;       ///< the decision in words, one line each
   // Shrinkage on the withheld runs: nominal vs verdict model (equal when nothing is named).
   double withheld_before = 0.0, withheld_after = 0.0;
   double withheld_p_before = 0.0, withheld_p_after = 0.0, withheld_h_before = 0.0, withheld_h_after = 0.0;
+  double withheld_calibrated = NAN;  ///< the calibrated model alone (no effects) on the withheld runs
   std::vector<RunSummary> runs;
   std::vector<RunTrace> traces;
   double elapsed_s = 0.0;
@@ -157,6 +180,16 @@ Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const Nominal
  */
 DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
                              const std::string& dataset_name = "");
+
+/**
+ * Calibrates the model's own parameters (options.calibration_params, or the defaults for these
+ * runs) on the fit runs, without looking for effects: the report has the calibration, status
+ * `calibrated` (the calibrated model fits within the noise and holds up on the withheld runs),
+ * `none` (nothing moved) or `unexplained` (a gap calibration does not remove), the withheld
+ * runs' nrmse before and after, and the calibrated parameter file. Throws as diagnoseRuns().
+ */
+DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
+                              const std::string& dataset_name = "");
 
 /// report.json exactly as gap-report.md fixes it (plus nothing else).
 std::string reportJson(const DiagnosisReport& report);

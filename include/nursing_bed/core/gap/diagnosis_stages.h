@@ -10,6 +10,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -57,8 +58,14 @@ struct NoiseModel {
   FitData fit, held;     ///< fit.params: the cell with the fit's integration settings
   double chi2_nominal = 0.0;                  ///< fit runs, whitened, summed
   double withheld_chi2_per_sample = NAN;      ///< NaN: nothing withheld
-  int fitResidualCount() const { return fit.residualCount(); }
-  int heldResidualCount() const { return held.residualCount(); }
+  /// The model the candidates are compared with: the nominal one, or after rebaseNoiseModel()
+  /// the calibrated one (these calibrated values, its chi2 on the fit and withheld runs).
+  std::map<std::string, double> baseline_calibration;
+  double baseline_chi2 = 0.0;
+  double baseline_withheld_chi2_per_sample = NAN;
+  /// The n of chi2/n and BIC (residuals that carry a reading; FitData::informativeCount()).
+  int fitResidualCount() const { return fit.informativeCount(); }
+  int heldResidualCount() const { return held.informativeCount(); }
 };
 
 /// Prepares every run (prepareFitRun) and scores the nominal model. The FitData point into
@@ -74,9 +81,66 @@ struct ModelFit {
 /// Fits every single candidate from a grid, then the pairs among the `options.pair_pool` best
 /// singles (by BIC) from the singles' fits. Singles first, in `candidates` order, then the pairs.
 /// `progress` (may be empty) gets a line per fit.
+/// `after_singles` (may be empty) may refit the singles (jointly with the calibration) before
+/// the pairs are chosen from them.
 std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<std::string>& candidates,
                                     const DiagnosisOptions& options,
-                                    const std::function<void(const std::string&)>& progress);
+                                    const std::function<void(const std::string&)>& progress,
+                                    const std::function<void(std::vector<ModelFit>*)>& after_singles = {});
+
+// ---- calibration (calibration_stage.cpp) ------------------------------------------------------
+
+/// A model fitted with calibrated cell parameters (alone, or with effects) and the judgement of
+/// each calibrated parameter.
+struct CalibrationFit {
+  ModelFit fit;                  ///< every requested parameter free
+  CalibrationSummary summary;    ///< moved parameters at their values, the others nominal
+  ModelSpec moved_model;         ///< the moved calibration parameters (and the effects) only
+  std::vector<double> moved_u;   ///< their fit (equals fit when every parameter moved)
+  double moved_chi2 = NAN;       ///< fit runs, whitened, summed: the calibrated model
+};
+
+/// Standard errors (Ceres covariance, scaled by chi2/n where above 1), correlations, the groups
+/// the runs cannot tell apart and which calibrated parameters moved (|move| > z SE and
+/// (move/SE)^2 > ln n + significant_bic_drop) of a fitted model. Fills summary.parameters (value = fitted where moved).
+CalibrationSummary judgeCalibration(const NoiseModel& noise, const ModelFit& fit, const DiagnosisOptions& options);
+
+/// Calibrates `names` alone on the fit runs: Levenberg-Marquardt from the nominal values, each
+/// move judged, the moved ones refitted alone; nothing moves unless the calibrated model lowers
+/// BIC by significant_bic_drop and chi2/n by min_chi2_drop against the nominal model.
+CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::string>& names,
+                              const DiagnosisOptions& options, const std::function<void(const std::string&)>& progress);
+
+/// Refits `candidate` (effects fitted on top of the calibration `base`) with every calibrated
+/// parameter free as well, from both fits; the moved ones (judged in the joint fit) are kept.
+CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, const CalibrationFit& base,
+                            const DiagnosisOptions& options);
+
+/// Makes the calibrated model (the nominal cell with `calibration`, whose chi2 on the fit runs is
+/// `chi2`) the baseline the candidates are fitted on and compared with; scores the withheld runs.
+void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& calibration, double chi2);
+
+/// The cell parameters to calibrate: options.calibration_params (checked against the runs), or
+/// defaultCalibrationParams(); none when options.calibrate is false. Throws std::invalid_argument.
+std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options);
+
+/// Refits the `pool` best fits of `effects` effects (by BIC) whose chi2/n is above
+/// options.joint_refit_chi2 jointly with the calibration (refitJointly) and replaces each by its
+/// joint fit where that fits better; the joint fits' calibration summaries by joinNames(effects).
+std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
+                                                           std::vector<ModelFit>* fits, std::size_t effects, int pool,
+                                                           const DiagnosisOptions& options,
+                                                           const std::function<void(const std::string&)>& progress);
+
+/// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
+/// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,
+/// and their chi2 lower by min_withheld_gain), else the moves are dropped; reasons added.
+void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report);
+
+/// The calibrated model alone: its nrmse on fit and withheld runs, and the calibrated parameter
+/// file (report->calibrated_yaml; the cell's own settings with the moved values).
+void calibratedOutcome(const PreparedRuns& prepared, const NoiseModel& noise, const CellParams& params,
+                       DiagnosisReport* report);
 
 /// A candidate's report entry and the model behind it.
 using ScoredCandidate = std::pair<CandidateFit, ModelSpec>;
@@ -89,8 +153,11 @@ std::vector<ScoredCandidate> scoreCandidates(const std::vector<ModelFit>& fits, 
 
 /// Replays every run with `effects` (reusing `nominal` when there are none) and fills
 /// `report`'s traces, per-run residuals after, and the withheld runs' nrmse before and after.
-void shrinkage(const PreparedRuns& prepared, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-               const std::vector<Replay>& nominal, const DiagnosisOptions& options, DiagnosisReport* report);
+/// `params` is the nominal cell with `calibration` (the nominal replays are reused when both
+/// it and `effects` are empty).
+void shrinkage(const PreparedRuns& prepared, const CellParams& params, const std::map<std::string, double>& calibration,
+               const std::vector<CellEffectPtr>& effects, const std::vector<Replay>& nominal,
+               const DiagnosisOptions& options, DiagnosisReport* report);
 
 // ---- small helpers shared by the stages ---------------------------------------------------------
 

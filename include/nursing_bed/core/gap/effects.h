@@ -7,6 +7,7 @@
 
 #include <map>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -48,6 +49,17 @@ struct EffectSpec {
   /// The parameter of that name, or null.
   const EffectParamSpec* param(const std::string& name) const;
 };
+
+/// The entry of a catalogue (effects, calibrated parameters) named `name`; throws
+/// std::invalid_argument "unknown KIND 'name' (known: ...)" otherwise.
+template <typename Entry>
+const Entry& catalogEntry(const std::vector<Entry>& catalog, const std::string& name, const std::string& kind) {
+  for (const auto& e : catalog)
+    if (e.name == name) return e;
+  std::string known;
+  for (const auto& e : catalog) known += (known.empty() ? "" : ", ") + e.name;
+  throw std::invalid_argument("unknown " + kind + " '" + name + "' (known: " + known + ")");
+}
 
 /// The seven candidates, then the non-candidates ambient_drift and pressure_offset_drift.
 /// Catalogue order is also the order in which effects compose (see sortEffectsForModel()):

@@ -22,25 +22,40 @@ namespace gap {
 // scale where the catalogue says so), so that one step size and one trust region suit all.
 
 struct FitAxis {
-  const EffectParamSpec* spec = nullptr;
+  /// The parameter: an effect's (effects.h), or a cell parameter that calibration fits
+  /// (calibration.h; its off_value is the nominal value, lo .. hi its prior range).
+  EffectParamSpec spec;
+  bool calibration = false;         ///< a cell parameter (CellParams), not an effect's
   double u_min = 0.0, u_max = 1.0;  ///< bounds: the admissible range, at most 3 decades/widths past
 
   double toValue(double u) const;
   double toU(double x) const;
 };
 
-FitAxis makeAxis(const EffectParamSpec& p);
+FitAxis makeAxis(const EffectParamSpec& p, bool calibration = false);
 
-/// A candidate model: the nominal cell plus `effects`, and the axes of all their parameters.
+/// A candidate model: the cell with its calibrated parameters `calibration` (calibration.h;
+/// the others at their values in FitData::params) plus `effects`, and the axes of all their
+/// parameters.
 struct ModelSpec {
   std::vector<std::string> effects;
-  std::vector<FitAxis> axes;  ///< every parameter of every effect, in order
+  std::vector<std::string> calibration;  ///< calibrated cell parameters (their axes come first)
+  std::vector<FitAxis> axes;             ///< calibrated parameters, then every parameter of every effect
+  /// Calibrated cell parameters held at these values (not fitted; a free one overrides).
+  std::map<std::string, double> fixed_calibration;
 };
 
-ModelSpec makeModelSpec(const std::vector<std::string>& names);
+/// `effects` on top of a cell whose parameters `calibration` (calibrationAxes()) are fitted too.
+ModelSpec makeModelSpec(const std::vector<std::string>& effects, const std::vector<FitAxis>& calibration = {});
 std::map<std::string, double> valuesOf(const ModelSpec& m, const std::vector<double>& u);
 std::vector<CellEffectPtr> buildEffects(const ModelSpec& m, const std::map<std::string, double>& values);
-/// Every parameter within its plausible range widened by `slack` (too large only, for log-scale).
+/// `base` (the nominal cell) with the model's fixed calibration and its calibrated parameters set
+/// to `values` (applyCalibration()).
+CellParams modelParams(const ModelSpec& m, const std::map<std::string, double>& values, const CellParams& base);
+/// The fit coordinates of `values` (every axis' parameter must be there).
+std::vector<double> coordinatesOf(const ModelSpec& m, const std::map<std::string, double>& values);
+/// Every effect parameter within its plausible range widened by `slack` (too large only, for
+/// log-scale); calibrated parameters are judged by calibration (calibration.h).
 bool plausibleValues(const ModelSpec& m, const std::map<std::string, double>& values, double slack);
 /// "leak+heat_transfer"; "nominal" for none.
 std::string joinNames(const std::vector<std::string>& names, const char* sep = "+");
@@ -59,16 +74,23 @@ struct FitData {
     /// samples after it, so those residuals are correlated; the fit whitens them with it.
     Eigen::MatrixXd correlation_cholesky;
     long max_substeps = 0;            ///< integration budget of one replay (see replayRun)
+    bool has_height = true;           ///< false: no height sensor; its residual slots stay 0
   };
   std::vector<Run> runs;
   CellParams params;  ///< with the fit's integration settings
+  /// Residual slots (two per sample: the layout of fitResiduals()).
   int residualCount() const;
+  /// Residuals that carry a reading (the n of chi2/n and BIC): slots less the height slots of
+  /// runs without a height sensor.
+  int informativeCount() const;
 };
 
 /// Whitened residuals of every fit sample (pressure then height per sample, scaled by the
 /// floor, then decorrelated per run) into `out` (residualCount() values); false when a replay
 /// failed (its samples then count as kFailedResidual floors off).
 bool fitResiduals(const FitData& fit, const std::vector<CellEffectPtr>& effects, double* out);
+/// The same on a cell of `params` (a calibrated one) instead of fit.params.
+bool fitResiduals(const FitData& fit, const CellParams& params, const std::vector<CellEffectPtr>& effects, double* out);
 double sumSquares(const std::vector<double>& r);
 
 // ---- fitting ----------------------------------------------------------------------------------
@@ -89,6 +111,12 @@ struct FitOutcome {
 /// `starts`; the best result.
 FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
                     int max_iterations);
+
+/// Covariance of the fit coordinates at `u`: (J^T J)^-1 of the whitened residuals, J from the
+/// Ceres cost (forward differences of whole replays). Directions the runs cannot tell (eigenvalues
+/// of J^T J below 1e-9 of the largest) get no inverse; the parameters in them an infinite
+/// variance. False when a replay fails.
+bool fitCovariance(const FitData& fit, const ModelSpec& model, const std::vector<double>& u, Eigen::MatrixXd* cov);
 
 }  // namespace gap
 }  // namespace nursing_bed

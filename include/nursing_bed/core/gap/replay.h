@@ -10,13 +10,19 @@
 
 namespace nursing_bed {
 
+/// Whether a run is driven through the model's own valves: no flow reading at all, but valve_cmd
+/// and p_supply_gauge_pa (run-data.md, "Runs without a flow meter"). replayRun() then opens the
+/// model's inlet (from the supply) by valve_cmd > 0 and its vent by -valve_cmd.
+bool runIsValveDriven(const RunData& run);
+
 /// Phase of a run at one sample (gap-report.md): bag unfolding, bag pressurising, inlet closed,
 /// venting; `landed` marks vent samples after the plate has come down on the bed, where a
 /// replay is ill-conditioned (a few mL of gas left) and which the diagnosis leaves out.
 enum class RunPhase { kDeploy, kPressurize, kHold, kVent, kLanded };
 const char* phaseName(RunPhase phase);
 
-/// Per-sample phases from the measured signals: inflating while the inflow exceeds 2 % of its
+/// Per-sample phases from the measured signals (valve_cmd in place of the inflow for a
+/// valve-driven run): inflating while the inflow exceeds 2 % of its
 /// peak (deploy while the pressure is below a quarter of the inflation's peak pressure, then
 /// pressurize), venting from the first clearly negative inflow, hold in between; landed once
 /// the measured height is below 3 mm during the vent.
@@ -96,8 +102,10 @@ int zeroClosedInletFlow(RunData* run);
 struct RunResidual {
   double range_p_pa = 0.0, range_h_m = 0.0;  ///< measured ranges (the nrmse denominators)
   double nrmse_p = 0.0, nrmse_h = 0.0;       ///< RMS(measured - simulated) / range
-  double nrmse() const { return 0.5 * (nrmse_p + nrmse_h); }
-  int samples = 0;
+  /// Mean over the two signals; pressure alone for runs without a height sensor.
+  double nrmse() const { return samples_h > 0 ? 0.5 * (nrmse_p + nrmse_h) : nrmse_p; }
+  int samples = 0;    ///< with a pressure reading
+  int samples_h = 0;  ///< with a height reading too
 };
 RunResidual runResidual(const RunData& run, const Replay& replay);
 /// The same over several runs pooled (gap-report.md's nrmse "on the runs named"): RMS over all

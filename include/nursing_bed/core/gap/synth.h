@@ -45,6 +45,10 @@ struct SynthProtocol {
   double hold_s = 60.0;  ///< inlet closed
   double vent_s = 10.0;  ///< inlet open to the supply at 0 gauge (venting through it)
   double sample_hz = 100.0;
+  /// No flow meter: the inlet opens to the supply (fully for "high" runs, half for "low") until
+  /// the bag holds the run's mass, the vent valve vents; runs carry valve_cmd (mean opening over
+  /// each interval) and p_supply_gauge_pa instead of mdot_in_kg_s.
+  bool valve_driven = false;
   std::vector<SynthRunPlan> runs;
   double durationS() const { return inflate_s + hold_s + vent_s; }
 };
@@ -91,7 +95,12 @@ struct SynthOptions {
   std::uint32_t seed = 1;
   double noise_scale = 1.0;
   std::string protocol = "standard";
-  CellParams params;                                       ///< the rig's true airbag
+  CellParams params;                                       ///< the model's airbag (the parameter file)
+  /// The rig's airbag differs from `params` by these (calibration names, calibration.h, or keys
+  /// of the parameter table such as "structure/film_thickness_m"); recorded in truth.json.
+  std::map<std::string, double> airbag_params;
+  bool flow_meter = true;     ///< false: valve-driven runs without mdot_in_kg_s (SynthProtocol::valve_driven)
+  bool height_sensor = true;  ///< false: h_m left out (pressure sensors only)
   std::string airbag_name = "tpu_double_100";              ///< written to the runs' metadata
   std::string airbag_file = "airbag_tpu_double_100.yaml";  ///< written to dataset.yaml
   std::ostream* progress = nullptr;                        ///< one line per run when set
@@ -115,6 +124,10 @@ void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::u
 /// drawn from `seed`, checked, in catalogue order: how a simulated cell is given a hidden
 /// effect (the airbag node's ~effects). Throws std::invalid_argument naming what is wrong.
 std::vector<CellEffectPtr> effectsFromText(const std::string& text, std::uint32_t seed);
+
+/// The rig's airbag: `model` with `differences` (see SynthOptions::airbag_params) applied.
+/// Throws std::invalid_argument naming an unknown name or a result that fails validate().
+CellParams rigAirbag(const CellParams& model, const std::map<std::string, double>& differences);
 
 /**
  * Generates a dataset: DIR/<run>.csv, DIR/dataset.yaml (airbag and roles) and DIR/truth.json

@@ -1,0 +1,99 @@
+// Calibration of the cell model's own uncertain parameters (gap-report.md, "First: is it the
+// model's parameters, or missing physics?"): a catalogue of the parameters a rig never matches
+// exactly (like the effects' catalogue: name, nominal from CellParams, prior range, how it maps
+// onto CellParams), their fit on the fit runs through the same machinery as the effects
+// (fit_model.h), standard errors from the Ceres covariance, and which moves are significant.
+// `gap calibrate` is its command line; doc/gap_calibration.md explains the method.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cmath>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/gap/fit_model.h"
+#include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/physics/cell_model.h"
+
+namespace nursing_bed {
+
+/// One calibratable cell parameter.
+struct CalibrationParamDef {
+  std::string name;         ///< canonical key (gap-report.md), SI unit suffix
+  std::string unit;         ///< for people
+  std::string description;  ///< what it is and where it enters, one line
+  /// The parameter in a CellParams: read and set (film_stiffness_scale scales the three Yeoh
+  /// constants of the nominal file together, so it reads 1 on any nominal file).
+  double (*get)(const CellParams& p);
+  void (*set)(CellParams* p, double value);
+  /// Prior range relative to the nominal value: [nominal * lo_factor, nominal * hi_factor], or
+  /// nominal + [lo_offset, hi_offset] when `offsets` (a length known to a few mm).
+  double lo = 0.0, hi = 0.0;
+  bool offsets = false;
+  bool log_scale = false;
+  /// Only runs driven through the model's own valves (no flow meter) tell it.
+  bool valve_driven_only = false;
+};
+
+/// film_stiffness_scale, gusset_height_m, dead_volume_m3, plate_mass_kg, inlet_area_m2,
+/// vent_area_m2, regulator_time_constant_s.
+const std::vector<CalibrationParamDef>& calibrationCatalog();
+/// Catalogue entry by name; throws std::invalid_argument naming the known parameters otherwise.
+const CalibrationParamDef& calibrationParam(const std::string& name);
+/// Groups of parameters that enter the model only together: film thickness and stiffness scale
+/// appear as their product (film energy = n A0 t W), so only the scale is calibrated.
+std::vector<std::vector<std::string>> structurallyUnidentifiable();
+
+/// The fit axes of `names` around the nominal values of `nominal` (prior range as in the
+/// catalogue, admissible range within physical bounds). Throws std::invalid_argument for an
+/// unknown name or one given twice.
+std::vector<gap::FitAxis> calibrationAxes(const std::vector<std::string>& names, const CellParams& nominal);
+
+/// `base` with the calibrated parameters set to `values` (catalogue names; others unchanged).
+CellParams applyCalibration(const std::map<std::string, double>& values, const CellParams& base);
+
+/// Whether the run has no height reading at all (pressure sensors only).
+bool runHasNoHeight(const RunData& run);
+
+/// The parameters the runs can tell: the four of every run, plus the valves' (and regulator's)
+/// when a run is valve-driven, the vent's when a run vents through an unmetered valve.
+std::vector<std::string> defaultCalibrationParams(const std::vector<RunData>& runs);
+/// Checks `names` against the catalogue and the runs: throws std::invalid_argument naming an
+/// unknown parameter, or a valve parameter asked of runs that are all flow-metered.
+void checkCalibrationParams(const std::vector<std::string>& names, const std::vector<RunData>& runs);
+
+/// One calibrated parameter in the report.
+struct CalibratedParam {
+  std::string name, unit;
+  double nominal = 0.0;
+  double value = 0.0;      ///< the calibrated value (nominal when not moved)
+  double fitted = 0.0;     ///< the fitted value, moved or not
+  double std_error = NAN;  ///< from the Ceres covariance (scaled by chi2/n when above 1)
+  bool moved = false;      ///< |fitted - nominal| > 2 SE and its move pays in BIC
+};
+
+/// What calibration found, for the report (gap-report.md's `calibration` block).
+struct CalibrationSummary {
+  bool done = false;                       ///< calibration ran
+  std::vector<CalibratedParam> parameters;  ///< every parameter fitted
+  std::vector<std::string> correlation_names;
+  Eigen::MatrixXd correlation;              ///< of the fitted values
+  std::vector<std::vector<std::string>> unidentifiable;
+  double chi2 = NAN;                         ///< fit runs, the calibrated model (moved parameters only)
+  double bic_delta = 0.0;                    ///< against the nominal model (0 when nothing moved)
+  double withheld_chi2_per_sample = NAN;     ///< calibrated model, whitened, withheld runs
+  double fit_nrmse = NAN, withheld_nrmse = NAN;  ///< calibrated model alone
+  std::string file = "calibrated_airbag.yaml";
+  std::vector<std::string> notes;            ///< what the runs cannot tell, in words
+  std::map<std::string, double> movedValues() const;
+  bool anyMoved() const { return !movedValues().empty(); }
+};
+
+/// A complete parameter file: `params` as YAML (every key, commented), headed by what was
+/// calibrated and from which dataset.
+std::string calibratedParamsYaml(const CellParams& params, const CalibrationSummary& summary,
+                                 const std::string& dataset);
+
+}  // namespace nursing_bed

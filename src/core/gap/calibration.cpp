@@ -1,0 +1,160 @@
+// Calibration of the cell model's own parameters (calibration.h, doc/gap_calibration.md): the
+// catalogue, the stage that fits it on the fit runs, and the judgement of each move.
+#include "nursing_bed/core/gap/calibration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
+
+namespace nursing_bed {
+namespace {
+
+double filmScale(const CellParams&) { return 1.0; }
+void setFilmScale(CellParams* p, double s) {
+  p->structure.material.c10_pa *= s;
+  p->structure.material.c20_pa *= s;
+  p->structure.material.c30_pa *= s;
+}
+
+#define NB_CAL_ACCESS(expr)                                        \
+  [](const CellParams& p) -> double { return p.expr; },            \
+      [](CellParams* p, double v) { p->expr = v; }
+
+std::vector<CalibrationParamDef> makeCatalog() {
+  return {
+      {"film_stiffness_scale", "-",
+       "the film's Yeoh constants C10, C20, C30 scaled together (film batch; equals a thickness "
+       "scale: thickness and stiffness enter as their product)",
+       filmScale, setFilmScale, 0.7, 1.4, false, false, false},
+      {"gusset_height_m", "m", "unstretched side-gusset height of one chamber (seams, cutting)",
+       NB_CAL_ACCESS(structure.gusset_height_m), -0.008, 0.008, true, false, false},
+      {"dead_volume_m3", "m^3", "gas volume of the flat cell: inlet fitting, tube stub, folds",
+       NB_CAL_ACCESS(structure.dead_volume_m3), 0.3, 3.5, false, true, false},
+      {"plate_mass_kg", "kg", "mass of the loading plate alone (inertia of a lightly loaded plate)",
+       NB_CAL_ACCESS(plate_mass_kg), 0.7, 1.4, false, false, false},
+      {"inlet_area_m2", "m^2", "effective area Cd*A of the open inlet valve", NB_CAL_ACCESS(inlet_area_m2), 0.5, 2.0,
+       false, true, true},
+      {"vent_area_m2", "m^2", "effective area Cd*A of the open vent valve", NB_CAL_ACCESS(vent_area_m2), 0.5, 2.0,
+       false, true, true},
+      {"regulator_time_constant_s", "s", "first-order response time of the supply regulator's outlet",
+       NB_CAL_ACCESS(regulator_time_constant_s), 0.5, 2.0, false, true, true},
+  };
+}
+#undef NB_CAL_ACCESS
+
+/// Admissible range of a parameter around `nominal`: physical bounds, wide enough for any rig.
+void admissibleRange(const CalibrationParamDef& d, double nominal, double* lo, double* hi) {
+  if (d.offsets) {
+    *lo = std::max(0.2 * nominal, nominal - 0.03);
+    *hi = nominal + 0.03;
+  } else if (d.log_scale) {
+    *lo = nominal * 0.02;
+    *hi = nominal * 50.0;
+  } else {
+    *lo = nominal * 0.2;
+    *hi = nominal * 5.0;
+  }
+}
+
+bool allNaN(const std::vector<double>& v) {
+  return std::none_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+}
+
+}  // namespace
+
+const std::vector<CalibrationParamDef>& calibrationCatalog() {
+  static const std::vector<CalibrationParamDef> catalog = makeCatalog();
+  return catalog;
+}
+
+const CalibrationParamDef& calibrationParam(const std::string& name) {
+  return catalogEntry(calibrationCatalog(), name, "calibration parameter");
+}
+
+std::vector<std::vector<std::string>> structurallyUnidentifiable() {
+  return {{"film_stiffness_scale", "film_thickness_m"}};
+}
+
+std::vector<gap::FitAxis> calibrationAxes(const std::vector<std::string>& names, const CellParams& nominal) {
+  std::vector<gap::FitAxis> axes;
+  std::set<std::string> seen;
+  for (const auto& name : names) {
+    const CalibrationParamDef& d = calibrationParam(name);
+    if (!seen.insert(name).second) throw std::invalid_argument("calibration parameter '" + name + "' given twice");
+    const double x0 = d.get(nominal);
+    if (!(x0 > 0.0) || !std::isfinite(x0))
+      throw std::invalid_argument("calibration parameter '" + name + "': its nominal value " + gap::fmt(x0) +
+                                  " is not positive; it cannot be calibrated around it");
+    EffectParamSpec s;
+    s.name = d.name;
+    s.unit = d.unit;
+    s.description = d.description;
+    s.off_value = x0;
+    s.lo = d.offsets ? x0 + d.lo : x0 * d.lo;
+    s.hi = d.offsets ? x0 + d.hi : x0 * d.hi;
+    s.log_scale = d.log_scale;
+    admissibleRange(d, x0, &s.min_value, &s.max_value);
+    axes.push_back(gap::makeAxis(s, true));
+  }
+  return axes;
+}
+
+CellParams applyCalibration(const std::map<std::string, double>& values, const CellParams& base) {
+  CellParams p = base;
+  for (const auto& [name, v] : values) calibrationParam(name).set(&p, v);
+  return p;
+}
+
+bool runHasNoHeight(const RunData& run) { return allNaN(run.h_m); }
+
+std::vector<std::string> defaultCalibrationParams(const std::vector<RunData>& runs) {
+  bool valve_driven = false, unmetered_vent = false;
+  for (const auto& r : runs) {
+    valve_driven = valve_driven || runIsValveDriven(r);
+    unmetered_vent = unmetered_vent || (!runIsValveDriven(r) && ventsThroughUnmeteredValve(r));
+  }
+  std::vector<std::string> names;
+  for (const auto& d : calibrationCatalog())
+    if (!d.valve_driven_only || valve_driven || (unmetered_vent && d.name == "vent_area_m2")) names.push_back(d.name);
+  return names;
+}
+
+void checkCalibrationParams(const std::vector<std::string>& names, const std::vector<RunData>& runs) {
+  const std::vector<std::string> told = defaultCalibrationParams(runs);
+  for (const auto& n : names) {
+    const CalibrationParamDef& d = calibrationParam(n);
+    if (d.valve_driven_only && std::find(told.begin(), told.end(), n) == told.end())
+      throw std::invalid_argument("calibration parameter '" + n +
+                                  "' needs runs driven through the model's valves (no mdot_in_kg_s column, but "
+                                  "valve_cmd and p_supply_gauge_pa); every run here is flow-metered");
+  }
+}
+
+std::map<std::string, double> CalibrationSummary::movedValues() const {
+  std::map<std::string, double> out;
+  for (const auto& p : parameters)
+    if (p.moved) out[p.name] = p.value;
+  return out;
+}
+
+std::string calibratedParamsYaml(const CellParams& params, const CalibrationSummary& summary,
+                                 const std::string& dataset) {
+  std::ostringstream y;
+  y << "# Cell parameters calibrated by `gap calibrate` on the fit runs of " << dataset << ".\n"
+    << "# A complete parameter file (every key, SI units): sim.launch cell_params:=FILE, the nodes and\n"
+    << "# gap diagnose read it as they read config/airbag_tpu_double_100.yaml.\n";
+  for (const auto& p : summary.parameters)
+    y << "# " << p.name << ": " << (p.moved ? "calibrated " : "kept at nominal ") << gap::fmt(p.value, 6) << " [" << p.unit
+      << "] (nominal " << gap::fmt(p.nominal, 6) << ", fitted " << gap::fmt(p.fitted, 6) << " +- "
+      << gap::fmt(p.std_error, 2) << ")\n";
+  y << "# film_stiffness_scale multiplies material/c10_pa, c20_pa, c30_pa below (film thickness is kept: the\n"
+    << "# model sees only their product).\n";
+  return y.str() + cellParamsToYaml(params);
+}
+
+}  // namespace nursing_bed

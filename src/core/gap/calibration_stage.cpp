@@ -1,0 +1,312 @@
+// The calibration stage of the diagnosis (diagnosis_stages.h, doc/gap_calibration.md): the
+// model's own parameters fitted alone or jointly with a candidate's effects, and each move judged.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/diagnosis_stages.h"
+
+namespace nursing_bed {
+namespace gap {
+namespace {
+
+/// Pairs of calibrated parameters whose estimates are this correlated cannot be told apart.
+constexpr double kUnidentifiableCorrelation = 0.95;
+
+/// The calibrated parameters' axes (they come first in a ModelSpec).
+int calibrationAxisCount(const ModelSpec& m) { return static_cast<int>(m.calibration.size()); }
+
+/// Correlations of the calibrated parameters, and the groups (pairs) the runs cannot tell apart.
+void correlations(const ModelSpec& m, const Eigen::MatrixXd& cov, CalibrationSummary* s) {
+  const int k = calibrationAxisCount(m);
+  s->correlation_names = m.calibration;
+  s->correlation = Eigen::MatrixXd::Identity(k, k);
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j) {
+      if (i == j) continue;
+      const double c = cov(i, j) / std::sqrt(cov(i, i) * cov(j, j));
+      s->correlation(i, j) = std::isfinite(c) ? c : 0.0;
+      if (j > i && std::fabs(s->correlation(i, j)) > kUnidentifiableCorrelation)
+        s->unidentifiable.push_back({m.calibration[i], m.calibration[j]});
+    }
+  for (int i = 0; i < k; ++i)
+    if (!std::isfinite(cov(i, i)))
+      s->notes.push_back(m.calibration[i] + ": the runs do not tell it at all (no standard error)");
+}
+
+/// Starting point of a joint fit: calibrated parameters at `cal`, effects at the candidate's fit.
+std::vector<double> jointStart(const ModelSpec& joint, const std::map<std::string, double>& cal,
+                               const ModelFit& candidate) {
+  std::map<std::string, double> values = valuesOf(candidate.model, candidate.outcome.u);
+  for (const auto& a : joint.axes)
+    if (a.calibration) values[a.spec.name] = cal.count(a.spec.name) ? cal.at(a.spec.name) : a.spec.off_value;
+  return coordinatesOf(joint, values);
+}
+
+/// Levenberg-Marquardt iterations of a profile refit (a moved parameter held at nominal).
+constexpr int kProfileIterations = 8;
+
+/// `f`'s effects with the calibrated parameters `names` free (the others nominal), refitted from
+/// `values`.
+ModelFit refitWith(const NoiseModel& noise, const ModelFit& f, const std::vector<std::string>& names,
+                   const std::map<std::string, double>& values, int max_iterations) {
+  ModelFit r;
+  r.model = makeModelSpec(f.model.effects, calibrationAxes(names, noise.fit.params));
+  if (r.model.axes.empty()) {
+    r.outcome.ok = true;
+    r.outcome.chi2 = noise.chi2_nominal;
+    return r;
+  }
+  r.outcome = fitModel(noise.fit, r.model, {jointStart(r.model, values, f)}, max_iterations);
+  if (!r.outcome.ok) r.outcome.chi2 = INFINITY;
+  return r;
+}
+
+/// The moved parameters' names, in axis order.
+std::vector<std::string> movedNames(const ModelFit& f, const CalibrationSummary& s) {
+  const auto moved = s.movedValues();
+  std::vector<std::string> names;
+  for (const auto& a : f.model.axes)
+    if (a.calibration && moved.count(a.spec.name)) names.push_back(a.spec.name);
+  return names;
+}
+
+/// The BIC gain of each moved parameter, by a profile refit with it held at nominal: a move
+/// whose chi2 gain (scaled by chi2/n where above 1) does not exceed ln n by significant_bic_drop
+/// is not kept. (The Wald z of judgeCalibration() rests on forward-difference derivatives, which
+/// the replay's step control can make too steep for a weakly told parameter.)
+void profileMoves(const NoiseModel& noise, const DiagnosisOptions& options, CalibrationFit* c) {
+  const ModelFit& f = c->fit;
+  const int n = noise.fitResidualCount();
+  const double scale = std::max(1.0, f.outcome.chi2 / n), log_n = std::log(static_cast<double>(n));
+  const auto values = valuesOf(f.model, f.outcome.u);
+  const std::vector<std::string> moved = movedNames(f, c->summary);
+  for (const auto& name : moved) {
+    std::vector<std::string> others;
+    for (const auto& m : moved)
+      if (m != name) others.push_back(m);
+    const double gain = (refitWith(noise, f, others, values, kProfileIterations).outcome.chi2 - f.outcome.chi2) / scale;
+    if (gain - log_n > options.significant_bic_drop) continue;
+    for (auto& p : c->summary.parameters)
+      if (p.name == name) {
+        p.moved = false;
+        p.value = p.nominal;
+      }
+    c->summary.notes.push_back(name + ": fitted " + fmt(values.at(name), 4) + ", but holding it at nominal costs chi2 " +
+                               fmt(gain, 3) + " only (ln n + " + fmt(options.significant_bic_drop) + " needed): kept");
+  }
+}
+
+/// The model with only the moved calibrated parameters free (and the effects), refitted from
+/// `fit` when some did not move; fills moved_model, moved_u, moved_chi2.
+void settleMoved(const NoiseModel& noise, const DiagnosisOptions& options, CalibrationFit* c) {
+  profileMoves(noise, options, c);
+  const ModelFit& f = c->fit;
+  const std::vector<std::string> names = movedNames(f, c->summary);
+  if (names.size() == f.model.calibration.size()) {
+    c->moved_model = f.model;
+    c->moved_u = f.outcome.u;
+    c->moved_chi2 = f.outcome.chi2;
+    return;
+  }
+  const ModelFit refit = refitWith(noise, f, names, valuesOf(f.model, f.outcome.u), options.max_iterations);
+  c->moved_model = refit.model;
+  c->moved_u = refit.outcome.u;
+  c->moved_chi2 = refit.outcome.chi2;
+  // The moved parameters at their refitted values.
+  const auto values = valuesOf(c->moved_model, c->moved_u);
+  for (auto& p : c->summary.parameters)
+    if (p.moved) p.value = values.at(p.name);
+}
+
+}  // namespace
+
+CalibrationSummary judgeCalibration(const NoiseModel& noise, const ModelFit& f, const DiagnosisOptions& options) {
+  CalibrationSummary s;
+  s.done = true;
+  const int n = noise.fitResidualCount(), k = calibrationAxisCount(f.model);
+  const auto values = f.outcome.ok ? valuesOf(f.model, f.outcome.u) : std::map<std::string, double>{};
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Constant(f.model.axes.size(), f.model.axes.size(), INFINITY);
+  if (!f.outcome.ok || !fitCovariance(noise.fit, f.model, f.outcome.u, &cov))
+    s.notes.push_back("the calibration's covariance could not be computed: no parameter is reported as moved");
+  const double scale = f.outcome.ok ? std::max(1.0, f.outcome.chi2 / n) : 1.0;
+  for (int j = 0; j < k; ++j) {
+    const FitAxis& a = f.model.axes[j];
+    CalibratedParam p;
+    p.name = a.spec.name;
+    p.unit = a.spec.unit;
+    p.nominal = a.spec.off_value;
+    p.fitted = values.count(p.name) ? values.at(p.name) : p.nominal;
+    const double dx_du = a.spec.log_scale ? p.fitted * std::log(a.spec.hi / a.spec.lo) : a.spec.hi - a.spec.lo;
+    p.std_error = std::sqrt(cov(j, j) * scale) * std::fabs(dx_du);
+    const double z = (p.fitted - p.nominal) / p.std_error;
+    // Its chi2 gain, (move / SE)^2, must pay for it in BIC as an effect must: by more than
+    // significant_bic_drop beyond ln n.
+    p.moved = std::isfinite(z) && std::fabs(z) > options.calibration_z &&
+              z * z - std::log(static_cast<double>(n)) > options.significant_bic_drop;
+    p.value = p.moved ? p.fitted : p.nominal;
+    s.parameters.push_back(p);
+  }
+  correlations(f.model, cov, &s);
+  if (std::count(f.model.calibration.begin(), f.model.calibration.end(), "film_stiffness_scale"))
+    for (const auto& g : structurallyUnidentifiable()) s.unidentifiable.push_back(g);
+  return s;
+}
+
+CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::string>& names,
+                              const DiagnosisOptions& options, const std::function<void(const std::string&)>& progress) {
+  CalibrationFit c;
+  c.fit.model = makeModelSpec({}, calibrationAxes(names, noise.fit.params));
+  std::vector<double> start;
+  for (const auto& a : c.fit.model.axes) start.push_back(a.toU(a.spec.off_value));
+  c.fit.outcome = fitModel(noise.fit, c.fit.model, {start}, options.max_iterations);
+  c.summary = judgeCalibration(noise, c.fit, options);
+  settleMoved(noise, options, &c);
+  const int n = noise.fitResidualCount();
+  const int k = static_cast<int>(c.summary.movedValues().size());
+  c.summary.chi2 = c.moved_chi2;
+  c.summary.bic_delta = c.moved_chi2 - noise.chi2_nominal + k * std::log(static_cast<double>(n));
+  const bool pays = c.summary.bic_delta < -options.significant_bic_drop &&
+                    (noise.chi2_nominal - c.moved_chi2) / n >= options.min_chi2_drop;
+  if (k > 0 && !pays) {
+    c.summary.notes.push_back("the calibrated moves lower chi2/n by " + fmt((noise.chi2_nominal - c.moved_chi2) / n) +
+                              " only (BIC " + fmt(c.summary.bic_delta, 4) + "): too little to count; nominal kept");
+    for (auto& p : c.summary.parameters) {
+      p.moved = false;
+      p.value = p.nominal;
+    }
+    c.moved_model = makeModelSpec({});
+    c.moved_u.clear();
+    c.moved_chi2 = c.summary.chi2 = noise.chi2_nominal;
+    c.summary.bic_delta = 0.0;
+  }
+  std::string moved;
+  for (const auto& p : c.summary.parameters)
+    if (p.moved) moved += (moved.empty() ? "" : ", ") + p.name + " " + fmt(p.nominal, 4) + " -> " + fmt(p.value, 4);
+  if (progress)
+    progress("calibrated " + joinNames(names, ",") + ": chi2/n " + fmt(c.fit.outcome.chi2 / n) + " (nominal " +
+             fmt(noise.chi2_nominal / n) + "), moved: " + (moved.empty() ? "none" : moved) + ", " +
+             std::to_string(c.fit.outcome.evaluations) + " replays");
+  return c;
+}
+
+CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, const CalibrationFit& base,
+                            const DiagnosisOptions& options) {
+  CalibrationFit c;
+  c.fit.model = makeModelSpec(candidate.model.effects, calibrationAxes(base.fit.model.calibration, noise.fit.params));
+  const std::map<std::string, double> all = valuesOf(base.fit.model, base.fit.outcome.u);
+  const std::vector<std::vector<double>> starts{jointStart(c.fit.model, base.summary.movedValues(), candidate),
+                                                jointStart(c.fit.model, all, candidate)};
+  c.fit.outcome = fitModel(noise.fit, c.fit.model, starts, options.max_iterations);
+  c.summary = judgeCalibration(noise, c.fit, options);
+  settleMoved(noise, options, &c);
+  c.summary.chi2 = c.moved_chi2;
+  return c;
+}
+
+void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& calibration, double chi2) {
+  noise->baseline_calibration = calibration;
+  noise->baseline_chi2 = chi2;
+  const int n_held = noise->heldResidualCount();
+  if (n_held == 0) return;
+  std::vector<double> r(noise->held.residualCount());
+  fitResiduals(noise->held, applyCalibration(calibration, noise->held.params), {}, r.data());
+  noise->baseline_withheld_chi2_per_sample = sumSquares(r) / n_held;
+}
+
+std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options) {
+  if (!options.calibrate) return {};
+  const std::vector<std::string> names =
+      options.calibration_params.empty() ? defaultCalibrationParams(prepared.runs) : options.calibration_params;
+  checkCalibrationParams(names, prepared.runs);
+  calibrationAxes(names, CellParams{});  // unknown or repeated names
+  return names;
+}
+
+std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
+                                                           std::vector<ModelFit>* fits, std::size_t effects, int pool,
+                                                           const DiagnosisOptions& options,
+                                                           const std::function<void(const std::string&)>& progress) {
+  const double log_n = std::log(static_cast<double>(noise.fitResidualCount()));
+  std::vector<int> order;
+  for (std::size_t i = 0; i < fits->size(); ++i)
+    if ((*fits)[i].outcome.ok && (*fits)[i].model.effects.size() == effects) order.push_back(static_cast<int>(i));
+  auto bic = [&](int i) { return (*fits)[i].outcome.chi2 + (*fits)[i].model.axes.size() * log_n; };
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return bic(a) < bic(b); });
+  order.resize(std::min<std::size_t>(order.size(), std::max(0, pool)));
+  // A fit already within the noise leaves the calibration nothing to settle.
+  order.erase(std::remove_if(order.begin(), order.end(),
+                             [&](int i) {
+                               return (*fits)[i].outcome.chi2 / noise.fitResidualCount() <= options.joint_refit_chi2;
+                             }),
+              order.end());
+  // The best first: when it lands within the noise the others (worse on the biased calibration)
+  // are not refitted.
+  const int n = noise.fitResidualCount();
+  std::vector<CalibrationFit> joint(order.size());
+  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options);
+  if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
+  parallelFor(static_cast<int>(order.size()) - 1, options.threads,
+              [&](int k) { joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options); });
+  std::map<std::string, CalibrationSummary> summaries;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    ModelFit& f = (*fits)[order[k]];
+    const CalibrationFit& j = joint[k];
+    if (progress)
+      progress("refitted " + joinNames(f.model.effects) + " with the calibration free: chi2/n " +
+               fmt(f.outcome.chi2 / n) + " -> " + fmt(j.moved_chi2 / n));
+    if (!(j.moved_chi2 < f.outcome.chi2)) continue;
+    f.model = j.moved_model;
+    f.outcome.u = j.moved_u;
+    f.outcome.chi2 = j.moved_chi2;
+    f.outcome.evaluations += j.fit.outcome.evaluations;
+    summaries[joinNames(f.model.effects)] = j.summary;
+  }
+  return summaries;
+}
+
+void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* rep) {
+  CalibrationSummary& cal = rep->calibration;
+  if (!cal.done) return;
+  for (const auto& p : cal.parameters)
+    rep->reasons.push_back("calibration: " + p.name + " fitted " + fmt(p.fitted, 4) + " +- " + fmt(p.std_error, 2) +
+                           " (nominal " + fmt(p.nominal, 4) + "): " + (p.moved ? "moved" : "not significant, nominal kept"));
+  if (!cal.anyMoved() || rep->status != "none") return;
+  const int n_held = noise.heldResidualCount();
+  const double before = noise.withheld_chi2_per_sample, after = noise.baseline_withheld_chi2_per_sample;
+  const bool within = after <= options.withheld_chi2 || after - 1.0 <= (1.0 - options.withheld_gap_removed) * (before - 1.0);
+  if (n_held == 0 || (within && (before - after) * n_held >= options.min_withheld_gain)) {
+    rep->status = "calibrated";
+    rep->reasons.push_back("the calibrated model fits within the noise" +
+                           (n_held ? " and holds up on the withheld runs (chi2/n " + fmt(before) + " -> " + fmt(after) + ")"
+                                   : std::string()) + ": calibration alone removes the gap, no effect is needed");
+    return;
+  }
+  rep->reasons.push_back("the calibrated model does not hold up on the withheld runs (chi2/n " + fmt(before) + " -> " +
+                         fmt(after) + "): its moves are not kept");
+  for (auto& p : cal.parameters) {
+    p.moved = false;
+    p.value = p.nominal;
+  }
+  rep->status = rep->nominal_chi2_per_sample <= options.within_noise_chi2 ? "none" : "unexplained";
+}
+
+void calibratedOutcome(const PreparedRuns& prepared, const NoiseModel& noise, const CellParams& params,
+                       DiagnosisReport* rep) {
+  const auto moved = rep->calibration.movedValues();
+  const CellParams cell = applyCalibration(moved, params);
+  rep->calibration.fit_nrmse = setResidual(prepared.select(prepared.fit), cell, {}).total;
+  rep->calibration.withheld_nrmse = setResidual(prepared.select(prepared.withheld), cell, {}).total;
+  rep->withheld_calibrated = rep->calibration.withheld_nrmse;
+  const int n_held = noise.heldResidualCount();
+  if (n_held > 0) {
+    std::vector<double> r(noise.held.residualCount());
+    fitResiduals(noise.held, applyCalibration(moved, noise.held.params), {}, r.data());
+    rep->calibration.withheld_chi2_per_sample = sumSquares(r) / n_held;
+  }
+  rep->calibrated_yaml = calibratedParamsYaml(cell, rep->calibration, rep->dataset);
+}
+
+}  // namespace gap
+}  // namespace nursing_bed
