@@ -192,17 +192,64 @@ CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::st
 }
 
 CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, const CalibrationFit& base,
-                            const DiagnosisOptions& options) {
+                            const DiagnosisOptions& options, const ModelFit* uncalibrated) {
   CalibrationFit c;
   c.fit.model = makeModelSpec(candidate.model.effects, calibrationAxes(base.fit.model.calibration, noise.fit.params));
   const std::map<std::string, double> all = valuesOf(base.fit.model, base.fit.outcome.u);
-  const std::vector<std::vector<double>> starts{jointStart(c.fit.model, base.summary.movedValues(), candidate),
-                                                jointStart(c.fit.model, all, candidate)};
+  std::vector<std::vector<double>> starts{jointStart(c.fit.model, base.summary.movedValues(), candidate),
+                                          jointStart(c.fit.model, all, candidate)};
+  // The same effects fitted on the nominal cell: a calibration that imitated part of them starts
+  // back at nominal.
+  if (uncalibrated && uncalibrated->outcome.ok) starts.push_back(jointStart(c.fit.model, {}, *uncalibrated));
   c.fit.outcome = fitModel(noise.fit, c.fit.model, starts, options.max_iterations);
   c.summary = judgeCalibration(noise, c.fit, options);
   settleMoved(noise, options, &c);
   c.summary.chi2 = c.moved_chi2;
   return c;
+}
+
+namespace {
+
+/// Whitened chi2 per residual of the withheld runs under `calibration` and `effects` (NaN when
+/// nothing is withheld or the replay failed).
+double withheldChi2(const NoiseModel& noise, const std::map<std::string, double>& calibration,
+                    const std::vector<CellEffectPtr>& effects) {
+  const int n_held = noise.heldResidualCount();
+  if (n_held == 0) return NAN;
+  std::vector<double> r(noise.held.residualCount());
+  if (!fitResiduals(noise.held, applyCalibration(calibration, noise.held.params), effects, r.data())) return NAN;
+  return sumSquares(r) / n_held;
+}
+
+}  // namespace
+
+bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFit>& uncalibrated,
+                              const DiagnosisOptions& options, CalibrationFit* c) {
+  const std::map<std::string, double> moved = c->summary.movedValues();
+  if (moved.empty() || noise.heldResidualCount() == 0) return false;
+  const double log_n = std::log(static_cast<double>(noise.fitResidualCount()));
+  const double cal_bic = c->moved_chi2 + moved.size() * log_n;
+  const double cal_held = withheldChi2(noise, moved, {});
+  for (const ModelFit& f : uncalibrated) {
+    if (!f.outcome.ok || f.model.effects.size() != 1) continue;
+    const std::map<std::string, double> values = valuesOf(f.model, f.outcome.u);
+    if (!plausibleValues(f.model, values, options.plausible_slack)) continue;
+    const double bic = f.outcome.chi2 + f.model.axes.size() * log_n;
+    const double held = withheldChi2(noise, {}, buildEffects(f.model, values));
+    const double held_gain = (cal_held - held) * noise.heldResidualCount();
+    if (!(bic < cal_bic) || !(held_gain >= options.min_withheld_gain)) continue;
+    c->summary.notes.push_back(joinNames(f.model.effects) + " alone, on the nominal cell, fits the runs better than the "
+                               "calibration (BIC " + fmt(bic - cal_bic) + " against it) and the withheld runs too "
+                               "(chi2/n " + fmt(held) + " against " + fmt(cal_held) +
+                               "): the calibration imitated an effect, its moves are not kept");
+    for (auto& p : c->summary.parameters) {
+      p.moved = false;
+      p.value = p.nominal;
+    }
+    c->moved_chi2 = noise.chi2_nominal;
+    return true;
+  }
+  return false;
 }
 
 void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& calibration, double chi2) {
@@ -227,12 +274,24 @@ std::vector<std::string> calibrationList(const PreparedRuns& prepared, const Dia
 std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
                                                            std::vector<ModelFit>* fits, std::size_t effects, int pool,
                                                            const DiagnosisOptions& options,
-                                                           const std::function<void(const std::string&)>& progress) {
+                                                           const std::function<void(const std::string&)>& progress,
+                                                           const std::vector<ModelFit>& uncalibrated) {
   const double log_n = std::log(static_cast<double>(noise.fitResidualCount()));
+  // Each fit's counterpart on the nominal cell, if it was fitted there.
+  std::vector<const ModelFit*> nominal_fit(fits->size(), nullptr);
+  for (std::size_t i = 0; i < fits->size(); ++i)
+    for (const ModelFit& u : uncalibrated)
+      if (u.outcome.ok && u.model.effects == (*fits)[i].model.effects) nominal_fit[i] = &u;
   std::vector<int> order;
   for (std::size_t i = 0; i < fits->size(); ++i)
     if ((*fits)[i].outcome.ok && (*fits)[i].model.effects.size() == effects) order.push_back(static_cast<int>(i));
-  auto bic = [&](int i) { return (*fits)[i].outcome.chi2 + (*fits)[i].model.axes.size() * log_n; };
+  // Ranked by the better of the two fits: an effect the calibration imitated in part fits badly
+  // on top of it and well on the nominal cell, and the joint refit may settle which it is.
+  auto chi2 = [&](int i) {
+    const double on_nominal = nominal_fit[i] ? nominal_fit[i]->outcome.chi2 : INFINITY;
+    return std::min((*fits)[i].outcome.chi2, on_nominal);
+  };
+  auto bic = [&](int i) { return chi2(i) + (*fits)[i].model.axes.size() * log_n; };
   std::sort(order.begin(), order.end(), [&](int a, int b) { return bic(a) < bic(b); });
   order.resize(std::min<std::size_t>(order.size(), std::max(0, pool)));
   // A fit already within the noise leaves the calibration nothing to settle.
@@ -245,10 +304,12 @@ std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noi
   // are not refitted.
   const int n = noise.fitResidualCount();
   std::vector<CalibrationFit> joint(order.size());
-  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options);
+  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, nominal_fit[order[0]]);
   if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
   parallelFor(static_cast<int>(order.size()) - 1, options.threads,
-              [&](int k) { joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options); });
+              [&](int k) {
+                joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, nominal_fit[order[k + 1]]);
+              });
   std::map<std::string, CalibrationSummary> summaries;
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelFit& f = (*fits)[order[k]];

@@ -517,14 +517,26 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   const PreparedRuns& prepared = s.prepared;
   NoiseModel& noise = s.noise;
   CalibrationFit calibration;
+  std::vector<ModelFit> uncalibrated;  // the singles on the nominal cell, when the calibration moved
   if (!s.calibrated.empty()) {
     calibration = calibrateModel(noise, s.calibrated, options, say);
+    if (!calibration.summary.movedValues().empty()) {
+      // A calibration may imitate part of an effect (a larger vent area the gas a leak loses
+      // while the controller holds); fitted on top of it the effect then fits badly. Its fit on
+      // the nominal cell ranks it for, and starts, the joint refit.
+      DiagnosisOptions singles = options;
+      singles.pair_pool = 0;
+      uncalibrated = fitCandidates(noise, candidateList(options), singles, [&](const std::string& line) {
+        say(line + " (nominal cell)");
+      });
+      if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
+    }
     rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
   }
   // The best singles, then the best pair, refitted with the calibration free as well.
   std::map<std::string, CalibrationSummary> joint;
   auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
-    const auto more = refitBestJointly(noise, calibration, fits, effects, pool, options, say);
+    const auto more = refitBestJointly(noise, calibration, fits, effects, pool, options, say, uncalibrated);
     joint.insert(more.begin(), more.end());
   };
   std::vector<ModelFit> fits =
@@ -551,7 +563,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     rep.verdict_effects = w.effects;
     rep.verdict_params = w.params;
     verdict_effects = buildEffects(scored[verdict.winner].second, w.params);
-    if (w.joint && joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
+    // Refitted with the calibration free: its own calibration (which may have moved nothing).
+    if (joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
   }
   settleCalibratedStatus(noise, options, &rep);
   shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);

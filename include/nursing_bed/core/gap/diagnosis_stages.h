@@ -112,9 +112,18 @@ CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::st
                               const DiagnosisOptions& options, const std::function<void(const std::string&)>& progress);
 
 /// Refits `candidate` (effects fitted on top of the calibration `base`) with every calibrated
-/// parameter free as well, from both fits; the moved ones (judged in the joint fit) are kept.
+/// parameter free as well, from both fits (and from `uncalibrated`, the same effects fitted on
+/// the nominal cell, if given); the moved ones (judged in the joint fit) are kept.
 CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, const CalibrationFit& base,
-                            const DiagnosisOptions& options);
+                            const DiagnosisOptions& options, const ModelFit* uncalibrated = nullptr);
+
+/// Calibration must not swallow an effect: the parameters are constant over all runs, the
+/// effects are dynamic, and the withheld runs judge both. Drops `c`'s moves (and says why in its
+/// notes) when an effect alone, fitted on the nominal cell (`uncalibrated`) with plausible
+/// parameters, fits the fit runs better (BIC, its parameters against the moved ones) and lowers
+/// the withheld runs' chi2 below the calibrated model's by min_withheld_gain. True if dropped.
+bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFit>& uncalibrated,
+                              const DiagnosisOptions& options, CalibrationFit* c);
 
 /// Makes the calibrated model (the nominal cell with `calibration`, whose chi2 on the fit runs is
 /// `chi2`) the baseline the candidates are fitted on and compared with; scores the withheld runs.
@@ -124,13 +133,16 @@ void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& ca
 /// defaultCalibrationParams(); none when options.calibrate is false. Throws std::invalid_argument.
 std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options);
 
-/// Refits the `pool` best fits of `effects` effects (by BIC) whose chi2/n is above
-/// options.joint_refit_chi2 jointly with the calibration (refitJointly) and replaces each by its
-/// joint fit where that fits better; the joint fits' calibration summaries by joinNames(effects).
+/// Refits the `pool` best fits of `effects` effects (by BIC, the better of their fit on the
+/// calibration and their counterpart in `uncalibrated`, fitted on the nominal cell) whose chi2/n is
+/// above options.joint_refit_chi2 jointly with the calibration (refitJointly) and replaces each
+/// by its joint fit where that fits better; the joint fits' calibration summaries by
+/// joinNames(effects).
 std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
                                                            std::vector<ModelFit>* fits, std::size_t effects, int pool,
                                                            const DiagnosisOptions& options,
-                                                           const std::function<void(const std::string&)>& progress);
+                                                           const std::function<void(const std::string&)>& progress,
+                                                           const std::vector<ModelFit>& uncalibrated = {});
 
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
 /// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,
