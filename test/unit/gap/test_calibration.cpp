@@ -14,6 +14,7 @@
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 
@@ -39,14 +40,15 @@ void expectThrowsWith(F f, const std::vector<std::string>& fragments) {
 /// The small protocol's runs (with their roles) of a rig whose airbag differs from the model's
 /// by `rig` (SynthOptions::airbag_params), valve-driven when `valve_driven`.
 std::vector<nb::RunData> rigRuns(const std::map<std::string, double>& rig, std::uint32_t seed,
-                                 bool valve_driven = false, double noise_scale = 1.0) {
+                                 bool valve_driven = false, double noise_scale = 1.0,
+                                 const std::vector<nb::CellEffectPtr>& effects = {}) {
   const nb::CellParams params = nb::rigAirbag(nb::CellParams{}, rig);
   nb::SynthProtocol protocol = nb::synthProtocol("small", params);
   protocol.valve_driven = valve_driven;
   std::mt19937 rng(seed);
   std::vector<nb::RunData> runs;
   for (const auto& spec : protocol.runs) {
-    runs.push_back(nb::simulateSynthRun(params, {}, protocol, spec, nb::SensorNoise{}.scaled(noise_scale), &rng));
+    runs.push_back(nb::simulateSynthRun(params, effects, protocol, spec, nb::SensorNoise{}.scaled(noise_scale), &rng));
     runs.back().role = spec.role;
   }
   return runs;
@@ -153,6 +155,48 @@ TEST(GapCalibrationStage, ValveDrivenRunsRecoverTheInletArea) {
   const nb::CalibratedParam& inlet = param(c.summary, "inlet_area_m2");
   EXPECT_TRUE(inlet.moved);
   EXPECT_NEAR(inlet.value / 1.8e-5, 1.0, 0.02);
+}
+
+/// The calibration of `names` on `prepared` and the singles `effects` fitted on the nominal cell.
+struct CalibrationAgainstEffects {
+  gs::NoiseModel noise;
+  gs::CalibrationFit calibration;
+  std::vector<gs::ModelFit> singles;
+};
+CalibrationAgainstEffects calibrateAgainst(const gs::PreparedRuns& prepared, const std::vector<std::string>& names,
+                                           const std::vector<std::string>& effects) {
+  nb::DiagnosisOptions options;
+  options.pair_pool = 0;
+  CalibrationAgainstEffects out{gs::buildNoiseModel(prepared, nb::CellParams{}, options), {}, {}};
+  out.calibration = gs::calibrateModel(out.noise, names, options, {});
+  out.singles = gs::fitCandidates(out.noise, effects, options, {});
+  return out;
+}
+
+TEST(GapCalibrationStage, ACalibrationThatImitatesAnEffectIsDroppedForIt) {
+  // Heat transfer, with only the dead volume free to calibrate: a larger dead volume softens the
+  // gas spring as heat exchange does, and moves; heat transfer alone fits better on both the fit
+  // and the withheld runs, so the calibration's move is dropped and the note names the effect.
+  const gs::PreparedRuns prepared = gs::prepareRuns(
+      rigRuns({}, 8, false, 1.0, {nb::makeEffect("heat_transfer", {{"heat_transfer_coefficient_w_m2_k", 10.0}})}));
+  CalibrationAgainstEffects c = calibrateAgainst(prepared, {"dead_volume_m3"}, {"heat_transfer"});
+  ASSERT_TRUE(c.calibration.summary.anyMoved()) << "the dead volume did not imitate heat transfer here";
+  EXPECT_TRUE(gs::dropCalibrationForEffect(c.noise, c.singles, nb::DiagnosisOptions{}, &c.calibration));
+  EXPECT_FALSE(c.calibration.summary.anyMoved());
+  EXPECT_EQ(param(c.calibration.summary, "dead_volume_m3").value, param(c.calibration.summary, "dead_volume_m3").nominal);
+  EXPECT_EQ(c.calibration.moved_chi2, c.noise.chi2_nominal);
+  ASSERT_FALSE(c.calibration.summary.notes.empty());
+  nb::test::expectContains(c.calibration.summary.notes.back(), {"heat_transfer", "imitated an effect"});
+}
+
+TEST(GapCalibrationStage, ARealMismatchKeepsItsCalibrationAgainstTheEffects) {
+  // A stiffer film: no effect alone fits it as well, the move stays.
+  const gs::PreparedRuns prepared = gs::prepareRuns(rigRuns({{"film_stiffness_scale", 1.15}}, 5));
+  CalibrationAgainstEffects c =
+      calibrateAgainst(prepared, nb::defaultCalibrationParams(prepared.runs), {"leak", "heat_transfer", "inflow_bias"});
+  ASSERT_TRUE(param(c.calibration.summary, "film_stiffness_scale").moved);
+  EXPECT_FALSE(gs::dropCalibrationForEffect(c.noise, c.singles, nb::DiagnosisOptions{}, &c.calibration));
+  EXPECT_TRUE(param(c.calibration.summary, "film_stiffness_scale").moved);
 }
 
 TEST(GapCalibrationFile, TheCalibratedFileIsACompleteParameterFileThatReadsBack) {
