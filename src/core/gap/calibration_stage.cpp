@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
@@ -271,38 +272,46 @@ std::vector<std::string> calibrationList(const PreparedRuns& prepared, const Dia
   return names;
 }
 
-std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
-                                                           std::vector<ModelFit>* fits, std::size_t effects, int pool,
-                                                           const DiagnosisOptions& options,
-                                                           const std::function<void(const std::string&)>& progress,
-                                                           const std::vector<ModelFit>& uncalibrated) {
-  const double log_n = std::log(static_cast<double>(noise.fitResidualCount()));
+std::vector<int> jointRefitOrder(const std::vector<ModelFit>& fits, std::size_t effects, int pool,
+                                 const std::set<std::string>& also, double log_n,
+                                 const std::vector<const ModelFit*>& on_nominal) {
+  std::vector<int> order;
+  for (std::size_t i = 0; i < fits.size(); ++i)
+    if (fits[i].outcome.ok && fits[i].model.effects.size() == effects) order.push_back(static_cast<int>(i));
+  auto chi2 = [&](int i) {
+    const bool nominal = static_cast<std::size_t>(i) < on_nominal.size() && on_nominal[i];
+    return std::min(fits[i].outcome.chi2, nominal ? on_nominal[i]->outcome.chi2 : INFINITY);
+  };
+  auto bic = [&](int i) { return chi2(i) + fits[i].model.axes.size() * log_n; };
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return bic(a) < bic(b); });
+  auto contains_also = [&](int i) {
+    const auto& e = fits[i].model.effects;
+    return std::any_of(e.begin(), e.end(), [&](const std::string& name) { return also.count(name) > 0; });
+  };
+  std::vector<int> chosen;
+  for (std::size_t k = 0; k < order.size(); ++k)
+    if (static_cast<int>(k) < pool || contains_also(order[k])) chosen.push_back(order[k]);
+  return chosen;
+}
+
+JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
+                             std::size_t effects, int pool, const DiagnosisOptions& options,
+                             const std::function<void(const std::string&)>& progress,
+                             const std::set<std::string>& also, const std::vector<ModelFit>& uncalibrated) {
+  const int n = noise.fitResidualCount();
+  const double log_n = std::log(static_cast<double>(n));
   // Each fit's counterpart on the nominal cell, if it was fitted there.
   std::vector<const ModelFit*> nominal_fit(fits->size(), nullptr);
   for (std::size_t i = 0; i < fits->size(); ++i)
     for (const ModelFit& u : uncalibrated)
       if (u.outcome.ok && u.model.effects == (*fits)[i].model.effects) nominal_fit[i] = &u;
-  std::vector<int> order;
-  for (std::size_t i = 0; i < fits->size(); ++i)
-    if ((*fits)[i].outcome.ok && (*fits)[i].model.effects.size() == effects) order.push_back(static_cast<int>(i));
-  // Ranked by the better of the two fits: an effect the calibration imitated in part fits badly
-  // on top of it and well on the nominal cell, and the joint refit may settle which it is.
-  auto chi2 = [&](int i) {
-    const double on_nominal = nominal_fit[i] ? nominal_fit[i]->outcome.chi2 : INFINITY;
-    return std::min((*fits)[i].outcome.chi2, on_nominal);
-  };
-  auto bic = [&](int i) { return chi2(i) + (*fits)[i].model.axes.size() * log_n; };
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return bic(a) < bic(b); });
-  order.resize(std::min<std::size_t>(order.size(), std::max(0, pool)));
+  std::vector<int> order = jointRefitOrder(*fits, effects, pool, also, log_n, nominal_fit);
   // A fit already within the noise leaves the calibration nothing to settle.
   order.erase(std::remove_if(order.begin(), order.end(),
-                             [&](int i) {
-                               return (*fits)[i].outcome.chi2 / noise.fitResidualCount() <= options.joint_refit_chi2;
-                             }),
+                             [&](int i) { return (*fits)[i].outcome.chi2 / n <= options.joint_refit_chi2; }),
               order.end());
   // The best first: when it lands within the noise the others (worse on the biased calibration)
   // are not refitted.
-  const int n = noise.fitResidualCount();
   std::vector<CalibrationFit> joint(order.size());
   if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, nominal_fit[order[0]]);
   if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
@@ -310,7 +319,7 @@ std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noi
               [&](int k) {
                 joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, nominal_fit[order[k + 1]]);
               });
-  std::map<std::string, CalibrationSummary> summaries;
+  JointRefits out;
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelFit& f = (*fits)[order[k]];
     const CalibrationFit& j = joint[k];
@@ -318,13 +327,17 @@ std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noi
       progress("refitted " + joinNames(f.model.effects) + " with the calibration free: chi2/n " +
                fmt(f.outcome.chi2 / n) + " -> " + fmt(j.moved_chi2 / n));
     if (!(j.moved_chi2 < f.outcome.chi2)) continue;
+    // Scaled by chi2/n as the calibration's own moves are (profileMoves).
+    const double gain = (f.outcome.chi2 - j.moved_chi2) / std::max(1.0, j.moved_chi2 / n);
+    if (gain - log_n > options.significant_bic_drop)
+      out.moved_calibration.insert(f.model.effects.begin(), f.model.effects.end());
     f.model = j.moved_model;
     f.outcome.u = j.moved_u;
     f.outcome.chi2 = j.moved_chi2;
     f.outcome.evaluations += j.fit.outcome.evaluations;
-    summaries[joinNames(f.model.effects)] = j.summary;
+    out.summaries[joinNames(f.model.effects)] = j.summary;
   }
-  return summaries;
+  return out;
 }
 
 void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* rep) {

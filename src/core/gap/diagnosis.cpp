@@ -9,6 +9,7 @@
 #include <limits>
 #include <mutex>
 #include <numeric>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -533,11 +534,15 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     }
     rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
   }
-  // The best singles, then the best pair, refitted with the calibration free as well.
+  // The best singles, then the best pair and every pair with a single that moved the
+  // calibration, refitted with the calibration free as well.
   std::map<std::string, CalibrationSummary> joint;
+  std::set<std::string> moved_calibration;
   auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
-    const auto more = refitBestJointly(noise, calibration, fits, effects, pool, options, say, uncalibrated);
-    joint.insert(more.begin(), more.end());
+    const JointRefits more =
+        refitBestJointly(noise, calibration, fits, effects, pool, options, say, moved_calibration, uncalibrated);
+    joint.insert(more.summaries.begin(), more.summaries.end());
+    if (effects == 1) moved_calibration = more.moved_calibration;
   };
   std::vector<ModelFit> fits =
       fitCandidates(noise, candidateList(options), options, say, [&](std::vector<ModelFit>* singles) {
@@ -563,7 +568,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     rep.verdict_effects = w.effects;
     rep.verdict_params = w.params;
     verdict_effects = buildEffects(scored[verdict.winner].second, w.params);
-    // Refitted with the calibration free: its own calibration (which may have moved nothing).
+    // A joint refit may have moved every parameter back to nominal (w.joint false): its summary
+    // still replaces the calibration-only one the winner was not fitted with.
     if (joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
   }
   settleCalibratedStatus(noise, options, &rep);

@@ -168,6 +168,35 @@ TEST_F(DiagnosisStagesOnALeak, ShrinkageWithoutEffectsKeepsTheNominalReplays) {
   EXPECT_LT(t.report.withheld_after, 0.5 * t.report.withheld_before);
 }
 
+/// A fitted model of `effects` whose chi2 is `chi2` (no replay: for the stages that only rank).
+gs::ModelFit rankedFit(const std::vector<std::string>& effects, double chi2, bool ok = true) {
+  gs::ModelFit f;
+  f.model = gs::makeModelSpec(effects);
+  f.outcome.ok = ok;
+  f.outcome.chi2 = chi2;
+  return f;
+}
+
+TEST(DiagnosisStages, JointRefitsTakeTheBestPairAndEveryPairOfASingleThatMovedTheCalibration) {
+  // A plate friction bends the calibration-only fit as a stiffer film does; the viscoelasticity's
+  // joint refit moved the calibration, so its pairs are refitted too, however badly they ranked
+  // on the bent calibration (the right one, with the friction, ranked last).
+  const std::vector<gs::ModelFit> fits = {
+      rankedFit({"membrane_viscoelasticity"}, 3000.0),            // 0: a single, never a pair's refit
+      rankedFit({"heat_transfer", "plate_friction"}, 1800.0),     // 1: the best pair
+      rankedFit({"leak", "membrane_viscoelasticity"}, 4900.0),    // 2
+      rankedFit({"membrane_viscoelasticity", "plate_friction"}, 5500.0),  // 3
+      rankedFit({"leak", "plate_friction"}, 3200.0),              // 4
+      rankedFit({"heat_transfer", "membrane_viscoelasticity"}, 100.0, false),  // 5: failed
+  };
+  const double log_n = std::log(1716.0);
+  EXPECT_EQ(gs::jointRefitOrder(fits, 2, 1, {}, log_n), (std::vector<int>{1}));
+  EXPECT_EQ(gs::jointRefitOrder(fits, 2, 1, {"membrane_viscoelasticity"}, log_n), (std::vector<int>{1, 2, 3}));
+  EXPECT_EQ(gs::jointRefitOrder(fits, 2, 0, {"plate_friction"}, log_n), (std::vector<int>{1, 4, 3}));
+  EXPECT_EQ(gs::jointRefitOrder(fits, 1, 3, {"leak"}, log_n), (std::vector<int>{0}));
+  EXPECT_TRUE(gs::jointRefitOrder(fits, 2, 0, {}, log_n).empty());
+}
+
 TEST(DiagnosisStages, MedianAndFmt) {
   EXPECT_DOUBLE_EQ(gs::median({3.0, 1.0, 2.0}), 2.0);
   EXPECT_DOUBLE_EQ(gs::median({4.0, 1.0, 2.0, 3.0}), 2.5);

@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -133,16 +134,38 @@ void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& ca
 /// defaultCalibrationParams(); none when options.calibrate is false. Throws std::invalid_argument.
 std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options);
 
-/// Refits the `pool` best fits of `effects` effects (by BIC, the better of their fit on the
-/// calibration and their counterpart in `uncalibrated`, fitted on the nominal cell) whose chi2/n is
-/// above options.joint_refit_chi2 jointly with the calibration (refitJointly) and replaces each
-/// by its joint fit where that fits better; the joint fits' calibration summaries by
-/// joinNames(effects).
-std::map<std::string, CalibrationSummary> refitBestJointly(const NoiseModel& noise, const CalibrationFit& base,
-                                                           std::vector<ModelFit>* fits, std::size_t effects, int pool,
-                                                           const DiagnosisOptions& options,
-                                                           const std::function<void(const std::string&)>& progress,
-                                                           const std::vector<ModelFit>& uncalibrated = {});
+/// Indices into `fits` of the fits of `effects` effects (failed ones left out) that
+/// refitBestJointly() refits: the `pool` best by BIC (chi2 + k ln n), then every other one that
+/// contains an effect of `also`; best first.
+/// `on_nominal[i]`, when given and not null, is fit i's counterpart fitted on the nominal cell
+/// (when the calibration moved): a fit ranks by the better of the two, since an effect the
+/// calibration imitated in part fits badly on top of it and well on the nominal cell.
+std::vector<int> jointRefitOrder(const std::vector<ModelFit>& fits, std::size_t effects, int pool,
+                                 const std::set<std::string>& also, double log_n,
+                                 const std::vector<const ModelFit*>& on_nominal = {});
+
+/// What refitBestJointly() did.
+struct JointRefits {
+  /// The joint fits' calibration summaries, by joinNames(effects).
+  std::map<std::string, CalibrationSummary> summaries;
+  /// Effects of the refits whose chi2 fell significantly with the calibration free (its gain,
+  /// scaled by chi2/n where above 1, beyond ln n + significant_bic_drop): the calibration alone
+  /// had bent to part of their signature, so fits on top of it are biased for them.
+  std::set<std::string> moved_calibration;
+};
+
+/// Refits the `pool` best fits of `effects` effects (by BIC), and every fit of `effects` effects
+/// that contains one of `also` (the singles that moved the calibration: a pair fitted on the
+/// calibration they bent is biased however it ranks), whose chi2/n is above
+/// options.joint_refit_chi2, jointly with the calibration (refitJointly, also started from the
+/// fit's counterpart in `uncalibrated`, the singles fitted on the nominal cell, which rank the
+/// fits too: jointRefitOrder); replaces each by its joint fit where that fits better. The best
+/// first: when it lands within joint_refit_chi2 the others are not refitted.
+JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
+                             std::size_t effects, int pool, const DiagnosisOptions& options,
+                             const std::function<void(const std::string&)>& progress,
+                             const std::set<std::string>& also = {},
+                             const std::vector<ModelFit>& uncalibrated = {});
 
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
 /// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,
