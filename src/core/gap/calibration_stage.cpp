@@ -306,10 +306,14 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
     for (const ModelFit& u : uncalibrated)
       if (u.outcome.ok && u.model.effects == (*fits)[i].model.effects) nominal_fit[i] = &u;
   std::vector<int> order = jointRefitOrder(*fits, effects, pool, also, log_n, nominal_fit);
-  // A fit already within the noise leaves the calibration nothing to settle.
-  order.erase(std::remove_if(order.begin(), order.end(),
-                             [&](int i) { return (*fits)[i].outcome.chi2 / n <= options.joint_refit_chi2; }),
-              order.end());
+  // A fit already within the noise leaves the calibration nothing to settle -- except the best,
+  // when the calibration moved: the effect may make a move needless (a plate friction and a
+  // smaller vent both slow the vent phase).
+  const bool recheck_moves = base.summary.anyMoved();
+  std::vector<int> kept;
+  for (int i : order)
+    if ((*fits)[i].outcome.chi2 / n > options.joint_refit_chi2 || (recheck_moves && kept.empty())) kept.push_back(i);
+  order = kept;
   // The best first: when it lands within the noise the others (worse on the biased calibration)
   // are not refitted.
   std::vector<CalibrationFit> joint(order.size());
@@ -326,7 +330,9 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
     if (progress)
       progress("refitted " + joinNames(f.model.effects) + " with the calibration free: chi2/n " +
                fmt(f.outcome.chi2 / n) + " -> " + fmt(j.moved_chi2 / n));
-    if (!(j.moved_chi2 < f.outcome.chi2)) continue;
+    // Whole models compared: a joint fit that drops a needless move pays ln n less for it.
+    const double k_base = base.summary.movedValues().size(), k_joint = j.summary.movedValues().size();
+    if (!(j.moved_chi2 + k_joint * log_n < f.outcome.chi2 + k_base * log_n)) continue;
     // Scaled by chi2/n as the calibration's own moves are (profileMoves).
     const double gain = (f.outcome.chi2 - j.moved_chi2) / std::max(1.0, j.moved_chi2 / n);
     if (gain - log_n > options.significant_bic_drop)
