@@ -80,9 +80,6 @@ RunNoise runNoise(const RunData& run) {
   return {estimateNoise(run.p_gauge_pa), estimateNoise(run.h_m)};
 }
 
-/// Noise floor of each used sample: sensor noise, the replay's accuracy, and the flow meter's
-/// noise integrated by the replay (a random walk of the gas mass, seen through the model's
-/// sensitivity).
 /// Running median of `r` over kTrendSamples samples either side.
 std::vector<double> runningMedian(const std::vector<double>& r) {
   std::vector<double> out(r.size());
@@ -186,6 +183,9 @@ Eigen::MatrixXd correlationCholesky(const FitData::Run& r, const std::vector<dou
   return llt.matrixL();
 }
 
+/// Noise floor of each used sample: sensor noise, the replay's accuracy, the flow meter's noise
+/// integrated by the replay (a random walk of the gas mass, seen through the model's
+/// sensitivity), the timing spread and the shared error modes.
 FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measured_flow, const RunNoise& noise,
                            const CellParams& params, double sample_hz) {
   FitData::Run r;
