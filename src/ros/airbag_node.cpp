@@ -86,7 +86,9 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     cell_->reset(params_.load_n);
   }
   if (params_.supply_pressure_pa >= 0.0) cell_->setSupplyPressure(params_.supply_pressure_pa);
+  cell_->setCommandTimeout(0.0);  // armed by the first streamed command (feedWatchdog)
 
+  bed_cells_ = layout.cells().size();
   state_pub_ = private_nh_.advertise<AirbagState>(names::kState, 10);
   pressure_pub_ = private_nh_.advertise<sensor_msgs::FluidPressure>(names::kPressure, 10);
   set_height_srv_ = private_nh_.advertiseService(names::kSetHeight, &AirbagNode::setHeight, this);
@@ -96,6 +98,8 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
                                   ros::TransportHints().tcpNoDelay());
   vent_sub_ = private_nh_.subscribe(names::kVent, 10, &AirbagNode::onVent, this);
   heartbeat_sub_ = private_nh_.subscribe(names::kHeartbeat, 10, &AirbagNode::onHeartbeat, this);
+  bed_heartbeat_sub_ = nh_.subscribe(names::kBedHeartbeat, 2, &AirbagNode::onHeartbeat, this);
+  cpr_sub_ = nh_.subscribe(names::kCpr, 2, &AirbagNode::onCpr, this);
   start_ = ros::Time::now();
   last_publish_ = start_;
   CellTicker& ticker = CellTicker::instance(params_.update_rate_hz);
@@ -103,7 +107,8 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     ROS_WARN("%s: ~update_rate_hz %g ignored: this process's airbags tick at %g Hz (the first one's rate)",
              layout_.link_name.c_str(), params_.update_rate_hz, ticker.rateHz());
   params_.update_rate_hz = ticker.rateHz();
-  ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); });
+  ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); },
+                              [this](const ros::Time& now) { publish(now); });
   ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->model().structure().describe().c_str());
 }
 
@@ -114,10 +119,22 @@ AirbagNode::~AirbagNode() {
 void AirbagNode::update(const ros::Time& now) {
   std::lock_guard<std::mutex> lock(mutex_);
   cell_->advanceTo(elapsed(now));
-  if ((now - last_publish_).toSec() >= 1.0 / params_.publish_rate_hz - 0.5 / params_.update_rate_hz) {
-    publishState(now);
-    last_publish_ = now;
-  }
+}
+
+void AirbagNode::publish(const ros::Time& now) {
+  // Never wait for the simulation thread: a cell it is advancing now publishes next round
+  // (both threads walk the cells in the same order; waiting would pace publishing by it).
+  std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+  if (!lock.owns_lock()) return;
+  const double since_s = (now - last_publish_wall_).toSec();
+  if (since_s < 1.0 / params_.publish_rate_hz - 0.5 / params_.update_rate_hz) return;
+  // A state is published when the simulation has moved on, and repeated (same stamp) while a
+  // slow simulation round holds it back: the cell's controller is alive, its plant is late.
+  const bool advanced = cell_->time() != last_published_time_s_;
+  if (!advanced && since_s < 2.0 / params_.publish_rate_hz) return;
+  publishState(start_ + ros::Duration(cell_->time()));
+  last_published_time_s_ = cell_->time();
+  last_publish_wall_ = now;
 }
 
 void AirbagNode::publishState(const ros::Time& stamp) {
@@ -155,6 +172,7 @@ void AirbagNode::publishState(const ros::Time& stamp) {
   msg.height_setpoint_m = cell_->setpoint();
   msg.mode = static_cast<uint8_t>(cell_->mode());
   msg.faults = cell_->faults();
+  last_publish_ = stamp;
   state_pub_.publish(out);
   if (pressure_pub_.getNumSubscribers() > 0) {
     sensor_msgs::FluidPressure p;
@@ -164,42 +182,71 @@ void AirbagNode::publishState(const ros::Time& stamp) {
   }
 }
 
+namespace {
+// The bed manager re-sends its setpoints every ~resend_s (1 s): it owns a cell this long after one.
+constexpr double kManagerOwnsForS = 2.5;
+}  // namespace
+
+bool AirbagNode::ownedByManager(const ros::Time& now) const {
+  return !manager_setpoint_at_.isZero() && (now - manager_setpoint_at_).toSec() < kManagerOwnsForS;
+}
+
+std::string AirbagNode::request(double height_m, const ros::Time& now) {
+  return cell_->requestHeight(height_m, elapsed(now));
+}
+
 bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
   std::lock_guard<std::mutex> lock(mutex_);
+  const ros::Time now = ros::Time::now();
+  std::ostringstream msg;
   if (req.cell_id != layout_.id) {
-    std::ostringstream msg;
     msg << "cell " << req.cell_id << " is not served here: this is " << layout_.link_name << ", cell " << layout_.id;
-    res.success = false;
-    res.message = msg.str();
-    return true;
+  } else if (ownedByManager(now)) {
+    msg << "cell " << layout_.id << " (" << layout_.link_name << ") is run by the bed manager, whose setpoints keep "
+        << "coming: ask /bed_manager/set_airbag_height, which makes it a custom target";
+  } else {
+    const std::string error = request(req.height_m, now);
+    if (error.empty()) msg << "height setpoint " << req.height_m << " m accepted (no bed manager runs this cell)";
+    else msg << error;
+    res.success = error.empty();
   }
-  const std::string error = cell_->requestHeight(req.height_m, elapsed(ros::Time::now()));
-  res.success = error.empty();
-  res.message = error.empty() ? "height setpoint " + std::to_string(req.height_m) + " m accepted" : error;
+  res.message = msg.str();
   return true;
 }
 
 void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
-  const std::string error = cell_->requestHeight(msg->data, elapsed(ros::Time::now()));
-  if (!error.empty()) ROS_WARN_THROTTLE(1.0, "%s: setpoint refused: %s", layout_.link_name.c_str(), error.c_str());
-}
-
-void AirbagNode::onLoad(const std_msgs::Float64::ConstPtr& msg) {
-  if (!(std::isfinite(msg->data) && msg->data >= 0.0)) {
-    ROS_WARN_THROTTLE(1.0, "%s: load %f N refused: must be finite and >= 0", layout_.link_name.c_str(), msg->data);
+  const ros::Time now = ros::Time::now();
+  const std::string error = request(msg->data, now);
+  if (!error.empty()) {
+    ROS_WARN_THROTTLE(1.0, "%s: setpoint %g refused: %s", layout_.link_name.c_str(), msg->data, error.c_str());
     return;
   }
-  std::lock_guard<std::mutex> lock(mutex_);
-  cell_->setLoad(msg->data);
+  manager_setpoint_at_ = now;
+  feedWatchdog(now);
 }
 
-void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
-  if (msg->data.size() <= layout_.id) return;
-  const double load = msg->data[layout_.id];
-  if (!(std::isfinite(load) && load >= 0.0)) return;
+void AirbagNode::feedWatchdog(const ros::Time& now) {
+  cell_->heartbeat(elapsed(now));
+  if (!watchdog_armed_) cell_->setCommandTimeout(params_.airbag.safety.command_timeout_s);
+  watchdog_armed_ = true;
+}
+
+void AirbagNode::applyLoad(double load_n, const char* source) {
   std::lock_guard<std::mutex> lock(mutex_);
-  cell_->setLoad(load);
+  const std::string error = cell_->setLoad(load_n);
+  if (!error.empty()) ROS_ERROR_THROTTLE(1.0, "%s: %s from %s", layout_.link_name.c_str(), error.c_str(), source);
+}
+
+void AirbagNode::onLoad(const std_msgs::Float64::ConstPtr& msg) { applyLoad(msg->data, "its load topic"); }
+
+void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
+  if (msg->data.size() != bed_cells_) {
+    ROS_ERROR_THROTTLE(1.0, "%s: %s refused: %zu loads for a bed of %zu cells", layout_.link_name.c_str(),
+                       names::kCellLoads, msg->data.size(), bed_cells_);
+    return;
+  }
+  applyLoad(msg->data[layout_.id], names::kCellLoads);
 }
 
 void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
@@ -207,9 +254,16 @@ void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
   cell_->requestVent(elapsed(ros::Time::now()));
 }
 
+void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (msg->data == cell_->cpr()) return;
+  ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
+  cell_->setCpr(msg->data, elapsed(ros::Time::now()));
+}
+
 void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) {
   std::lock_guard<std::mutex> lock(mutex_);
-  cell_->heartbeat(elapsed(ros::Time::now()));
+  feedWatchdog(ros::Time::now());
 }
 
 }  // namespace nursing_bed

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "nursing_bed/BedState.h"
+#include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"
 
@@ -29,6 +30,8 @@ std::string BedManagerParams::validate() const {
   if (!(cell_timeout_s > 0.0)) err << "~cell_timeout_s must be positive; ";
   if (!(diagnostics_rate_hz > 0.0 && diagnostics_rate_hz <= 50.0)) err << "~diagnostics_rate_hz must lie in (0, 50]; ";
   if (!(resend_s > 0.0)) err << "~resend_s must be positive; ";
+  if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
+    err << "the cells' safety/max_height_rate_m_s must be positive; ";
   if (!(leak_alarm_error_m > 0.0 && leak_alarm_s > 0.0)) err << "~leak_alarm_error_m and ~leak_alarm_s must be positive; ";
   if (body.first_row < 0 || body.last_row < body.first_row) err << "~body rows must satisfy 0 <= first_row <= last_row; ";
   const std::string plan_error = plans.validate();
@@ -58,6 +61,7 @@ BedManagerParams BedManager::loadParams(const ros::NodeHandle& pnh) {
   // Plans must stay inside what the cells accept.
   double cell_max = p.plans.max_height_m;
   pnh.param(p.defaults_ns + "/controller/max_height_m", cell_max, cell_max);
+  pnh.param(p.defaults_ns + "/safety/max_height_rate_m_s", p.max_height_rate_m_s, p.max_height_rate_m_s);
   if (p.plans.max_height_m > cell_max) {
     std::ostringstream m;
     m << "bed_manager: ~plans/max_height_m " << p.plans.max_height_m << " m exceeds the cells' controller/max_height_m "
@@ -87,6 +91,12 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   below_target_since_.assign(n, ros::Time());
   dead_.assign(n, false);
   faulty_.assign(n, false);
+  limited_m_.assign(n, kNaN);
+  RateLimits limits;
+  limits.max_rate_per_s = params_.max_height_rate_m_s;
+  limits.slope_weights = rollSlopeWeights(grid(), params_.body);
+  limits.max_angle_rate_rad_s = params_.plans.max_tilt_rate_deg_s * M_PI / 180.0;
+  limiter_ = std::make_unique<RateLimiter>(limits, n);
   std::string prefix = params_.cells_ns;
   if (prefix.empty() || prefix.back() != '/') prefix += '/';
   for (const CellLayout& c : layout_.cells()) {
@@ -95,6 +105,9 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     setpoint_pubs_.push_back(nh_.advertise<std_msgs::Float64>(cell_ns + names::kHeightSetpoint, 2));
     vent_pubs_.push_back(nh_.advertise<std_msgs::Empty>(cell_ns + names::kVent, 2));
   }
+  heartbeat_pub_ = nh_.advertise<std_msgs::Empty>(names::kBedHeartbeat, 2);
+  cpr_pub_ = nh_.advertise<std_msgs::Bool>(names::kCpr, 1, true);
+  cpr_sub_ = nh_.subscribe(names::kCpr, 2, &BedManager::onCpr, this);
   joint_state_pub_ = nh_.advertise<sensor_msgs::JointState>(names::kJointStates, 2);
   diagnostics_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 2);
   state_pub_ = private_nh_.advertise<BedState>("state", 2);
@@ -103,11 +116,12 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   set_posture_srv_ = private_nh_.advertiseService("set_posture", &BedManager::setPosture, this);
   started_ = ros::Time::now();
   running_.start = started_;
-  if (!params_.initial_plan.empty()) {
+  if (!resume() && !params_.initial_plan.empty()) {
     std::string why;
-    auto plan = makePlan(PlanRequest{params_.initial_plan, {}, {}}, params_.plans, grid(), params_.body, &why);
+    const PlanRequest request{params_.initial_plan, {}, {}};
+    auto plan = makePlan(request, params_.plans, grid(), params_.body, &why);
     if (!plan) throw std::runtime_error("bed_manager: ~initial_plan: " + why);
-    start(std::shared_ptr<PosturePlan>(std::move(plan)), ros::Time::now());
+    start(std::shared_ptr<PosturePlan>(std::move(plan)), request, ros::Time::now());
   }
   joint_state_timer_ =
       nh_.createTimer(ros::Duration(1.0 / params_.joint_state_rate_hz), &BedManager::publishJointStates, this);
@@ -147,45 +161,145 @@ void BedManager::publishJointStates(const ros::TimerEvent&) {
   joint_state_pub_.publish(js);
 }
 
-void BedManager::start(std::shared_ptr<PosturePlan> plan, const ros::Time& now) {
+void BedManager::start(std::shared_ptr<PosturePlan> plan, const PlanRequest& request, const ros::Time& now) {
   if (plan->name() == "max_inflate" && running_.plan && running_.plan->name() != "max_inflate") interrupted_ = running_;
   else if (plan->name() != "max_inflate") interrupted_ = Running{};
-  running_ = Running{std::move(plan), now};
+  running_ = Running{std::move(plan), now, request};
   std::fill(sent_at_.begin(), sent_at_.end(), ros::Time());  // send every target at once
+  if (running_.plan->name() == "cpr") publishCpr(true);
+  else if (cpr_published_ == 1) publishCpr(false);
+  saveResume();
   ROS_INFO("bed_manager: plan %s %s", running_.plan->name().c_str(), running_.plan->describe().c_str());
+}
+
+void BedManager::startSafeLevel(double height_m, const ros::Time& now) {
+  start(makeSafeLevelPlan(grid(), height_m), PlanRequest{"safe_level", {}, {height_m}}, now);
+}
+
+void BedManager::saveResume() const {
+  const PlanRequest& r = running_.request;
+  std::vector<std::string> keys, values;
+  for (const auto& kv : r.args) {
+    keys.push_back(kv.first);
+    values.push_back(kv.second);
+  }
+  const std::string ns = std::string(names::kResumeParam) + "/";
+  private_nh_.setParam(ns + "plan", r.plan);
+  private_nh_.setParam(ns + "keys", keys);
+  private_nh_.setParam(ns + "values", values);
+  private_nh_.setParam(ns + "heights_m", r.heights_m);
+  private_nh_.setParam(ns + "start_s", running_.start.toSec());
+}
+
+bool BedManager::resume() {
+  const std::string ns = std::string(names::kResumeParam) + "/";
+  PlanRequest request;
+  std::vector<std::string> keys, values;
+  double start_s = 0.0;
+  if (!private_nh_.getParam(ns + "plan", request.plan)) return false;
+  private_nh_.getParam(ns + "keys", keys);
+  private_nh_.getParam(ns + "values", values);
+  private_nh_.getParam(ns + "heights_m", request.heights_m);
+  private_nh_.getParam(ns + "start_s", start_s);
+  for (std::size_t i = 0; i < keys.size() && i < values.size(); ++i) request.args[keys[i]] = values[i];
+  std::string why;
+  std::unique_ptr<PosturePlan> plan;
+  if (request.plan == "safe_level" && request.heights_m.size() == 1)
+    plan = makeSafeLevelPlan(grid(), request.heights_m[0]);
+  else
+    plan = makePlan(request, params_.plans, grid(), params_.body, &why);
+  const ros::Time now = ros::Time::now();
+  if (!plan || !(start_s > 0.0) || start_s > now.toSec()) {
+    ROS_ERROR("bed_manager: restarted, but the saved plan '%s' cannot be resumed (%s)", request.plan.c_str(),
+              why.empty() ? "bad start time" : why.c_str());
+    return false;
+  }
+  resumed_ = true;
+  start(std::shared_ptr<PosturePlan>(std::move(plan)), request, ros::Time(start_s));
+  ROS_WARN("bed_manager: restarted: resuming plan %s (%s), started %.1f s ago", request.plan.c_str(),
+           running_.plan->describe().c_str(), now.toSec() - start_s);
+  return true;
+}
+
+void BedManager::publishCpr(bool on) {
+  std_msgs::Bool msg;
+  msg.data = on;
+  cpr_pub_.publish(msg);
+  cpr_published_ = on ? 1 : 0;
+}
+
+void BedManager::onCpr(const std_msgs::Bool::ConstPtr& msg) {
+  if (!msg->data) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (running_.plan && running_.plan->name() == "cpr") return;
+  ROS_WARN("bed_manager: bed-wide CPR started from outside (%s): following it", names::kCpr);
+  std::string why;
+  const PlanRequest request{"cpr", {}, {}};
+  start(std::shared_ptr<PosturePlan>(makePlan(request, params_.plans, grid(), params_.body, &why)), request,
+        ros::Time::now());
+}
+
+double BedManager::safeLevel() const {
+  double sum = 0.0;
+  int n = 0;
+  for (const CellLayout& c : layout_.cells()) {
+    const double h = last_state_[c.id].height_m;
+    if (dead_[c.id] || faulty_[c.id] || last_seen_[c.id].isZero() || !std::isfinite(h)) continue;
+    sum += h;
+    ++n;
+  }
+  const double level = n > 0 ? sum / n : params_.plans.nominal_height_m;
+  return std::clamp(level, params_.plans.min_height_m, params_.plans.max_height_m);
+}
+
+std::vector<double> BedManager::limitTargets(const std::vector<double>& wanted, double dt_s) {
+  if (wanted.size() != limited_m_.size()) return wanted;
+  for (const CellLayout& c : layout_.cells()) {
+    const double h = last_state_[c.id].height_m;
+    // Nothing sent yet (start, after CPR): the ramp starts where the cell is.
+    if (!std::isfinite(limited_m_[c.id]) && !last_seen_[c.id].isZero() && std::isfinite(h))
+      limited_m_[c.id] = std::clamp(h, c.min_height_m, c.max_height_m);
+  }
+  limited_m_ = limiter_->step(limited_m_, wanted, dt_s);
+  return limited_m_;
 }
 
 void BedManager::watchCells(const ros::Time& now) {
   const bool past_grace = (now - started_).toSec() > kStartupGraceS;
   alarms_.clear();
+  std::vector<std::string> failed;
   for (const CellLayout& c : layout_.cells()) {
     const bool never = last_seen_[c.id].isZero();
     const bool dead = never ? past_grace : (now - last_seen_[c.id]).toSec() > params_.cell_timeout_s;
-    const bool faulty = !dead && !never && (last_state_[c.id].faults & AirbagState::FAULT_SENSOR);
-    if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id])) {
-      // Keep the patient level: every cell to the failed cell's last height.
-      const double h = never ? params_.plans.nominal_height_m
-                             : std::clamp(last_state_[c.id].height_m, params_.plans.min_height_m, params_.plans.max_height_m);
-      ROS_ERROR("bed_manager: cell %u (%s) %s; holding the bed level at %.3f m", c.id,
-                names::airbagName(c.row, c.col).c_str(), dead ? "stopped reporting" : "reports a sensor fault", h);
-      if (!(running_.plan && running_.plan->name() == "cpr")) start(makeSafeLevelPlan(grid(), h), now);
-    }
+    const bool faulty = !dead && !never && (last_state_[c.id].faults & (AirbagState::FAULT_SENSOR | kFaultModel));
+    if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id]))
+      failed.push_back("cell " + std::to_string(c.id) + " (" + names::airbagName(c.row, c.col) + ") " +
+                       (dead ? "stopped reporting" : "reports a sensor or model fault"));
     dead_[c.id] = dead;
     faulty_[c.id] = faulty;
-    // Leak / low pressure: a cell held well below its target for long.
-    const double target = sent_height_m_[c.id];
-    if (!dead && !never && std::isfinite(target) && last_state_[c.id].height_m < target - params_.leak_alarm_error_m) {
-      if (below_target_since_[c.id].isZero()) below_target_since_[c.id] = now;
-      if ((now - below_target_since_[c.id]).toSec() > params_.leak_alarm_s) {
-        std::ostringstream a;
-        a << "cell " << c.id << " (" << names::airbagName(c.row, c.col) << ") low pressure or leak: "
-          << 1e3 * (target - last_state_[c.id].height_m) << " mm below its target for "
-          << (now - below_target_since_[c.id]).toSec() << " s";
-        alarms_.push_back(a.str());
-      }
-    } else {
-      below_target_since_[c.id] = ros::Time();
+    watchLeak(c, dead || never, now);
+  }
+  if (failed.empty()) return;
+  // Keep the patient level, at the healthy cells' mean height, reached at the limited rates.
+  const double h = safeLevel();
+  for (const std::string& f : failed) ROS_ERROR("bed_manager: %s; levelling the bed at %.3f m", f.c_str(), h);
+  if (!(running_.plan && running_.plan->name() == "cpr")) startSafeLevel(h, now);
+}
+
+void BedManager::watchLeak(const CellLayout& c, bool silent, const ros::Time& now) {
+  // Leak / low pressure: a cell held well below its target for long.
+  const double target = sent_height_m_[c.id];
+  if (!silent && std::isfinite(target) && last_state_[c.id].height_m < target - params_.leak_alarm_error_m) {
+    if (below_target_since_[c.id].isZero()) below_target_since_[c.id] = now;
+    if ((now - below_target_since_[c.id]).toSec() > params_.leak_alarm_s) {
+      std::ostringstream a;
+      a << "cell " << c.id << " (" << names::airbagName(c.row, c.col) << ") low pressure or leak: "
+        << 1e3 * (target - last_state_[c.id].height_m) << " mm below its target for "
+        << (now - below_target_since_[c.id]).toSec() << " s";
+      alarms_.push_back(a.str());
     }
+  } else {
+    below_target_since_[c.id] = ros::Time();
   }
 }
 
@@ -215,6 +329,10 @@ void BedManager::sendTargets(const PlanTargets& targets, const ros::Time& now) {
 void BedManager::step(const ros::TimerEvent&) {
   const ros::Time now = ros::Time::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  // The cells' command watchdog: fed while the manager runs the bed (has a plan).
+  if (running_.plan) heartbeat_pub_.publish(std_msgs::Empty());
+  const double dt_s = last_step_.isZero() ? 0.0 : std::max(0.0, (now - last_step_).toSec());
+  last_step_ = now;
   watchCells(now);
   BedState state;
   state.header.stamp = now;
@@ -224,16 +342,25 @@ void BedManager::step(const ros::TimerEvent&) {
       // Back to what max_inflate interrupted, where it left off.
       const double paused = (now - running_.start).toSec();
       if (interrupted_.plan) {
-        running_ = Running{interrupted_.plan, interrupted_.start + ros::Duration(paused)};
+        running_ = Running{interrupted_.plan, interrupted_.start + ros::Duration(paused), interrupted_.request};
       } else {
-        running_ = Running{makeSafeLevelPlan(grid(), params_.plans.nominal_height_m), now};
+        const double h = params_.plans.nominal_height_m;
+        running_ = Running{makeSafeLevelPlan(grid(), h), now, PlanRequest{"safe_level", {}, {h}}};
       }
       interrupted_ = Running{};
+      saveResume();
       std::fill(sent_at_.begin(), sent_at_.end(), ros::Time());
       ROS_INFO("bed_manager: max_inflate timed out, back to %s", running_.plan->name().c_str());
       t = running_.plan->targets((now - running_.start).toSec());
     }
-    sendTargets(t, now);
+    if (t.vent_all) {
+      std::fill(limited_m_.begin(), limited_m_.end(), kNaN);
+      sendTargets(t, now);
+    } else {
+      PlanTargets limited = t;
+      limited.heights_m = limitTargets(t.heights_m, dt_s);
+      sendTargets(limited, now);
+    }
     last_targets_ = t;
     state.plan = running_.plan->name();
     state.parameters = running_.plan->describe();
@@ -272,7 +399,8 @@ void BedManager::publishDiagnostics(const ros::TimerEvent&) {
       msg << "faults:" << ((st.faults & AirbagState::FAULT_SENSOR) ? " sensor" : "")
           << ((st.faults & AirbagState::FAULT_OVERPRESSURE) ? " overpressure" : "")
           << ((st.faults & AirbagState::FAULT_COMMAND_TIMEOUT) ? " command-timeout" : "")
-          << ((st.faults & AirbagState::FAULT_LOW_PRESSURE) ? " low-pressure" : "");
+          << ((st.faults & AirbagState::FAULT_LOW_PRESSURE) ? " low-pressure" : "")
+          << ((st.faults & kFaultModel) ? " model-reset" : "");
       ++faulty;
     } else {
       s.level = diagnostic_msgs::DiagnosticStatus::OK;
@@ -311,7 +439,8 @@ void BedManager::publishDiagnostics(const ros::TimerEvent&) {
   if (running_.plan) {
     diagnostic_msgs::KeyValue pair;
     pair.key = "plan";
-    pair.value = running_.plan->name() + " (" + last_targets_.phase + ")";
+    pair.value = running_.plan->name() + " (" + last_targets_.phase + ")" +
+                 (resumed_ ? ", resumed after a restart of the bed manager" : "");
     bed.values.push_back(pair);
   }
   array.status.insert(array.status.begin(), bed);
@@ -343,7 +472,9 @@ std::string BedManager::checkCells(const std::vector<uint32_t>& ids, const std::
       err << "height for cell " << ids[i] << " is not a finite number";
       return err.str();
     }
-    const double lo = c->min_height_m, hi = std::min(params_.plans.max_height_m, c->max_height_m);
+    // One source of limits: what a plan may command.
+    const double lo = std::max(params_.plans.min_height_m, c->min_height_m);
+    const double hi = std::min(params_.plans.max_height_m, c->max_height_m);
     if (h < lo || h > hi) {
       err << "height " << h << " m for cell " << ids[i] << " (" << c->link_name << ") is outside [" << lo << ", "
           << hi << "] m";
@@ -373,20 +504,21 @@ bool BedManager::applyHeights(const std::vector<uint32_t>& ids, const std::vecto
     *message = error;
     return false;
   }
-  // The other cells keep what they have now: their current setpoint, else their height.
-  std::vector<double> target(layout_.cells().size());
+  // The other cells keep where they are going: the plan's target, else what was sent, else
+  // their height (within the plan limits).
+  std::vector<double> target(layout_.cells().size(), kNaN);
+  const bool planned = !last_targets_.vent_all && last_targets_.heights_m.size() == target.size();
   for (const CellLayout& c : layout_.cells()) {
-    const double sent = sent_height_m_[c.id];
-    const double measured = std::clamp(last_state_[c.id].height_m, c.min_height_m, c.max_height_m);
-    target[c.id] = std::isfinite(sent) ? sent : (std::isfinite(measured) && !last_seen_[c.id].isZero() ? measured : kNaN);
+    const double measured = last_seen_[c.id].isZero() ? kNaN : last_state_[c.id].height_m;
+    double h = planned ? last_targets_.heights_m[c.id] : kNaN;
+    if (!std::isfinite(h)) h = std::isfinite(sent_height_m_[c.id]) ? sent_height_m_[c.id] : measured;
+    target[c.id] = std::isfinite(h) ? std::clamp(h, params_.plans.min_height_m, params_.plans.max_height_m) : kNaN;
   }
   for (std::size_t i = 0; i < ids.size(); ++i) target[ids[i]] = heights[i];
-  const ros::Time now = ros::Time::now();
-  start(makeCustomPlan(target), now);
-  const PlanTargets t = running_.plan->targets(0.0);
-  sendTargets(t, now);
-  last_targets_ = t;
-  *message = "set " + std::to_string(ids.size()) + (ids.size() == 1 ? " cell" : " cells");
+  PlanRequest request{"custom", {}, target};
+  start(makeCustomPlan(target), request, ros::Time::now());
+  *message = "set " + std::to_string(ids.size()) + (ids.size() == 1 ? " cell" : " cells") + " as a custom plan, reached at " +
+             std::to_string(params_.max_height_rate_m_s) + " m/s at most";
   return true;
 }
 
@@ -423,7 +555,7 @@ bool BedManager::setPosture(SetPosture::Request& req, SetPosture::Response& res)
     return true;
   }
   const std::string description = plan->name() + " " + plan->describe();
-  start(std::shared_ptr<PosturePlan>(std::move(plan)), ros::Time::now());
+  start(std::shared_ptr<PosturePlan>(std::move(plan)), request, ros::Time::now());
   res.success = true;
   res.message = "started " + description;
   return true;

@@ -2,10 +2,17 @@
 
 #include <ros/ros.h>
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <memory>
 
 namespace nursing_bed {
+namespace {
+constexpr int kAdvanceNice = 5;  // niceness of the simulation thread above the process's
+}  // namespace
 
 CellTicker& CellTicker::instance(double rate_hz) {
   static std::once_flag once;
@@ -14,34 +21,42 @@ CellTicker& CellTicker::instance(double rate_hz) {
   return *ticker;
 }
 
-CellTicker::CellTicker(double rate_hz) : rate_hz_(rate_hz), thread_(&CellTicker::run, this) {}
+CellTicker::CellTicker(double rate_hz)
+    : rate_hz_(rate_hz),
+      advance_thread_(&CellTicker::run, this, &Entry::advance, &advance_round_),
+      publish_thread_(&CellTicker::run, this, &Entry::publish, &publish_round_) {}
 
 CellTicker::~CellTicker() {
   stop_ = true;
-  if (thread_.joinable()) thread_.join();
+  if (advance_thread_.joinable()) advance_thread_.join();
+  if (publish_thread_.joinable()) publish_thread_.join();
 }
 
-int CellTicker::add(Tick tick) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  ticks_.emplace_back(next_handle_, std::move(tick));
+int CellTicker::add(Tick advance, Tick publish) {
+  std::scoped_lock lock(advance_round_, publish_round_);
+  entries_.push_back(Entry{next_handle_, std::move(advance), std::move(publish)});
   return next_handle_++;
 }
 
 void CellTicker::remove(int handle) {
-  std::lock_guard<std::mutex> lock(mutex_);  // waits for a running tick round to finish
-  ticks_.erase(std::remove_if(ticks_.begin(), ticks_.end(), [handle](const auto& t) { return t.first == handle; }),
-               ticks_.end());
+  std::scoped_lock lock(advance_round_, publish_round_);  // waits for running rounds to finish
+  entries_.erase(std::remove_if(entries_.begin(), entries_.end(), [handle](const Entry& e) { return e.handle == handle; }),
+                 entries_.end());
 }
 
-void CellTicker::run() {
+void CellTicker::run(Tick Entry::*which, std::mutex* round) {
+  // The simulated plants yield to everything else in the process (publishing, the cells'
+  // callbacks, the bed manager): on a busy machine the physics falls behind, not the liveness.
+  if (which == &Entry::advance && setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), kAdvanceNice) != 0)
+    ROS_WARN("airbag ticker: could not lower the simulation thread's priority");
   // ros::Rate follows /clock under use_sim_time; before ROS time is valid, wait.
   while (!stop_ && !ros::Time::isValid()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   ros::Rate rate(rate_hz_);
   while (!stop_ && ros::ok()) {
     {
-      std::lock_guard<std::mutex> lock(mutex_);
+      std::lock_guard<std::mutex> lock(*round);
       const ros::Time now = ros::Time::now();
-      for (const auto& t : ticks_) t.second(now);
+      for (const Entry& e : entries_) (e.*which)(now);
     }
     rate.sleep();
   }

@@ -4,11 +4,14 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
+#include <algorithm>
 #include <functional>
 #include <map>
 #include <string>
 
 #include "nursing_bed/AirbagState.h"
+#include "nursing_bed/BedState.h"
+#include "nursing_bed/SetPosture.h"
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetHeights.h"
 
@@ -27,6 +30,10 @@ class BedFixture : public ::testing::Test {
         const boost::function<void(const AirbagState::ConstPtr&)> on_state = [this](const AirbagState::ConstPtr& m) {
           states_[m->cell_id] = *m;
           ++counts_[m->cell_id];
+          const ros::WallTime now = ros::WallTime::now();
+          ros::WallTime& last = arrived_[m->cell_id];
+          if (!last.isZero()) max_gap_s_ = std::max(max_gap_s_, (now - last).toSec());
+          last = now;
         };
         subs_.push_back(nh_.subscribe<AirbagState>(ns + "/state", 10, on_state));
       }
@@ -86,6 +93,39 @@ class BedFixture : public ::testing::Test {
   std::vector<ros::Subscriber> subs_;
   std::map<uint32_t, AirbagState> states_;
   std::map<uint32_t, int> counts_;
+  std::map<uint32_t, ros::WallTime> arrived_;  ///< when each cell's last state arrived
+  double max_gap_s_ = 0.0;                     ///< largest gap between two states of a cell [s]
+};
+
+/// BedFixture with the bed manager's state and its posture service.
+class PlanFixture : public BedFixture {
+ protected:
+  void SetUp() override {
+    BedFixture::SetUp();
+    const boost::function<void(const BedState::ConstPtr&)> on_bed = [this](const BedState::ConstPtr& m) { bed_ = *m; };
+    bed_sub_ = nh_.subscribe<BedState>("/bed_manager/state", 5, on_bed);
+    ASSERT_TRUE(waitFor([this] { return !bed_.header.stamp.isZero(); }, 10.0));
+  }
+
+  SetPosture::Response posture(const std::string& plan, const std::vector<std::string>& keys = {},
+                               const std::vector<std::string>& values = {}) {
+    SetPosture srv;
+    srv.request.plan = plan;
+    srv.request.keys = keys;
+    srv.request.values = values;
+    EXPECT_TRUE(ros::service::waitForService("/bed_manager/set_posture", ros::Duration(10.0)));
+    EXPECT_TRUE(ros::service::call("/bed_manager/set_posture", srv));
+    return srv.response;
+  }
+
+  std::map<uint32_t, double> uniform(double h) const {
+    std::map<uint32_t, double> m;
+    for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id) m[id] = h;
+    return m;
+  }
+
+  BedState bed_;
+  ros::Subscriber bed_sub_;
 };
 
 }  // namespace test

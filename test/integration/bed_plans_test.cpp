@@ -6,41 +6,9 @@
 #include <cmath>
 
 #include "bed_fixture.h"
-#include "nursing_bed/BedState.h"
-#include "nursing_bed/SetPosture.h"
 
 namespace nursing_bed {
 namespace test {
-
-class PlanFixture : public BedFixture {
- protected:
-  void SetUp() override {
-    BedFixture::SetUp();
-    const boost::function<void(const BedState::ConstPtr&)> on_bed = [this](const BedState::ConstPtr& m) { bed_ = *m; };
-    bed_sub_ = nh_.subscribe<BedState>("/bed_manager/state", 5, on_bed);
-    ASSERT_TRUE(waitFor([this] { return !bed_.header.stamp.isZero(); }, 10.0));
-  }
-
-  SetPosture::Response posture(const std::string& plan, const std::vector<std::string>& keys = {},
-                               const std::vector<std::string>& values = {}) {
-    SetPosture srv;
-    srv.request.plan = plan;
-    srv.request.keys = keys;
-    srv.request.values = values;
-    EXPECT_TRUE(ros::service::waitForService("/bed_manager/set_posture", ros::Duration(10.0)));
-    EXPECT_TRUE(ros::service::call("/bed_manager/set_posture", srv));
-    return srv.response;
-  }
-
-  std::map<uint32_t, double> uniform(double h) const {
-    std::map<uint32_t, double> m;
-    for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id) m[id] = h;
-    return m;
-  }
-
-  BedState bed_;
-  ros::Subscriber bed_sub_;
-};
 
 // Alternating: watched on the real cells for two periods; the period comes from ~period_s.
 TEST_F(PlanFixture, AlternatingNeverLowersTwoAdjacentRowsAndKeepsItsPeriod) {

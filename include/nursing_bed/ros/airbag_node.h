@@ -5,6 +5,7 @@
 
 #include <ros/ros.h>
 
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -13,6 +14,7 @@
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/ros/bed_layout.h"
+#include <std_msgs/Bool.h>
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
 #include <std_msgs/Float64MultiArray.h>
@@ -50,14 +52,27 @@ class AirbagNode {
   static AirbagNodeParams loadParams(const ros::NodeHandle& private_nh);
 
  private:
-  /// Advances the cell to `now` and publishes its state (called by the process's CellTicker).
+  /// Advances the cell to `now` (called by the process's CellTicker on its simulation thread).
   void update(const ros::Time& now);
+  /// Publishes the state the cell has reached, stamped with its simulated time (the ticker's
+  /// publishing thread, so a slow simulation round never silences the cell).
+  void publish(const ros::Time& now);
+  /// A height request from the service or the manager's topic (the manager has rate-limited it):
+  /// empty when accepted, else why not (nothing changes).
+  std::string request(double height_m, const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
   void onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
   void onVent(const std_msgs::Empty::ConstPtr& msg);
   void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
+  void onCpr(const std_msgs::Bool::ConstPtr& msg);
+  /// Applies an external load from a topic, refusing bad ones with a throttled error naming `source`.
+  void applyLoad(double load_n, const char* source);
+  /// True while the bed manager streams setpoints to this cell (it owns the cell then).
+  bool ownedByManager(const ros::Time& now) const;
+  /// A streamed command or heartbeat arrived: feed (and on the first one arm) the watchdog.
+  void feedWatchdog(const ros::Time& now);
   void publishState(const ros::Time& stamp);
   double elapsed(const ros::Time& now) const { return (now - start_).toSec(); }
 
@@ -66,11 +81,17 @@ class AirbagNode {
   CellLayout layout_;
   std::unique_ptr<AirbagCell> cell_;
   std::mutex mutex_;  // callbacks may run on several nodelet worker threads
-  ros::Time start_, last_publish_;
+  ros::Time start_, last_publish_, last_publish_wall_;
+  double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
+  std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have
+  ros::Time manager_setpoint_at_;        ///< last setpoint on the manager's topic
+  /// The command watchdog is armed by the first streamed command (heartbeat or setpoint topic):
+  /// it guards a commander that streams, not a one-off service call.
+  bool watchdog_armed_ = false;
   double metered_mass_at_publish_kg_ = 0.0;  ///< the cell's flow totaliser at the last AirbagState
   double inlet_opening_at_publish_s_ = 0.0, vent_opening_at_publish_s_ = 0.0;  ///< valve integrals then
   ros::Publisher state_pub_, pressure_pub_;
-  ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_;
+  ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_, bed_heartbeat_sub_, cpr_sub_;
   ros::ServiceServer set_height_srv_;
   int ticker_handle_ = -1;
 };

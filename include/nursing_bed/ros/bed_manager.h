@@ -16,6 +16,8 @@
 #include "nursing_bed/SetHeights.h"
 #include "nursing_bed/SetPosture.h"
 #include "nursing_bed/core/bed/posture_plans.h"
+#include "nursing_bed/core/control/rate_limiter.h"
+#include <std_msgs/Bool.h>
 #include "nursing_bed/ros/bed_layout.h"
 
 namespace nursing_bed {
@@ -26,11 +28,14 @@ struct BedManagerParams {
   std::string cells_ns = "/";                            ///< ~cells_ns: where the airbag_<r>_<c> nodes live
   double joint_state_rate_hz = 30.0;                     ///< ~joint_state_rate_hz
   double plan_rate_hz = 10.0;                            ///< ~plan_rate_hz: plan evaluation and ~state rate
-  double cell_timeout_s = 0.3;                           ///< ~cell_timeout_s: a cell silent this long is dead
+  double cell_timeout_s = 0.5;                           ///< ~cell_timeout_s: a cell silent this long is dead
   double diagnostics_rate_hz = 5.0;                      ///< ~diagnostics_rate_hz: /diagnostics rate
   double resend_s = 1.0;                                 ///< ~resend_s: setpoints and vents are repeated this often
   double leak_alarm_error_m = 0.01;                      ///< ~leak_alarm_error_m: a cell this far below its target ...
   double leak_alarm_s = 15.0;                            ///< ~leak_alarm_s: ... for this long raises the leak alarm
+  /// Fastest change of a cell's target outside CPR [m/s]: the cells' safety/max_height_rate_m_s
+  /// (read from ~defaults_ns, one value for the cells and the plans).
+  double max_height_rate_m_s = 0.02;
   std::string initial_plan;                              ///< ~initial_plan: plan started at launch ("": none)
   PlanConfig plans;                                      ///< ~plans/...
   BodyFootprint body;                                    ///< ~body/first_row, last_row, center_y_m
@@ -46,6 +51,7 @@ class BedManager {
   struct Running {
     std::shared_ptr<PosturePlan> plan;
     ros::Time start;
+    PlanRequest request;  ///< what made it (kept on the parameter server to resume it)
   };
 
   void onState(const AirbagState::ConstPtr& msg);
@@ -60,10 +66,26 @@ class BedManager {
   std::string checkCells(const std::vector<uint32_t>& ids, const std::vector<double>& heights) const;
   /// Manual heights: the current targets with these cells changed, as a custom plan.
   bool applyHeights(const std::vector<uint32_t>& ids, const std::vector<double>& heights, std::string* message);
-  /// Starts a plan (mutex_ held); max_inflate keeps the plan it interrupts to revert to.
-  void start(std::shared_ptr<PosturePlan> plan, const ros::Time& now);
+  /// Starts a plan (mutex_ held); max_inflate keeps the plan it interrupts to revert to. The
+  /// request is saved under ~resume so that a restarted manager resumes it.
+  void start(std::shared_ptr<PosturePlan> plan, const PlanRequest& request, const ros::Time& now);
+  /// The manager's own level plan at `height_m` (safe_level), with its request.
+  void startSafeLevel(double height_m, const ros::Time& now);
+  /// Saves the running plan's request and start under ~resume.
+  void saveResume() const;
+  /// Resumes the plan a previous manager saved under ~resume; false when there is none.
+  bool resume();
+  /// Height the bed levels at when a cell fails: the mean of the healthy cells' heights, within
+  /// the plan limits (the nominal height when none is known).
+  double safeLevel() const;
+  /// The plan's targets through the rate limiter (every cell rate and the roll under the body).
+  std::vector<double> limitTargets(const std::vector<double>& wanted, double dt_s);
+  void onCpr(const std_msgs::Bool::ConstPtr& msg);
+  void publishCpr(bool on);
   /// Cells that stopped reporting or report faults; moves the bed to its safe level (mutex_ held).
   void watchCells(const ros::Time& now);
+  /// The leak / low-pressure alarm of one cell (mutex_ held).
+  void watchLeak(const CellLayout& c, bool silent, const ros::Time& now);
   void sendTargets(const PlanTargets& targets, const ros::Time& now);
   BedGrid grid() const;
 
@@ -81,7 +103,14 @@ class BedManager {
   Running running_, interrupted_;
   ros::Time started_;
   PlanTargets last_targets_;
+  std::unique_ptr<RateLimiter> limiter_;
+  std::vector<double> limited_m_;             // rate-limited targets sent, by cell id (NaN: none)
+  ros::Time last_step_;
+  int cpr_published_ = -1;                    // last /cpr sent (-1: none)
+  bool resumed_ = false;                      // this manager resumed a previous one's plan
   std::vector<ros::Subscriber> state_subs_;
+  ros::Subscriber cpr_sub_;
+  ros::Publisher heartbeat_pub_, cpr_pub_;
   std::vector<ros::Publisher> setpoint_pubs_, vent_pubs_;  // by cell id
   ros::Publisher joint_state_pub_, diagnostics_pub_, state_pub_;
   ros::ServiceServer set_height_srv_, set_heights_srv_, set_posture_srv_;

@@ -1,6 +1,10 @@
-// One clock thread per process that advances every airbag in it. roscpp's timer manager
-// searches its timers linearly on every expiry, so 180 nodelet timers in one manager spend most
-// of their CPU there (measured: 57 %); a single ticker keeps the cost per cell constant.
+// One clock thread per process that advances every airbag in it, and a second one that publishes
+// their states. roscpp's timer manager searches its timers linearly on every expiry, so 180
+// nodelet timers in one manager spend most of their CPU there (measured: 57 %); a single ticker
+// keeps the cost per cell constant. Publishing has its own thread because simulating the plants
+// can take longer than a period for a moment (every cell filling from flat at once after CPR
+// costs ~1000 integration sub-steps each): the cells' controllers stay alive meanwhile, and the
+// states they publish say so, stamped with the simulated time they describe (doc/safety.md).
 #pragma once
 
 #include <ros/time.h>
@@ -21,24 +25,30 @@ class CellTicker {
   /// first rate wins, so every airbag in a process should use the same rate).
   static CellTicker& instance(double rate_hz);
 
-  /// Registers a callback; returns a handle for remove(). Thread-safe.
-  int add(Tick tick);
-  /// Unregisters; when it returns the callback is not running and will not run again.
+  /// Registers an airbag: `advance` runs on the simulation thread, `publish` on the publishing
+  /// thread, both every period. Returns a handle for remove(). Thread-safe.
+  int add(Tick advance, Tick publish);
+  /// Unregisters; when it returns neither callback is running or will run again.
   void remove(int handle);
   double rateHz() const { return rate_hz_; }
 
   ~CellTicker();
 
  private:
+  struct Entry {
+    int handle;
+    Tick advance, publish;
+  };
   explicit CellTicker(double rate_hz);
-  void run();
+  /// Calls `which` of every entry at `rate_hz_`, holding `round` during each round.
+  void run(Tick Entry::*which, std::mutex* round);
 
   double rate_hz_;
-  std::mutex mutex_;
-  std::vector<std::pair<int, Tick>> ticks_;
+  std::mutex advance_round_, publish_round_;  // the list changes only with both held
+  std::vector<Entry> entries_;
   int next_handle_ = 0;
   std::atomic<bool> stop_{false};
-  std::thread thread_;
+  std::thread advance_thread_, publish_thread_;
 };
 
 }  // namespace nursing_bed

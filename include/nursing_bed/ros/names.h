@@ -19,6 +19,9 @@ constexpr const char* kHeartbeat = "heartbeat";            // std_msgs/Empty: co
 constexpr const char* kCellLoads = "/airbag_loads";        // std_msgs/Float64MultiArray [N], index = cell id
 constexpr const char* kJointStates = "/joint_states";      // sensor_msgs/JointState, cell heights
 constexpr const char* kDefaultsNamespace = "/airbag_defaults";
+constexpr const char* kCpr = "/cpr";                       // std_msgs/Bool, latched: bed-wide CPR on/off
+constexpr const char* kBedHeartbeat = "/bed_manager/heartbeat";  // std_msgs/Empty: the manager is alive
+constexpr const char* kResumeParam = "resume";             // ~resume/...: the bed manager's running plan
 
 /// Node name of the airbag at (row, col): "airbag_<row>_<col>".
 inline std::string airbagName(int row, int col) {

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cctype>
+#include <cstdlib>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -43,15 +46,14 @@ class Args {
       if (required) fail("needs " + key);
       return fallback;
     }
-    std::size_t pos = 0;
     double v = 0.0;
-    try {
-      v = std::stod(it->second, &pos);
-    } catch (const std::exception&) {
-      pos = 0;
+    if (!parseDecimal(it->second, &v)) {
+      const std::string lower = lowered(it->second);
+      if (lower.find("nan") != std::string::npos || lower.find("inf") != std::string::npos ||
+          std::isinf(std::strtod(it->second.c_str(), nullptr)))
+        fail(key + " must be finite");
+      fail(key + " must be a number (decimal digits only), got '" + it->second + "'");
     }
-    if (pos == 0 || pos != it->second.size()) fail(key + " must be a number, got '" + it->second + "'");
-    if (!std::isfinite(v)) fail(key + " must be finite");
     if (v < lo || v > hi) {
       std::ostringstream m;
       m << key << " = " << v << " is outside [" << lo << ", " << hi << "]";
@@ -82,6 +84,10 @@ class Args {
   [[noreturn]] void fail(const std::string& what) const { throw std::invalid_argument(plan_ + ": " + what); }
 
  private:
+  static std::string lowered(std::string s) {
+    for (char& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return s;
+  }
   static std::string join(const std::vector<std::string>& v) {
     std::string s;
     for (const auto& w : v) s += (s.empty() ? "" : "|") + w;
@@ -246,6 +252,29 @@ class AlternatingPlan : public PosturePlan {
 };
 
 }  // namespace
+
+bool parseDecimal(const std::string& text, double* value) {
+  // [sign] digits [. digits] [e [sign] digits], at least one digit in the mantissa.
+  static const std::regex decimal(R"(^[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?$)");
+  if (!std::regex_match(text, decimal)) return false;
+  const double v = std::strtod(text.c_str(), nullptr);
+  if (!std::isfinite(v)) return false;
+  *value = v;
+  return true;
+}
+
+std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body) {
+  std::vector<double> w(grid.cells(), 0.0);
+  const int first = std::max(0, body.first_row), last = std::min(grid.rows - 1, body.last_row);
+  if (grid.cols < 2 || last < first) return w;
+  double mean_y = 0.0, syy = 0.0;
+  for (int c = 0; c < grid.cols; ++c) mean_y += grid.y(c) / grid.cols;
+  for (int c = 0; c < grid.cols; ++c) syy += (grid.y(c) - mean_y) * (grid.y(c) - mean_y);
+  const int rows = last - first + 1;
+  for (int r = first; r <= last; ++r)
+    for (int c = 0; c < grid.cols; ++c) w[grid.id(r, c)] = (grid.y(c) - mean_y) / (syy * rows);
+  return w;
+}
 
 std::unique_ptr<PosturePlan> makeSafeLevelPlan(const BedGrid& grid, double height_m) {
   return std::make_unique<UniformPlan>("safe_level", grid, height_m, 0.0);

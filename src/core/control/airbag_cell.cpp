@@ -15,6 +15,9 @@ std::string AirbagSafetyParams::validate() const {
   if (!(command_timeout_s >= 0.0)) err << "command_timeout_s must be >= 0; ";
   if (!(sensor_pressure_max_pa > sensor_pressure_min_pa)) err << "sensor pressure range is empty; ";
   if (!(sensor_height_max_m > sensor_height_min_m)) err << "sensor height range is empty; ";
+  if (!(max_load_n > 0.0 && std::isfinite(max_load_n))) err << "max_load_n must be a positive finite load; ";
+  if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
+    err << "max_height_rate_m_s must be a positive finite rate; ";
   std::string s = err.str();
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
@@ -75,16 +78,39 @@ void AirbagCell::resetToHeight(double height_m, double load_n) {
   last_pressure_pa_ = measurement_.gauge_pressure_pa;
 }
 
-std::string AirbagCell::checkHeight(double height_m) const { return controller_.checkSetpoint(height_m); }
+std::string AirbagCell::checkHeight(double height_m) const {
+  if (cpr_) return "CPR is running (bed-wide): no cell is inflated until it ends";
+  return controller_.checkSetpoint(height_m);
+}
 
 std::string AirbagCell::requestHeight(double height_m, double now_s) {
   const std::string error = checkHeight(height_m);
   if (!error.empty()) return error;
   controller_.setTarget(height_m);
   mode_ = AirbagMode::kHeight;
-  faults_ &= ~kFaultCommandTimeout;
+  faults_ &= ~(kFaultCommandTimeout | kFaultModel);
   last_command_s_ = now_s;
   return "";
+}
+
+void AirbagCell::setCpr(bool on, double now_s) {
+  if (on) requestVent(now_s);
+  else if (cpr_ && mode_ == AirbagMode::kVent) mode_ = AirbagMode::kIdle;
+  cpr_ = on;
+}
+
+std::string AirbagCell::checkLoad(double load_n) const {
+  if (std::isfinite(load_n) && load_n >= 0.0 && load_n <= params_.safety.max_load_n) return "";
+  std::ostringstream msg;
+  msg << "load " << load_n << " N refused: must be finite and within [0, " << params_.safety.max_load_n
+      << "] N (safety/max_load_n)";
+  return msg.str();
+}
+
+std::string AirbagCell::setLoad(double load_n) {
+  std::string error = checkLoad(load_n);
+  if (error.empty()) load_n_ = load_n;
+  return error;
 }
 
 void AirbagCell::requestVent(double now_s) {
@@ -118,7 +144,10 @@ void AirbagCell::advanceTo(double now_s) {
     in.inlet_opening = valves_.inlet;
     in.vent_opening = valves_.vent;
     in.vent_back_pressure_pa = mode_ == AirbagMode::kVent ? params_.cpr_vacuum_pa : 0.0;
-    model_.advance(period, in);
+    if (!plantStep(in)) {
+      resetAfterModelFault();
+      continue;
+    }
     // The valve holds over the period: its end flow stands for the period.
     metered_inlet_mass_kg_ += model_.measure().inflow_kg_s * period;
     inlet_opening_s_ += valves_.inlet * period;
@@ -127,6 +156,33 @@ void AirbagCell::advanceTo(double now_s) {
     // (read at the start instead, a recording's pressure lagged its metered gas by a period).
     sense();
   }
+}
+
+bool AirbagCell::plantStep(const CellInputs& in) {
+  try {
+    model_.advance(params_.control_period_s, in);
+  } catch (const std::exception&) {
+    return false;
+  }
+  // What an absurd input left behind (seen: volume -0.05 m^3, 1.4 K). No upper bound on the
+  // temperature: the nominal model heats the last milligram of gas to ~1400 K for a few ms when
+  // CPR's vacuum empties the cell onto its dead volume, and recovers by itself.
+  const CellVariables& v = model_.variables();
+  return model_.state().allFinite() && v.structure.volume_m3 > 0.0 && v.mass_kg > 0.0 && v.temperature_k > 10.0 &&
+         std::isfinite(v.gauge_pressure_pa) && std::isfinite(v.height_m);
+}
+
+void AirbagCell::resetAfterModelFault() {
+  const double time = model_.time() + params_.control_period_s;
+  model_.reset(load_n_);
+  CellModel::StateVector state = model_.state();
+  model_.setState(time, state);
+  controller_.clearTarget();
+  valves_ = ValveCommand{};
+  mode_ = AirbagMode::kSafe;
+  faults_ |= kFaultModel;
+  last_pressure_pa_ = 0.0;
+  sense();
 }
 
 void AirbagCell::sense() {

@@ -31,6 +31,8 @@ ParamTable<P> makeFields() {
       NB_FIELD("safety/sensor_pressure_max_pa", "pressure readings above are a sensor fault [Pa]", p.safety.sensor_pressure_max_pa),
       NB_FIELD("safety/sensor_height_min_m", "height readings below are a sensor fault [m]", p.safety.sensor_height_min_m),
       NB_FIELD("safety/sensor_height_max_m", "height readings above are a sensor fault [m]", p.safety.sensor_height_max_m),
+      NB_FIELD("safety/max_load_n", "largest external load a cell accepts; larger ones are refused [N]", p.safety.max_load_n),
+      NB_FIELD("safety/max_height_rate_m_s", "fastest change of a cell's height target outside CPR [m/s]", p.safety.max_height_rate_m_s),
       NB_FIELD("cpr/vacuum_pa", "gauge pressure at the vents while venting for CPR; 0 = ambient [Pa]", p.cpr_vacuum_pa),
       NB_FIELD("sensors/pressure_noise_pa", "standard deviation of the pressure sensor's noise [Pa]", p.pressure_noise_pa),
       NB_FIELD("sensors/height_noise_m", "standard deviation of the height sensor's noise [m]", p.height_noise_m),

@@ -50,6 +50,12 @@ std::string CellParams::validate() const {
   non_negative("vent_area_m2", vent_area_m2);
   non_negative("leak_area_m2", leak_area_m2);
   positive("orifice_linear_band_pa", orifice_linear_band_pa);
+  positive("relief_cracking_pressure_pa", relief_cracking_pressure_pa);
+  check(relief_full_open_pressure_pa > relief_cracking_pressure_pa && std::isfinite(relief_full_open_pressure_pa),
+        "relief_full_open_pressure_pa", relief_full_open_pressure_pa, "must exceed the cracking pressure");
+  non_negative("relief_sonic_conductance_m3_s_pa", relief_sonic_conductance_m3_s_pa);
+  check(relief_critical_ratio >= 0.0 && relief_critical_ratio < 1.0, "relief_critical_ratio", relief_critical_ratio,
+        "must lie in [0, 1)");
   check(time_step_s > 0.0 && time_step_s <= 0.05, "time_step_s", time_step_s, "must lie in (0, 0.05] s");
   check(jacobian_refresh_steps >= 1 && jacobian_refresh_steps <= 100, "jacobian_refresh_steps",
         jacobian_refresh_steps, "must lie in 1..100");
@@ -58,6 +64,12 @@ std::string CellParams::validate() const {
   std::string s = err.str();
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
+}
+
+double CellParams::reliefOpening(double gauge_pressure_pa) const {
+  return std::clamp((gauge_pressure_pa - relief_cracking_pressure_pa) /
+                        (relief_full_open_pressure_pa - relief_cracking_pressure_pa),
+                    0.0, 1.0);
 }
 
 CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructure> structure)
@@ -193,6 +205,12 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
                   params_.ambient_pressure_pa + in.vent_back_pressure_pa, params_.ambient_temperature_k,
                   params_.orifice_linear_band_pa);
   const OrificeFlow leak = outflow(params_.leak_area_m2);
+  const double relief_opening = params_.reliefOpening(v.gauge_pressure_pa);
+  const double relief_kg_s =
+      relief_opening > 0.0 ? relief_opening * iso6358MassFlow(params_.relief_sonic_conductance_m3_s_pa,
+                                                              params_.relief_critical_ratio, v.pressure_pa,
+                                                              v.temperature_k, params_.ambient_pressure_pa)
+                           : 0.0;
   v.vent_flow_kg_s = vent.mass_flow_kg_s;
   v.leak_flow_kg_s = leak.mass_flow_kg_s;
 
@@ -210,9 +228,10 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
   }
 
   // Mass (eq. 17) and energy: dU/dt = sum mdot h + Q - p dV/dt (eq. 12-16 generalised to flow).
-  const double outflow_enthalpy_w =
-      vent.mass_flow_kg_s * cp * vent.upstream_temperature_k + leak.mass_flow_kg_s * cp * leak.upstream_temperature_k;
-  dx[kMass] = v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s + terms.mass_flow_kg_s;
+  const double outflow_enthalpy_w = vent.mass_flow_kg_s * cp * vent.upstream_temperature_k +
+                                    leak.mass_flow_kg_s * cp * leak.upstream_temperature_k +
+                                    relief_kg_s * cp * v.temperature_k;
+  dx[kMass] = v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - relief_kg_s + terms.mass_flow_kg_s;
   // Film shape relaxes towards dW/dq = p_gauge dV/dq.
   double volume_rate = s.effective_area_m2 * v.velocity_m_s;
   for (int i = 0; i < shape_dofs_; ++i) {

@@ -71,4 +71,15 @@ OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, doub
   return out;
 }
 
+double iso6358MassFlow(double sonic_conductance_m3_s_pa, double critical_ratio, double p_up_pa, double t_up_k,
+                       double p_down_pa) {
+  if (sonic_conductance_m3_s_pa <= 0.0 || p_up_pa <= 0.0 || p_down_pa >= p_up_pa) return 0.0;
+  const double choked = sonic_conductance_m3_s_pa * kIso6358ReferenceDensityKgM3 * p_up_pa *
+                        std::sqrt(kIso6358ReferenceTemperatureK / t_up_k);
+  const double r = std::max(p_down_pa, 0.0) / p_up_pa;
+  if (r <= critical_ratio) return choked;
+  const double x = (r - critical_ratio) / (1.0 - critical_ratio);
+  return choked * std::sqrt(std::max(0.0, 1.0 - x * x));
+}
+
 }  // namespace nursing_bed

@@ -129,3 +129,46 @@ TEST(PosturePlans, ConfigValidation) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(PosturePlans, NumbersAreParsedStrictly) {
+  for (const char* bad : {"0x14", "20abc", " 20", "20 ", "1e", "", "+", ".", "0x1p4", "infinity", "1e999"}) {
+    double v = -1.0;
+    EXPECT_FALSE(nb::parseDecimal(bad, &v)) << "'" << bad << "'";
+    EXPECT_EQ(v, -1.0) << bad;
+  }
+  for (const auto& [text, value] : std::vector<std::pair<const char*, double>>{
+           {"20", 20.0}, {"-0.5", -0.5}, {"+1.5e1", 15.0}, {".5", 0.5}, {"5.", 5.0}, {"2E-2", 0.02}}) {
+    double v = 0.0;
+    EXPECT_TRUE(nb::parseDecimal(text, &v)) << text;
+    EXPECT_DOUBLE_EQ(v, value) << text;
+  }
+  expectRefused("lateral_turn", {{"side", "left"}, {"angle_deg", "0x14"}}, "must be a number");
+  expectRefused("flat", {{"height_m", "inf"}}, "finite");
+}
+
+TEST(PosturePlans, RollSlopeWeightsGiveTheLateralSlopeUnderTheBody) {
+  const std::vector<double> w = nb::rollSlopeWeights(kGrid, kBody);
+  ASSERT_EQ(w.size(), static_cast<std::size_t>(kGrid.cells()));
+  // A plane h = 0.1 + s y under the body (and anything beyond it) gives back s.
+  const double s = std::tan(15.0 * M_PI / 180.0);
+  double slope = 0.0, flat = 0.0;
+  for (int r = 0; r < kGrid.rows; ++r)
+    for (int c = 0; c < kGrid.cols; ++c) {
+      const double h = r <= kBody.last_row ? 0.1 + s * kGrid.y(c) : 0.3 * c;
+      slope += w[kGrid.id(r, c)] * h;
+      flat += w[kGrid.id(r, c)] * 0.1;
+    }
+  EXPECT_NEAR(slope, s, 1e-12);
+  EXPECT_NEAR(flat, 0.0, 1e-12);
+  // A turn plan's targets: the slope follows the commanded tilt (less where heights are clamped).
+  auto turn = make("lateral_turn", {{"side", "left"}, {"angle_deg", "10"}});
+  ASSERT_NE(turn, nullptr);
+  const nb::PlanTargets t = turn->targets(100.0);  // dwell
+  double turned = 0.0;
+  for (std::size_t i = 0; i < w.size(); ++i) turned += w[i] * t.heights_m[i];
+  EXPECT_NEAR(std::atan(turned) * 180.0 / M_PI, -10.0, 0.5);
+}
+
+}  // namespace

@@ -1,6 +1,7 @@
 // Height controller and the airbag cell's safety layer, on the plant model (no ROS).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "nursing_bed/core/control/airbag_cell.h"
@@ -231,6 +232,90 @@ TEST(FlowLimit, MinimumTimeGrowsWithTheMove) {
   EXPECT_GT(short_move, 0.0);
   EXPECT_GT(long_move, short_move);
   EXPECT_TRUE(std::isnan(nb::flowLimitedMinimumTime(p, 15.6, 0.02, 0.5)));
+}
+
+}  // namespace
+
+namespace {
+
+// Loads: what a cell accepts, and that nothing it refuses changes it.
+TEST(AirbagCellSafety, AbsurdLoadsAreRefusedAndChangeNothing) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.10, 10.6);
+  for (double bad : std::vector<double>{std::nan(""), HUGE_VAL, -HUGE_VAL, -1.0, 1e9, -1e9, 1000.1, 1e6}) {
+    const std::string error = cell.setLoad(bad);
+    EXPECT_NE(error.find("max_load_n"), std::string::npos) << bad << ": " << error;
+    EXPECT_EQ(cell.load(), 10.6) << bad;
+  }
+  EXPECT_EQ(cell.setLoad(300.0), "");
+  EXPECT_EQ(cell.load(), 300.0);
+}
+
+// A solve that leaves the plant in an invalid state resets the cell into a fault; a new
+// height request recovers it.
+TEST(AirbagCellSafety, AnInvalidPlantStateResetsIntoAFaultAndRecovers) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.10, 10.6);
+  nb::CellModel::StateVector broken = cell.model().state();
+  broken[nb::CellModel::kEnergy] = -1.0;  // what 1e9 N did before: a negative temperature
+  const_cast<nb::CellModel&>(cell.model()).setState(cell.time(), broken);
+  cell.advanceTo(cell.time() + 0.02);
+  EXPECT_TRUE(cell.faults() & nb::kFaultModel);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kSafe);
+  EXPECT_GT(cell.variables().structure.volume_m3, 0.0);
+  EXPECT_GT(cell.variables().temperature_k, 250.0);
+  ASSERT_EQ(cell.requestHeight(0.05, cell.time()), "");
+  EXPECT_FALSE(cell.faults() & nb::kFaultModel);
+  cell.advanceTo(cell.time() + 4.0);
+  EXPECT_NEAR(cell.measurement().height_m, 0.05, 2e-3);
+}
+
+// Bed-wide CPR: the cell vents and refuses every height until CPR is off; then it holds.
+TEST(AirbagCellSafety, CprIsExclusive) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.10, 10.6);
+  cell.setCpr(true, 0.0);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
+  EXPECT_NE(cell.requestHeight(0.15, 0.1).find("CPR"), std::string::npos);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
+  cell.advanceTo(3.0);
+  EXPECT_LT(cell.measurement().height_m, 0.01);
+  cell.setCpr(false, 3.0);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kIdle);
+  EXPECT_EQ(cell.requestHeight(0.05, 3.0), "");
+}
+
+}  // namespace
+
+namespace {
+
+// Peak gauge pressure [Pa] of a cell holding 0.10 m under 10.6 N when the outside load steps to
+// `load_n` over `rise_s`.
+double peakPressureUnderLoadStep(const nb::AirbagCellParams& params, double load_n, double rise_s) {
+  nb::AirbagCell cell(params);
+  cell.resetToHeight(0.10, 10.6);
+  EXPECT_EQ(cell.requestHeight(0.10, 0.0), "");
+  cell.advanceTo(1.0);
+  double peak = 0.0;
+  for (double t = 1.0; t < 3.0; t += 0.001) {
+    const double f = rise_s > 0.0 ? std::min(1.0, (t - 1.0) / rise_s) : 1.0;
+    cell.setLoad(10.6 + f * (load_n - 10.6));
+    cell.advanceTo(t);
+    peak = std::max(peak, cell.variables().gauge_pressure_pa);
+  }
+  return peak;
+}
+
+// Relief under outside load: the relief valve (ISO 6358, beside the vent) holds a sudden 300 N
+// on an inflated cell within relief + 10 %; without it the vent alone is outrun.
+TEST(AirbagCellSafety, ReliefValveHoldsSuddenOutsideLoads) {
+  nb::AirbagCellParams params;
+  params.cell.supply_pressure_pa = 30000.0;  // the bed's supply (sim.launch)
+  const double limit = 1.1 * params.safety.relief_pressure_pa;
+  for (double load : {150.0, 300.0})
+    for (double rise : {0.0, 0.05}) EXPECT_LE(peakPressureUnderLoadStep(params, load, rise), limit) << load << " N";
+  params.cell.relief_sonic_conductance_m3_s_pa = 0.0;
+  EXPECT_GT(peakPressureUnderLoadStep(params, 300.0, 0.0), limit) << "the vent alone would have held it";
 }
 
 }  // namespace

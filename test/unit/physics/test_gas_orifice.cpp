@@ -102,3 +102,23 @@ TEST(Orifice, ClosedValvePassesNothing) {
 }
 
 }  // namespace
+
+namespace {
+
+// ISO 6358: choked below b, the elliptic law above it, continuous at b, nothing without a
+// pressure drop or a conductance.
+TEST(Iso6358, ChokedAndSubsonicFlowMeetAtTheCriticalRatio) {
+  const double c = 1.5e-7, b = 0.3, p_up = 136325.0, t = 293.15;
+  const double choked = nb::iso6358MassFlow(c, b, p_up, t, 0.2 * p_up);
+  EXPECT_NEAR(choked, c * nb::kIso6358ReferenceDensityKgM3 * p_up, 1e-12);
+  EXPECT_NEAR(nb::iso6358MassFlow(c, b, p_up, t, b * p_up), choked, 1e-12);
+  EXPECT_NEAR(nb::iso6358MassFlow(c, b, p_up, t, (b + 1e-9) * p_up), choked, 1e-9 * choked);
+  const double r = 0.65, x = (r - b) / (1.0 - b);
+  EXPECT_NEAR(nb::iso6358MassFlow(c, b, p_up, t, r * p_up), choked * std::sqrt(1.0 - x * x), 1e-12);
+  EXPECT_NEAR(nb::iso6358MassFlow(c, b, p_up, 4.0 * t, 0.0), 0.5 * choked, 1e-12);  // sqrt(T0/T)
+  EXPECT_EQ(nb::iso6358MassFlow(c, b, p_up, t, p_up), 0.0);
+  EXPECT_EQ(nb::iso6358MassFlow(c, b, p_up, t, 2.0 * p_up), 0.0);
+  EXPECT_EQ(nb::iso6358MassFlow(0.0, b, p_up, t, 0.0), 0.0);
+}
+
+}  // namespace

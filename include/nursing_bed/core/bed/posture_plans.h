@@ -81,6 +81,15 @@ std::unique_ptr<PosturePlan> makePlan(const PlanRequest& request, const PlanConf
 std::unique_ptr<PosturePlan> makeSafeLevelPlan(const BedGrid& grid, double height_m);
 std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m);
 
+/// Weights w (per cell id) of the least-squares lateral slope dh/dy of the cells under the body
+/// (rows body.first_row..last_row): sum w_i h_i is that slope, atan of it the bed's roll under
+/// the patient (what the rate limiter bounds; a plane of cells rolls the body by exactly it).
+std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body);
+
+/// Parses a plan argument strictly: a decimal number filling the whole text (no hex, no
+/// "inf"/"nan", no trailing characters). False when it is not one.
+bool parseDecimal(const std::string& text, double* value);
+
 /// Keys of PlanConfig for YAML and the parameter server ("plans/..." in the bed manager).
 const ParamTable<PlanConfig>& planConfigFields();
 

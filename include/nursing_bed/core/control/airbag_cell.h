@@ -20,6 +20,12 @@ struct AirbagSafetyParams {
   double sensor_pressure_max_pa = 150000.0;
   double sensor_height_min_m = -0.02;     ///< [m]
   double sensor_height_max_m = 0.40;      ///< [m]
+  /// Largest external load a cell accepts [N]; larger, negative or non-finite loads are refused
+  /// (a 100 mm face at the relief pressure carries about 300 N; default 1000 N).
+  double max_load_n = 1000.0;
+  /// Fastest change of a cell's height target outside CPR: the bed manager limits every target
+  /// it sends with it [m/s] (the core cell takes targets as given).
+  double max_height_rate_m_s = 0.02;
   std::string validate() const;
 };
 
@@ -46,6 +52,8 @@ enum AirbagFault : std::uint32_t {
   kFaultOverpressure = 2,
   kFaultCommandTimeout = 4,
   kFaultLowPressure = 8,
+  /// The plant's solve failed or left an invalid state: the cell was reset (flat, valves shut).
+  kFaultModel = 16,
 };
 
 class AirbagCell {
@@ -58,16 +66,27 @@ class AirbagCell {
   /// Plate at rest at `height_m` holding that height.
   void resetToHeight(double height_m, double load_n);
 
-  /// Empty when `height_m` is a valid setpoint, else why not (nothing changes then).
+  /// Empty when `height_m` is a valid setpoint now, else why not (nothing changes then); while
+  /// bed-wide CPR runs every height is refused.
   std::string checkHeight(double height_m) const;
   /// Sets the height setpoint at time `now_s`; returns checkHeight's message (empty: done).
   std::string requestHeight(double height_m, double now_s);
   /// Vents the cell as fast as the vent allows (CPR); a height request ends it.
   void requestVent(double now_s);
+  /// Bed-wide CPR: while on, the cell vents and refuses every height (nothing inflates it);
+  /// switched off, it holds its gas (idle) until a height is requested.
+  void setCpr(bool on, double now_s);
+  bool cpr() const { return cpr_; }
+
+  /// Empty when `load_n` is a load the cell accepts (finite, 0..safety.max_load_n), else why not.
+  std::string checkLoad(double load_n) const;
+  /// Sets the external load; returns checkLoad's message (empty: done, else nothing changes).
+  std::string setLoad(double load_n);
   /// Keeps the command watchdog alive without changing the setpoint.
   void heartbeat(double now_s);
+  /// Changes safety.command_timeout_s (0: off); the watchdog counts from the last command.
+  void setCommandTimeout(double timeout_s) { params_.safety.command_timeout_s = timeout_s; }
 
-  void setLoad(double load_n) { load_n_ = load_n; }
   void setSupplyPressure(double pressure_pa);
   /// Test hook: the sensors fail (read NaN) while set; read again at once.
   void setSensorFailure(bool failed) {
@@ -104,6 +123,11 @@ class AirbagCell {
 
  private:
   void controlStep();
+  /// One control period of the plant; false when its solve failed or left an invalid state.
+  bool plantStep(const CellInputs& in);
+  /// After a failed solve: the plant flat at rest, valves shut, mode SAFE, flag kFaultModel
+  /// (cleared by the next height request, which starts from the fresh state).
+  void resetAfterModelFault();
   /// Reads the sensors now (with their noise; NaN while failed) into measurement_.
   void sense();
 
@@ -121,6 +145,7 @@ class AirbagCell {
   double last_pressure_pa_ = 0.0;
   double last_command_s_ = 0.0;
   bool sensor_failed_ = false;
+  bool cpr_ = false;
   std::mt19937 rng_;
   std::normal_distribution<double> unit_noise_{0.0, 1.0};
 };

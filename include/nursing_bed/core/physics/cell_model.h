@@ -42,6 +42,16 @@ struct CellParams {
   double vent_area_m2 = 1.5e-5;                       ///< effective area Cd*A of the open vent valve
   double leak_area_m2 = 0.0;                          ///< effective area of seams/film leakage (eq. 17)
   double orifice_linear_band_pa = 100.0;              ///< smoothing band of orifice flow near dp = 0
+  /// Spring-loaded relief valve to ambient, beside the vent: closed below the cracking pressure,
+  /// opening in proportion to the gauge pressure up to fully open, flow after ISO 6358. It caps
+  /// the pressure a sudden outside load drives the gas to (the controller's relief acts through
+  /// the vent, which an outside load can outrun).
+  double relief_cracking_pressure_pa = 34000.0;       ///< gauge pressure where it starts to open
+  double relief_full_open_pressure_pa = 37000.0;      ///< gauge pressure where it is fully open
+  double relief_sonic_conductance_m3_s_pa = 1.5e-7;   ///< ISO 6358 C of the open valve; 0 = none
+  double relief_critical_ratio = 0.3;                 ///< ISO 6358 b [-]
+  /// Opening 0..1 of the relief valve at `gauge_pressure_pa`.
+  double reliefOpening(double gauge_pressure_pa) const;
 
   double time_step_s = 2.0e-3;                        ///< default (and largest) integration step
   int jacobian_refresh_steps = 8;                     ///< accepted steps between Jacobian updates

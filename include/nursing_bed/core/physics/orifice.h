@@ -34,4 +34,18 @@ OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, doub
 double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa,
                           double t_up_k, double p_down_pa);
 
+/// Reference density and temperature of ISO 6358's standard reference atmosphere (ANR).
+constexpr double kIso6358ReferenceDensityKgM3 = 1.185;
+constexpr double kIso6358ReferenceTemperatureK = 293.15;
+
+/**
+ * Mass flow of a pneumatic component rated after ISO 6358 (sonic conductance C, critical
+ * pressure ratio b), from the absolute pressure p_up at t_up to p_down [kg/s]; 0 when
+ * p_down >= p_up or C <= 0:
+ *   mdot = C rho0 p_up sqrt(T0 / T_up)                             for p_down / p_up <= b (choked),
+ *   mdot = C rho0 p_up sqrt(T0 / T_up) sqrt(1 - ((r - b)/(1 - b))^2)  above it (r = p_down / p_up).
+ */
+double iso6358MassFlow(double sonic_conductance_m3_s_pa, double critical_ratio, double p_up_pa, double t_up_k,
+                       double p_down_pa);
+
 }  // namespace nursing_bed
