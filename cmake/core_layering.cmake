@@ -8,8 +8,9 @@
 set(NURSING_BED_CORE_DOMAINS io physics control bed gap fe observer hardware)
 set(NURSING_BED_CORE_ALLOWED_io "")
 set(NURSING_BED_CORE_ALLOWED_physics io)
-set(NURSING_BED_CORE_ALLOWED_control io physics)
-set(NURSING_BED_CORE_ALLOWED_bed io physics control)
+# control runs the observer and reads and writes cells through the hardware boundary.
+set(NURSING_BED_CORE_ALLOWED_control io physics observer hardware)
+set(NURSING_BED_CORE_ALLOWED_bed io physics control observer hardware)
 set(NURSING_BED_CORE_ALLOWED_gap io physics)
 set(NURSING_BED_CORE_ALLOWED_fe io physics)
 set(NURSING_BED_CORE_ALLOWED_observer io physics)

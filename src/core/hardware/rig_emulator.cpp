@@ -29,7 +29,7 @@ int mappingSize(const TerminalMap& map, bool coils, bool holding) {
 
 }  // namespace
 
-RigTerminalServer::RigTerminalServer(const TerminalMap& map) : map_(map) {
+RigTerminalServer::RigTerminalServer(const TerminalMap& map, double watchdog_s) : map_(map), watchdog_s_(watchdog_s) {
   if (map.host != "127.0.0.1")
     throw std::runtime_error("rig emulator: terminal '" + map.name + "' must listen on 127.0.0.1 (loopback only), not " + map.host);
   ctx_ = modbus_new_tcp("127.0.0.1", map.port);
@@ -62,8 +62,11 @@ void RigTerminalServer::run() {
       FD_SET(fd, &readable);
       top = std::max(top, fd);
     }
-    timeval timeout{0, 50000};
-    if (::select(top + 1, &readable, nullptr, nullptr, &timeout) <= 0) continue;
+    timeval timeout{0, 10000};
+    if (::select(top + 1, &readable, nullptr, nullptr, &timeout) <= 0) {
+      checkWatchdog();
+      continue;
+    }
     if (FD_ISSET(listen_fd_, &readable)) {
       const int fd = ::accept(listen_fd_, nullptr, nullptr);
       if (fd >= 0) clients_.push_back(fd);
@@ -74,6 +77,14 @@ void RigTerminalServer::run() {
   }
 }
 
+void RigTerminalServer::checkWatchdog() {
+  idle_s_ += 0.01;
+  if (idle_s_ < watchdog_s_) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::fill(mapping_->tab_bits, mapping_->tab_bits + mapping_->nb_bits, 0);
+  std::fill(mapping_->tab_registers, mapping_->tab_registers + mapping_->nb_registers, 0);
+}
+
 void RigTerminalServer::serveClient(int fd) {
   std::uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
   modbus_set_socket(ctx_, fd);
@@ -82,6 +93,7 @@ void RigTerminalServer::serveClient(int fd) {
     std::lock_guard<std::mutex> lock(mutex_);
     modbus_reply(ctx_, query, length, mapping_);
     ++requests_;
+    idle_s_ = 0.0;
   } else if (length < 0) {  // the client went away
     ::close(fd);
     clients_.erase(std::remove(clients_.begin(), clients_.end(), fd), clients_.end());

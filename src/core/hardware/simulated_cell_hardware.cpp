@@ -17,13 +17,14 @@ void SimulatedCellHardware::configure(const HardwareConfig& config) {
   } catch (const std::invalid_argument& e) {
     throw std::runtime_error(std::string("simulated hardware: ") + e.what());
   }
-  rng_.seed(config.noise_seed);
   supply_pressure_pa_ = config.cell.supply_pressure_pa;
   if (config.initial_height_m > 0.0) {
     resetToHeight(config.initial_height_m, config.load_n);
   } else {
     reset(config.load_n);
   }
+  // Seeded after the initial reset: the noise sequence starts with the owner's first reset.
+  rng_.seed(config.noise_seed);
 }
 
 HardwareCapabilities SimulatedCellHardware::capabilities() const {

@@ -23,7 +23,9 @@ namespace nursing_bed {
 class RigTerminalServer {
  public:
   /// Throws std::runtime_error when the host is not a loopback address or the port is taken.
-  explicit RigTerminalServer(const TerminalMap& map);
+  /// Like a real terminal's fieldbus watchdog, it shuts every output when no request has come
+  /// for `watchdog_s`.
+  explicit RigTerminalServer(const TerminalMap& map, double watchdog_s = 0.1);
   ~RigTerminalServer();
   RigTerminalServer(const RigTerminalServer&) = delete;
   RigTerminalServer& operator=(const RigTerminalServer&) = delete;
@@ -40,8 +42,11 @@ class RigTerminalServer {
  private:
   void run();
   void serveClient(int fd);
+  void checkWatchdog();
 
   const TerminalMap map_;
+  const double watchdog_s_;
+  double idle_s_ = 0.0;
   _modbus* ctx_ = nullptr;
   _modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
