@@ -11,7 +11,9 @@
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/SetHeight.h"
+#include "nursing_bed/SetPressure.h"
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/ros/airbag_hardware.h"
 #include "nursing_bed/ros/bed_layout.h"
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
@@ -35,6 +37,7 @@ struct AirbagNodeParams {
   /// not given are drawn from the noise seed). Default "": the nominal cell.
   std::string effects;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
+  AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
   /// Empty when valid, else every problem found.
   std::string validate() const;
@@ -53,6 +56,9 @@ class AirbagNode {
   /// Advances the cell to `now` and publishes its state (called by the process's CellTicker).
   void update(const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
+  bool setPressure(SetPressure::Request& req, SetPressure::Response& res);
+  /// The cell over the hardware plugin of params_.hardware (the simulated cell by default).
+  std::unique_ptr<AirbagCell> makeCell();
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
   void onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
@@ -64,6 +70,7 @@ class AirbagNode {
   ros::NodeHandle nh_, private_nh_;
   AirbagNodeParams params_;
   CellLayout layout_;
+  std::uint32_t bed_cells_ = 0;  ///< cells in the bed (a register map must serve them all)
   std::unique_ptr<AirbagCell> cell_;
   std::mutex mutex_;  // callbacks may run on several nodelet worker threads
   ros::Time start_, last_publish_;
@@ -71,7 +78,7 @@ class AirbagNode {
   double inlet_opening_at_publish_s_ = 0.0, vent_opening_at_publish_s_ = 0.0;  ///< valve integrals then
   ros::Publisher state_pub_, pressure_pub_;
   ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_;
-  ros::ServiceServer set_height_srv_;
+  ros::ServiceServer set_height_srv_, set_pressure_srv_;
   int ticker_handle_ = -1;
 };
 

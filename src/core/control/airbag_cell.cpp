@@ -227,19 +227,20 @@ void AirbagCell::stepSimulated() {
 }
 
 void AirbagCell::stepReal(double now_s) {
-  const double period = params_.control_period_s;
+  // The real time since the last period (a loaded machine's ticks run late).
+  const double period = std::clamp(now_s - time_s_, 0.25 * params_.control_period_s, 4.0 * params_.control_period_s);
   const CellReadings readings = hardware_->read(now_s);
   time_s_ = now_s;
   onLink(readings);
   if (faults_ & kFaultCommunication) {
     // Nothing is commanded while the link is down; the observer coasts with the last command
     // over the period it acted, then with the valves shut (the terminal's watchdog).
-    observer_->predict(ObserverInputs{valves_.inlet, valves_.vent, 0.0, supply_pressure_pa_});
+    observer_->predict(ObserverInputs{valves_.inlet, valves_.vent, 0.0, supply_pressure_pa_}, period);
     valves_ = ValveCommand{};
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
     return;
   }
-  observe(readings);
+  observe(readings, period);
   controlStep();
   hardware_->write(openings(), now_s);
   if (readings.inflow_kg_s.present()) metered_inlet_mass_kg_ += readings.inflow_kg_s.value * period;
@@ -262,7 +263,7 @@ void AirbagCell::onLink(const CellReadings& readings) {
   }
 }
 
-void AirbagCell::observe(const CellReadings& readings) {
+void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
   measurement_.height_m = readings.height_m.value;
   measurement_.inflow_kg_s = readings.inflow_kg_s.value;
@@ -277,7 +278,7 @@ void AirbagCell::observe(const CellReadings& readings) {
   z.gauge_pressure_pa = readings.gauge_pressure_pa.value;
   if (!use_estimate_) z.height_m = readings.height_m.value;
   if (hardware_->capabilities().inflow && !sim_) z.inflow_kg_s = readings.inflow_kg_s.value;
-  observer_->step(in, z);
+  observer_->step(in, z, dt_s);
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
 }
 

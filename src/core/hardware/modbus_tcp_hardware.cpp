@@ -33,10 +33,12 @@ std::vector<AddressRun> addressRuns(std::vector<int> addresses, int max_count) {
 
 bool PwmChannel::next(double duty, int phase, int steps) {
   if (phase == 0) {
-    const double target = std::clamp(duty, 0.0, 1.0) * steps + carry_;
+    const double target = demand_ + carry_;
     on_steps_ = static_cast<int>(std::clamp(std::round(target), 0.0, static_cast<double>(steps)));
     carry_ = std::clamp(target - on_steps_, -1.0, 1.0);
+    demand_ = 0.0;
   }
+  demand_ += std::clamp(duty, 0.0, 1.0);
   return phase < on_steps_;
 }
 

@@ -49,6 +49,7 @@ std::string CellObserverParams::validate() const {
   non_negative("valve_dead_time_s", valve_dead_time_s);
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
+  non_negative("mass_lock_height_m", mass_lock_height_m);
   if (jacobian_refresh_steps < 1 || jacobian_refresh_steps > 100)
     err << "jacobian_refresh_steps must lie in 1..100, got " << jacobian_refresh_steps << "; ";
   return joinErrors(err);
@@ -113,8 +114,8 @@ CellModel::StateVector CellObserver::rate(const Vector& x, const CellInputs& in,
 
 void CellObserver::refresh() { rate(x_, modelInputs(applied_, x_[loadIndex()]), &vars_); }
 
-void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings) {
-  predict(inputs);
+void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
+  predict(inputs, dt_s);
   correct(readings);
 }
 
@@ -128,13 +129,14 @@ ObserverInputs CellObserver::delayed(const ObserverInputs& in) {
   return out;
 }
 
-void CellObserver::predict(const ObserverInputs& inputs) {
+void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
+  const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   applied_ = delayed(inputs);
   const CellInputs in = modelInputs(applied_, x_[loadIndex()]);
   if (++steps_since_jacobian_ >= params_.jacobian_refresh_steps) linearise(in);
-  propagateCovariance();
-  integrateMean(in);
-  time_ += params_.period_s;
+  propagateCovariance(dt);
+  integrateMean(in, dt);
+  time_ += dt;
   keepPhysical();
   refresh();
 }
@@ -152,20 +154,19 @@ void CellObserver::linearise(const CellInputs& in) {
   steps_since_jacobian_ = 0;
 }
 
-void CellObserver::integrateMean(const CellInputs& in) {
+void CellObserver::integrateMean(const CellInputs& in, double dt_s) {
   // The cell model's own integrator (error-controlled sub-steps through the plate's lift-off
   // and touch-down), started from the estimate.
   const int n = loadIndex();
   CellInputs with_load = in;
   with_load.load_n = x_[n];
   model_.setState(time_, x_.head(n), true);
-  model_.advance(params_.period_s, with_load);
+  model_.advance(dt_s, with_load);
   x_.head(n) = model_.state();
 }
 
-void CellObserver::propagateCovariance() {
+void CellObserver::propagateCovariance(double dt) {
   const int n = static_cast<int>(x_.size());
-  const double dt = params_.period_s;
   // Backward Euler, (I - dt J)^-1: the fast modes (film, bed contact) decay in one period as
   // they do in the plant, where a W-method map would keep half of them.
   const Matrix phi = (Matrix::Identity(n, n) - dt * jacobian_).partialPivLu().inverse();
@@ -234,7 +235,10 @@ void CellObserver::scalarUpdate(const Vector& h_row, double innovation, double v
   const Vector ph = p_ * h_row;
   const double s = h_row.dot(ph) + variance;
   if (!(s > 0.0) || !std::isfinite(innovation)) return;
-  const Vector k = ph / s;
+  Vector k = ph / s;
+  // A lifted plate's pressure cannot tell a gas mass error from a load change: the mass is
+  // integrated from the flows alone there, and corrected only while the plate is down.
+  if (x_[CellModel::kHeight] > params_.mass_lock_height_m) k[CellModel::kMass] = 0.0;
   x_ += k * innovation;
   p_ -= k * ph.transpose();
   p_ = 0.5 * (p_ + p_.transpose());

@@ -144,7 +144,7 @@ class AirbagCell {
   /// Real hardware: read, observe, control and write once at `now_s`.
   void stepReal(double now_s);
   /// Turns readings into measurement_ (the observer's height where there is no sensor).
-  void observe(const CellReadings& readings);
+  void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
   ValveCommand pressureValves(double gauge_pressure_pa) const;
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, mode_ == AirbagMode::kVent}; }

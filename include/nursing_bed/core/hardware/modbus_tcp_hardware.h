@@ -31,13 +31,16 @@ struct AddressRun {
 std::vector<AddressRun> addressRuns(std::vector<int> addresses, int max_count);
 
 /// Pulse-width modulation of one on/off valve over frames of `steps` bus cycles: on for the
-/// first k cycles of a frame, k = the duty times the frame, the rounding carried to the next.
+/// first k cycles of a frame, k = the duty commanded over the previous frame (sampled every
+/// cycle) times the frame, the rounding carried to the next. The valve's open time equals the
+/// commanded duty's integral, one frame later, whatever the phase of the commands.
 class PwmChannel {
  public:
   /// The valve state for this cycle; `phase` counts cycles within the frame (0 starts one).
   bool next(double duty, int phase, int steps);
 
  private:
+  double demand_ = 0.0;  ///< commanded duty summed over the cycles of this frame
   double carry_ = 0.0;
   int on_steps_ = 0;
 };

@@ -35,6 +35,10 @@ struct CellObserverParams {
   double valve_dead_time_s = 0.0;          ///< a valve command acts this late (bus and valve) [s]
   double reanchor_pressure_pa = 60.0;      ///< |gauge pressure| under which a venting cell is flat [Pa]
   double reanchor_time_s = 0.5;            ///< vented and that flat for this long: re-anchor [s]
+  /// Above this estimated height the gas mass is not corrected from the pressure, only
+  /// integrated from the valve flows: a lifted plate's pressure follows the load, and cannot
+  /// tell a mass error from a load change (the two drift together otherwise) [m].
+  double mass_lock_height_m = 0.005;
   int jacobian_refresh_steps = 2;          ///< steps between linearisations [-]
 
   /// Empty when valid, else every problem found, separated by "; ".
@@ -77,7 +81,8 @@ struct CellEstimate {
  *    the plate on its gas spring, its lift-off and the film are stiff); the covariance by a
  *    finite-difference Jacobian J and the linearly implicit map F = I + dt (I - g dt J)^-1 J.
  *    Valve-flow noise enters mass and energy together (gas carries its enthalpy).
- *  - Correct: sequential scalar updates with each reading present.
+ *  - Correct: sequential scalar updates with each reading present; the gas mass only while
+ *    the plate is down (mass_lock_height_m).
  *  - Re-anchor: a cell whose vent has been open with |p| < reanchor_pressure_pa for
  *    reanchor_time_s is flat: gas mass and energy are reset to the flat cell's (ambient air in
  *    the rest volume), which ends the drift of a mass that is otherwise only integrated.
@@ -96,9 +101,10 @@ class CellObserver {
   /// Plate at rest at `height_m` under `load_n` (both known well).
   void resetToHeight(double height_m, double load_n);
 
-  /// One period: predict with `inputs`, then correct with `readings`.
-  void step(const ObserverInputs& inputs, const ObserverReadings& readings);
-  void predict(const ObserverInputs& inputs);
+  /// One period: predict with `inputs`, then correct with `readings`. `dt_s` > 0: the time
+  /// since the last step when it differs from period_s (a real-time loop's jitter).
+  void step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
+  void predict(const ObserverInputs& inputs, double dt_s = 0.0);
   void correct(const ObserverReadings& readings);
 
   CellEstimate estimate() const;
@@ -114,8 +120,8 @@ class CellObserver {
   CellInputs modelInputs(const ObserverInputs& in, double load_n) const;
   CellModel::StateVector rate(const Vector& x, const CellInputs& in, CellVariables* vars = nullptr) const;
   void linearise(const CellInputs& in);
-  void integrateMean(const CellInputs& in);
-  void propagateCovariance();
+  void integrateMean(const CellInputs& in, double dt_s);
+  void propagateCovariance(double dt_s);
   void scalarUpdate(const Vector& h_row, double innovation, double variance);
   void correctPressure(double gauge_pressure_pa);
   void correctInflow(double inflow_kg_s);
