@@ -24,9 +24,10 @@ std::string layeredString(const ros::NodeHandle& pnh, const std::string& default
 }
 
 pluginlib::ClassLoader<CellHardware>& hardwareLoader() {
-  // One loader per process, alive as long as any plugin it made (function-static).
-  static pluginlib::ClassLoader<CellHardware> loader("nursing_bed", "nursing_bed::CellHardware");
-  return loader;
+  // One loader per process, never destroyed: plugins it made may outlive any static (a
+  // destroyed loader unloads their library under them at exit).
+  static auto* loader = new pluginlib::ClassLoader<CellHardware>("nursing_bed", "nursing_bed::CellHardware");
+  return *loader;
 }
 
 }  // namespace

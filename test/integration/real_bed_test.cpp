@@ -8,6 +8,7 @@
 #include <xmlrpcpp/XmlRpcClient.h>
 
 #include <csignal>
+#include <sstream>
 
 #include "../test_helpers.h"
 #include "bed_fixture.h"
@@ -49,6 +50,12 @@ class RealBedFixture : public BedFixture {
           return (ros::WallTime::now() - inside_since).toSec() >= hold_s;
         },
         timeout_s);
+  }
+
+  std::string truthText() {
+    std::ostringstream s;
+    for (const auto& [id, h] : truth_m_) s << "cell " << id << ": truth " << h << " m, estimate " << states_[id].height_m << " m; ";
+    return s.str();
   }
 
   bool allFlagged(std::uint32_t fault, bool set) {
@@ -104,7 +111,7 @@ TEST_F(RealBedFixture, EveryCellFlagsTheLostEmulatorAndResumesWhenItIsBack) {
   for (int id = 0; id < rows_ * cols_; ++id) ids.push_back(id);
   const SetHeights::Response r = callBed(ids, std::vector<double>(ids.size(), 0.06));
   ASSERT_TRUE(r.success) << r.message;
-  ASSERT_TRUE(truthSettles(0.06, 0.006, 0.5, 40.0));
+  ASSERT_TRUE(truthSettles(0.06, 0.015, 0.5, 40.0)) << truthText();
   shutdownEmulator();
   const ros::WallTime lost = ros::WallTime::now();
   ASSERT_TRUE(waitFor([this] { return allFlagged(AirbagState::FAULT_COMMUNICATION, true); }, 5.0));
@@ -113,8 +120,9 @@ TEST_F(RealBedFixture, EveryCellFlagsTheLostEmulatorAndResumesWhenItIsBack) {
   for (const auto& [id, s] : states_) EXPECT_NEAR(s.height_setpoint_m, 0.06, 1e-9) << "cell " << id << " keeps its setpoint";
   restartEmulator();
   ASSERT_TRUE(waitFor([this] { return allFlagged(AirbagState::FAULT_COMMUNICATION, false); }, 20.0));
-  // The restarted rig's cells are flat: the observers re-anchor and the cells go back up.
-  EXPECT_TRUE(truthSettles(0.06, 0.006, 0.5, 40.0));
+  // The restarted rig's cells are flat: the observers re-anchor and the cells go back up (to
+  // within the estimate's error over Modbus: 7-10 mm after a fill from flat, doc/real_bed.md).
+  EXPECT_TRUE(truthSettles(0.06, 0.015, 0.5, 40.0)) << truthText();
 }
 
 TEST(RealBedMaps, ABadRegisterMapIsRefusedNamingTheEntry) {
