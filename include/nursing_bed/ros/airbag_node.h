@@ -12,7 +12,9 @@
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/SetHeight.h"
+#include "nursing_bed/SetPressure.h"
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/ros/airbag_hardware.h"
 #include "nursing_bed/ros/bed_layout.h"
 #include <std_msgs/Bool.h>
 #include <std_msgs/Empty.h>
@@ -37,6 +39,7 @@ struct AirbagNodeParams {
   /// not given are drawn from the noise seed). Default "": the nominal cell.
   std::string effects;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
+  AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
   /// Empty when valid, else every problem found.
   std::string validate() const;
@@ -61,6 +64,9 @@ class AirbagNode {
   /// empty when accepted, else why not (nothing changes).
   std::string request(double height_m, const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
+  bool setPressure(SetPressure::Request& req, SetPressure::Response& res);
+  /// The cell over the hardware plugin of params_.hardware (the simulated cell by default).
+  std::unique_ptr<AirbagCell> makeCell();
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
   void onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
@@ -83,7 +89,8 @@ class AirbagNode {
   std::mutex mutex_;  // callbacks may run on several nodelet worker threads
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
-  std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have
+  /// Cells in the bed: the length /airbag_loads must have, and what a register map must serve.
+  std::size_t bed_cells_ = 0;
   ros::Time manager_setpoint_at_;        ///< last setpoint on the manager's topic
   /// The command watchdog is armed by the first streamed command (heartbeat or setpoint topic):
   /// it guards a commander that streams, not a one-off service call.
@@ -92,7 +99,7 @@ class AirbagNode {
   double inlet_opening_at_publish_s_ = 0.0, vent_opening_at_publish_s_ = 0.0;  ///< valve integrals then
   ros::Publisher state_pub_, pressure_pub_;
   ros::Subscriber setpoint_sub_, load_sub_, cell_loads_sub_, vent_sub_, heartbeat_sub_, bed_heartbeat_sub_, cpr_sub_;
-  ros::ServiceServer set_height_srv_;
+  ros::ServiceServer set_height_srv_, set_pressure_srv_;
   int ticker_handle_ = -1;
 };
 
