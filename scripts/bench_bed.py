@@ -7,7 +7,7 @@ between two of them, and samples CPU time and resident memory of every process o
 It also checks that the cells' simulation keeps pace with wall time: a cell that fell behind
 would publish late or rarely. Prints a table and writes --json FILE.
 
-usage: bench_bed.py [--seconds S] [--json FILE] [--rows R] [--cols C] [launch args...]
+usage: bench_bed.py [--seconds S] [--json FILE] [--rows R] [--cols C] [--launch FILE] [launch args...]
 e.g.   bench_bed.py --seconds 60 use_nodelets:=true
 """
 import argparse
@@ -64,10 +64,11 @@ def main():
     parser.add_argument("--rows", type=int, default=20)
     parser.add_argument("--cols", type=int, default=9)
     parser.add_argument("--startup-timeout", type=float, default=300.0)
+    parser.add_argument("--launch", default="sim.launch", help="launch file of nursing_bed (real_bed.launch: the Modbus path)")
     args, launch_args = parser.parse_known_args()
     n_cells = args.rows * args.cols
 
-    launch = subprocess.Popen(["roslaunch", "nursing_bed", "sim.launch", "rows:=%d" % args.rows,
+    launch = subprocess.Popen(["roslaunch", "nursing_bed", args.launch, "rows:=%d" % args.rows,
                                "cols:=%d" % args.cols] + launch_args,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=os.setsid)
     try:
