@@ -33,6 +33,7 @@ HardwareCapabilities SimulatedCellHardware::capabilities() const {
   c.inflow = true;
   c.gas_temperature = true;
   c.supply_pressure = true;
+  c.vent_vacuum = true;
   return c;
 }
 

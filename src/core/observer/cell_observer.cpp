@@ -47,6 +47,7 @@ std::string CellObserverParams::validate() const {
   non_negative("load_walk_n_sqrt_s", load_walk_n_sqrt_s);
   positive("initial_load_sd_n", initial_load_sd_n);
   non_negative("valve_dead_time_s", valve_dead_time_s);
+  non_negative("reading_time_sd_s", reading_time_sd_s);
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
   non_negative("mass_lock_height_m", mass_lock_height_m);
@@ -82,6 +83,7 @@ void CellObserver::reset(double load_n) {
   pending_.clear();
   applied_ = ObserverInputs{};
   flat_since_s_ = -1.0;
+  pressure_rate_pa_s_ = 0.0;
   steps_since_jacobian_ = 1 << 30;
   refresh();
 }
@@ -135,10 +137,12 @@ void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   const CellInputs in = modelInputs(applied_, x_[loadIndex()]);
   if (++steps_since_jacobian_ >= params_.jacobian_refresh_steps) linearise(in);
   propagateCovariance(dt);
+  const double p_before = vars_.gauge_pressure_pa;
   integrateMean(in, dt);
   time_ += dt;
   keepPhysical();
   refresh();
+  pressure_rate_pa_s_ = (vars_.gauge_pressure_pa - p_before) / dt;
 }
 
 void CellObserver::linearise(const CellInputs& in) {
@@ -213,7 +217,12 @@ void CellObserver::correctPressure(double gauge_pressure_pa) {
   h_row[CellModel::kHeight] = -p_abs * s.effective_area_m2 / v;
   for (int i = 0; i < model_.structure().shapeDofs(); ++i)
     h_row[CellModel::kShape + i] = -p_abs * s.dvolume_dshape[i] / v;
-  scalarUpdate(h_row, gauge_pressure_pa - vars_.gauge_pressure_pa, std::pow(params_.pressure_noise_pa, 2));
+  // A reading's time is known to reading_time_sd_s only (bus cycle, valve timing): while the
+  // pressure moves fast (a fill, a lift-off) that is worth (dp/dt * sd)^2 more variance, so
+  // that a transient is not taken for a load change.
+  const double timing_pa = pressure_rate_pa_s_ * params_.reading_time_sd_s;
+  scalarUpdate(h_row, gauge_pressure_pa - vars_.gauge_pressure_pa,
+               std::pow(params_.pressure_noise_pa, 2) + timing_pa * timing_pa);
 }
 
 void CellObserver::correctInflow(double inflow_kg_s) {

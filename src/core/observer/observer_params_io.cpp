@@ -18,6 +18,7 @@ ParamTable<P> makeFields() {
       NB_FIELD("load_walk_n_sqrt_s", "random walk of the load [N/sqrt(s)]", p.load_walk_n_sqrt_s),
       NB_FIELD("initial_load_sd_n", "sd of the load guess at reset [N]", p.initial_load_sd_n),
       NB_FIELD("valve_dead_time_s", "a valve command acts this late [s]", p.valve_dead_time_s),
+      NB_FIELD("reading_time_sd_s", "sd of a reading's time against the model's [s]", p.reading_time_sd_s),
       NB_FIELD("reanchor_pressure_pa", "|gauge pressure| under which a venting cell is flat [Pa]", p.reanchor_pressure_pa),
       NB_FIELD("mass_lock_height_m", "above this estimated height the gas mass is integrated, not corrected [m]", p.mass_lock_height_m),
       NB_FIELD("reanchor_time_s", "vented and that flat this long: re-anchor the gas mass [s]", p.reanchor_time_s),

@@ -36,6 +36,9 @@ struct RunOptions {
   double adc_step_pa = 12.2;        // 12 bits over 50 kPa
   double dead_time_s = 0.0;         // of the plant's valves
   double observer_dead_time_s = 0.0;
+  bool pwm = false;                 // on/off valves: each period fully open or shut, the duty's mean kept
+  int reading_delay_periods = 0;    // readings this many periods old (a bus's cycle)
+  double observer_reading_time_sd_s = 0.0;
   bool reanchor = true;
 };
 
@@ -49,6 +52,14 @@ struct RunResult {
   double last_true_load_n = 0.0;
 };
 
+/// Sigma-delta on/off valve: open for the whole period when the carried duty reaches half.
+double pulse(double duty, double& carry) {
+  carry += duty;
+  const double on = carry >= 0.5 ? 1.0 : 0.0;
+  carry -= on;
+  return on;
+}
+
 double adc(double value, double step) { return step > 0.0 ? step * std::round(value / step) : value; }
 
 RunResult run(const RunOptions& o, const std::string& label) {
@@ -58,12 +69,15 @@ RunResult run(const RunOptions& o, const std::string& label) {
   plant.reset(o.load_n);
   nb::CellObserverParams op;
   op.valve_dead_time_s = o.observer_dead_time_s;
+  op.reading_time_sd_s = o.observer_reading_time_sd_s;
   if (!o.reanchor) op.reanchor_time_s = 1e9;
   nb::CellObserver observer(cell, op, o.observer_effects);
   observer.reset(o.observer_load_guess_n);
   std::mt19937 rng(7);
   std::normal_distribution<double> noise(0.0, 1.0);
   std::deque<nb::CellInputs> valve_line;  // the plant's valve dead time
+  std::deque<double> reading_line;        // the bus's reading delay
+  double inlet_carry = 0.0, vent_carry = 0.0;
   const auto delay = static_cast<std::size_t>(std::lround(o.dead_time_s / op.period_s));
   RunResult r;
   const std::vector<Phase> phases = programme(o.load_n);
@@ -72,8 +86,8 @@ RunResult run(const RunOptions& o, const std::string& label) {
     const double load = ph.load_n;
     for (double t = 0.0; t < ph.duration_s - 1e-9; t += op.period_s) {
       nb::CellInputs in;
-      in.inlet_opening = ph.inlet;
-      in.vent_opening = ph.vent;
+      in.inlet_opening = o.pwm ? pulse(ph.inlet, inlet_carry) : ph.inlet;
+      in.vent_opening = o.pwm ? pulse(ph.vent, vent_carry) : ph.vent;
       in.load_n = load;
       valve_line.push_back(in);
       nb::CellInputs acting = valve_line.size() > delay ? valve_line.front() : nb::CellInputs{};
@@ -81,7 +95,9 @@ RunResult run(const RunOptions& o, const std::string& label) {
       acting.load_n = load;
       plant.advance(op.period_s, acting);
       nb::ObserverReadings z;
-      z.gauge_pressure_pa = adc(plant.variables().gauge_pressure_pa + o.pressure_noise_pa * noise(rng), o.adc_step_pa);
+      reading_line.push_back(adc(plant.variables().gauge_pressure_pa + o.pressure_noise_pa * noise(rng), o.adc_step_pa));
+      z.gauge_pressure_pa = reading_line.front();
+      if (reading_line.size() > static_cast<std::size_t>(o.reading_delay_periods)) reading_line.pop_front();
       if (o.height_sensor) z.height_m = plant.variables().height_m + 2e-4 * noise(rng);
       observer.step({ph.inlet, ph.vent, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
       const double error = plant.variables().height_m - observer.estimate().height_m;
@@ -151,6 +167,24 @@ TEST(CellObserver, ModelsTheValveDeadTime) {
   EXPECT_LT(modelled.error.max_abs_m, ignored.error.max_abs_m);
   EXPECT_LT(modelled.error.rmsM(), 0.5 * ignored.error.rmsM());
   EXPECT_LE(modelled.error.rmsM(), 0.0015);
+}
+
+TEST(CellObserver, ATimingUncertaintyKeepsTransientsOutOfTheLoad) {
+  // The valves act 30 ms late, the observer models 15 (what a bus path leaves unknown: the
+  // cycle, the PWM frame, the rig's step); on/off valves; readings a period old. Its fills and
+  // lift-offs are then mistimed; taken at face value their pressure moves the load (the real
+  // bed's tuning, config/observer.yaml).
+  RunOptions o;
+  o.dead_time_s = 0.03;
+  o.observer_dead_time_s = 0.015;
+  o.pwm = true;
+  o.reading_delay_periods = 1;
+  const RunResult face_value = run(o, "valves 15 ms later than modelled, readings at face value");
+  o.observer_reading_time_sd_s = 0.02;
+  const RunResult weighed = run(o, "same, reading time sd 20 ms");
+  EXPECT_LT(weighed.error.rmsM(), 0.7 * face_value.error.rmsM());
+  EXPECT_LT(weighed.error.max_abs_m, face_value.error.max_abs_m);
+  EXPECT_NEAR(weighed.last.load_n, 15.6, 1.0);
 }
 
 TEST(CellObserver, ReanchorsTheGasMassOnAVentedFlatCell) {

@@ -171,7 +171,9 @@ class AirbagCell {
   void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
   ValveCommand pressureValves(double gauge_pressure_pa) const;
-  ValveOpenings openings() const { return {valves_.inlet, valves_.vent, mode_ == AirbagMode::kVent}; }
+  ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
+  /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
+  bool ventToVacuum() const { return mode_ == AirbagMode::kVent && hardware_->capabilities().vent_vacuum; }
   void resetControl(double load_n);
   /// The mode a cleared fault returns to: pressure, height or idle by the setpoint held.
   AirbagMode resumedMode() const;

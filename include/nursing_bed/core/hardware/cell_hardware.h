@@ -58,6 +58,9 @@ struct HardwareCapabilities {
   bool inflow = false;
   bool gas_temperature = false;
   bool supply_pressure = false;
+  /// The vent line can be switched to a vacuum source (CPR). Without one, venting is to the
+  /// atmosphere whatever ValveOpenings::vent_to_vacuum says, and the observer must model it so.
+  bool vent_vacuum = false;
 };
 
 /// Everything an implementation may need to configure itself; each takes what it uses.

@@ -33,6 +33,8 @@ struct CellObserverParams {
   double load_walk_n_sqrt_s = 3.0;         ///< random walk of the load (the patient moves) [N/sqrt(s)]
   double initial_load_sd_n = 10.0;         ///< sd of the load guess at reset [N]
   double valve_dead_time_s = 0.0;          ///< a valve command acts this late (bus and valve) [s]
+  /// sd of a reading's time against the model's (bus cycle, PWM phase, valve timing) [s]
+  double reading_time_sd_s = 0.0;
   double reanchor_pressure_pa = 60.0;      ///< |gauge pressure| under which a venting cell is flat [Pa]
   double reanchor_time_s = 0.5;            ///< vented and that flat for this long: re-anchor [s]
   /// Above this estimated height the gas mass is not corrected from the pressure, only
@@ -134,6 +136,7 @@ class CellObserver {
   CellObserverParams params_;
   CellModel model_;          ///< integrates the mean from the estimate; resets
   double time_ = 0.0;
+  double pressure_rate_pa_s_ = 0.0;  ///< the model's gauge pressure rate over the last period
   Vector x_;
   Matrix p_;
   Matrix jacobian_;          ///< d rate / d x at the last linearisation (load column included)
