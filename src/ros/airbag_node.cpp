@@ -160,8 +160,11 @@ void AirbagNode::update(const ros::Time& now) {
   // moment (180 cells lifting off flat at once after CPR), a cell runs late and catches up over
   // the next rounds instead of jumping: its states keep coming, each stamped with the time it
   // describes, never more than kCatchUpPeriods periods apart (doc/safety.md).
+  // Real hardware does not wait: its cell always runs to now (the observer integrates the
+  // whole time the valves kept their command).
   const double period_s = 1.0 / params_.update_rate_hz;
-  const double until_s = std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s);
+  const double until_s = params_.hardware.simulated() ? std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s)
+                                                      : elapsed(now);
   stepDirectRamp(until_s);
   cell_->advanceTo(until_s);
   takeSnapshot();

@@ -113,6 +113,15 @@ TEST_F(RealBedFixture, EveryCellFlagsTheLostEmulatorAndResumesWhenItIsBack) {
   const SetHeights::Response r = callBed(ids, std::vector<double>(ids.size(), 0.06));
   ASSERT_TRUE(r.success) << r.message;
   ASSERT_TRUE(truthSettles(0.06, 0.025, 0.5, 40.0)) << truthText();
+  // The bed manager ramps its targets (safety/max_height_rate_m_s): the link is cut once every
+  // cell holds the final setpoint, which it must keep.
+  ASSERT_TRUE(waitFor(
+      [this] {
+        for (const auto& [id, s] : states_)
+          if (std::fabs(s.height_setpoint_m - 0.06) > 1e-9) return false;
+        return states_.size() == static_cast<std::size_t>(rows_ * cols_);
+      },
+      20.0));
   shutdownEmulator();
   const ros::WallTime lost = ros::WallTime::now();
   ASSERT_TRUE(waitFor([this] { return allFlagged(AirbagState::FAULT_COMMUNICATION, true); }, 5.0));
