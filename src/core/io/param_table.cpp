@@ -45,10 +45,18 @@ void throwUnknownParam(const std::string& source, const std::string& key) {
 bool isWholeNumber(double value) { return value == std::floor(value); }
 
 std::string formatParamValue(double value) {
+  // Written for YAML 1.1 readers too (rosparam, PyYAML): a float there needs a '.', so 5e-06
+  // would be read back as a string (sim.launch refused a calibrated file for it); infinities
+  // and NaN have their own spelling.
+  if (std::isnan(value)) return ".nan";
+  if (std::isinf(value)) return value > 0.0 ? ".inf" : "-.inf";
   std::ostringstream s;
   s.precision(10);
   s << value;
-  return s.str();
+  std::string text = s.str();
+  const std::size_t e = text.find_first_of("eE");
+  if (e != std::string::npos && text.find('.') == std::string::npos) text.insert(e, ".0");
+  return text;
 }
 
 FlatParams flattenYaml(const YAML::Node& root, const std::string& source) {
