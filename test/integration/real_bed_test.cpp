@@ -9,9 +9,11 @@
 
 #include <csignal>
 #include <sstream>
+#include <tuple>
 
 #include "../test_helpers.h"
 #include "bed_fixture.h"
+#include "nursing_bed/SetPressure.h"
 
 namespace nursing_bed {
 namespace test {
@@ -87,6 +89,15 @@ class RealBedFixture : public BedFixture {
     ASSERT_GT(restarted_pid_, 0) << r.output;
   }
 
+  SetPressure::Response callPressure(std::uint32_t id, double pressure_pa) {
+    SetPressure srv;
+    srv.request.cell_id = id;
+    srv.request.pressure_pa = pressure_pa;
+    EXPECT_TRUE(ros::service::waitForService("/airbag_0_0/set_pressure", ros::Duration(10.0)));
+    EXPECT_TRUE(ros::service::call("/airbag_0_0/set_pressure", srv));
+    return srv.response;
+  }
+
   std::map<std::uint32_t, double> truth_m_;
   ros::Subscriber truth_sub_;
   pid_t restarted_pid_ = -1;
@@ -105,6 +116,30 @@ TEST_F(RealBedFixture, OneCellReachesItsHeightWithoutAHeightSensor) {
   EXPECT_TRUE(truthSettles(0.10, 0.05, 1.0, 10.0)) << "truth " << truth_m_[0] << ", estimate " << states_[0].height_m;
   EXPECT_GT(states_[0].height_sd_m, 0.0);
   EXPECT_EQ(states_[0].faults, 0u);
+
+  // Pressure mode: held at its setpoint over the same valves; bad requests refused, nothing changed.
+  EXPECT_TRUE(callPressure(0, 3000.0).success);
+  EXPECT_TRUE(waitFor([this] { return states_[0].mode == AirbagState::MODE_PRESSURE; }, 5.0));
+  ros::WallTime inside_since;
+  EXPECT_TRUE(waitFor(
+      [&] {
+        if (std::fabs(states_[0].gauge_pressure_pa - 3000.0) > 300.0) inside_since = ros::WallTime();
+        else if (inside_since.isZero()) inside_since = ros::WallTime::now();
+        return !inside_since.isZero() && (ros::WallTime::now() - inside_since).toSec() >= 1.0;
+      },
+      20.0))
+      << "pressure " << states_[0].gauge_pressure_pa << " Pa";
+  EXPECT_NEAR(states_[0].pressure_setpoint_pa, 3000.0, 1e-9);
+  for (const auto& [id, pressure, fragment] : {std::make_tuple(0u, -5000.0, "outside [0"),
+                                               std::make_tuple(0u, 1e9, "outside [0"),
+                                               std::make_tuple(7u, 3000.0, "cell 7 is not served here")}) {
+    const SetPressure::Response r = callPressure(id, pressure);
+    EXPECT_FALSE(r.success) << pressure;
+    EXPECT_NE(r.message.find(fragment), std::string::npos) << r.message;
+  }
+  ros::Duration(0.2).sleep();
+  EXPECT_NEAR(states_[0].pressure_setpoint_pa, 3000.0, 1e-9) << "a refused request changes nothing";
+  EXPECT_EQ(states_[0].mode, AirbagState::MODE_PRESSURE);
 }
 
 TEST_F(RealBedFixture, EveryCellFlagsTheLostEmulatorAndResumesWhenItIsBack) {
