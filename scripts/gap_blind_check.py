@@ -25,7 +25,7 @@ model's parameter file (`gap synth --airbag-param`, magnitudes drawn from the se
 Exit code 0 when all hold, 1 otherwise, 2 for a bad command line.
 
 usage: gap_blind_check.py --out DIR [--protocol small|standard] [--seeds N] [--seed-base B]
-                          [--extended-seeds M] [--gap PATH] [--junit FILE] [--cases NAME,...]
+                          [--extended-seeds M] [--gap PATH] [--junit FILE] [--cases NAME,...] [--resume]
 """
 import argparse
 import json
@@ -106,12 +106,21 @@ def effect_lists(gap):
     return candidates, others
 
 
-def run_case(gap, out_dir, case_spec, protocol):
-    """Synthesise, hide the truth, diagnose; returns the case record."""
-    kind, name, effects, airbag, flags, seed = case_spec
-    case = f"{kind}_{name}_s{seed}" if kind not in ("candidate", "clean", "out_of_library") else f"{name}_s{seed}"
-    data = os.path.join(out_dir, "data", case)
-    report_dir = os.path.join(out_dir, "reports", case)
+def case_name(case_spec):
+    kind, name, _, _, _, seed = case_spec
+    return f"{kind}_{name}_s{seed}" if kind not in ("candidate", "clean", "out_of_library") else f"{name}_s{seed}"
+
+
+def case_paths(out_dir, case):
+    """Dataset, report directory and (hidden) truth file of one case."""
+    return (os.path.join(out_dir, "data", case), os.path.join(out_dir, "reports", case),
+            os.path.join(out_dir, "truth", case + ".json"))
+
+
+def synthesise(gap, out_dir, case_spec, protocol):
+    """Write the case's dataset, then move its truth out of it: the diagnosis must not see it."""
+    _, _, effects, airbag, flags, seed = case_spec
+    data, report_dir, truth_path = case_paths(out_dir, case_name(case_spec))
     shutil.rmtree(data, ignore_errors=True)
     shutil.rmtree(report_dir, ignore_errors=True)
     cmd = [gap, "synth", "--out", data, "--seed", str(seed), "--protocol", protocol] + flags
@@ -120,20 +129,38 @@ def run_case(gap, out_dir, case_spec, protocol):
     for k, v in airbag.items():
         cmd += ["--airbag-param", f"{k}={v!r}"]
     subprocess.run(cmd, capture_output=True, text=True, check=True)
-    # The diagnosis must not see the truth: move it out of the dataset.
-    truth_path = os.path.join(out_dir, "truth", case + ".json")
     os.makedirs(os.path.dirname(truth_path), exist_ok=True)
     shutil.move(os.path.join(data, "truth.json"), truth_path)
-    with open(truth_path) as f:
-        truth = json.load(f)
-    truth_effects = sorted(e["name"] for e in truth["effects"])
-    record = {"case": case, "kind": kind, "truth": name, "truth_effects": truth_effects, "airbag": airbag,
-              "truth_params": {k: v for e in truth["effects"] for k, v in e["params"].items()}}
+
+
+def diagnose(gap, out_dir, case_spec):
+    """Run `gap diagnose` blind; its wall time is kept beside the report (for --resume)."""
+    data, report_dir, _ = case_paths(out_dir, case_name(case_spec))
     t0 = time.time()
     diag = subprocess.run([gap, "diagnose", data, "--out", report_dir, "--no-plots"], capture_output=True, text=True)
-    record["elapsed_s"] = time.time() - t0
-    if diag.returncode != 0:
-        record.update({"verdict": "error", "status": "error", "error": diag.stderr.strip()[-500:], "moved": {}})
+    elapsed = time.time() - t0
+    if diag.returncode == 0:
+        with open(os.path.join(report_dir, "elapsed_s"), "w") as f:
+            f.write(f"{elapsed:.1f}\n")
+    return diag, elapsed
+
+
+def read_record(out_dir, case_spec, diag_error=None, elapsed=None):
+    """The case record: its truth, and the verdict read from the report."""
+    kind, name, _, airbag, _, _ = case_spec
+    case = case_name(case_spec)
+    _, report_dir, truth_path = case_paths(out_dir, case)
+    with open(truth_path) as f:
+        truth = json.load(f)
+    record = {"case": case, "kind": kind, "truth": name, "truth_effects": sorted(e["name"] for e in truth["effects"]),
+              "airbag": airbag,
+              "truth_params": {k: v for e in truth["effects"] for k, v in e["params"].items()}}
+    if elapsed is None and os.path.isfile(os.path.join(report_dir, "elapsed_s")):
+        with open(os.path.join(report_dir, "elapsed_s")) as f:
+            elapsed = float(f.read())
+    record["elapsed_s"] = elapsed
+    if diag_error is not None:
+        record.update({"verdict": "error", "status": "error", "error": diag_error[-500:], "moved": {}})
         return record
     with open(os.path.join(report_dir, "report.json")) as f:
         report = json.load(f)
@@ -154,6 +181,17 @@ def run_case(gap, out_dir, case_spec, protocol):
                    "withheld_before": before, "withheld_after": after,
                    "shrink": (1.0 - after / before) if (before and after is not None and before > 0) else None})
     return record
+
+
+def run_case(gap, out_dir, case_spec, protocol, resume=False):
+    """Synthesise, hide the truth, diagnose; returns the case record. With `resume`, a case whose
+    report and truth are already there is read back instead of run again."""
+    _, report_dir, truth_path = case_paths(out_dir, case_name(case_spec))
+    if resume and os.path.isfile(os.path.join(report_dir, "report.json")) and os.path.isfile(truth_path):
+        return read_record(out_dir, case_spec)
+    synthesise(gap, out_dir, case_spec, protocol)
+    diag, elapsed = diagnose(gap, out_dir, case_spec)
+    return read_record(out_dir, case_spec, diag.stderr.strip() if diag.returncode != 0 else None, elapsed)
 
 
 def mismatch_right(c):
@@ -194,6 +232,10 @@ def case_right(c):
     return False
 
 
+def seconds(value):
+    return "? s" if value is None else f"{value:.1f} s"
+
+
 def confusion(cases, columns):
     rows = {}
     for c in cases:
@@ -219,6 +261,9 @@ def main():
                                     "pair, valve")
     ap.add_argument("--extended-seeds", type=int, default=1,
                     help="seeds of each calibration case (mismatch, mismatch + effect, pairs, valve-driven; default 1)")
+    ap.add_argument("--resume", action="store_true",
+                    help="read back cases whose report is already in --out instead of running them again "
+                         "(a long matrix run in parts)")
     args = ap.parse_args()
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")
@@ -239,12 +284,12 @@ def main():
     cases = []
     started = time.time()
     for spec in plan:
-        c = run_case(args.gap, args.out, spec, args.protocol)
+        c = run_case(args.gap, args.out, spec, args.protocol, args.resume)
         c["right"] = case_right(c)
         cases.append(c)
         print(f"[{len(cases)}/{len(plan)}] {c['case']:<48} -> {c['verdict']:<36} {'ok ' if c['right'] else 'BAD'} "
               f"shrink {c.get('shrink') if c.get('shrink') is None else round(c['shrink'], 3)}  "
-              f"({c['elapsed_s']:.1f} s)", flush=True)
+              f"({seconds(c['elapsed_s'])})", flush=True)
 
     def rate(kind):
         of_kind = [c for c in cases if c["kind"] == kind]
