@@ -5,14 +5,18 @@
 # cmake/check_core_layering.cmake) from the unit test that feeds it a bad include.
 
 # Domains, lowest first, and what each may include (besides itself).
-set(NURSING_BED_CORE_DOMAINS io physics control bed gap fe observer)
+set(NURSING_BED_CORE_DOMAINS io physics control bed gap fe observer hardware)
 set(NURSING_BED_CORE_ALLOWED_io "")
 set(NURSING_BED_CORE_ALLOWED_physics io)
-set(NURSING_BED_CORE_ALLOWED_control io physics)
-set(NURSING_BED_CORE_ALLOWED_bed io physics control)
+# control runs the observer and reads and writes cells through the hardware boundary.
+set(NURSING_BED_CORE_ALLOWED_control io physics observer hardware)
+set(NURSING_BED_CORE_ALLOWED_bed io physics control observer hardware)
 set(NURSING_BED_CORE_ALLOWED_gap io physics)
 set(NURSING_BED_CORE_ALLOWED_fe io physics)
 set(NURSING_BED_CORE_ALLOWED_observer io physics)
+# The cell hardware boundary and its drivers (simulated, Modbus TCP) and the rig emulator: below
+# the control side, which reads and writes cells through it.
+set(NURSING_BED_CORE_ALLOWED_hardware io physics)
 
 function(nursing_bed_check_core_layering root)
   foreach(domain ${NURSING_BED_CORE_DOMAINS})

@@ -7,11 +7,25 @@ between two of them, and samples CPU time and resident memory of every process o
 It also checks that the cells' simulation keeps pace with wall time: a cell that fell behind
 would publish late or rarely. Prints a table and writes --json FILE.
 
-usage: bench_bed.py [--seconds S] [--json FILE] [--rows R] [--cols C] [launch args...]
+On the Modbus path (--launch real_bed.launch emulator:=true) --accuracy also compares every
+cell's reported height (/joint_states, the observer's estimate where there is no height sensor)
+with the rig emulator's truth (/rig_emulator/truth, the sample received nearest to the
+joint state's stamp) over the window: RMS and worst error over all cells, and the worst cell.
+--plan starts a posture plan through /bed_manager/set_posture when the window opens
+(--plan-arg key=value for its arguments, repeatable).
+
+usage: bench_bed.py [--seconds S] [--json FILE] [--rows R] [--cols C] [--launch FILE]
+                    [--accuracy] [--plan NAME [--plan-arg K=V ...]] [launch args...]
 e.g.   bench_bed.py --seconds 60 use_nodelets:=true
+       bench_bed.py --launch real_bed.launch --seconds 600 --accuracy --plan alternating \
+           --plan-arg pattern=1in3 --plan-arg period_s=200 emulator:=true
 """
 import argparse
+import bisect
+import collections
 import json
+import math
+import re
 import os
 import signal
 import subprocess
@@ -57,6 +71,69 @@ def cpu_and_rss(pids):
     return cpu, rss
 
 
+class HeightAccuracy:
+    """Reported heights (/joint_states) against the rig emulator's truth, cell by cell."""
+
+    def __init__(self, cols):
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64MultiArray
+        self.cols = cols
+        self.truth = collections.deque(maxlen=200)  # (receive time [s], heights by cell id)
+        self.sum_sq, self.count, self.worst = {}, {}, {}
+        self.recording = False
+        self.subs = [rospy.Subscriber("/rig_emulator/truth", Float64MultiArray, self.on_truth, queue_size=5),
+                     rospy.Subscriber("/joint_states", JointState, self.on_joints, queue_size=5)]
+
+    def on_truth(self, msg):
+        stride = msg.layout.dim[1].stride if len(msg.layout.dim) > 1 and msg.layout.dim[1].stride else 4
+        self.truth.append((rospy.get_time(), list(msg.data[0::stride])))
+
+    def truth_at(self, t):
+        samples = list(self.truth)
+        if not samples:
+            return None
+        times = [s[0] for s in samples]
+        i = bisect.bisect_left(times, t)
+        near = [j for j in (i - 1, i) if 0 <= j < len(samples)]
+        return samples[min(near, key=lambda j: abs(times[j] - t))][1]
+
+    def on_joints(self, msg):
+        if not self.recording:
+            return
+        truth = self.truth_at(msg.header.stamp.to_sec())
+        if truth is None:
+            return
+        for name, height in zip(msg.name, msg.position):
+            m = re.search(r"(\d+)_(\d+)", name)
+            if not m:
+                continue
+            cell = int(m.group(1)) * self.cols + int(m.group(2))
+            if cell >= len(truth) or not math.isfinite(truth[cell]):
+                continue
+            e = truth[cell] - height
+            self.sum_sq[cell] = self.sum_sq.get(cell, 0.0) + e * e
+            self.count[cell] = self.count.get(cell, 0) + 1
+            self.worst[cell] = max(self.worst.get(cell, 0.0), abs(e))
+
+    def result(self):
+        n = sum(self.count.values())
+        if n == 0:
+            return {"height_error_samples": 0}
+        worst_cell = max(self.worst, key=self.worst.get)
+        return {"height_error_rms_mm": 1e3 * math.sqrt(sum(self.sum_sq.values()) / n),
+                "height_error_worst_mm": 1e3 * self.worst[worst_cell], "worst_cell": worst_cell,
+                "height_error_samples": n, "cells_compared": len(self.count)}
+
+
+def start_plan(plan, plan_args):
+    from nursing_bed.srv import SetPosture
+    rospy.wait_for_service("/bed_manager/set_posture", timeout=30.0)
+    keys, values = zip(*(a.split("=", 1) for a in plan_args)) if plan_args else ((), ())
+    reply = rospy.ServiceProxy("/bed_manager/set_posture", SetPosture)(plan, list(keys), list(values), [])
+    if not reply.success:
+        sys.exit("bench_bed: plan %s refused: %s" % (plan, reply.message))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=60.0)
@@ -64,10 +141,18 @@ def main():
     parser.add_argument("--rows", type=int, default=20)
     parser.add_argument("--cols", type=int, default=9)
     parser.add_argument("--startup-timeout", type=float, default=300.0)
+    parser.add_argument("--launch", default="sim.launch", help="launch file of nursing_bed (real_bed.launch: the Modbus path)")
+    parser.add_argument("--settle-s", type=float, default=0.0, help="wait this long after start-up before the window")
+    parser.add_argument("--accuracy", action="store_true", help="reported heights against the rig emulator's truth")
+    parser.add_argument("--plan", default="", help="posture plan started when the window opens")
+    parser.add_argument("--plan-arg", action="append", default=[], help="key=value argument of --plan (repeatable)")
     args, launch_args = parser.parse_known_args()
+    bad = [a for a in args.plan_arg if "=" not in a]
+    if bad:
+        parser.error("--plan-arg wants key=value, got %s" % ", ".join(bad))
     n_cells = args.rows * args.cols
 
-    launch = subprocess.Popen(["roslaunch", "nursing_bed", "sim.launch", "rows:=%d" % args.rows,
+    launch = subprocess.Popen(["roslaunch", "nursing_bed", args.launch, "rows:=%d" % args.rows,
                                "cols:=%d" % args.cols] + launch_args,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=os.setsid)
     try:
@@ -91,7 +176,12 @@ def main():
                 sys.exit("bench_bed: only %d of %d cells publish after %.0f s" % (len(counts), n_cells, args.startup_timeout))
             time.sleep(0.5)
         startup_s = time.monotonic() - t0
-        time.sleep(2.0)  # let connections settle
+        time.sleep(2.0 + args.settle_s)  # let connections (and with --settle-s the bed) settle
+        accuracy = HeightAccuracy(args.cols) if args.accuracy else None
+        if args.plan:
+            start_plan(args.plan, args.plan_arg)
+        if accuracy:
+            accuracy.recording = True
         counts.clear()
         max_gap.clear()
         last.clear()
@@ -104,7 +194,7 @@ def main():
             rss_samples.append(cpu_and_rss(descendants(launch.pid))[1])
         wall = time.monotonic() - wall0
         cpu1, _ = cpu_and_rss(descendants(launch.pid))
-        for s in subs:
+        for s in subs + (accuracy.subs if accuracy else []):
             s.unregister()
         rates = [counts.get(i, 0) / wall for i in range(n_cells)]
         result = {
@@ -116,12 +206,20 @@ def main():
             "cpu_cores_used": (cpu1 - cpu0) / wall,
             "rss_mb_mean": sum(rss_samples) / len(rss_samples) / 2**20,
         }
+        if accuracy:
+            result.update(accuracy.result())
         print("cells %d, %s: startup %.1f s, %d processes" % (n_cells, " ".join(launch_args) or "defaults",
                                                             startup_s, len(pids)))
         print("  AirbagState rate per cell: min %.1f Hz, mean %.1f Hz, %d cells below 45 Hz, largest gap %.3f s"
               % (result["rate_hz_min"], result["rate_hz_mean"], result["cells_below_45_hz"], result["max_gap_s"]))
         print("  CPU %.2f cores (of %d), resident memory %.0f MB" % (result["cpu_cores_used"], os.cpu_count(),
                                                                    result["rss_mb_mean"]))
+        if accuracy and result.get("height_error_samples"):
+            print("  reported height vs truth: RMS %.2f mm, worst %.2f mm (cell %d), %d cells, %d samples"
+                  % (result["height_error_rms_mm"], result["height_error_worst_mm"], result["worst_cell"],
+                     result["cells_compared"], result["height_error_samples"]))
+        elif accuracy:
+            print("  reported height vs truth: no samples (is /rig_emulator/truth published?)")
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(result, f, indent=2)

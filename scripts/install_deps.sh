@@ -19,6 +19,8 @@ PACKAGES=(
   python3-diagnostic-msgs python3-visualization-msgs
   # numerics, config, tests, benchmarks
   libceres-dev libeigen3-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
+  # the Modbus TCP valve terminals of a real bed (modbus_tcp hardware, rig_emulator)
+  libmodbus-dev
   # plotting for the reproduction figures
   python3-matplotlib python3-numpy python3-yaml
   # visualisation, headless

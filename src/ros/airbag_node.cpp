@@ -34,6 +34,8 @@ std::string AirbagNodeParams::validate() const {
   }
   const std::string airbag_error = airbag.validate();
   if (!airbag_error.empty()) err << airbag_error << "; ";
+  const std::string hardware_error = hardware.validate();
+  if (!hardware_error.empty()) err << hardware_error << "; ";
   std::string s = err.str();
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
@@ -45,7 +47,8 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("col", p.col, p.col);
   pnh.param("defaults_ns", p.defaults_ns, p.defaults_ns);
   pnh.param("robot_description_param", p.robot_description, p.robot_description);
-  pnh.param("update_rate_hz", p.update_rate_hz, p.update_rate_hz);
+  // The rate may come from the defaults namespace too (real_bed.launch runs the cells faster).
+  if (!pnh.getParam("update_rate_hz", p.update_rate_hz)) pnh.param(p.defaults_ns + "/update_rate_hz", p.update_rate_hz, p.update_rate_hz);
   pnh.param("publish_rate_hz", p.publish_rate_hz, p.publish_rate_hz);
   pnh.param("load_n", p.load_n, p.load_n);
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
@@ -53,6 +56,7 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("effects", p.effects, p.effects);
   const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
+  p.hardware = AirbagHardwareParams::load(pnh, p.defaults_ns);
   return p;
 }
 
@@ -71,6 +75,7 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     throw std::runtime_error(msg.str());
   }
   layout_ = *cell;
+  bed_cells_ = layout.cells().size();  // ordered by id: every id below this is a cell
   // The URDF joint limits bound the setpoints too.
   params_.airbag.controller.max_height_m = std::min(params_.airbag.controller.max_height_m, layout_.max_height_m);
   params_.airbag.controller.min_height_m = std::max(params_.airbag.controller.min_height_m, layout_.min_height_m);
@@ -78,8 +83,7 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   const std::string error = params_.validate();
   if (!error.empty()) throw std::runtime_error("airbag " + names::airbagName(params_.row, params_.col) + ": " + error);
 
-  cell_ = std::make_unique<AirbagCell>(params_.airbag,
-                                       effectsFromText(params_.effects, static_cast<std::uint32_t>(params_.airbag.noise_seed)));
+  cell_ = makeCell();
   if (!params_.effects.empty()) ROS_INFO("airbag %s: simulated with hidden effects: %s",
                                          names::airbagName(params_.row, params_.col).c_str(), params_.effects.c_str());
   if (params_.initial_height_m > 0.0) {
@@ -90,10 +94,10 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   if (params_.supply_pressure_pa >= 0.0) cell_->setSupplyPressure(params_.supply_pressure_pa);
   cell_->setCommandTimeout(0.0);  // armed by the first streamed command (feedWatchdog)
 
-  bed_cells_ = layout.cells().size();
   state_pub_ = private_nh_.advertise<AirbagState>(names::kState, 10);
   pressure_pub_ = private_nh_.advertise<sensor_msgs::FluidPressure>(names::kPressure, 10);
   set_height_srv_ = private_nh_.advertiseService(names::kSetHeight, &AirbagNode::setHeight, this);
+  set_pressure_srv_ = private_nh_.advertiseService(names::kSetPressure, &AirbagNode::setPressure, this);
   setpoint_sub_ = private_nh_.subscribe(names::kHeightSetpoint, 10, &AirbagNode::onSetpoint, this);
   load_sub_ = private_nh_.subscribe(names::kLoad, 10, &AirbagNode::onLoad, this);
   vent_sub_ = private_nh_.subscribe(names::kVent, 10, &AirbagNode::onVent, this);
@@ -112,7 +116,33 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   params_.update_rate_hz = ticker.rateHz();
   ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); },
                               [this](const ros::Time& now) { publish(now); });
-  ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->model().structure().describe().c_str());
+  ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->hardware().describe().c_str());
+}
+
+std::unique_ptr<AirbagCell> AirbagNode::makeCell() {
+  const auto seed = static_cast<std::uint32_t>(params_.airbag.noise_seed);
+  // Real hardware runs one control period per tick.
+  if (!params_.hardware.simulated()) params_.airbag.control_period_s = 1.0 / params_.update_rate_hz;
+  HardwareConfig config;
+  config.cell_id = layout_.id;
+  config.control_period_s = params_.airbag.control_period_s;
+  config.cell = params_.airbag.cell;
+  config.effects = effectsFromText(params_.effects, seed);
+  config.load_n = params_.load_n;
+  config.initial_height_m = params_.initial_height_m;
+  config.cpr_vacuum_pa = params_.airbag.cpr_vacuum_pa;
+  config.pressure_noise_pa = params_.airbag.pressure_noise_pa;
+  config.height_noise_m = params_.airbag.height_noise_m;
+  config.noise_seed = seed;
+  config.register_map_path = params_.hardware.register_map;
+  config.bed_cells = static_cast<std::uint32_t>(bed_cells_);
+  const std::string where = "airbag " + names::airbagName(params_.row, params_.col) + ": ";
+  try {
+    return std::make_unique<AirbagCell>(params_.airbag, loadCellHardware(params_.hardware, config),
+                                        observerSetup(params_.hardware, params_.airbag.cell, seed));
+  } catch (const std::exception& e) {
+    throw std::runtime_error(where + e.what());
+  }
 }
 
 AirbagNode::~AirbagNode() {
@@ -130,8 +160,11 @@ void AirbagNode::update(const ros::Time& now) {
   // moment (180 cells lifting off flat at once after CPR), a cell runs late and catches up over
   // the next rounds instead of jumping: its states keep coming, each stamped with the time it
   // describes, never more than kCatchUpPeriods periods apart (doc/safety.md).
+  // Real hardware does not wait: its cell always runs to now (the observer integrates the
+  // whole time the valves kept their command).
   const double period_s = 1.0 / params_.update_rate_hz;
-  const double until_s = std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s);
+  const double until_s = params_.hardware.simulated() ? std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s)
+                                                      : elapsed(now);
   stepDirectRamp(until_s);
   cell_->advanceTo(until_s);
   takeSnapshot();
@@ -161,6 +194,9 @@ void AirbagNode::takeSnapshot() {
   s.vent_s = cell_->ventOpeningSeconds();
   s.valves = cell_->valves();
   s.setpoint_m = cell_->setpoint();
+  s.pressure_setpoint_pa = cell_->pressureSetpoint();
+  s.height_source = static_cast<uint8_t>(cell_->heightSource());
+  s.height_sd_m = cell_->heightSd();
   s.mode = static_cast<uint8_t>(cell_->mode());
   s.faults = cell_->faults();
   std::lock_guard<std::mutex> lock(snapshot_mutex_);
@@ -201,6 +237,8 @@ void AirbagNode::publishState(const CellSnapshot& s, const ros::Time& stamp) {
   msg.col = layout_.col;
   msg.gauge_pressure_pa = m.gauge_pressure_pa;
   msg.height_m = m.height_m;
+  msg.height_source = s.height_source;
+  msg.height_sd_m = s.height_sd_m;
   msg.volume_m3 = s.volume_m3;
   msg.gas_mass_kg = s.gas_mass_kg;
   msg.gas_temperature_k = s.gas_temperature_k;
@@ -219,6 +257,7 @@ void AirbagNode::publishState(const CellSnapshot& s, const ros::Time& stamp) {
   inlet_opening_at_publish_s_ = s.inlet_s;
   vent_opening_at_publish_s_ = s.vent_s;
   msg.height_setpoint_m = s.setpoint_m;
+  msg.pressure_setpoint_pa = s.pressure_setpoint_pa;
   msg.mode = s.mode;
   msg.faults = s.faults;
   last_publish_ = stamp;
@@ -274,6 +313,25 @@ void AirbagNode::startDirectRamp(double height_m, double now_s) {
   direct_ramp_m_ = std::isfinite(direct_target_m_) ? direct_ramp_m_ : std::max(from, 0.0);
   direct_target_m_ = height_m;
   direct_ramp_at_s_ = now_s;
+}
+
+bool AirbagNode::setPressure(SetPressure::Request& req, SetPressure::Response& res) {
+  std::lock_guard<std::timed_mutex> lock(mutex_);
+  const ros::Time now = ros::Time::now();
+  std::string error;
+  if (req.cell_id != layout_.id)
+    error = "cell " + std::to_string(req.cell_id) + " is not served here: this is " + layout_.link_name + ", cell " +
+            std::to_string(layout_.id);
+  else if (ownedByManager(now))
+    error = "cell " + std::to_string(layout_.id) + " (" + layout_.link_name +
+            ") is run by the bed manager, whose height setpoints keep coming and would replace a pressure setpoint";
+  else
+    error = cell_->requestPressure(req.pressure_pa, elapsed(now));
+  // A pressure setpoint ends a direct height call's ramp (it would take the cell back to height).
+  if (error.empty()) direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
+  res.success = error.empty();
+  res.message = error.empty() ? "pressure setpoint " + std::to_string(req.pressure_pa) + " Pa accepted" : error;
+  return true;
 }
 
 void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {

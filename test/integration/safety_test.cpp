@@ -33,7 +33,7 @@ class SafetyFixture : public PlanFixture {
   std::string unhealthy() {
     for (int id = 0; id < cells(); ++id) {
       const AirbagState& s = states_[id];
-      if (s.faults & (AirbagState::FAULT_SENSOR | 16u))
+      if (s.faults & (AirbagState::FAULT_SENSOR | AirbagState::FAULT_MODEL))
         return "cell " + std::to_string(id) + " faults " + std::to_string(s.faults);
       if (s.mode != AirbagState::MODE_HEIGHT) return "cell " + std::to_string(id) + " mode " + std::to_string(s.mode);
     }

@@ -13,7 +13,9 @@
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/SetHeight.h"
+#include "nursing_bed/SetPressure.h"
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/ros/airbag_hardware.h"
 #include "nursing_bed/ros/bed_layout.h"
 #include <std_msgs/Bool.h>
 #include <std_msgs/Empty.h>
@@ -38,6 +40,7 @@ struct AirbagNodeParams {
   /// not given are drawn from the noise seed). Default "": the nominal cell.
   std::string effects;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
+  AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
   /// Empty when valid, else every problem found.
   std::string validate() const;
@@ -62,6 +65,9 @@ class AirbagNode {
   /// empty when accepted, else why not (nothing changes).
   std::string request(double height_m, const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
+  bool setPressure(SetPressure::Request& req, SetPressure::Response& res);
+  /// The cell over the hardware plugin of params_.hardware (the simulated cell by default).
+  std::unique_ptr<AirbagCell> makeCell();
   void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
   void onCellLoads(const std_msgs::Float64MultiArray& msg);
@@ -83,6 +89,9 @@ class AirbagNode {
     double metered_kg = 0.0, inlet_s = 0.0, vent_s = 0.0;  ///< the flow and valve totalisers
     ValveCommand valves;
     double setpoint_m = std::numeric_limits<double>::quiet_NaN();
+    double pressure_setpoint_pa = std::numeric_limits<double>::quiet_NaN();
+    uint8_t height_source = 0;  ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
+    double height_sd_m = 0.0;   ///< the reported height's standard deviation [m]
     uint8_t mode = 0;
     uint32_t faults = 0;
   };
@@ -109,7 +118,8 @@ class AirbagNode {
   std::atomic<double> pending_heartbeat_s_{kNoHeartbeat};  ///< a heartbeat's time for the next update [s since start]  ///< a checked load for the next update (kNoLoad: none)
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
-  std::size_t bed_cells_ = 0;            ///< cells in the bed: the length /airbag_loads must have
+  /// Cells in the bed: the length /airbag_loads must have, and what a register map must serve.
+  std::size_t bed_cells_ = 0;
   ros::Time manager_setpoint_at_;        ///< last setpoint on the manager's topic
   /// A direct set_height call's final height and the ramp towards it, moved at
   /// safety/max_height_rate_m_s (NaN: no direct call in progress). The manager's stream is
@@ -124,7 +134,7 @@ class AirbagNode {
   double inlet_opening_at_publish_s_ = 0.0, vent_opening_at_publish_s_ = 0.0;  ///< valve integrals then
   ros::Publisher state_pub_, pressure_pub_;
   ros::Subscriber setpoint_sub_, load_sub_, vent_sub_, heartbeat_sub_, cpr_sub_;
-  ros::ServiceServer set_height_srv_;
+  ros::ServiceServer set_height_srv_, set_pressure_srv_;
   int ticker_handle_ = -1;
   int bed_topics_handle_ = -1;  ///< registration with the process's BedTopics
 };

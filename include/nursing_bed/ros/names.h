@@ -10,6 +10,7 @@ namespace names {
 constexpr const char* kState = "state";                    // nursing_bed/AirbagState
 constexpr const char* kPressure = "pressure";              // sensor_msgs/FluidPressure (absolute Pa)
 constexpr const char* kSetHeight = "set_height";           // nursing_bed/SetHeight
+constexpr const char* kSetPressure = "set_pressure";       // nursing_bed/SetPressure
 constexpr const char* kHeightSetpoint = "height_setpoint"; // std_msgs/Float64 [m], streaming setpoints
 constexpr const char* kLoad = "load";                      // std_msgs/Float64 [N], external load
 constexpr const char* kVent = "vent";                      // std_msgs/Empty: vent fully (CPR)

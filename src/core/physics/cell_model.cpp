@@ -365,15 +365,17 @@ void CellModel::advance(double duration_s, const CellInputs& in) {
   }
 }
 
-void CellModel::setState(double time_s, const StateVector& state) {
+void CellModel::setState(double time_s, const StateVector& state, bool keep_jacobian) {
   if (state.size() != state_.size())
     throw std::invalid_argument("setState: expected " + std::to_string(state_.size()) + " states, got " +
                                 std::to_string(state.size()));
   state_ = state;
   time_ = time_s;
-  steps_since_jacobian_ = 1 << 30;
   jacobian_fresh_ = false;
-  substep_s_ = 0.0;
+  if (!keep_jacobian) {
+    steps_since_jacobian_ = 1 << 30;
+    substep_s_ = 0.0;
+  }
   refreshVariables(last_inputs_);
 }
 

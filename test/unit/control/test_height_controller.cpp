@@ -301,6 +301,9 @@ TEST(AirbagCellSafety, CprIsExclusive) {
   EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
   EXPECT_NE(cell.requestHeight(0.15, 0.1).find("CPR"), std::string::npos);
   EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
+  EXPECT_NE(cell.requestPressure(5000.0, 0.1).find("CPR"), std::string::npos);
+  EXPECT_NE(cell.checkPressure(5000.0).find("CPR"), std::string::npos);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kVent);
   cell.advanceTo(3.0);
   EXPECT_LT(cell.measurement().height_m, 0.01);
   cell.setCpr(false, 3.0);

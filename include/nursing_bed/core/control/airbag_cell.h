@@ -1,14 +1,17 @@
-// One airbag cell as a bed runs it: the plant (CellModel), its sensors, the height controller
-// and the safety layer between them. ROS-free; the airbag node and nodelet wrap it.
+// One airbag cell as a bed runs it: the control side (height or pressure controller, safety
+// layer, and the height observer where the hardware has no height sensor) over a cell hardware
+// (CellHardware): the simulated plant and its sensors by default, a real valve terminal
+// otherwise. ROS-free; the airbag node and nodelet wrap it.
 #pragma once
 
 #include <cstdint>
 #include <limits>
-#include <random>
 #include <string>
 #include <vector>
 
 #include "nursing_bed/core/control/height_controller.h"
+#include "nursing_bed/core/hardware/simulated_cell_hardware.h"
+#include "nursing_bed/core/observer/cell_observer.h"
 
 namespace nursing_bed {
 
@@ -47,7 +50,7 @@ struct AirbagCellParams {
   std::string validate() const;
 };
 
-enum class AirbagMode : std::uint8_t { kIdle = 0, kHeight = 1, kVent = 2, kSafe = 3 };
+enum class AirbagMode : std::uint8_t { kIdle = 0, kHeight = 1, kVent = 2, kSafe = 3, kPressure = 4 };
 
 /// Fault bits (the AirbagState message's FAULT_ constants).
 enum AirbagFault : std::uint32_t {
@@ -56,14 +59,33 @@ enum AirbagFault : std::uint32_t {
   kFaultOverpressure = 2,
   kFaultCommandTimeout = 4,
   kFaultLowPressure = 8,
-  /// The plant's solve failed or left an invalid state: the cell was reset (flat, valves shut).
+  /// The plant's solve failed or left an invalid state (the hardware reported
+  /// CellReadings::device_reset): the cell was reset (flat, valves shut), mode SAFE.
   kFaultModel = 16,
+  kFaultCommunication = 32,  ///< the hardware link is down: valves not commanded, setpoint kept
+};
+
+/// Where AirbagCell's height comes from (the AirbagState message's HEIGHT_ constants).
+enum class HeightSource : std::uint8_t { kMeasured = 0, kEstimated = 1 };
+
+/// The observer of a cell without a height sensor: its tuning and its model (a calibrated
+/// parameter set and the effects diagnosed for the bed, else the nominal cell).
+struct AirbagObserverSetup {
+  CellObserverParams params;
+  CellParams model;
+  std::vector<CellEffectPtr> effects;
+  bool force = false;  ///< run it (and report its height) even when a height sensor is fitted
 };
 
 class AirbagCell {
  public:
-  /// Throws std::invalid_argument naming what is wrong in `params`.
+  /// The simulated cell (plant and sensors, `effects` hidden in the plant) run in lockstep with
+  /// the control periods. Throws std::invalid_argument naming what is wrong in `params`.
   explicit AirbagCell(const AirbagCellParams& params, const std::vector<CellEffectPtr>& effects = {});
+  /// A configured hardware. A SimulatedCellHardware is run in lockstep like the above; any
+  /// other is real: one control period per advanceTo() call at its time. The observer runs when
+  /// the hardware has no height sensor (or `observer.force`).
+  AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware, const AirbagObserverSetup& observer);
 
   /// Flat cell, plate on the bed, valves shut, idle; time 0.
   void reset(double load_n);
@@ -75,6 +97,10 @@ class AirbagCell {
   std::string checkHeight(double height_m) const;
   /// Sets the height setpoint at time `now_s`; returns checkHeight's message (empty: done).
   std::string requestHeight(double height_m, double now_s);
+  /// Empty when `pressure_pa` is a valid gauge pressure setpoint, else why not.
+  std::string checkPressure(double pressure_pa) const;
+  /// Pressure setpoint mode (how therapy mattresses are run); a height request ends it.
+  std::string requestPressure(double pressure_pa, double now_s);
   /// Vents the cell as fast as the vent allows (CPR); a height request ends it.
   void requestVent(double now_s);
   /// Bed-wide CPR: while on, the cell vents and refuses every height (nothing inflates it);
@@ -84,7 +110,8 @@ class AirbagCell {
 
   /// Empty when `load_n` is a load the cell accepts (finite, 0..safety.max_load_n), else why not.
   std::string checkLoad(double load_n) const;
-  /// Sets the external load; returns checkLoad's message (empty: done, else nothing changes).
+  /// Sets the external load (the simulated plant's; real hardware: the observer estimates it);
+  /// returns checkLoad's message (empty: done, else nothing changes).
   std::string setLoad(double load_n);
   /// Keeps the command watchdog alive without changing the setpoint.
   void heartbeat(double now_s);
@@ -93,18 +120,18 @@ class AirbagCell {
 
   void setSupplyPressure(double pressure_pa);
   /// Test hook: the sensors fail (read NaN) while set; read again at once.
-  void setSensorFailure(bool failed) {
-    sensor_failed_ = failed;
-    sense();
-  }
+  void setSensorFailure(bool failed);
 
-  /// Runs plant, sensors, safety and controller up to `now_s` in control periods.
+  /// Simulated: runs plant, sensors, safety and controller up to `now_s` in control periods.
+  /// Real hardware: one control period at `now_s` (read, observe, control, write).
   void advanceTo(double now_s);
 
-  double time() const { return model_.time(); }
-  const CellVariables& variables() const { return model_.variables(); }
+  double time() const { return time_s_; }
+  /// The simulated plant's variables; on real hardware the observer's estimate of them.
+  const CellVariables& variables() const;
   /// Last sensor readings (NaN after a sensor failure), taken at time(): at the end of the
   /// last control period, which is the start of the next (the controller acts on them there).
+  /// Without a height sensor, height_m is the observer's estimate.
   const Measurement& measurement() const { return measurement_; }
   /// Gas that the inlet's flow meter has counted since reset [kg] (a totaliser: its change over
   /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
@@ -119,26 +146,52 @@ class AirbagCell {
   AirbagMode mode() const { return mode_; }
   std::uint32_t faults() const { return faults_; }
   double setpoint() const { return controller_.hasTarget() ? controller_.target() : std::numeric_limits<double>::quiet_NaN(); }
+  /// Gauge pressure setpoint in pressure mode [Pa] (NaN otherwise).
+  double pressureSetpoint() const { return pressure_setpoint_pa_; }
   double loadEstimate() const { return controller_.loadEstimate(); }
-  double load() const { return load_n_; }
+  /// The simulated load; on real hardware the observer's estimate.
+  double load() const;
+  HeightSource heightSource() const { return use_estimate_ ? HeightSource::kEstimated : HeightSource::kMeasured; }
+  /// Standard deviation of the reported height [m]: the observer's, or the sensor's noise.
+  double heightSd() const;
   const AirbagCellParams& params() const { return params_; }
-  const CellModel& model() const { return model_; }
+  const CellModel& model() const;
   const HeightController& controller() const { return controller_; }
+  const CellHardware& hardware() const { return *hardware_; }
+  /// The observer (null when the height is measured).
+  const CellObserver* observer() const { return observer_.get(); }
 
  private:
   void controlStep();
-  /// One control period of the plant; false when its solve failed or left an invalid state.
-  bool plantStep(const CellInputs& in);
-  /// After a failed solve: the plant flat at rest, valves shut, mode SAFE, flag kFaultModel
-  /// (cleared by the next height request, which starts from the fresh state).
-  void resetAfterModelFault();
-  /// Reads the sensors now (with their noise; NaN while failed) into measurement_.
-  void sense();
+  /// Simulated lockstep: one period of the plant with the valves just commanded.
+  void stepSimulated();
+  /// Real hardware: read, observe, control and write once at `now_s`.
+  void stepReal(double now_s);
+  /// Turns readings into measurement_ (the observer's height where there is no sensor).
+  void observe(const CellReadings& readings, double dt_s = 0.0);
+  void onLink(const CellReadings& readings);
+  ValveCommand pressureValves(double gauge_pressure_pa) const;
+  ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
+  /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
+  bool ventToVacuum() const { return mode_ == AirbagMode::kVent && hardware_->capabilities().vent_vacuum; }
+  void resetControl(double load_n);
+  /// The mode a cleared fault returns to: pressure, height or idle by the setpoint held.
+  AirbagMode resumedMode() const;
+  /// After the hardware reported a device reset (the simulated plant's failed solve, reset flat
+  /// at rest by the hardware): controller target cleared, valves shut, mode SAFE, flag
+  /// kFaultModel (cleared by the next height request, which starts from the fresh state).
+  void onDeviceReset();
 
   AirbagCellParams params_;
-  CellModel model_;
+  CellHardwarePtr hardware_;
+  SimulatedCellHardware* sim_ = nullptr;  ///< hardware_ when it is the simulated plant
+  std::unique_ptr<CellObserver> observer_;
+  bool use_estimate_ = false;             ///< the reported height is the observer's
+  AirbagMode mode_before_link_loss_ = AirbagMode::kIdle;
   HeightController controller_;
+  double time_s_ = 0.0;
   double load_n_ = 0.6;
+  double pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
   double metered_inlet_mass_kg_ = 0.0;
   double inlet_opening_s_ = 0.0, vent_opening_s_ = 0.0;
   double supply_pressure_pa_;
@@ -148,11 +201,8 @@ class AirbagCell {
   Measurement measurement_;
   double last_pressure_pa_ = 0.0;
   double last_command_s_ = 0.0;
-  bool sensor_failed_ = false;
   bool cpr_ = false;
   int bad_readings_ = 0;  ///< consecutive control periods with an out-of-range reading
-  std::mt19937 rng_;
-  std::normal_distribution<double> unit_noise_{0.0, 1.0};
 };
 
 }  // namespace nursing_bed

@@ -134,8 +134,10 @@ class CellModel {
   /// What the sensors report (true values unless an effect changes them).
   Measurement measure() const;
   const StateVector& state() const { return state_; }
-  /// Replaces the state (size must match); variables are recomputed.
-  void setState(double time_s, const StateVector& state);
+  /// Replaces the state (size must match); variables are recomputed. `keep_jacobian`: the new
+  /// state is near the old one (an observer's correction), so the Jacobian and step size are
+  /// kept until their usual refresh (the W-method stays second order with a stale Jacobian).
+  void setState(double time_s, const StateVector& state, bool keep_jacobian = false);
   const CellParams& params() const { return params_; }
   const CellStructure& structure() const { return *structure_; }
   int stateSize() const { return static_cast<int>(state_.size()); }

@@ -1,0 +1,121 @@
+// The `modbus_tcp` cell hardware: a valve terminal with analogue pressure inputs on Modbus TCP
+// (libmodbus). One connection per terminal, shared by its cells; a bus thread per terminal
+// runs one cycle every cycle_s: one batched read of every input register in use (one request
+// per run of consecutive addresses) and one batched write of the outputs; on/off valves are
+// pulse-width modulated over the control period at the cycle's resolution. A failed request
+// takes the link down: the cells see LinkState::kDown at once, nothing is written while it is
+// down, and the thread reconnects every reconnect_interval_s and resumes by itself.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "nursing_bed/core/hardware/cell_hardware.h"
+#include "nursing_bed/core/hardware/register_map.h"
+
+struct _modbus;
+
+namespace nursing_bed {
+
+/// Consecutive addresses handled by one request.
+struct AddressRun {
+  int first = 0;
+  int count = 0;
+};
+
+/// Runs of consecutive addresses covering `addresses` (sorted, unique), each at most `max_count` long.
+std::vector<AddressRun> addressRuns(std::vector<int> addresses, int max_count);
+
+/// Pulse-width modulation of one on/off valve over frames of `steps` bus cycles: on for the
+/// first k cycles of a frame, k = the duty commanded over the previous frame (sampled every
+/// cycle) times the frame, the rounding carried to the next. The valve's open time equals the
+/// commanded duty's integral, one frame later, whatever the phase of the commands.
+class PwmChannel {
+ public:
+  /// The valve state for this cycle; `phase` counts cycles within the frame (0 starts one).
+  bool next(double duty, int phase, int steps);
+
+ private:
+  double demand_ = 0.0;  ///< commanded duty summed over the cycles of this frame
+  double carry_ = 0.0;
+  int on_steps_ = 0;
+};
+
+struct TerminalStats {
+  long cycles = 0;             ///< completed bus cycles
+  long read_requests = 0;      ///< Modbus read requests sent
+  long write_requests = 0;     ///< Modbus write requests sent
+  long connects = 0;           ///< successful connections
+  long link_losses = 0;
+};
+
+class ModbusTerminal {
+ public:
+  /// Starts the bus thread, which connects in the background.
+  ModbusTerminal(const TerminalMap& map, double pwm_period_s);
+  ~ModbusTerminal();
+  ModbusTerminal(const ModbusTerminal&) = delete;
+  ModbusTerminal& operator=(const ModbusTerminal&) = delete;
+
+  /// The process's terminal at this map's endpoint, started on first use and shared.
+  static std::shared_ptr<ModbusTerminal> shared(const TerminalMap& map, double pwm_period_s);
+
+  void command(std::size_t slot, const ValveOpenings& valves);
+  /// Readings of the cell in `slot`, stamped on the caller's clock (`now_s` is now on it).
+  CellReadings readings(std::size_t slot, double now_s) const;
+  bool linkUp() const;
+  TerminalStats stats() const;
+  const TerminalMap& map() const { return map_; }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  void run();
+  bool connect();
+  bool exchange();
+  bool readInputs();
+  bool writeOutputs();
+  void fillOutputs();
+  void dropLink(const std::string& why);
+  double value(const AnalogInput& in) const;
+
+  const TerminalMap map_;
+  const int pwm_steps_;
+  _modbus* ctx_ = nullptr;
+  std::vector<AddressRun> input_runs_, coil_runs_, holding_runs_;
+  mutable std::mutex mutex_;               // guards everything below
+  std::vector<std::uint16_t> inputs_;      // by address
+  std::vector<std::uint8_t> coils_;        // by address
+  std::vector<std::uint16_t> holding_;     // by address
+  std::vector<ValveOpenings> commands_;    // by slot
+  std::vector<PwmChannel> pwm_;            // 2 per slot: inlet, vent
+  Clock::time_point last_read_;
+  bool have_read_ = false;
+  bool up_ = false;
+  std::string error_ = "not connected yet";
+  long cycle_index_ = 0;
+  TerminalStats stats_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+class ModbusTcpCellHardware : public CellHardware {
+ public:
+  /// Loads the register map (HardwareConfig::register_map_path, checked against bed_cells)
+  /// and joins the terminal that serves the cell.
+  void configure(const HardwareConfig& config) override;
+  HardwareCapabilities capabilities() const override;
+  CellReadings read(double now_s) override;
+  void write(const ValveOpenings& valves, double now_s) override;
+  std::string describe() const override;
+
+ private:
+  std::shared_ptr<ModbusTerminal> terminal_;
+  std::size_t slot_ = 0;
+  CellRegisters registers_;
+};
+
+}  // namespace nursing_bed

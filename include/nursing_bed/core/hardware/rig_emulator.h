@@ -1,0 +1,107 @@
+// A rig emulator: Modbus TCP servers (one per terminal of a register map, on 127.0.0.1 only)
+// backed by simulated cells, serving the same register map the modbus_tcp hardware reads. Its
+// cells carry the rig's imperfections (ADC quantisation, valve dead time, optional hidden
+// effects); their true state is available for tests (the ROS node publishes it on a separate
+// topic). ROS-free: the rig_emulator node and the unit tests wrap it.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "nursing_bed/core/hardware/register_map.h"
+#include "nursing_bed/core/hardware/simulated_cell_hardware.h"
+
+struct _modbus;
+struct _modbus_mapping_t;
+
+namespace nursing_bed {
+
+/// One terminal's Modbus TCP server (several clients at once) over a register image.
+class RigTerminalServer {
+ public:
+  /// Throws std::runtime_error when the host is not a loopback address or the port is taken.
+  /// Like a real terminal's fieldbus watchdog, it shuts every output when no request has come
+  /// for `watchdog_s`.
+  explicit RigTerminalServer(const TerminalMap& map, double watchdog_s = 0.1);
+  ~RigTerminalServer();
+  RigTerminalServer(const RigTerminalServer&) = delete;
+  RigTerminalServer& operator=(const RigTerminalServer&) = delete;
+
+  /// Runs `f(mapping)` under the lock the server replies under.
+  template <typename F>
+  void withRegisters(F f) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    f(mapping_);
+  }
+  long requestsServed() const { return requests_; }
+  const TerminalMap& map() const { return map_; }
+
+ private:
+  void run();
+  void serveClient(int fd);
+  void checkWatchdog();
+
+  const TerminalMap map_;
+  const double watchdog_s_;
+  double idle_s_ = 0.0;
+  _modbus* ctx_ = nullptr;
+  _modbus_mapping_t* mapping_ = nullptr;
+  int listen_fd_ = -1;
+  std::vector<int> clients_;
+  std::mutex mutex_;
+  std::atomic<long> requests_{0};
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+struct RigEmulatorOptions {
+  HardwareConfig cell;           ///< plant parameters, hidden effects, noise of every cell
+  RigImperfections rig;          ///< ADC step, valve dead time (height sensor: from the map)
+  double period_s = 0.005;       ///< simulation step [s]
+};
+
+/// What a test may know and a controller may not.
+struct CellTruth {
+  std::uint32_t cell_id = 0;
+  double height_m = 0.0, gauge_pressure_pa = 0.0, gas_mass_kg = 0.0, load_n = 0.0;
+  double inlet_opening = 0.0, vent_opening = 0.0;  ///< valves acting now
+};
+
+class RigEmulator {
+ public:
+  /// Opens a server per terminal and starts the simulation in real time.
+  RigEmulator(const RegisterMap& map, const RigEmulatorOptions& options);
+  ~RigEmulator();
+
+  /// Sets the load of a cell (from the patient simulator) [N]; unknown ids are ignored.
+  void setLoad(std::uint32_t cell_id, double load_n);
+  std::vector<CellTruth> truth() const;
+  /// Simulation steps that ran late by more than a period (real time not kept).
+  long overruns() const { return overruns_; }
+  const std::vector<std::unique_ptr<RigTerminalServer>>& servers() const { return servers_; }
+
+ private:
+  struct Cell {
+    std::size_t terminal = 0;
+    CellRegisters registers;
+    std::unique_ptr<SimulatedCellHardware> hardware;
+  };
+  void run();
+  void applyOutputs(RigTerminalServer& server, Cell& cell);
+  void publishInputs(RigTerminalServer& server, const Cell& cell);
+  void stepAll();
+
+  RigEmulatorOptions options_;
+  std::vector<std::unique_ptr<RigTerminalServer>> servers_;
+  std::vector<Cell> cells_;
+  mutable std::mutex mutex_;    // guards the cells' simulation
+  double time_s_ = 0.0;
+  std::atomic<long> overruns_{0};
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace nursing_bed

@@ -1,0 +1,13 @@
+// The observer's parameter table (keys under "observer/" on the parameter server and in YAML).
+#pragma once
+
+#include "nursing_bed/core/io/param_table.h"
+#include "nursing_bed/core/observer/cell_observer.h"
+
+namespace nursing_bed {
+
+/// Keys: pressure_noise_pa, height_noise_m, ..., as in CellObserverParams (period_s excluded:
+/// it is the control period).
+const ParamTable<CellObserverParams>& observerParamFields();
+
+}  // namespace nursing_bed

@@ -1,0 +1,299 @@
+#include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
+
+#include <modbus/modbus.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+namespace nursing_bed {
+namespace {
+
+int maxAddress(const std::vector<int>& addresses) {
+  return addresses.empty() ? -1 : *std::max_element(addresses.begin(), addresses.end());
+}
+
+}  // namespace
+
+std::vector<AddressRun> addressRuns(std::vector<int> addresses, int max_count) {
+  std::sort(addresses.begin(), addresses.end());
+  addresses.erase(std::unique(addresses.begin(), addresses.end()), addresses.end());
+  std::vector<AddressRun> runs;
+  for (int a : addresses) {
+    if (!runs.empty() && runs.back().first + runs.back().count == a && runs.back().count < max_count) {
+      ++runs.back().count;
+    } else {
+      runs.push_back({a, 1});
+    }
+  }
+  return runs;
+}
+
+bool PwmChannel::next(double duty, int phase, int steps) {
+  if (phase == 0) {
+    const double target = demand_ + carry_;
+    on_steps_ = static_cast<int>(std::clamp(std::round(target), 0.0, static_cast<double>(steps)));
+    carry_ = std::clamp(target - on_steps_, -1.0, 1.0);
+    demand_ = 0.0;
+  }
+  demand_ += std::clamp(duty, 0.0, 1.0);
+  return phase < on_steps_;
+}
+
+ModbusTerminal::ModbusTerminal(const TerminalMap& map, double pwm_period_s)
+    : map_(map), pwm_steps_(std::max(1, static_cast<int>(std::lround(pwm_period_s / map.cycle_s)))) {
+  std::vector<int> inputs, coils, holding;
+  if (map_.supply_pressure_pa.present()) inputs.push_back(map_.supply_pressure_pa.address);
+  for (const CellRegisters& c : map_.cells) {
+    for (const AnalogInput* in : {&c.pressure_pa, &c.height_m, &c.inflow_kg_s})
+      if (in->present()) inputs.push_back(in->address);
+    for (const ValveOutput* v : {&c.inlet, &c.vent})
+      (v->kind == ValveOutput::kCoil ? coils : holding).push_back(v->address);
+  }
+  inputs_.assign(maxAddress(inputs) + 1, 0);
+  coils_.assign(maxAddress(coils) + 1, 0);
+  holding_.assign(maxAddress(holding) + 1, 0);
+  input_runs_ = addressRuns(inputs, MODBUS_MAX_READ_REGISTERS);
+  coil_runs_ = addressRuns(coils, MODBUS_MAX_WRITE_BITS);
+  holding_runs_ = addressRuns(holding, MODBUS_MAX_WRITE_REGISTERS);
+  commands_.assign(map_.cells.size(), ValveOpenings{});
+  pwm_.assign(2 * map_.cells.size(), PwmChannel{});
+  thread_ = std::thread(&ModbusTerminal::run, this);
+}
+
+ModbusTerminal::~ModbusTerminal() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  if (ctx_) {
+    modbus_close(ctx_);
+    modbus_free(ctx_);
+  }
+}
+
+std::shared_ptr<ModbusTerminal> ModbusTerminal::shared(const TerminalMap& map, double pwm_period_s) {
+  static std::mutex registry_mutex;
+  static std::map<std::string, std::weak_ptr<ModbusTerminal>> registry;
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  std::shared_ptr<ModbusTerminal> terminal = registry[map.endpoint()].lock();
+  if (!terminal) {
+    terminal = std::make_shared<ModbusTerminal>(map, pwm_period_s);
+    registry[map.endpoint()] = terminal;
+  }
+  return terminal;
+}
+
+void ModbusTerminal::command(std::size_t slot, const ValveOpenings& valves) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (up_) commands_.at(slot) = valves;  // while down the valves stay shut on reconnection
+}
+
+double ModbusTerminal::value(const AnalogInput& in) const {
+  return in.present() ? in.toValue(inputs_[in.address]) : std::numeric_limits<double>::quiet_NaN();
+}
+
+CellReadings ModbusTerminal::readings(std::size_t slot, double now_s) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  CellReadings r;
+  if (!up_ || !have_read_) {
+    r.link = LinkState::kDown;
+    r.link_error = map_.name + " (" + map_.endpoint() + "): " + error_;
+    return r;
+  }
+  const double age_s = std::chrono::duration<double>(Clock::now() - last_read_).count();
+  if (age_s > map_.stale_after_s) return r;  // link up but nothing fresh: every reading NaN
+  const double stamp = now_s - age_s;
+  const CellRegisters& c = map_.cells.at(slot);
+  r.gauge_pressure_pa = {value(c.pressure_pa), stamp};
+  if (c.height_m.present()) r.height_m = {value(c.height_m), stamp};
+  if (c.inflow_kg_s.present()) r.inflow_kg_s = {value(c.inflow_kg_s), stamp};
+  if (map_.supply_pressure_pa.present()) r.supply_pressure_pa = {value(map_.supply_pressure_pa), stamp};
+  return r;
+}
+
+bool ModbusTerminal::linkUp() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return up_;
+}
+
+TerminalStats ModbusTerminal::stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return stats_;
+}
+
+void ModbusTerminal::run() {
+  Clock::time_point next = Clock::now();
+  Clock::time_point next_connect = next;
+  const auto cycle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.cycle_s));
+  const auto retry = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.reconnect_interval_s));
+  while (!stop_) {
+    const bool up = linkUp();
+    if (up) {
+      exchange();
+    } else if (Clock::now() >= next_connect) {
+      connect();
+      next_connect = Clock::now() + retry;
+    }
+    next += cycle;
+    const Clock::time_point now = Clock::now();
+    if (next < now) next = now;  // overrun: do not try to catch up
+    std::this_thread::sleep_until(next);
+  }
+}
+
+bool ModbusTerminal::connect() {
+  if (ctx_) {
+    modbus_close(ctx_);
+    modbus_free(ctx_);
+  }
+  ctx_ = modbus_new_tcp(map_.host.c_str(), map_.port);
+  if (!ctx_) {
+    dropLink(std::string("cannot create a Modbus context: ") + modbus_strerror(errno));
+    return false;
+  }
+  modbus_set_slave(ctx_, map_.unit_id);
+  const double t = map_.response_timeout_s;
+  modbus_set_response_timeout(ctx_, static_cast<uint32_t>(t), static_cast<uint32_t>((t - std::floor(t)) * 1e6));
+  if (modbus_connect(ctx_) != 0) {
+    dropLink(std::string("connect failed: ") + modbus_strerror(errno));
+    return false;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    up_ = true;
+    have_read_ = false;
+    error_.clear();
+    ++stats_.connects;
+    std::fill(commands_.begin(), commands_.end(), ValveOpenings{});
+  }
+  return exchange();
+}
+
+bool ModbusTerminal::exchange() {
+  if (!readInputs() || !writeOutputs()) return false;
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++stats_.cycles;
+  return true;
+}
+
+bool ModbusTerminal::readInputs() {
+  std::vector<std::uint16_t> buffer(inputs_.size());
+  for (const AddressRun& run : input_runs_) {
+    if (modbus_read_input_registers(ctx_, run.first, run.count, buffer.data() + run.first) != run.count) {
+      dropLink(std::string("reading input registers ") + std::to_string(run.first) + "+" + std::to_string(run.count) +
+               " failed: " + modbus_strerror(errno));
+      return false;
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  stats_.read_requests += static_cast<long>(input_runs_.size());
+  inputs_.swap(buffer);
+  last_read_ = Clock::now();
+  have_read_ = true;
+  return true;
+}
+
+void ModbusTerminal::fillOutputs() {
+  const int phase = static_cast<int>(cycle_index_++ % pwm_steps_);
+  for (std::size_t s = 0; s < map_.cells.size(); ++s) {
+    const CellRegisters& c = map_.cells[s];
+    const double duty[2] = {commands_[s].inlet, commands_[s].vent};
+    const ValveOutput* out[2] = {&c.inlet, &c.vent};
+    for (int k = 0; k < 2; ++k) {
+      if (out[k]->kind == ValveOutput::kCoil) {
+        coils_[out[k]->address] = pwm_[2 * s + k].next(duty[k], phase, pwm_steps_) ? 1 : 0;
+      } else {
+        holding_[out[k]->address] = static_cast<std::uint16_t>(std::lround(std::clamp(duty[k], 0.0, 1.0) * out[k]->full_scale));
+      }
+    }
+  }
+}
+
+bool ModbusTerminal::writeOutputs() {
+  std::vector<std::uint8_t> coils;
+  std::vector<std::uint16_t> holding;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    fillOutputs();
+    coils = coils_;
+    holding = holding_;
+  }
+  for (const AddressRun& run : coil_runs_) {
+    if (modbus_write_bits(ctx_, run.first, run.count, coils.data() + run.first) != run.count) {
+      dropLink("writing coils " + std::to_string(run.first) + "+" + std::to_string(run.count) + " failed: " + modbus_strerror(errno));
+      return false;
+    }
+  }
+  for (const AddressRun& run : holding_runs_) {
+    if (modbus_write_registers(ctx_, run.first, run.count, holding.data() + run.first) != run.count) {
+      dropLink("writing holding registers " + std::to_string(run.first) + "+" + std::to_string(run.count) +
+               " failed: " + modbus_strerror(errno));
+      return false;
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  stats_.write_requests += static_cast<long>(coil_runs_.size() + holding_runs_.size());
+  return true;
+}
+
+void ModbusTerminal::dropLink(const std::string& why) {
+  if (ctx_) modbus_close(ctx_);
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (up_) ++stats_.link_losses;
+  up_ = false;
+  have_read_ = false;
+  error_ = why;
+  std::fill(commands_.begin(), commands_.end(), ValveOpenings{});
+}
+
+// --- the cell's view ------------------------------------------------------------------------
+
+namespace {
+
+/// Maps are parsed once per file and process (every cell of a bed reads the same one).
+RegisterMap cachedMap(const std::string& path, std::uint32_t bed_cells) {
+  static std::mutex mutex;
+  static std::map<std::pair<std::string, std::uint32_t>, RegisterMap> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  const auto key = std::make_pair(path, bed_cells);
+  auto it = cache.find(key);
+  if (it == cache.end()) it = cache.emplace(key, loadRegisterMap(path, bed_cells)).first;
+  return it->second;
+}
+
+}  // namespace
+
+void ModbusTcpCellHardware::configure(const HardwareConfig& config) {
+  if (config.register_map_path.empty()) throw std::runtime_error("modbus_tcp hardware: no register map given");
+  const RegisterMap map = cachedMap(config.register_map_path, config.bed_cells);
+  std::size_t terminal = 0;
+  if (!map.find(config.cell_id, &terminal, &slot_))
+    throw std::runtime_error("modbus_tcp hardware: cell " + std::to_string(config.cell_id) + " is not in the register map " +
+                             config.register_map_path);
+  registers_ = map.terminals[terminal].cells[slot_];
+  terminal_ = ModbusTerminal::shared(map.terminals[terminal], config.control_period_s);
+}
+
+HardwareCapabilities ModbusTcpCellHardware::capabilities() const {
+  HardwareCapabilities c;
+  c.height = registers_.height_m.present();
+  c.inflow = registers_.inflow_kg_s.present();
+  c.supply_pressure = terminal_ && terminal_->map().supply_pressure_pa.present();
+  return c;
+}
+
+CellReadings ModbusTcpCellHardware::read(double now_s) { return terminal_->readings(slot_, now_s); }
+
+void ModbusTcpCellHardware::write(const ValveOpenings& valves, double /*now_s*/) { terminal_->command(slot_, valves); }
+
+std::string ModbusTcpCellHardware::describe() const {
+  std::ostringstream s;
+  s << "modbus_tcp " << terminal_->map().name << " (" << terminal_->map().endpoint() << "), cell " << registers_.cell_id
+    << ": inlet " << (registers_.inlet.kind == ValveOutput::kCoil ? "coil " : "register ") << registers_.inlet.address
+    << ", vent " << (registers_.vent.kind == ValveOutput::kCoil ? "coil " : "register ") << registers_.vent.address
+    << ", pressure input " << registers_.pressure_pa.address;
+  return s.str();
+}
+
+}  // namespace nursing_bed

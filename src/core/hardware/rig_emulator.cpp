@@ -1,0 +1,199 @@
+#include "nursing_bed/core/hardware/rig_emulator.h"
+
+#include <modbus/modbus.h>
+#include <sys/select.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <stdexcept>
+
+namespace nursing_bed {
+namespace {
+
+int mappingSize(const TerminalMap& map, bool coils, bool holding) {
+  int top = -1;
+  for (const CellRegisters& c : map.cells) {
+    for (const ValveOutput* v : {&c.inlet, &c.vent}) {
+      const bool is_coil = v->kind == ValveOutput::kCoil;
+      if ((coils && is_coil) || (holding && !is_coil)) top = std::max(top, v->address);
+    }
+    if (!coils && !holding)
+      for (const AnalogInput* in : {&c.pressure_pa, &c.height_m, &c.inflow_kg_s}) top = std::max(top, in->address);
+  }
+  if (!coils && !holding) top = std::max(top, map.supply_pressure_pa.address);
+  return top + 1;
+}
+
+}  // namespace
+
+RigTerminalServer::RigTerminalServer(const TerminalMap& map, double watchdog_s) : map_(map), watchdog_s_(watchdog_s) {
+  if (map.host != "127.0.0.1")
+    throw std::runtime_error("rig emulator: terminal '" + map.name + "' must listen on 127.0.0.1 (loopback only), not " + map.host);
+  ctx_ = modbus_new_tcp("127.0.0.1", map.port);
+  mapping_ = modbus_mapping_new(mappingSize(map, true, false), 0, mappingSize(map, false, true), mappingSize(map, false, false));
+  if (!ctx_ || !mapping_) throw std::runtime_error("rig emulator: cannot allocate the Modbus server for " + map.name);
+  modbus_set_slave(ctx_, map.unit_id);
+  listen_fd_ = modbus_tcp_listen(ctx_, 8);
+  if (listen_fd_ < 0)
+    throw std::runtime_error("rig emulator: terminal '" + map.name + "' cannot listen on " + map.endpoint() + ": " +
+                             modbus_strerror(errno));
+  thread_ = std::thread(&RigTerminalServer::run, this);
+}
+
+RigTerminalServer::~RigTerminalServer() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  for (int fd : clients_) ::close(fd);
+  if (listen_fd_ >= 0) ::close(listen_fd_);
+  modbus_mapping_free(mapping_);
+  modbus_free(ctx_);
+}
+
+void RigTerminalServer::run() {
+  while (!stop_) {
+    fd_set readable;
+    FD_ZERO(&readable);
+    FD_SET(listen_fd_, &readable);
+    int top = listen_fd_;
+    for (int fd : clients_) {
+      FD_SET(fd, &readable);
+      top = std::max(top, fd);
+    }
+    timeval timeout{0, 10000};
+    if (::select(top + 1, &readable, nullptr, nullptr, &timeout) <= 0) {
+      checkWatchdog();
+      continue;
+    }
+    if (FD_ISSET(listen_fd_, &readable)) {
+      const int fd = ::accept(listen_fd_, nullptr, nullptr);
+      if (fd >= 0) clients_.push_back(fd);
+    }
+    const std::vector<int> ready = clients_;
+    for (int fd : ready)
+      if (FD_ISSET(fd, &readable)) serveClient(fd);
+  }
+}
+
+void RigTerminalServer::checkWatchdog() {
+  idle_s_ += 0.01;
+  if (idle_s_ < watchdog_s_) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::fill(mapping_->tab_bits, mapping_->tab_bits + mapping_->nb_bits, 0);
+  std::fill(mapping_->tab_registers, mapping_->tab_registers + mapping_->nb_registers, 0);
+}
+
+void RigTerminalServer::serveClient(int fd) {
+  std::uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
+  modbus_set_socket(ctx_, fd);
+  const int length = modbus_receive(ctx_, query);
+  if (length > 0) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    modbus_reply(ctx_, query, length, mapping_);
+    ++requests_;
+    idle_s_ = 0.0;
+  } else if (length < 0) {  // the client went away
+    ::close(fd);
+    clients_.erase(std::remove(clients_.begin(), clients_.end(), fd), clients_.end());
+  }
+}
+
+RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& options) : options_(options) {
+  for (std::size_t t = 0; t < map.terminals.size(); ++t) {
+    servers_.push_back(std::make_unique<RigTerminalServer>(map.terminals[t]));
+    for (const CellRegisters& registers : map.terminals[t].cells) {
+      Cell cell;
+      cell.terminal = t;
+      cell.registers = registers;
+      RigImperfections rig = options.rig;
+      rig.height_sensor = registers.height_m.present();
+      HardwareConfig config = options.cell;
+      config.cell_id = registers.cell_id;
+      config.control_period_s = options.period_s;
+      config.noise_seed = options.cell.noise_seed + registers.cell_id;
+      cell.hardware = std::make_unique<SimulatedCellHardware>(rig);
+      cell.hardware->configure(config);
+      cells_.push_back(std::move(cell));
+    }
+  }
+  stepAll();
+  thread_ = std::thread(&RigEmulator::run, this);
+}
+
+RigEmulator::~RigEmulator() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+void RigEmulator::setLoad(std::uint32_t cell_id, double load_n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (Cell& c : cells_)
+    if (c.registers.cell_id == cell_id) c.hardware->setLoad(load_n);
+}
+
+std::vector<CellTruth> RigEmulator::truth() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<CellTruth> out;
+  for (const Cell& c : cells_) {
+    const CellVariables& v = c.hardware->variables();
+    CellTruth t;
+    t.cell_id = c.registers.cell_id;
+    t.height_m = v.height_m;
+    t.gauge_pressure_pa = v.gauge_pressure_pa;
+    t.gas_mass_kg = v.mass_kg;
+    t.load_n = c.hardware->load();
+    t.inlet_opening = c.hardware->actingValves().inlet;
+    t.vent_opening = c.hardware->actingValves().vent;
+    out.push_back(t);
+  }
+  return out;
+}
+
+void RigEmulator::applyOutputs(RigTerminalServer& server, Cell& cell) {
+  server.withRegisters([&cell](modbus_mapping_t* m) {
+    auto opening = [m](const ValveOutput& v) {
+      return v.kind == ValveOutput::kCoil ? (m->tab_bits[v.address] ? 1.0 : 0.0)
+                                          : std::min(1.0, m->tab_registers[v.address] / v.full_scale);
+    };
+    cell.hardware->write({opening(cell.registers.inlet), opening(cell.registers.vent), false}, 0.0);
+  });
+}
+
+void RigEmulator::publishInputs(RigTerminalServer& server, const Cell& cell) {
+  const Measurement& m = cell.hardware->measurement();
+  const CellRegisters& r = cell.registers;
+  server.withRegisters([&](modbus_mapping_t* map) {
+    map->tab_input_registers[r.pressure_pa.address] = r.pressure_pa.toCount(m.gauge_pressure_pa);
+    if (r.height_m.present()) map->tab_input_registers[r.height_m.address] = r.height_m.toCount(m.height_m);
+    if (r.inflow_kg_s.present()) map->tab_input_registers[r.inflow_kg_s.address] = r.inflow_kg_s.toCount(m.inflow_kg_s);
+    const AnalogInput& supply = server.map().supply_pressure_pa;
+    if (supply.present()) map->tab_input_registers[supply.address] = supply.toCount(cell.hardware->variables().regulator_pressure_pa);
+  });
+}
+
+void RigEmulator::stepAll() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (Cell& c : cells_) applyOutputs(*servers_[c.terminal], c);
+  for (Cell& c : cells_) c.hardware->stepPeriod();
+  for (const Cell& c : cells_) publishInputs(*servers_[c.terminal], c);
+  time_s_ += options_.period_s;
+}
+
+void RigEmulator::run() {
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.period_s));
+  Clock::time_point next = Clock::now() + period;
+  while (!stop_) {
+    std::this_thread::sleep_until(next);
+    stepAll();
+    next += period;
+    if (Clock::now() > next + period) {
+      ++overruns_;
+      next = Clock::now();
+    }
+  }
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,106 @@
+#include "nursing_bed/ros/rig_emulator_node.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/ros/names.h"
+#include "nursing_bed/ros/ros_params.h"
+
+namespace nursing_bed {
+
+std::string RigEmulatorNodeParams::validate() const {
+  std::ostringstream err;
+  if (register_map.empty()) err << "~register_map must name the register map YAML; ";
+  if (bed_cells < 0) err << "~bed_cells must be >= 0; ";
+  if (!(period_s > 0.0 && period_s <= 0.02)) err << "~period_s must lie in (0, 0.02] s; ";
+  if (!(adc_step_pa >= 0.0)) err << "~adc_step_pa must be >= 0; ";
+  if (!(valve_dead_time_s >= 0.0 && valve_dead_time_s <= 1.0)) err << "~valve_dead_time_s must lie in [0, 1] s; ";
+  if (!(pressure_noise_pa >= 0.0)) err << "~pressure_noise_pa must be >= 0; ";
+  if (!(load_n >= 0.0 && std::isfinite(load_n))) err << "~load_n must be >= 0; ";
+  if (!(initial_height_m >= 0.0 && initial_height_m <= 0.2)) err << "~initial_height_m must lie in [0, 0.2] m; ";
+  if (!(truth_rate_hz > 0.0 && truth_rate_hz <= 1000.0)) err << "~truth_rate_hz must lie in (0, 1000]; ";
+  try {
+    effectsFromText(effects, noise_seed);
+  } catch (const std::invalid_argument& e) {
+    err << "~effects: " << e.what() << "; ";
+  }
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+RigEmulatorNodeParams RigEmulatorNode::loadParams(const ros::NodeHandle& pnh) {
+  RigEmulatorNodeParams p;
+  pnh.param("register_map", p.register_map, p.register_map);
+  pnh.param("bed_cells", p.bed_cells, p.bed_cells);
+  pnh.param("defaults_ns", p.defaults_ns, p.defaults_ns);
+  pnh.param("period_s", p.period_s, p.period_s);
+  pnh.param("adc_step_pa", p.adc_step_pa, p.adc_step_pa);
+  pnh.param("valve_dead_time_s", p.valve_dead_time_s, p.valve_dead_time_s);
+  pnh.param("pressure_noise_pa", p.pressure_noise_pa, p.pressure_noise_pa);
+  pnh.param("effects", p.effects, p.effects);
+  pnh.param("load_n", p.load_n, p.load_n);
+  pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
+  pnh.param("truth_rate_hz", p.truth_rate_hz, p.truth_rate_hz);
+  int seed = static_cast<int>(p.noise_seed);
+  pnh.param("noise_seed", seed, seed);
+  p.noise_seed = static_cast<std::uint32_t>(seed);
+  return p;
+}
+
+RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : params_(loadParams(private_nh)) {
+  const std::string error = params_.validate();
+  if (!error.empty()) throw std::runtime_error("rig_emulator: " + error);
+  const FlatParams values = layeredRosParams(private_nh, params_.defaults_ns, {"cell"});
+  const AirbagCellParams airbag = airbagParamsFrom(values, "rig_emulator cell parameters");
+  RigEmulatorOptions options;
+  options.period_s = params_.period_s;
+  options.rig.adc_step_pa = params_.adc_step_pa;
+  options.rig.valve_dead_time_s = params_.valve_dead_time_s;
+  options.cell.cell = airbag.cell;
+  options.cell.effects = effectsFromText(params_.effects, params_.noise_seed);
+  options.cell.pressure_noise_pa = params_.pressure_noise_pa;
+  options.cell.load_n = params_.load_n;
+  options.cell.initial_height_m = params_.initial_height_m;
+  options.cell.noise_seed = params_.noise_seed;
+  const RegisterMap map = loadRegisterMap(params_.register_map, static_cast<std::uint32_t>(params_.bed_cells));
+  emulator_ = std::make_unique<RigEmulator>(map, options);
+  loads_sub_ = nh.subscribe(names::kCellLoads, 2, &RigEmulatorNode::onCellLoads, this, ros::TransportHints().tcpNoDelay());
+  truth_pub_ = private_nh.advertise<std_msgs::Float64MultiArray>("truth", 2);
+  truth_timer_ = nh.createTimer(ros::Duration(1.0 / params_.truth_rate_hz), &RigEmulatorNode::publishTruth, this);
+  ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(), params_.register_map.c_str(),
+           params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
+}
+
+void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
+  for (std::size_t id = 0; id < msg->data.size(); ++id)
+    if (std::isfinite(msg->data[id]) && msg->data[id] >= 0.0) emulator_->setLoad(static_cast<std::uint32_t>(id), msg->data[id]);
+}
+
+void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
+  // Rows by cell id: height_m, gauge_pressure_pa, gas_mass_kg, load_n.
+  const std::vector<CellTruth> truth = emulator_->truth();
+  std_msgs::Float64MultiArray msg;
+  msg.layout.dim.resize(2);
+  msg.layout.dim[0].label = "cell";
+  msg.layout.dim[1].label = "height_m,gauge_pressure_pa,gas_mass_kg,load_n";
+  std::uint32_t cells = 0;
+  for (const CellTruth& t : truth) cells = std::max(cells, t.cell_id + 1);
+  msg.layout.dim[0].size = cells;
+  msg.layout.dim[1].size = 4;
+  msg.layout.dim[0].stride = 4 * cells;
+  msg.layout.dim[1].stride = 4;
+  msg.data.assign(4 * cells, std::numeric_limits<double>::quiet_NaN());
+  for (const CellTruth& t : truth) {
+    double* row = &msg.data[4 * t.cell_id];
+    row[0] = t.height_m;
+    row[1] = t.gauge_pressure_pa;
+    row[2] = t.gas_mass_kg;
+    row[3] = t.load_n;
+  }
+  truth_pub_.publish(msg);
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,128 @@
+// Height from pressure over Modbus TCP in real time (doc/benchmarks.md, doc/real_bed.md): one
+// cell without a height sensor, its valves on a terminal of the rig emulator (127.0.0.1), run
+// by AirbagCell at 200 Hz through a programme of fills, holds, a vent to flat and refills under
+// 15.6 N. Prints the emulator's truth against the estimate every 0.5 s and the RMS and worst
+// height error after the first second.
+//
+// usage: bench_observer_modbus [--proportional] [--reading-time-sd S] [--dead-time S]
+//   --proportional        holding-register valves instead of on/off coils (PWM)
+//   --reading-time-sd S   the observer's reading_time_sd_s (default: 0.02, config/observer.yaml)
+//   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
+#include "nursing_bed/core/hardware/rig_emulator.h"
+
+namespace nb = nursing_bed;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct Options {
+  bool proportional = false;
+  double reading_time_sd_s = 0.02;
+  double dead_time_s = 0.015;
+};
+
+bool parse(int argc, char** argv, Options* o) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--proportional") {
+      o->proportional = true;
+    } else if ((a == "--reading-time-sd" || a == "--dead-time") && i + 1 < argc) {
+      char* end = nullptr;
+      const double v = std::strtod(argv[++i], &end);
+      if (*end != '\0' || !(v >= 0.0 && v < 1.0)) {
+        std::fprintf(stderr, "bench_observer_modbus: %s wants seconds in [0, 1), got '%s'\n", a.c_str(), argv[i]);
+        return false;
+      }
+      (a == "--dead-time" ? o->dead_time_s : o->reading_time_sd_s) = v;
+    } else {
+      std::fprintf(stderr, "bench_observer_modbus: unknown argument '%s'\n", a.c_str());
+      return false;
+    }
+  }
+  return true;
+}
+
+std::string writeMap(bool proportional) {
+  const std::string path = "/tmp/bench_observer_modbus_map.yaml";
+  const std::string valves = proportional
+                                 ? "inlet: {holding_register: 0, full_scale: 1000}, vent: {holding_register: 1, full_scale: 1000}"
+                                 : "inlet: {coil: 0}, vent: {coil: 1}";
+  std::ofstream(path) << "terminals:\n  - {name: bench, host: 127.0.0.1, port: 15790, cycle_s: 0.005,\n"
+                         "     cells: [{cell: 0, " << valves
+                      << ", pressure: {input_register: 0, scale_pa: 1.0, offset_pa: -10000}}]}\n";
+  return path;
+}
+
+struct Target {
+  double at_s, height_m;  ///< height < 0: vent flat
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  if (!parse(argc, argv, &o)) return 2;
+  const std::string map_path = writeMap(o.proportional);
+  nb::RigEmulatorOptions rig;
+  rig.cell.load_n = 15.6;
+  rig.cell.pressure_noise_pa = 10.0;
+  rig.rig.adc_step_pa = 12.2;
+  rig.rig.valve_dead_time_s = 0.01;
+  nb::RigEmulator emulator(nb::loadRegisterMap(map_path, 1), rig);
+
+  nb::HardwareConfig config;
+  config.cell_id = 0;
+  config.control_period_s = 0.005;
+  config.register_map_path = map_path;
+  config.bed_cells = 1;
+  auto hardware = std::make_shared<nb::ModbusTcpCellHardware>();
+  hardware->configure(config);
+  nb::AirbagCellParams params;
+  params.control_period_s = config.control_period_s;
+  nb::AirbagObserverSetup observer;
+  observer.model = params.cell;
+  observer.params.valve_dead_time_s = o.dead_time_s;
+  observer.params.reading_time_sd_s = o.reading_time_sd_s;
+  nb::AirbagCell cell(params, hardware, observer);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the link comes up
+
+  const Target plan[] = {{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1}, {21, 0.10}, {26, 0.05}, {31, 0.12}};
+  const double end_s = 36.0;
+  std::size_t next_target = 0;
+  nb::ObserverErrorStats error;
+  const Clock::time_point start = Clock::now();
+  Clock::time_point tick = start;
+  for (long i = 0;; ++i) {
+    tick += std::chrono::microseconds(5000);
+    std::this_thread::sleep_until(tick);
+    const double now = std::chrono::duration<double>(Clock::now() - start).count();
+    if (now > end_s) break;
+    if (next_target < std::size(plan) && now >= plan[next_target].at_s) {
+      const Target& t = plan[next_target++];
+      if (t.height_m < 0.0) cell.requestVent(now);
+      else cell.requestHeight(t.height_m, now);
+    }
+    cell.advanceTo(now);
+    const nb::CellTruth truth = emulator.truth().at(0);
+    const double e = truth.height_m - cell.measurement().height_m;
+    if (now > 1.0) error.add(e);
+    if (i % 100 == 0)
+      std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true 15.6)\n", now,
+                  1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load());
+  }
+  std::printf("%s valves, reading_time_sd_s %g, valve_dead_time_s %g: height error RMS %.2f mm, worst %.2f mm\n",
+              o.proportional ? "proportional" : "on/off", o.reading_time_sd_s, o.dead_time_s, 1e3 * error.rmsM(),
+              1e3 * error.max_abs_m);
+  return 0;
+}

@@ -1,0 +1,123 @@
+// The airbag cell over the hardware boundary: no height sensor (the observer's height), a real
+// (non-lockstep) hardware with its link lost and regained, pressure setpoints.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "nursing_bed/core/control/airbag_cell.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+/// A simulated rig without a height sensor, with the pressure input's noise and quantisation.
+std::shared_ptr<nb::SimulatedCellHardware> rigWithoutHeightSensor(const nb::AirbagCellParams& p, double height_m, double load_n) {
+  nb::RigImperfections rig;
+  rig.height_sensor = false;
+  rig.adc_step_pa = 12.2;
+  auto hw = std::make_shared<nb::SimulatedCellHardware>(rig);
+  nb::HardwareConfig c;
+  c.control_period_s = p.control_period_s;
+  c.cell = p.cell;
+  c.pressure_noise_pa = 10.0;
+  c.initial_height_m = height_m;
+  c.load_n = load_n;
+  hw->configure(c);
+  return hw;
+}
+
+/// Real-time-style hardware: the plant behind it runs on read(now); its link can be cut, and
+/// then the terminal's watchdog shuts its valves (as the rig emulator's does).
+class CuttableHardware : public nb::CellHardware {
+ public:
+  explicit CuttableHardware(std::shared_ptr<nb::SimulatedCellHardware> plant) : plant_(std::move(plant)) {}
+  void configure(const nb::HardwareConfig&) override {}
+  nb::HardwareCapabilities capabilities() const override { return {}; }
+  nb::CellReadings read(double now_s) override {
+    nb::CellReadings r = plant_->read(now_s);
+    r.height_m = {};
+    r.inflow_kg_s = {};
+    r.gas_temperature_k = {};
+    r.supply_pressure_pa = {};
+    if (cut) {
+      plant_->write({}, now_s);
+      r = nb::CellReadings{};
+      r.link = nb::LinkState::kDown;
+      r.link_error = "cut";
+    }
+    return r;
+  }
+  void write(const nb::ValveOpenings& v, double now_s) override {
+    if (cut) ++writes_while_cut;
+    plant_->write(v, now_s);
+  }
+  std::string describe() const override { return "cuttable"; }
+  bool cut = false;
+  int writes_while_cut = 0;
+  std::shared_ptr<nb::SimulatedCellHardware> plant_;
+};
+
+}  // namespace
+
+TEST(AirbagOnHardware, StepWithoutAHeightSensorSettlesNearTheFlowLimit) {
+  // Acceptance 2: 20 -> 100 mm under 15.6 N settles within +-2 mm in <= 2x the flow-limited time.
+  nb::AirbagCellParams p;
+  auto rig = rigWithoutHeightSensor(p, 0.02, 15.6);
+  nb::AirbagCell cell(p, rig, nb::AirbagObserverSetup{});
+  cell.resetToHeight(0.02, 15.6);
+  ASSERT_EQ(cell.heightSource(), nb::HeightSource::kEstimated);
+  ASSERT_EQ(cell.requestHeight(0.10, 0.0), "");
+  const double t_min = nb::flowLimitedMinimumTime(p.cell, 15.6, 0.02, 0.10);
+  double settle = 0.0, worst_estimate_error = 0.0;
+  for (double t = 0.005; t <= 6.0; t += 0.005) {
+    cell.advanceTo(t);
+    const double truth = rig->variables().height_m;
+    if (std::fabs(truth - 0.10) > 0.002) settle = t;
+    worst_estimate_error = std::max(worst_estimate_error, std::fabs(truth - cell.measurement().height_m));
+  }
+  std::cout << "[airbag] no height sensor: settled in " << settle << " s, flow limit " << t_min << " s ("
+            << settle / t_min << "x); worst estimate error " << 1e3 * worst_estimate_error << " mm; sd "
+            << 1e3 * cell.heightSd() << " mm\n";
+  EXPECT_LE(settle, 2.0 * t_min);
+  EXPECT_NEAR(rig->variables().height_m, 0.10, 0.002);
+  EXPECT_GT(cell.heightSd(), 0.0);
+}
+
+TEST(AirbagOnHardware, ALostLinkFlagsStopsCommandingAndResumesToTheKeptSetpoint) {
+  nb::AirbagCellParams p;
+  p.control_period_s = 0.01;
+  auto plant = rigWithoutHeightSensor(p, 0.05, 15.6);
+  auto hw = std::make_shared<CuttableHardware>(plant);
+  nb::AirbagCell cell(p, hw, nb::AirbagObserverSetup{});
+  cell.resetToHeight(0.05, 15.6);
+  ASSERT_EQ(cell.requestHeight(0.09, 0.0), "");
+  double t = 0.0;
+  for (; t < 0.3; t += 0.01) cell.advanceTo(t);
+  hw->cut = true;
+  cell.advanceTo(t += 0.01);
+  EXPECT_TRUE(cell.faults() & nb::kFaultCommunication);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kSafe);
+  for (; t < 1.0; t += 0.01) cell.advanceTo(t);
+  EXPECT_EQ(hw->writes_while_cut, 0);
+  EXPECT_NEAR(cell.setpoint(), 0.09, 1e-12) << "the setpoint is kept";
+  hw->cut = false;
+  for (; t < 6.0; t += 0.01) cell.advanceTo(t);
+  EXPECT_FALSE(cell.faults() & nb::kFaultCommunication);
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kHeight);
+  EXPECT_NEAR(plant->variables().height_m, 0.09, 0.003);
+}
+
+TEST(AirbagOnHardware, HoldsAPressureSetpointAndRefusesABadOne) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.05, 15.6);
+  EXPECT_NE(cell.requestPressure(-5.0, 0.0), "");
+  EXPECT_NE(cell.requestPressure(std::nan(""), 0.0), "");
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kHeight) << "a refused request changes nothing";
+  ASSERT_EQ(cell.requestPressure(4000.0, 0.0), "");
+  EXPECT_EQ(cell.mode(), nb::AirbagMode::kPressure);
+  EXPECT_TRUE(std::isnan(cell.setpoint()));
+  cell.advanceTo(8.0);
+  EXPECT_NEAR(cell.variables().gauge_pressure_pa, 4000.0, 100.0);
+  ASSERT_EQ(cell.requestHeight(0.05, 8.0), "");
+  EXPECT_TRUE(std::isnan(cell.pressureSetpoint()));
+}

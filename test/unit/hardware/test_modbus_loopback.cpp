@@ -1,0 +1,161 @@
+// The modbus_tcp hardware against the rig emulator on 127.0.0.1: readings, batched requests,
+// PWM'd and proportional valves, link loss and recovery. Waits poll a condition with a
+// generous bound; they assert behaviour, not speed (speed: doc/benchmarks.md).
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <functional>
+#include <thread>
+
+#include "../../test_helpers.h"
+#include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
+#include "nursing_bed/core/hardware/rig_emulator.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+// Cells 0, 1 on terminal a (on/off valves, cell 1 with a height input), cells 2, 3 on
+// terminal b (proportional valves).
+const char* kMap = R"(
+terminals:
+  - name: a
+    host: 127.0.0.1
+    port: 15610
+    cycle_s: 0.005
+    cells:
+      - {cell: 0, inlet: {coil: 0}, vent: {coil: 1}, pressure: {input_register: 0, scale_pa: 1.0, offset_pa: -10000}}
+      - {cell: 1, inlet: {coil: 2}, vent: {coil: 3}, pressure: {input_register: 1, scale_pa: 1.0, offset_pa: -10000},
+         height: {input_register: 2, scale_m: 1.0e-5}}
+  - name: b
+    host: 127.0.0.1
+    port: 15611
+    cell_block: {first_cell: 2, count: 2, valves: holding_register, inlet_start: 0, vent_start: 2,
+                 pressure_start: 0, pressure_scale_pa: 1.0, pressure_offset_pa: -10000}
+)";
+
+bool waitFor(const std::function<bool()>& condition, double timeout_s) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (std::chrono::steady_clock::now() < end) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return condition();
+}
+
+class ModbusLoopback : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto dir = nb::test::freshTestDir("hardware", "loopback");
+    map_path_ = nb::test::writeFile(dir / "map.yaml", kMap);
+    map_ = nb::loadRegisterMap(map_path_, 4);
+    options_.cell.initial_height_m = 0.05;
+    options_.cell.load_n = 15.6;
+    options_.rig.adc_step_pa = 12.2;
+    startEmulator();
+    for (std::uint32_t id = 0; id < 4; ++id) {
+      nb::HardwareConfig config;
+      config.cell_id = id;
+      config.control_period_s = 0.02;
+      config.register_map_path = map_path_;
+      config.bed_cells = 4;
+      cells_.push_back(std::make_unique<nb::ModbusTcpCellHardware>());
+      cells_.back()->configure(config);
+    }
+    ASSERT_TRUE(waitFor([this] { return allUp(); }, 3.0));
+  }
+  void startEmulator() { emulator_ = std::make_unique<nb::RigEmulator>(map_, options_); }
+  bool allUp() {
+    for (auto& c : cells_)
+      if (c->read(0.0).link != nb::LinkState::kOk) return false;
+    return true;
+  }
+  bool allDown() {
+    for (auto& c : cells_)
+      if (c->read(0.0).link != nb::LinkState::kDown) return false;
+    return true;
+  }
+  nb::CellTruth truth(std::uint32_t id) { return emulator_->truth().at(id); }
+
+  std::string map_path_;
+  nb::RegisterMap map_;
+  nb::RigEmulatorOptions options_;
+  std::unique_ptr<nb::RigEmulator> emulator_;
+  std::vector<std::unique_ptr<nb::ModbusTcpCellHardware>> cells_;
+};
+
+}  // namespace
+
+TEST_F(ModbusLoopback, ReadsEveryCellsPressureAndTheHeightWhereFitted) {
+  for (std::uint32_t id = 0; id < 4; ++id) {
+    const nb::CellReadings r = cells_[id]->read(10.0);
+    ASSERT_TRUE(r.gauge_pressure_pa.present()) << id;
+    EXPECT_NEAR(r.gauge_pressure_pa.value, truth(id).gauge_pressure_pa, 20.0) << id;
+    EXPECT_LE(r.gauge_pressure_pa.stamp_s, 10.0);
+    EXPECT_GT(r.gauge_pressure_pa.stamp_s, 9.5) << "a fresh reading";
+    EXPECT_EQ(r.height_m.present(), id == 1) << id;
+  }
+  EXPECT_NEAR(cells_[1]->read(0.0).height_m.value, truth(1).height_m, 2e-5);
+  EXPECT_TRUE(cells_[1]->capabilities().height);
+  EXPECT_FALSE(cells_[0]->capabilities().height);
+}
+
+TEST_F(ModbusLoopback, OneReadAndOneWriteRequestPerCycleForAllCellsOfATerminal) {
+  auto terminal = nb::ModbusTerminal::shared(map_.terminals[1], 0.02);
+  const nb::TerminalStats s0 = terminal->stats();
+  ASSERT_TRUE(waitFor([&] { return terminal->stats().cycles >= s0.cycles + 20; }, 3.0));
+  const nb::TerminalStats s1 = terminal->stats();
+  const long cycles = s1.cycles - s0.cycles;
+  // Terminal b: its two cells' pressures are one run of input registers, their four
+  // proportional valves one run of holding registers.
+  EXPECT_NEAR(static_cast<double>(s1.read_requests - s0.read_requests) / cycles, 1.0, 0.1);
+  EXPECT_NEAR(static_cast<double>(s1.write_requests - s0.write_requests) / cycles, 1.0, 0.1);
+}
+
+TEST_F(ModbusLoopback, OnOffValvesArePulseWidthModulatedProportionalOnesScaled) {
+  cells_[0]->write({0.5, 0.0, false}, 0.0);
+  cells_[2]->write({0.25, 0.0, false}, 0.0);
+  ASSERT_TRUE(waitFor([this] { return truth(2).inlet_opening > 0.0; }, 1.0));
+  EXPECT_NEAR(truth(2).inlet_opening, 0.25, 1e-3);
+  int on = 0, samples = 0;
+  for (; samples < 200; ++samples) {
+    on += truth(0).inlet_opening > 0.5 ? 1 : 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  EXPECT_GT(on, samples / 5) << "the on/off inlet is open part of the time";
+  EXPECT_LT(on, samples * 4 / 5) << "and shut the rest";
+  cells_[0]->write({}, 0.0);
+  cells_[2]->write({}, 0.0);
+}
+
+TEST_F(ModbusLoopback, ALostTerminalIsReportedAndReconnectedByItself) {
+  cells_[3]->write({0.0, 0.0, false}, 0.0);
+  emulator_.reset();
+  const auto lost = std::chrono::steady_clock::now();
+  ASSERT_TRUE(waitFor([this] { return allDown(); }, 2.0));
+  EXPECT_LE(std::chrono::duration<double>(std::chrono::steady_clock::now() - lost).count(), 0.5);
+  const nb::CellReadings down = cells_[0]->read(0.0);
+  EXPECT_FALSE(down.gauge_pressure_pa.present());
+  nb::test::expectContains(down.link_error, {"a (127.0.0.1:15610"});
+  // A command while down is dropped: the valves come back shut.
+  cells_[3]->write({1.0, 0.0, false}, 0.0);
+  startEmulator();
+  ASSERT_TRUE(waitFor([this] { return allUp(); }, 3.0));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(truth(3).inlet_opening, 0.0);
+  cells_[3]->write({1.0, 0.0, false}, 0.0);
+  EXPECT_TRUE(waitFor([this] { return truth(3).inlet_opening > 0.99; }, 1.0)) << "commands flow again";
+}
+
+TEST(RigEmulator, ListensOnLoopbackOnly) {
+  nb::TerminalMap t;
+  t.name = "outside";
+  t.host = "192.168.1.5";
+  t.port = 15612;
+  try {
+    nb::RigTerminalServer server(t);
+    FAIL() << "accepted";
+  } catch (const std::runtime_error& e) {
+    nb::test::expectContains(e.what(), {"outside", "127.0.0.1", "192.168.1.5"});
+  }
+}
