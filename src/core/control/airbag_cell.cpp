@@ -79,7 +79,8 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
       supply_pressure_pa_(params.cell.supply_pressure_pa) {
   if (!hardware_) throw std::invalid_argument("airbag: no cell hardware");
   sim_ = dynamic_cast<SimulatedCellHardware*>(hardware_.get());
-  use_estimate_ = observer.force || !hardware_->capabilities().height;
+  capabilities_ = hardware_->capabilities();  // fixed for the hardware's lifetime
+  use_estimate_ = observer.force || !capabilities_.height;
   // Real hardware always has an observer: it is where gas mass, volume and load come from.
   if (use_estimate_ || !sim_) {
     CellObserverParams op = observer.params;
@@ -324,7 +325,7 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   ObserverReadings z;
   z.gauge_pressure_pa = readings.gauge_pressure_pa.value;
   if (!use_estimate_) z.height_m = readings.height_m.value;
-  if (hardware_->capabilities().inflow && !sim_) z.inflow_kg_s = readings.inflow_kg_s.value;
+  if (capabilities_.inflow && !sim_) z.inflow_kg_s = readings.inflow_kg_s.value;
   observer_->step(in, z, dt_s);
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
 }

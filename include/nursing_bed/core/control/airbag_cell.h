@@ -173,7 +173,7 @@ class AirbagCell {
   ValveCommand pressureValves(double gauge_pressure_pa) const;
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
-  bool ventToVacuum() const { return mode_ == AirbagMode::kVent && hardware_->capabilities().vent_vacuum; }
+  bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
   void resetControl(double load_n);
   /// The mode a cleared fault returns to: pressure, height or idle by the setpoint held.
   AirbagMode resumedMode() const;
@@ -202,6 +202,7 @@ class AirbagCell {
   double last_pressure_pa_ = 0.0;
   double last_command_s_ = 0.0;
   bool cpr_ = false;
+  HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
   int bad_readings_ = 0;  ///< consecutive control periods with an out-of-range reading
 };
 
