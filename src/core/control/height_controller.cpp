@@ -197,8 +197,7 @@ ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, dou
 }
 
 double flowLimitedMinimumTime(const CellParams& params, double load_n, double from_m, double to_m) {
-  const PillowStructure structure(params.structure);
-  const StructureEquilibrium target = structure.equilibriumAtHeight(to_m, load_n);
+  const StructureEquilibrium target = makeCellStructure(params)->equilibriumAtHeight(to_m, load_n);
   if (!target.converged) return std::nan("");
   CellModel plant(params);
   plant.resetToEquilibrium(from_m, load_n);

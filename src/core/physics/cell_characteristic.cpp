@@ -11,23 +11,34 @@ namespace nursing_bed {
 
 CellCharacteristic::CellCharacteristic(const CellParams& params, double height_max_m, double height_step_m,
                                        double load_max_n, double load_step_n)
-    : params_(params), structure_(params.structure), height_step_m_(height_step_m), load_step_n_(load_step_n) {
+    : params_(params), structure_(makeCellStructure(params)), height_step_m_(height_step_m), load_step_n_(load_step_n) {
   heights_ = static_cast<int>(std::lround(height_max_m / height_step_m)) + 1;
   loads_ = static_cast<int>(std::lround(load_max_n / load_step_n)) + 1;
   pressure_pa_.assign(heights_ * loads_, NAN);
   volume_m3_.assign(heights_ * loads_, NAN);
   invariant_.assign(heights_ * loads_, NAN);
   reachable_.assign(loads_, 0);
-  const PillowStructure& structure = structure_;
+  const CellStructure& structure = *structure_;
   for (int j = 0; j < loads_; ++j) {
     const double load = std::max(j * load_step_n, 1e-3);
     for (int i = 0; i < heights_; ++i) {
       const StructureEquilibrium eq = structure.equilibriumAtHeight(i * height_step_m, load);
-      if (!eq.converged) break;
+      // No rest here; an FE table may have rests again above such a gap (a fold that takes more
+      // than the table's pressures to hold at this height): the plate passes it and snaps.
+      if (!eq.converged) continue;
       pressure_pa_[j * heights_ + i] = eq.gauge_pressure_pa;
       volume_m3_[j * heights_ + i] = eq.eval.volume_m3;
       invariant_[j * heights_ + i] = invariant(eq.gauge_pressure_pa, eq.eval.volume_m3);
       reachable_[j] = i + 1;
+    }
+    // A closed cell filled slowly from flat rests on the equilibria in the order of their
+    // invariant; where the invariant dips with height or has no rest at all (a snap: an FE
+    // table's folds) the rest jumps over it. The running maximum keeps restingHeight()'s
+    // bisection on that branch.
+    for (int i = 1; i < reachable_[j]; ++i) {
+      double& k = invariant_[j * heights_ + i];
+      const double below = invariant_[j * heights_ + i - 1];
+      k = std::isnan(k) ? below : std::max(k, below);
     }
   }
 }
@@ -36,7 +47,8 @@ std::shared_ptr<const CellCharacteristic> CellCharacteristic::shared(const CellP
   static std::mutex mutex;
   // Kept for the life of the process: a bed has one or a few cell types, each ~0.1 MB.
   static std::map<std::string, std::shared_ptr<const CellCharacteristic>> cache;
-  const std::string key = cellParamsToYaml(params);
+  // The structure selection is text, not among the numbers cellParamsToYaml writes.
+  const std::string key = cellParamsToYaml(params) + params.structure_type + "\n" + params.structure_table_file;
   std::lock_guard<std::mutex> lock(mutex);
   auto& entry = cache[key];
   if (!entry) entry = std::make_shared<const CellCharacteristic>(params);
@@ -70,10 +82,11 @@ double CellCharacteristic::pressureAt(double height_m, double load_n) const {
 double CellCharacteristic::volumeAt(double height_m, double load_n) const { return at(volume_m3_, height_m, load_n); }
 
 double CellCharacteristic::relaxedVolume(double height_m, double gauge_pressure_pa, double* stretch) const {
-  double guess[kMaxShapeDofs] = {stretch && *stretch > 0.0 ? *stretch : 1.0};
-  const auto q = structure_.relaxedShape(std::max(height_m, 0.0), gauge_pressure_pa, guess);
+  auto guess = structure_->restShape();
+  if (stretch && *stretch > 0.0) guess[0] = *stretch;
+  const auto q = structure_->relaxedShape(std::max(height_m, 0.0), gauge_pressure_pa, guess.data());
   if (stretch) *stretch = q[0];
-  return structure_.evaluate(std::max(height_m, 0.0), q.data()).volume_m3;
+  return structure_->evaluate(std::max(height_m, 0.0), q.data()).volume_m3;
 }
 
 double CellCharacteristic::plateStiffness(double height_m, double load_n) const {
@@ -81,7 +94,7 @@ double CellCharacteristic::plateStiffness(double height_m, double load_n) const 
   // pressure, so its compliance softens the gas spring) around the rest at height_m.
   const double p0 = pressureAt(height_m, load_n);
   if (!(p0 > 0.0)) return NAN;
-  double stretch = 1.0;
+  double stretch = structure_->restShape()[0];
   const double k_inv = invariant(p0, relaxedVolume(height_m, p0, &stretch));
   auto force = [&](double h) {
     double p = p0, s = stretch;
@@ -91,8 +104,9 @@ double CellCharacteristic::plateStiffness(double height_m, double load_n) const 
       if (std::fabs(p_new - p) < 1e-6) break;
       p = p_new;
     }
-    double q[kMaxShapeDofs] = {s};
-    return p * structure_.evaluate(h, q).effective_area_m2;
+    auto q = structure_->restShape();
+    q[0] = s;
+    return p * structure_->evaluate(h, q.data()).effective_area_m2;
   };
   const double dh = 2e-4;
   return -(force(height_m + dh) - force(height_m - dh)) / (2.0 * dh);
@@ -105,15 +119,13 @@ double CellCharacteristic::maxHeight(double load_n) const {
 }
 
 double CellCharacteristic::loadAt(double height_m, double gauge_pressure_pa) const {
-  // Pressure rises with load at fixed height: bisection on the load.
-  double lo = 0.0, hi = (loads_ - 1) * load_step_n_;
-  if (!(pressureAt(height_m, hi) > gauge_pressure_pa)) return hi;
-  for (int k = 0; k < 50; ++k) {
-    const double mid = 0.5 * (lo + hi);
-    const double p = pressureAt(height_m, mid);
-    (std::isnan(p) || p > gauge_pressure_pa ? hi : lo) = mid;
-  }
-  return 0.5 * (lo + hi);
+  // The plate force of the structure itself at (h, p), film relaxed to p. Not a bisection on the
+  // tabulated equilibria: an FE table's force is not monotone through its snaps, and there a
+  // bisection lands on any of several loads (a cell held at 72 mm read 26 N for 15.6 N).
+  const double h = std::max(height_m, 0.0);
+  const auto q = structure_->relaxedShape(h, gauge_pressure_pa);
+  return std::clamp(gauge_pressure_pa * structure_->evaluate(h, q.data()).effective_area_m2, 0.0,
+                    (loads_ - 1) * load_step_n_);
 }
 
 double CellCharacteristic::restingHeight(double adiabatic_invariant, double load_n) const {

@@ -72,15 +72,18 @@ double CellParams::reliefOpening(double gauge_pressure_pa) const {
                     0.0, 1.0);
 }
 
+std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params) {
+  if (params.structure_type == "table")
+    return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
+                                                params.structure.film_relaxation_time_s);
+  return std::make_shared<PillowStructure>(params.structure);
+}
+
 CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructure> structure)
     : params_(params), structure_(std::move(structure)) {
   const std::string error = params_.validate();
   if (!error.empty()) throw std::invalid_argument("cell parameters: " + error);
-  if (!structure_ && params_.structure_type == "table") {
-    structure_ = std::make_shared<TabulatedStructure>(TabulatedStructure::load(params_.structure_table_file),
-                                                      params_.structure.film_relaxation_time_s);
-  }
-  if (!structure_) structure_ = std::make_shared<PillowStructure>(params_.structure);
+  if (!structure_) structure_ = makeCellStructure(params_);
   shape_dofs_ = structure_->shapeDofs();
   reset();
 }

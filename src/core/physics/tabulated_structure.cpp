@@ -96,7 +96,10 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   e.effective_area_m2 = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
   // Volume: the table, extended below its lowest height along the lowest row's area.
   e.volume_m3 = interpolate(table_.volume_m3, height_m, q);
-  if (height_m < h0) e.volume_m3 = std::max(1e-9, e.volume_m3 - (h0 - height_m) * e.effective_area_m2);
+  // A plate pressed into the bed (h < 0: the contact spring) squeezes the bed, not the flat bag:
+  // the volume stays the flat one there, as the pillow model's does. Extended on, a cell reset
+  // flat under 20 N started at 206 kPa (reset again every period).
+  if (height_m < h0) e.volume_m3 = std::max(1e-9, e.volume_m3 - (h0 - std::max(height_m, 0.0)) * e.effective_area_m2);
   // dV/dq from the bracketing pressure columns (floored: q must keep relaxing to p).
   const auto [j, b] = locate(table_.pressures_pa, q);
   (void)b;
@@ -115,8 +118,9 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
 
 double TabulatedStructure::heightLimit(const double* /*shape*/) const { return table_.heights_m.back(); }
 
-bool TabulatedStructure::withinLimits(double height_m, const double* /*shape*/) const {
-  return height_m <= table_.heights_m.back() * (1.0 + 1e-9);
+bool TabulatedStructure::withinLimits(double height_m, const double* shape) const {
+  return height_m <= table_.heights_m.back() * (1.0 + 1e-9) &&
+         shape[0] * kShapeUnitPa <= table_.pressures_pa.back() * (1.0 + 1e-9);
 }
 
 std::string TabulatedStructure::describe() const {

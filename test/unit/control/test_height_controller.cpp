@@ -6,6 +6,7 @@
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/physics/basic_effects.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 
 namespace nb = nursing_bed;
 
@@ -345,3 +346,30 @@ TEST(AirbagCellSafety, ReliefValveHoldsSuddenOutsideLoads) {
 }
 
 }  // namespace
+
+// The controller predicts with the structure the cell has. It used the pillow model on an FE
+// table cell: asked for 100 mm under 10.6 N it stalled at 84 mm, hunting, and asked for 70 mm
+// under 15.6 N it read the load as 26 N and filled on to 94 mm.
+TEST(HeightController, OnTheFeTableCellReachesAndHoldsItsTarget) {
+  nb::AirbagCellParams p;
+  p.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", p.cell);
+  p.cell.supply_pressure_pa = 30000.0;
+  struct Case {
+    double load_n, target_m;
+  };
+  for (const Case c : {Case{15.6, 0.07}, Case{10.6, 0.10}, Case{15.6, 0.02}}) {
+    nb::AirbagCell cell(p);
+    cell.reset(c.load_n);
+    ASSERT_EQ(cell.requestHeight(c.target_m, 0.0), "");
+    double t = 0.0, worst_late = 0.0;
+    for (; t < 12.0; t += 0.02) {
+      cell.advanceTo(t);
+      cell.heartbeat(t);
+      if (t > 6.0) worst_late = std::max(worst_late, std::fabs(cell.measurement().height_m - c.target_m));
+    }
+    EXPECT_LT(worst_late, 2e-3) << c.load_n << " N to " << c.target_m << " m";
+    EXPECT_NEAR(cell.loadEstimate(), c.load_n, 0.5) << c.load_n << " N to " << c.target_m << " m";
+    EXPECT_EQ(cell.faults(), 0u);
+  }
+}
+

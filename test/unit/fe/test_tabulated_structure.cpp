@@ -127,4 +127,36 @@ TEST(TabulatedStructure, ShippedFeCellRunsAndSettlesOnItsCharacteristic) {
   EXPECT_NEAR(h, eq.height_m, 2e-3);
 }
 
+TEST(TabulatedStructure, AFlatCellUnderAHeavyLoadStartsAtAmbientPressure) {
+  // The plate pressed into the bed squeezes the bed, not the flat bag: extrapolating the table's
+  // volume below h = 0 crushed the gas (206 kPa at 20.6 N, 218 MPa at 40 N; the simulated
+  // hardware then reset the cell every period).
+  const CellParams params = loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
+  for (double load : {0.6, 20.6, 40.0}) {
+    CellModel cell(params);
+    cell.reset(load);
+    EXPECT_LT(cell.variables().height_m, 0.0) << load << " N";  // on the bed's contact spring
+    EXPECT_NEAR(cell.variables().gauge_pressure_pa, 0.0, 1.0) << load << " N";
+    CellInputs in;
+    in.load_n = load;
+    in.inlet_opening = 1.0;
+    cell.advance(8.0, in);
+    EXPECT_GT(cell.variables().height_m, 0.03) << load << " N";
+  }
+}
+
+TEST(TabulatedStructure, NoEquilibriumIsTakenFromBeyondTheTablesPressures) {
+  const CellParams params = loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
+  const CellModel cell(params);
+  const auto& table = dynamic_cast<const TabulatedStructure&>(cell.structure()).table();
+  const double p_max = table.pressures_pa.back();
+  // Under 10.6 N the highest pressure holds the plate somewhere below the table's top; above
+  // that height the force would be extrapolated past the FE's pressures.
+  const StructureEquilibrium top = cell.structure().equilibriumAtPressure(p_max, 10.6);
+  ASSERT_TRUE(top.converged);
+  EXPECT_LT(top.height_m, table.heights_m.back());
+  EXPECT_FALSE(cell.structure().equilibriumAtHeight(top.height_m + 5e-3, 10.6).converged);
+  EXPECT_TRUE(cell.structure().equilibriumAtHeight(top.height_m - 5e-3, 10.6).converged);
+}
+
 }  // namespace nursing_bed

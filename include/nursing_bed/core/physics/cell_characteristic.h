@@ -12,7 +12,8 @@ namespace nursing_bed {
 
 class CellCharacteristic {
  public:
-  /// Tabulates the structure of `params` on a grid of heights 0..height_max and loads
+  /// Tabulates the structure `params` select (makeCellStructure: the pillow model or an FE
+  /// table; the controller must predict with the structure the cell has) on a grid of heights 0..height_max and loads
   /// 0..load_max. Costly (~0.1-1 s); use shared() to build it once per parameter set.
   CellCharacteristic(const CellParams& params, double height_max_m = 0.20, double height_step_m = 0.001,
                      double load_max_n = 60.0, double load_step_n = 1.0);
@@ -52,7 +53,7 @@ class CellCharacteristic {
   // Row-major over loads: value(load_index, height_index).
   double at(const std::vector<double>& table, double height_m, double load_n) const;
   CellParams params_;
-  PillowStructure structure_;
+  std::shared_ptr<const CellStructure> structure_;  // the cell's own (pillow or FE table)
   double height_step_m_, load_step_n_;
   int heights_, loads_;
   std::vector<double> pressure_pa_, volume_m3_, invariant_;

@@ -96,6 +96,11 @@ struct CellInputs {
  * split into sub-steps when the local error estimate (ROS2 against its embedded first-order
  * solution) exceeds the tolerance, as it does while the bag lifts off a bottomed plate.
  */
+/// The structure `params` select: the pillow model of params.structure, or the table of
+/// params.structure_table_file (structure_type "table"). Throws std::invalid_argument /
+/// std::runtime_error for a table that cannot be read.
+std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params);
+
 class CellModel {
  public:
   static constexpr int kMaxStates = 24;

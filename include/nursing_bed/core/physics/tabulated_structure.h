@@ -27,8 +27,9 @@ struct StructureTableData {
  * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
  * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
  * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row is
- * used for A_eff and V is extended linearly; above the highest height the cell is outside its
- * limits (withinLimits false).
+ * used for A_eff and V is extended linearly; above the highest height, or with the film
+ * relaxed to a pressure above the highest tabulated one (the force is extrapolated there), the
+ * cell is outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
  */
 class TabulatedStructure : public CellStructure {
  public:
