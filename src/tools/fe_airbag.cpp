@@ -228,11 +228,12 @@ std::vector<double> tableRoots(const nb::TabulatedStructure& cell, double p, dou
 // held at each of `pressures` in turn (ascending; the supply at that pressure, the inlet open)
 // until the plate rests. It follows its own branch through the snaps, as the FE's pressure
 // continuation does; NaN where it does not come to rest within 10 s.
-std::vector<double> runningCellHeights(const std::string& table, double load, const std::vector<double>& pressures) {
+std::vector<double> runningCellHeights(const std::string& table_file, const std::shared_ptr<const nb::TabulatedStructure>& table,
+                                       double load, const std::vector<double>& pressures) {
   nb::CellParams params;
   params.structure_type = "table";
-  params.structure_table_file = table;
-  nb::CellModel cell(params);
+  params.structure_table_file = table_file;  // named only: the loaded table is given, not read again per load
+  nb::CellModel cell(params, table);
   cell.reset(load);
   std::vector<double> heights;
   for (double p : pressures) {
@@ -259,7 +260,8 @@ struct CheckCounts {
 // own h(p) (the hp CSVs of the same geometry and mesh): the cell's own root (a bisection), the
 // table's equilibrium nearest the FE state, and the running cell.
 void check(const Args& a) {
-  const nb::TabulatedStructure cell(nb::TabulatedStructure::load(a.table));
+  const auto table = std::make_shared<const nb::TabulatedStructure>(nb::TabulatedStructure::load(a.table));
+  const nb::TabulatedStructure& cell = *table;
   std::ofstream f(a.out + "/table_check_" + tag(a) + ".csv");
   f << "load_n,p_gauge_pa,h_fe_m,h_table_m,h_table_nearest_root_m,roots,h_cell_running_m\n";
   CheckCounts within;
@@ -280,7 +282,7 @@ void check(const Args& a) {
     }
     std::vector<double> pressures;
     for (const auto& s : states) pressures.push_back(s.first);
-    const std::vector<double> running = runningCellHeights(a.table, load, pressures);
+    const std::vector<double> running = runningCellHeights(a.table, table, load, pressures);
     for (std::size_t k = 0; k < states.size(); ++k) {
       const auto [p, h_fe] = states[k];
       const nb::StructureEquilibrium eq = cell.equilibriumAtPressure(p, load);
