@@ -18,6 +18,8 @@
 #include <fstream>
 #include <set>
 
+#include <glog/logging.h>
+
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
@@ -445,6 +447,8 @@ int main(int argc, char** argv) {
     std::cerr << "gap: missing subcommand\n";
     return 2;
   }
+  // Ceres logs an error when a replay fails inside a step; the fit takes that as a refused step.
+  FLAGS_minloglevel = google::GLOG_FATAL;
   const std::string command = argv[1];
   if (command == "--help" || command == "-h" || command == "help") {
     printUsage(std::cout);

@@ -222,6 +222,25 @@ double withheldChi2(const NoiseModel& noise, const std::map<std::string, double>
   return sumSquares(r) / n_held;
 }
 
+/// `out`: the effects of `model` (a pair) at their singles' fits in `uncalibrated` (the nominal
+/// cell's), with no calibration; false when a single is missing there.
+bool nominalPairStart(const ModelSpec& model, const std::vector<ModelFit>& uncalibrated, ModelFit* out) {
+  if (model.effects.size() < 2) return false;
+  std::map<std::string, double> values;
+  for (const auto& name : model.effects) {
+    const auto single = std::find_if(uncalibrated.begin(), uncalibrated.end(), [&](const ModelFit& u) {
+      return u.outcome.ok && u.model.effects == std::vector<std::string>{name};
+    });
+    if (single == uncalibrated.end()) return false;
+    const auto v = valuesOf(single->model, single->outcome.u);
+    values.insert(v.begin(), v.end());
+  }
+  out->model = makeModelSpec(model.effects);
+  out->outcome.ok = true;
+  out->outcome.u = coordinatesOf(out->model, values);
+  return true;
+}
+
 }  // namespace
 
 bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFit>& uncalibrated,
@@ -306,22 +325,36 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
     for (const ModelFit& u : uncalibrated)
       if (u.outcome.ok && u.model.effects == (*fits)[i].model.effects) nominal_fit[i] = &u;
   std::vector<int> order = jointRefitOrder(*fits, effects, pool, also, log_n, nominal_fit);
+  // A pair starts also from its singles' fits on the nominal cell (a calibration that imitated
+  // one of its effects would else hold it from the start).
+  std::vector<ModelFit> nominal_pair(fits->size());
+  std::vector<const ModelFit*> start_from = nominal_fit;
+  for (int i : order)
+    if (!start_from[i] && nominalPairStart((*fits)[i].model, uncalibrated, &nominal_pair[i]))
+      start_from[i] = &nominal_pair[i];
   // A fit already within the noise leaves the calibration nothing to settle -- except the best,
   // when the calibration moved: the effect may make a move needless (a plate friction and a
   // smaller vent both slow the vent phase).
+  // And when the best already fits within the noise, the worse ones are not refitted either:
+  // with the calibration free they could at most tie with it, at more parameters.
   const bool recheck_moves = base.summary.anyMoved();
+  const auto within = [&](int i) { return (*fits)[i].outcome.chi2 / n <= options.joint_refit_chi2; };
   std::vector<int> kept;
-  for (int i : order)
-    if ((*fits)[i].outcome.chi2 / n > options.joint_refit_chi2 || (recheck_moves && kept.empty())) kept.push_back(i);
+  if (!order.empty() && within(order[0])) {
+    if (recheck_moves) kept.push_back(order[0]);
+  } else {
+    for (int i : order)
+      if (!within(i)) kept.push_back(i);
+  }
   order = kept;
   // The best first: when it lands within the noise the others (worse on the biased calibration)
   // are not refitted.
   std::vector<CalibrationFit> joint(order.size());
-  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, nominal_fit[order[0]]);
+  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, start_from[order[0]]);
   if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
   parallelFor(static_cast<int>(order.size()) - 1, options.threads,
               [&](int k) {
-                joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, nominal_fit[order[k + 1]]);
+                joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, start_from[order[k + 1]]);
               });
   JointRefits out;
   for (std::size_t k = 0; k < order.size(); ++k) {

@@ -223,6 +223,7 @@ NoiseModel buildNoiseModel(const PreparedRuns& prepared, const CellParams& param
   m.fit.params.time_step_s = std::max(params.time_step_s, options.fit_time_step_s);
   // The withheld runs get the same noise model: the verdict must fit them too.
   m.held.params = m.fit.params;
+  m.fit.threads = m.held.threads = options.threads;
   m.fit.runs.resize(prepared.fit.size());
   m.held.runs.resize(prepared.withheld.size());
   parallelFor(static_cast<int>(prepared.runs.size()), options.threads, [&](int k) {
@@ -250,31 +251,32 @@ NoiseModel buildNoiseModel(const PreparedRuns& prepared, const CellParams& param
 std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<std::string>& candidates,
                                     const DiagnosisOptions& options,
                                     const std::function<void(const std::string&)>& progress,
-                                    const std::function<void(std::vector<ModelFit>*)>& after_singles) {
+                                    const std::function<void(std::vector<ModelFit>*)>& after_singles,
+                                    const std::vector<ModelFit>& fitted_singles) {
   auto say = [&](const std::string& line) {
     if (progress) progress(line);
   };
   const int n = noise.fitResidualCount();
-  std::vector<ModelFit> fits;
-  for (const auto& c : candidates) fits.push_back({makeModelSpec({c}), {}});
-  for (auto& f : fits) f.model.fixed_calibration = noise.baseline_calibration;
+  std::vector<ModelFit> fits = fitted_singles;
   std::mutex say_mutex;
   std::atomic<int> done{0};
+  if (fits.empty()) {
+    for (const auto& c : candidates) fits.push_back({makeModelSpec({c}), {}});
+    for (auto& f : fits) f.model.fixed_calibration = noise.baseline_calibration;
+    parallelFor(static_cast<int>(fits.size()), options.threads, [&](int i) {
+      fits[i].outcome = fitModel(noise.fit, fits[i].model, gridStarts(fits[i].model), options.max_iterations);
+      std::lock_guard<std::mutex> lock(say_mutex);
+      say("fitted " + joinNames(fits[i].model.effects) + " (" + std::to_string(++done) + "/" +
+          std::to_string(fits.size()) + "): chi2/n " + fmt(fits[i].outcome.chi2 / n) + ", " +
+          std::to_string(fits[i].outcome.evaluations) + " replays" +
+          (std::getenv("NB_GAP_VERBOSE") ? " [" + fits[i].outcome.message + "]" : std::string()));
+    });
+  }
   const int singles = static_cast<int>(fits.size());
-  parallelFor(singles, options.threads, [&](int i) {
-    fits[i].outcome = fitModel(noise.fit, fits[i].model, gridStarts(fits[i].model), options.max_iterations);
-    std::lock_guard<std::mutex> lock(say_mutex);
-    say("fitted " + joinNames(fits[i].model.effects) + " (" + std::to_string(++done) + "/" + std::to_string(singles) +
-        "): chi2/n " + fmt(fits[i].outcome.chi2 / n) + ", " + std::to_string(fits[i].outcome.evaluations) + " replays" +
-        (std::getenv("NB_GAP_VERBOSE") ? " [" + fits[i].outcome.message + "]" : std::string()));
-  });
   if (after_singles) after_singles(&fits);
-  const std::vector<int> order = singlesByBic(fits, n);
-  const int pool = std::min(options.pair_pool, singles);
-  std::vector<std::pair<int, int>> pairs;
-  for (int a = 0; a < pool; ++a)
-    for (int b = a + 1; b < pool; ++b)
-      if (fits[order[a]].outcome.ok && fits[order[b]].outcome.ok) pairs.emplace_back(order[a], order[b]);
+  const std::vector<std::pair<int, int>> pairs =
+      pairsToFit(fits, singlesByBic(fits, n), options.pair_pool, n, options.joint_refit_chi2);
+  if (pairs.empty() && options.pair_pool > 0) say("no pairs fitted: a single fits within the noise");
   for (const auto& [a, b] : pairs) {
     std::vector<std::string> names{fits[a].model.effects[0], fits[b].model.effects[0]};
     std::sort(names.begin(), names.end(),
@@ -293,6 +295,18 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
         "): chi2/n " + fmt(f.outcome.chi2 / n));
   });
   return fits;
+}
+
+std::vector<std::pair<int, int>> pairsToFit(const std::vector<ModelFit>& fits, const std::vector<int>& order, int pool,
+                                            int n, double within_chi2) {
+  std::vector<int> ok;
+  for (int i : order)
+    if (fits[i].outcome.ok) ok.push_back(i);
+  std::vector<std::pair<int, int>> pairs;
+  if (ok.empty() || fits[ok[0]].outcome.chi2 / n <= within_chi2) return pairs;
+  for (int a = 0; a < std::min<int>(pool, ok.size()); ++a)
+    for (std::size_t b = a + 1; b < ok.size(); ++b) pairs.emplace_back(ok[a], ok[b]);
+  return pairs;
 }
 
 // ---- stage 5: scores ------------------------------------------------------------------------------
@@ -519,6 +533,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   NoiseModel& noise = s.noise;
   CalibrationFit calibration;
   std::vector<ModelFit> uncalibrated;  // the singles on the nominal cell, when the calibration moved
+  bool baseline_nominal = true;        // the effects are fitted on the nominal cell
   if (!s.calibrated.empty()) {
     calibration = calibrateModel(noise, s.calibrated, options, say);
     if (!calibration.summary.movedValues().empty()) {
@@ -533,6 +548,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
       if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
     }
     rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
+    baseline_nominal = calibration.summary.movedValues().empty();
   }
   // The best singles, then the best pair and every pair with a single that moved the
   // calibration, refitted with the calibration free as well.
@@ -547,7 +563,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   std::vector<ModelFit> fits =
       fitCandidates(noise, candidateList(options), options, say, [&](std::vector<ModelFit>* singles) {
         if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
-      });
+      }, baseline_nominal ? uncalibrated : std::vector<ModelFit>{});
   // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
   const bool single_within = std::any_of(fits.begin(), fits.end(), [&](const ModelFit& f) {
     return f.outcome.ok && f.model.effects.size() == 1 && f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;

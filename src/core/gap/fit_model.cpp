@@ -1,6 +1,7 @@
 #include "nursing_bed/core/gap/fit_model.h"
 
 #include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/diagnosis_stages.h"
 
 #include <ceres/ceres.h>
 
@@ -125,35 +126,46 @@ int FitData::informativeCount() const {
   return n;
 }
 
+namespace {
+
+/// One run's whitened residuals (2 per sample) into `out`; false when its replay failed (its
+/// samples then count as kFailedResidual floors off).
+bool runResiduals(const FitData::Run& r, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                  double* out) {
+  const Replay rep = replayRun(*r.data, params, effects, r.max_substeps);
+  const int m = static_cast<int>(r.index.size());
+  Eigen::Map<Eigen::VectorXd> e(out, 2 * m);
+  bool ok = true;
+  for (int j = 0; j < m; ++j) {
+    const std::size_t i = r.index[j];
+    double ep = (r.data->p_gauge_pa[i] - rep.p_gauge_pa[i]) / r.sigma_p_pa[j];
+    double eh = r.has_height ? (r.data->h_m[i] - rep.h_m[i]) / r.sigma_h_m[j] : 0.0;
+    if (!rep.ok || !std::isfinite(ep) || !std::isfinite(eh)) {
+      ok = false;
+      ep = eh = kFailedResidual;
+    }
+    e[2 * j] = ep;
+    e[2 * j + 1] = eh;
+  }
+  r.correlation_cholesky.triangularView<Eigen::Lower>().solveInPlace(e);
+  return ok;
+}
+
+}  // namespace
+
 /// Whitened residuals of every fit sample (pressure then height per sample, scaled by the
-/// floor, then decorrelated per run); `ok` false when a replay failed (its samples then count as
-/// kFailedResidual floors off).
+/// floor, then decorrelated per run); `ok` false when a replay failed.
 bool fitResiduals(const FitData& fit, const std::vector<CellEffectPtr>& effects, double* out) {
   return fitResiduals(fit, fit.params, effects, out);
 }
 
 bool fitResiduals(const FitData& fit, const CellParams& params, const std::vector<CellEffectPtr>& effects, double* out) {
-  bool ok = true;
-  int k = 0;
-  for (const auto& r : fit.runs) {
-    const Replay rep = replayRun(*r.data, params, effects, r.max_substeps);
-    const int m = static_cast<int>(r.index.size());
-    Eigen::Map<Eigen::VectorXd> e(out + k, 2 * m);
-    for (int j = 0; j < m; ++j) {
-      const std::size_t i = r.index[j];
-      double ep = (r.data->p_gauge_pa[i] - rep.p_gauge_pa[i]) / r.sigma_p_pa[j];
-      double eh = r.has_height ? (r.data->h_m[i] - rep.h_m[i]) / r.sigma_h_m[j] : 0.0;
-      if (!rep.ok || !std::isfinite(ep) || !std::isfinite(eh)) {
-        ok = false;
-        ep = eh = kFailedResidual;
-      }
-      e[2 * j] = ep;
-      e[2 * j + 1] = eh;
-    }
-    r.correlation_cholesky.triangularView<Eigen::Lower>().solveInPlace(e);
-    k += 2 * m;
-  }
-  return ok;
+  const int runs = static_cast<int>(fit.runs.size());
+  std::vector<int> offset(runs + 1, 0);
+  for (int r = 0; r < runs; ++r) offset[r + 1] = offset[r] + 2 * static_cast<int>(fit.runs[r].index.size());
+  std::vector<char> run_ok(runs, 1);
+  parallelFor(runs, fit.threads, [&](int r) { run_ok[r] = runResiduals(fit.runs[r], params, effects, out + offset[r]); });
+  return std::all_of(run_ok.begin(), run_ok.end(), [](char ok) { return ok != 0; });
 }
 
 double sumSquares(const std::vector<double>& r) {
@@ -182,10 +194,18 @@ class ReplayCost : public ceres::CostFunction {
       const int n = num_residuals();
       std::vector<double> shifted(n);
       for (int j = 0; j < k; ++j) {
-        std::vector<double> v = u;
-        const double step = v[j] + kJacobianStep <= model_.axes[j].u_max ? kJacobianStep : -kJacobianStep;
-        v[j] += step;
-        if (!residualsAt(v, shifted.data())) return false;
+        // Forward, or backward at the upper bound; the other way where the replay fails there
+        // (a failed column would stop the whole solve at its start).
+        const double first = u[j] + kJacobianStep <= model_.axes[j].u_max ? kJacobianStep : -kJacobianStep;
+        double step = 0.0;
+        for (double s : {first, -first}) {
+          std::vector<double> v = u;
+          v[j] += s;
+          if (v[j] < model_.axes[j].u_min || v[j] > model_.axes[j].u_max || !residualsAt(v, shifted.data())) continue;
+          step = s;
+          break;
+        }
+        if (step == 0.0) return false;
         for (int i = 0; i < n; ++i) jacobians[0][i * k + j] = (shifted[i] - residuals[i]) / step;
       }
     }
@@ -269,7 +289,9 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
     options.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
     ceres::Solve(options, &problem, &summary);
-    if (std::isfinite(summary.final_cost) && 2.0 * summary.final_cost <= best.chi2) {
+    // A solve that failed at its start reports final_cost -1: never a result.
+    if (summary.IsSolutionUsable() && summary.final_cost >= 0.0 && std::isfinite(summary.final_cost) &&
+        2.0 * summary.final_cost <= best.chi2) {
       best.u = u;
       best.chi2 = 2.0 * summary.final_cost;
       best.message = summary.BriefReport();

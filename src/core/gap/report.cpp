@@ -251,7 +251,7 @@ void whereSection(std::ostream& m, const DiagnosisReport& r) {
 /// report.md: answer 2: the candidates' fits.
 void whichEffectSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## 2. Which effect\n\n";
-  m << "Every candidate (and pairs of the best three) was fitted to the fit runs by Ceres (Levenberg-Marquardt "
+  m << "Every candidate (and the best one paired with each other, unless it fits within the noise alone) was fitted to the fit runs by Ceres (Levenberg-Marquardt "
        "on whole replays, started from a grid over the plausible range). BIC Δ < 0 means better than the "
        "nominal model after paying for the parameters; a candidate is significant below −"
     << general(r.options.significant_bic_drop)

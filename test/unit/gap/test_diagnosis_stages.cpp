@@ -145,7 +145,8 @@ TEST_F(DiagnosisStagesOnALeak, PairsAreFittedFromTheirSinglesInCatalogueOrder) {
   const auto& s = *state_;
   nb::DiagnosisOptions o = leakOnly();
   o.pair_pool = 2;
-  o.max_iterations = 3;  // the pair's fit itself is not under test here
+  o.max_iterations = 3;      // the pair's fit itself is not under test here
+  o.joint_refit_chi2 = 0.0;  // the leak alone fits within the noise: no pair else
   const gs::NoiseModel noise = gs::buildNoiseModel(s.prepared, s.params, o);
   const auto fits = gs::fitCandidates(noise, {"heat_transfer", "leak"}, o, nullptr);
   ASSERT_EQ(fits.size(), 3u);
@@ -195,6 +196,25 @@ TEST(DiagnosisStages, JointRefitsTakeTheBestPairAndEveryPairOfASingleThatMovedTh
   EXPECT_EQ(gs::jointRefitOrder(fits, 2, 0, {"plate_friction"}, log_n), (std::vector<int>{1, 4, 3}));
   EXPECT_EQ(gs::jointRefitOrder(fits, 1, 3, {"leak"}, log_n), (std::vector<int>{0}));
   EXPECT_TRUE(gs::jointRefitOrder(fits, 2, 0, {}, log_n).empty());
+}
+
+TEST(DiagnosisStages, PairsAreTheBestSingleWithEveryOtherAndThePoolsPairs) {
+  // A sensor lag beside a flow meter's bias barely moves chi2 alone (the bias hides it): it ranks
+  // last, and only the best single's pairs reach it.
+  const std::vector<gs::ModelFit> fits = {
+      rankedFit({"pressure_sensor_lag"}, 9000.0),  // 0
+      rankedFit({"inflow_bias"}, 1200.0),          // 1: the best
+      rankedFit({"leak"}, 5000.0),                 // 2
+      rankedFit({"heat_transfer"}, 6000.0),        // 3
+      rankedFit({"supply_line"}, 100.0, false),    // 4: failed
+  };
+  const std::vector<int> order{1, 2, 3, 0, 4};
+  using Pairs = std::vector<std::pair<int, int>>;
+  EXPECT_EQ(gs::pairsToFit(fits, order, 1, 1000, 1.1), (Pairs{{1, 2}, {1, 3}, {1, 0}}));
+  EXPECT_EQ(gs::pairsToFit(fits, order, 2, 1000, 1.1), (Pairs{{1, 2}, {1, 3}, {1, 0}, {2, 3}, {2, 0}}));
+  EXPECT_TRUE(gs::pairsToFit(fits, order, 0, 1000, 1.1).empty()) << "pool 0: no pairs";
+  EXPECT_TRUE(gs::pairsToFit(fits, order, 3, 1200, 1.1).empty()) << "the best single is within the noise";
+  EXPECT_EQ(gs::pairsToFit(fits, {4, 1}, 3, 1000, 1.1), Pairs{}) << "one ok single: nothing to pair";
 }
 
 TEST(DiagnosisStages, MedianAndFmt) {

@@ -22,8 +22,8 @@ namespace nursing_bed {
 struct DiagnosisOptions {
   /// Effects to try (canonical candidate names); empty: every candidate of the catalogue.
   std::vector<std::string> candidates;
-  /// Pairs are tried among this many best single candidates (0: no pairs).
-  int pair_pool = 4;
+  /// Pairs tried: each of this many best singles (by BIC) with every other single (0: no pairs).
+  int pair_pool = 1;
   /// Residuals enter the fits at about this rate (runs are replayed at their full rate).
   double fit_sample_hz = 10.0;
   /// Largest integration step while fitting (the run's sample interval if that is shorter) and

@@ -3,7 +3,7 @@
 //   prepareRuns      roles, each run's noise, the closed inlet's flow set to zero
 //   replayNominal    the nominal replay of every run, per-run numbers, where the gap lies
 //   buildNoiseModel  the fit and withheld runs' samples with their noise floor; nominal chi2
-//   fitCandidates    every single candidate from a grid, then pairs of the best singles
+//   fitCandidates    every single candidate from a grid, then the best single paired with each other
 //   scoreCandidates  BIC against the nominal model, nrmse and withheld chi2 of each, sorted
 //   decideVerdict    (diagnosis.h) which candidate, if any, explains the gap
 //   shrinkage        the verdict model's replays: traces and the withheld runs' nrmse
@@ -79,15 +79,27 @@ struct ModelFit {
   FitOutcome outcome;
 };
 
-/// Fits every single candidate from a grid, then the pairs among the `options.pair_pool` best
-/// singles (by BIC) from the singles' fits. Singles first, in `candidates` order, then the pairs.
-/// `progress` (may be empty) gets a line per fit.
+/// Fits every single candidate from a grid, then pairs from the singles' fits (pairsToFit: the
+/// `options.pair_pool` best singles by BIC, each with every other); no pair when the best single
+/// fits within options.joint_refit_chi2. Singles first, in `candidates`
+/// order, then the pairs. `progress` (may be empty) gets a line per fit.
 /// `after_singles` (may be empty) may refit the singles (jointly with the calibration) before
-/// the pairs are chosen from them.
+/// the pairs are chosen from them. `fitted_singles`, when given, are these singles already
+/// fitted on the same baseline (the nominal cell's, when the calibration did not move): reused.
 std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<std::string>& candidates,
                                     const DiagnosisOptions& options,
                                     const std::function<void(const std::string&)>& progress,
-                                    const std::function<void(std::vector<ModelFit>*)>& after_singles = {});
+                                    const std::function<void(std::vector<ModelFit>*)>& after_singles = {},
+                                    const std::vector<ModelFit>& fitted_singles = {});
+
+/// The pairs fitCandidates() fits, as indices into `fits` (singles; `order` ranks them, best
+/// first): each of the `pool` best ok singles with every ok single ranked below it (forward
+/// selection: a second effect whose signature the first one hides ranks low alone, as a
+/// pressure sensor lag does beside a flow meter's bias; a pair of two poor singles is not
+/// tried: its replays are the slowest and it rarely fits). None when the best already fits
+/// within `within_chi2` per residual (n residuals).
+std::vector<std::pair<int, int>> pairsToFit(const std::vector<ModelFit>& fits, const std::vector<int>& order, int pool,
+                                            int n, double within_chi2);
 
 // ---- calibration (calibration_stage.cpp) ------------------------------------------------------
 
@@ -159,8 +171,10 @@ struct JointRefits {
 /// calibration they bent is biased however it ranks), whose chi2/n is above
 /// options.joint_refit_chi2, jointly with the calibration (refitJointly, also started from the
 /// fit's counterpart in `uncalibrated`, the singles fitted on the nominal cell, which rank the
-/// fits too: jointRefitOrder); replaces each by its joint fit where that fits better. The best
-/// first: when it lands within joint_refit_chi2 the others are not refitted.
+/// fits too: jointRefitOrder); replaces each by its joint fit where that fits better. When the
+/// best is within joint_refit_chi2 already, only it is refitted (if the calibration moved) and the
+/// others not at all; else the best first: when it lands within joint_refit_chi2 the others are
+/// not refitted.
 JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
                              std::size_t effects, int pool, const DiagnosisOptions& options,
                              const std::function<void(const std::string&)>& progress,

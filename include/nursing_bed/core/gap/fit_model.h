@@ -78,6 +78,9 @@ struct FitData {
   };
   std::vector<Run> runs;
   CellParams params;  ///< with the fit's integration settings
+  /// Runs replayed in parallel by fitResiduals() (a fit alone on the machine, as the calibration's
+  /// and the first joint refit are, then uses every core).
+  int threads = 1;
   /// Residual slots (two per sample: the layout of fitResiduals()).
   int residualCount() const;
   /// Residuals that carry a reading (the n of chi2/n and BIC): slots less the height slots of
