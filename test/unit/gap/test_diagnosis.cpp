@@ -481,6 +481,23 @@ TEST(GapDecision, APairWithinTheNoiseBeatsASingleThatOnlyRemovesMostOfADeepGap) 
   EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
 }
 
+TEST(GapDecision, InAVeryDeepGapAPairThatTakesWhatTheSingleLeavesBeatsIt) {
+  // Blind pair s302: a flow meter's bias alone took a gap of chi2/n 1.16e5 to 174; with the
+  // sensor lag the pair left 1.51, just above the noise's 1.5 but 99.7 % of what the bias left.
+  const auto nominal = nominalScore(1.16e5, 1.79e5);
+  const auto bias = fitOf({"inflow_bias"}, 174.0, 191.0, nominal);
+  const auto pair = fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.51, 1.9, nominal);
+  auto c = byBic({bias, pair});
+  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+  // A pair that leaves 2 where the single leaves 174 took 99.4 %: not enough, the single stays.
+  c = byBic({bias, fitOf({"pressure_sensor_lag", "inflow_bias"}, 2.0, 1.9, nominal)});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
+}
+
 TEST(GapDecision, AGapNothingRemovesIsUnexplainedAndImplausibleFitsDoNotCount) {
   const auto nominal = nominalScore(5.0, 5.0);
   auto partial = fitOf({"heat_transfer"}, 3.0, 3.5, nominal);  // significant, but leaves chi2/n 3
