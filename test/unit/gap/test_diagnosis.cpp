@@ -444,58 +444,40 @@ TEST(GapDecision, ANearTieIsDecidedByTheWithheldRuns) {
   EXPECT_EQ(c3[v3.winner].effects[0], "heat_transfer") << named(v3, c3);
 }
 
+/// How many effects the verdict names among `candidates` (ranked by BIC here); 0 for none.
+size_t namedEffects(const std::vector<nb::CandidateFit>& candidates, const nb::NominalScore& nominal) {
+  const auto c = byBic(candidates);
+  const nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  EXPECT_GE(v.winner, 0) << named(v, c);
+  return v.winner >= 0 ? c[v.winner].effects.size() : 0u;
+}
+
 TEST(GapDecision, APairOnlyWhereNoSingleExplainsTheGap) {
   const auto nominal = nominalScore(3.0, 3.0);
-  const auto leak = fitOf({"leak"}, 1.3, 1.3, nominal);
   const auto pair = fitOf({"leak", "membrane_viscoelasticity"}, 1.0, 1.0, nominal);  // 150 better in chi2
-  auto c = byBic({leak, pair});
-  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);  // the leak explains it alone
+  EXPECT_EQ(namedEffects({fitOf({"leak"}, 1.3, 1.3, nominal), pair}, nominal), 1u);  // the leak explains it alone
   // A single that leaves too much (chi2/n 2): the pair.
-  c = byBic({fitOf({"leak"}, 2.0, 2.0, nominal), pair});
-  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+  EXPECT_EQ(namedEffects({fitOf({"leak"}, 2.0, 2.0, nominal), pair}, nominal), 2u);
 }
 
 TEST(GapDecision, APairWithinTheNoiseBeatsASingleThatOnlyRemovesMostOfADeepGap) {
+  const std::vector<std::string> both{"pressure_sensor_lag", "inflow_bias"};
   // A deep gap (chi2/n 241): a single leaves 1.99 (99.6 % of the excess removed: it "explains"
   // it), the pair leaves 1.0 on the fit runs and lowers the withheld chi2 too: both effects.
-  const auto nominal = nominalScore(241.0, 100.0);
-  const auto lag = fitOf({"pressure_sensor_lag"}, 1.99, 2.0, nominal);
-  const auto pair = fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.0, 1.0, nominal);
-  auto c = byBic({lag, pair});
-  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+  const auto deep = nominalScore(241.0, 100.0);
+  const auto lag = fitOf({"pressure_sensor_lag"}, 1.99, 2.0, deep);
+  EXPECT_EQ(namedEffects({lag, fitOf(both, 1.0, 1.0, deep)}, deep), 2u);
   // Not when the pair does no better on the withheld runs (it only bends to the fit runs).
-  c = byBic({lag, fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.0, 2.0, nominal)});
-  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
+  EXPECT_EQ(namedEffects({lag, fitOf(both, 1.0, 2.0, deep)}, deep), 1u);
   // Nor when the single is within the noise itself (the simpler answer).
-  c = byBic({fitOf({"pressure_sensor_lag"}, 1.3, 1.3, nominal), pair});
-  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
-}
-
-TEST(GapDecision, InAVeryDeepGapAPairThatTakesWhatTheSingleLeavesBeatsIt) {
-  // Blind pair s302: a flow meter's bias alone took a gap of chi2/n 1.16e5 to 174; with the
-  // sensor lag the pair left 1.51, just above the noise's 1.5 but 99.7 % of what the bias left.
-  const auto nominal = nominalScore(1.16e5, 1.79e5);
-  const auto bias = fitOf({"inflow_bias"}, 174.0, 191.0, nominal);
-  const auto pair = fitOf({"pressure_sensor_lag", "inflow_bias"}, 1.51, 1.9, nominal);
-  auto c = byBic({bias, pair});
-  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 2u) << named(v, c);
+  EXPECT_EQ(namedEffects({fitOf({"pressure_sensor_lag"}, 1.3, 1.3, deep), fitOf(both, 1.0, 1.0, deep)}, deep), 1u);
+  // Blind pair s302, a very deep gap: a flow meter's bias alone took chi2/n 1.16e5 to 174; with
+  // the sensor lag the pair left 1.51, just above the noise's 1.5 but 99.7 % of what the bias left.
+  const auto deeper = nominalScore(1.16e5, 1.79e5);
+  const auto bias = fitOf({"inflow_bias"}, 174.0, 191.0, deeper);
+  EXPECT_EQ(namedEffects({bias, fitOf(both, 1.51, 1.9, deeper)}, deeper), 2u);
   // A pair that leaves 2 where the single leaves 174 took 99.4 %: not enough, the single stays.
-  c = byBic({bias, fitOf({"pressure_sensor_lag", "inflow_bias"}, 2.0, 1.9, nominal)});
-  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
-  ASSERT_GE(v.winner, 0);
-  EXPECT_EQ(c[v.winner].effects.size(), 1u) << named(v, c);
+  EXPECT_EQ(namedEffects({bias, fitOf(both, 2.0, 1.9, deeper)}, deeper), 1u);
 }
 
 TEST(GapDecision, AGapNothingRemovesIsUnexplainedAndImplausibleFitsDoNotCount) {
