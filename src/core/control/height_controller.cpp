@@ -32,7 +32,10 @@ std::string HeightControllerParams::validate() const {
 
 HeightController::HeightController(const HeightControllerParams& params,
                                    std::shared_ptr<const CellCharacteristic> characteristic)
-    : params_(params), characteristic_(std::move(characteristic)) {
+    : params_(params),
+      characteristic_(std::move(characteristic)),
+      load_(params.load_filter_time_s, characteristic_ ? characteristic_->params().plate_mass_kg : 0.0,
+            characteristic_ ? characteristic_->params().plate_damping_n_s_m : 0.0) {
   if (characteristic_) supply_pressure_pa_ = characteristic_->params().supply_pressure_pa;
   const std::string error = params_.validate();
   if (!error.empty()) throw std::invalid_argument("height controller parameters: " + error);
@@ -59,12 +62,12 @@ void HeightController::setTarget(double height_m) {
 void HeightController::clearTarget() { has_target_ = false; }
 
 double HeightController::targetPressure() const {
-  return characteristic_->pressureAt(target_m_, load_estimate_n_);
+  return characteristic_->pressureAt(target_m_, load_.load());
 }
 
 bool HeightController::targetOutOfReach() const {
   const double p = targetPressure();
-  return !(p <= params_.max_pressure_pa) || target_m_ > characteristic_->maxHeight(load_estimate_n_);
+  return !(p <= params_.max_pressure_pa) || target_m_ > characteristic_->maxHeight(load_.load());
 }
 
 double HeightController::fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3,
@@ -81,19 +84,19 @@ double HeightController::fullFlowRestRate(int direction, double gauge_pressure_p
                  .mass_flow_kg_s;
   const double k_rate = characteristic_->invariantRate(volume_m3, flow, cell.supply_temperature_k);
   const double dk = 1e-3 * invariant;
-  const double dh_dk = (characteristic_->restingHeight(invariant + dk, load_estimate_n_) -
-                        characteristic_->restingHeight(invariant - dk, load_estimate_n_)) / (2.0 * dk);
+  const double dh_dk = (characteristic_->restingHeight(invariant + dk, load_.load()) -
+                        characteristic_->restingHeight(invariant - dk, load_.load())) / (2.0 * dk);
   return std::fabs(dh_dk * k_rate);
 }
 
 double HeightController::halfPeriod() const {
   if (half_period_s_ < 0.0 || half_period_target_m_ != target_m_ ||
-      std::fabs(load_estimate_n_ - half_period_load_n_) > 0.05 * half_period_load_n_) {
-    const double mass = std::max(characteristic_->params().plate_mass_kg, load_estimate_n_ / kGravity);
-    const double k = characteristic_->plateStiffness(target_m_, load_estimate_n_);
+      std::fabs(load_.load() - half_period_load_n_) > 0.05 * half_period_load_n_) {
+    const double mass = std::max(characteristic_->params().plate_mass_kg, load_.load() / kGravity);
+    const double k = characteristic_->plateStiffness(target_m_, load_.load());
     half_period_s_ = k > 0.0 ? kPi * std::sqrt(mass / k) : 0.05;
     half_period_target_m_ = target_m_;
-    half_period_load_n_ = load_estimate_n_;
+    half_period_load_n_ = load_.load();
   }
   return half_period_s_;
 }
@@ -105,20 +108,19 @@ ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, dou
   has_last_ = true;
   const bool resting = speed < params_.settled_speed_m_s;
 
-  // Load estimate: the load the measured pressure carries at the measured height, while the
-  // plate rests on a lifted cell (on the bed the pressure says nothing about the load).
-  if (resting && height_m > 0.005 && gauge_pressure_pa > 0.0 && move_direction_ == 0) {
-    const double observed = characteristic_->loadAt(height_m, gauge_pressure_pa);
-    const double a = std::min(1.0, dt_s / params_.load_filter_time_s);
-    load_estimate_n_ += a * (observed - load_estimate_n_);
-  }
+  // Load estimate: the plate's force balance on the structure's force at (h, p), outside moves
+  // (a move plans with the load it started with) and with the plate off the bed (on the bed the
+  // pressure says nothing about the load).
+  const bool weighable = height_m > 0.005 && gauge_pressure_pa > 0.0;
+  load_.update(dt_s, height_m, weighable ? characteristic_->loadAt(height_m, gauge_pressure_pa) : 0.0,
+               weighable && move_direction_ == 0);
 
   // Where the plate rests if the valves shut now (adiabatic invariant of the present gas; the
   // volume uses the film relaxed at the measured pressure, so the invariant holds while the
   // plate swings).
   const double volume = characteristic_->relaxedVolume(height_m, gauge_pressure_pa, &stretch_guess_);
   const double invariant = characteristic_->invariant(gauge_pressure_pa, volume);
-  resting_height_m_ = characteristic_->restingHeight(invariant, load_estimate_n_);
+  resting_height_m_ = characteristic_->restingHeight(invariant, load_.load());
   if (!has_target_) {
     move_direction_ = 0;
     return cmd;

@@ -373,3 +373,41 @@ TEST(HeightController, OnTheFeTableCellReachesAndHoldsItsTarget) {
   }
 }
 
+
+// A load taken off a lifted plate. Near the FE table's top the cell is stiff (one period of
+// inflow adds kPa), the plate chatters after the drop and a load estimate that learned only at
+// rest kept the old load for good: from 10.6 N to 0.6 N the cell hunted at 110-112 mm for a
+// 100 mm target (90 of 180 bed cells off 0.10 m). The force balance learns while it moves.
+TEST(HeightController, AfterALoadDropTheCellComesBackToItsTarget) {
+  nb::AirbagCellParams fe;
+  fe.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", fe.cell);
+  fe.cell.supply_pressure_pa = 30000.0;
+  struct Case {
+    const char* cell;
+    nb::AirbagCellParams params;
+    double from_n, to_n;
+  };
+  for (const Case& c : {Case{"fe", fe, 10.6, 0.6}, Case{"fe", fe, 20.6, 0.6}, Case{"fe", fe, 0.6, 10.6},
+                        Case{"pillow", nb::AirbagCellParams{}, 10.6, 0.6}, Case{"pillow", nb::AirbagCellParams{}, 20.6, 0.6}}) {
+    SCOPED_TRACE(testing::Message() << c.cell << " cell, " << c.from_n << " N -> " << c.to_n << " N at 0.10 m");
+    nb::AirbagCell cell(c.params);
+    cell.reset(c.from_n);
+    ASSERT_EQ(cell.requestHeight(0.10, 0.0), "");
+    double t = 0.0;
+    for (; t < 10.0; t += 0.02) {
+      cell.advanceTo(t);
+      cell.heartbeat(t);
+    }
+    ASSERT_NEAR(cell.measurement().height_m, 0.10, 2e-3);
+    ASSERT_EQ(cell.setLoad(c.to_n), "");
+    double worst_late = 0.0;
+    for (; t < 30.0; t += 0.02) {
+      cell.advanceTo(t);
+      cell.heartbeat(t);
+      if (t > 25.0) worst_late = std::max(worst_late, std::fabs(cell.measurement().height_m - 0.10));
+    }
+    EXPECT_LT(worst_late, 2e-3);
+    EXPECT_NEAR(cell.loadEstimate(), c.to_n, 0.5);
+    EXPECT_EQ(cell.faults(), 0u);
+  }
+}

@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "nursing_bed/core/control/plate_load_estimator.h"
 #include "nursing_bed/core/physics/cell_characteristic.h"
 
 namespace nursing_bed {
@@ -51,7 +52,7 @@ struct ValveCommand {
  *    damps the lightly damped plate actively. Deadband height_tolerance_m.
  * The feed-forward is the characteristic (h, load) -> p; the feedback is the measured height:
  * a resting error is integrated into the target the predictor aims at. The load is estimated
- * from the characteristic while the plate rests.
+ * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
  */
 class HeightController {
  public:
@@ -71,8 +72,8 @@ class HeightController {
   /// Pressure of the supply behind the inlet valve, gauge [Pa] (default: the cell's setting).
   void setSupplyPressure(double pressure_pa) { supply_pressure_pa_ = pressure_pa; }
   /// Seeds the load estimate (e.g. from a load cell or the nominal load) [N].
-  void setLoadEstimate(double load_n) { load_estimate_n_ = load_n; }
-  double loadEstimate() const { return load_estimate_n_; }
+  void setLoadEstimate(double load_n) { load_.seed(load_n); }
+  double loadEstimate() const { return load_.load(); }
   /// Half period of the loaded plate ringing on the closed cell at the target [s].
   double halfPeriod() const;
   /// Where the plate would rest if the valves shut now [m].
@@ -89,7 +90,7 @@ class HeightController {
   bool has_target_ = false;
   double target_m_ = 0.0;
   double integral_m_ = 0.0;
-  double load_estimate_n_ = 0.6;
+  PlateLoadEstimator load_;
   double resting_height_m_ = 0.0;
   double last_height_m_ = 0.0;
   bool has_last_ = false;
