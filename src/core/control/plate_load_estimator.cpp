@@ -18,24 +18,28 @@ void PlateLoadEstimator::update(double dt_s, double height_m, double structure_f
   if (!primed_ || !(dt_s > 0.0)) {
     primed_ = true;
     last_height_m_ = height_m;
-    force_f_n_ = structure_force_n;
-    velocity_f_m_s_ = 0.0;
+    force_f_n_ = {structure_force_n, structure_force_n};
+    velocity_f_m_s_ = {0.0, 0.0};
     return;
   }
   const double velocity = (height_m - last_height_m_) / dt_s;
   last_height_m_ = height_m;
-  const double a = std::min(1.0, dt_s / filter_time_s_);
-  const double velocity_before = velocity_f_m_s_;
-  force_f_n_ += a * (structure_force_n - force_f_n_);
-  velocity_f_m_s_ += a * (velocity - velocity_f_m_s_);
+  // Two first-order stages of tau/2 each: the same lag as one of tau, and the acceleration below
+  // differentiates the once-filtered velocity, not the raw one (whose noise is sigma_h / dt).
+  const double stage_s = 0.5 * filter_time_s_;
+  const double a = std::min(1.0, dt_s / stage_s);
+  force_f_n_[0] += a * (structure_force_n - force_f_n_[0]);
+  force_f_n_[1] += a * (force_f_n_[0] - force_f_n_[1]);
+  velocity_f_m_s_[0] += a * (velocity - velocity_f_m_s_[0]);
+  const double velocity_before = velocity_f_m_s_[1];
+  velocity_f_m_s_[1] += a * (velocity_f_m_s_[0] - velocity_f_m_s_[1]);
   if (!learn) return;
-  // d/dt of the filtered velocity = the filtered acceleration.
-  const double accel_f = (velocity - velocity_before) / std::max(filter_time_s_, dt_s);
-  const double supported = force_f_n_ - plate_damping_n_s_m_ * velocity_f_m_s_;
+  // d/dt of the twice-filtered velocity = the twice-filtered acceleration.
+  const double accel_f = (velocity_f_m_s_[0] - velocity_before) / std::max(stage_s, dt_s);
+  const double supported = force_f_n_[1] - plate_damping_n_s_m_ * velocity_f_m_s_[1];
   // A plate in free fall (a_f near -g) carries nothing it could be weighed by: bounded.
   const double heavy = supported / std::max(0.2, 1.0 + accel_f / kGravity);
-  const double load = heavy >= plate_mass_kg_ * kGravity ? heavy : supported - plate_mass_kg_ * accel_f;
-  load_n_ = std::max(0.0, load);
+  load_n_ = std::max(0.0, heavy >= plate_mass_kg_ * kGravity ? heavy : supported - plate_mass_kg_ * accel_f);
 }
 
 }  // namespace nursing_bed
