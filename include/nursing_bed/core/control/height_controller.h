@@ -17,7 +17,7 @@ struct HeightControllerParams {
   double height_tolerance_m = 0.0004;     ///< deadband: no valve action within it [m]
   double approach_band_m = 0.004;         ///< predicted error over which a valve goes from shut to fully open [m]
   double max_pressure_pa = 32000.0;       ///< never fill above this gauge pressure (below the relief) [Pa]
-  double load_filter_time_s = 0.3;        ///< time constant of the load estimate [s]
+  double load_filter_time_s = 0.3;        ///< time constant of the load estimate's filter (PlateLoadEstimator) [s]
   double settled_speed_m_s = 0.003;       ///< plate speed under which the cell counts as at rest [m/s]
   double integral_rate_per_s = 2.0;       ///< rate at which a resting height error is integrated out [1/s]
   double integral_limit_m = 0.02;         ///< bound of that correction [m]
