@@ -176,6 +176,10 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
   v.load_n = in.load_n;
   v.moving_mass_kg = std::max(params_.plate_mass_kg, in.load_n / kGravity);
 
+  // The cell pressure the orifices see: the model's, or one given (an observer's measurement).
+  const double flow_pressure_pa = std::isfinite(in.flow_gauge_pressure_pa)
+                                      ? params_.ambient_pressure_pa + in.flow_gauge_pressure_pa
+                                      : v.pressure_pa;
   // Inlet: a prescribed (metered) series, or the regulator through the inlet valve.
   double inflow_enthalpy_w = 0.0;
   if (in.prescribed_inflow || std::isfinite(in.prescribed_inflow_kg_s)) {
@@ -190,7 +194,7 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
     const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
     const OrificeFlow f = orificeFlow(gas, opening * params_.inlet_area_m2,
                                       params_.ambient_pressure_pa + v.regulator_pressure_pa,
-                                      params_.supply_temperature_k, v.pressure_pa, v.temperature_k,
+                                      params_.supply_temperature_k, flow_pressure_pa, v.temperature_k,
                                       params_.orifice_linear_band_pa);
     v.inflow_kg_s = f.mass_flow_kg_s;
     v.metered_inflow_kg_s = v.inflow_kg_s;
@@ -198,20 +202,20 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
   }
   // Vent valve and leakage to ambient (eq. 17-23 with the choked branch).
   auto outflow = [&](double area) {
-    const OrificeFlow f = orificeFlow(gas, area, v.pressure_pa, v.temperature_k,
+    const OrificeFlow f = orificeFlow(gas, area, flow_pressure_pa, v.temperature_k,
                                       params_.ambient_pressure_pa, params_.ambient_temperature_k,
                                       params_.orifice_linear_band_pa);
     return f;
   };
   const OrificeFlow vent =
-      orificeFlow(gas, std::clamp(in.vent_opening, 0.0, 1.0) * params_.vent_area_m2, v.pressure_pa, v.temperature_k,
+      orificeFlow(gas, std::clamp(in.vent_opening, 0.0, 1.0) * params_.vent_area_m2, flow_pressure_pa, v.temperature_k,
                   params_.ambient_pressure_pa + in.vent_back_pressure_pa, params_.ambient_temperature_k,
                   params_.orifice_linear_band_pa);
   const OrificeFlow leak = outflow(params_.leak_area_m2);
-  const double relief_opening = params_.reliefOpening(v.gauge_pressure_pa);
+  const double relief_opening = params_.reliefOpening(flow_pressure_pa - params_.ambient_pressure_pa);
   const double relief_kg_s =
       relief_opening > 0.0 ? relief_opening * iso6358MassFlow(params_.relief_sonic_conductance_m3_s_pa,
-                                                              params_.relief_critical_ratio, v.pressure_pa,
+                                                              params_.relief_critical_ratio, flow_pressure_pa,
                                                               v.temperature_k, params_.ambient_pressure_pa)
                            : 0.0;
   v.vent_flow_kg_s = vent.mass_flow_kg_s;

@@ -80,6 +80,10 @@ struct CellInputs {
   /// With a prescribed inflow: the inlet is known to be closed over this step (a replay set the
   /// meter's noise there to 0), so effects that model the meter's errors add nothing.
   bool inlet_closed = false;
+  /// When finite, the gauge pressure in the cell that its inlet, vent, leak and relief flows
+  /// see over the step, instead of the model's own: an observer gives the measured pressure,
+  /// so that a model pressure still wrong by an unknown load does not change the gas let in.
+  double flow_gauge_pressure_pa = std::numeric_limits<double>::quiet_NaN();
 };
 
 /**
