@@ -60,6 +60,7 @@ ModbusTerminal::ModbusTerminal(const TerminalMap& map, double pwm_period_s)
   holding_runs_ = addressRuns(holding, MODBUS_MAX_WRITE_REGISTERS);
   commands_.assign(map_.cells.size(), ValveOpenings{});
   pwm_.assign(2 * map_.cells.size(), PwmChannel{});
+  driven_.assign(map_.cells.size(), Driven{});
   thread_ = std::thread(&ModbusTerminal::run, this);
 }
 
@@ -106,6 +107,19 @@ CellReadings ModbusTerminal::readings(std::size_t slot, double now_s) const {
   const double stamp = now_s - age_s;
   const CellRegisters& c = map_.cells.at(slot);
   r.gauge_pressure_pa = {value(c.pressure_pa), stamp};
+  // The valves' mean opening since the last call: what the PWM pulses passed, not the duty.
+  Driven& d = driven_.at(slot);
+  const Clock::time_point t = Clock::now();
+  if (d.started) {
+    const double span_s = std::chrono::duration<double>(t - d.from).count();
+    const double tail_s = std::chrono::duration<double>(t - d.since).count();
+    if (span_s > 1e-4) {
+      r.inlet_driven = {(d.integral_s[0] + d.opening[0] * tail_s) / span_s, now_s};
+      r.vent_driven = {(d.integral_s[1] + d.opening[1] * tail_s) / span_s, now_s};
+    }
+    d.integral_s[0] = d.integral_s[1] = 0.0;
+    d.since = d.from = t;
+  }
   if (c.height_m.present()) r.height_m = {value(c.height_m), stamp};
   if (c.inflow_kg_s.present()) r.inflow_kg_s = {value(c.inflow_kg_s), stamp};
   if (map_.supply_pressure_pa.present()) r.supply_pressure_pa = {value(map_.supply_pressure_pa), stamp};
@@ -172,9 +186,32 @@ bool ModbusTerminal::connect() {
 
 bool ModbusTerminal::exchange() {
   if (!readInputs() || !writeOutputs()) return false;
+  markDriven();
   std::lock_guard<std::mutex> lock(mutex_);
   ++stats_.cycles;
   return true;
+}
+
+void ModbusTerminal::markDriven() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const Clock::time_point t = Clock::now();
+  for (std::size_t s = 0; s < map_.cells.size(); ++s) {
+    const CellRegisters& c = map_.cells[s];
+    const ValveOutput* out[2] = {&c.inlet, &c.vent};
+    Driven& d = driven_[s];
+    if (!d.started) {
+      d.since = d.from = t;
+      d.started = true;
+    }
+    const double held_s = std::chrono::duration<double>(t - d.since).count();
+    for (int k = 0; k < 2; ++k) {
+      d.integral_s[k] += d.opening[k] * held_s;
+      d.opening[k] = out[k]->kind == ValveOutput::kCoil
+                         ? (coils_[out[k]->address] ? 1.0 : 0.0)
+                         : static_cast<double>(holding_[out[k]->address]) / out[k]->full_scale;
+    }
+    d.since = t;
+  }
 }
 
 bool ModbusTerminal::readInputs() {
@@ -245,6 +282,8 @@ void ModbusTerminal::dropLink(const std::string& why) {
   have_read_ = false;
   error_ = why;
   std::fill(commands_.begin(), commands_.end(), ValveOpenings{});
+  // The terminal's watchdog shuts the outputs; the driven record starts again on reconnection.
+  std::fill(driven_.begin(), driven_.end(), Driven{});
 }
 
 // --- the cell's view ------------------------------------------------------------------------

@@ -128,6 +128,36 @@ TEST_F(ModbusLoopback, OnOffValvesArePulseWidthModulatedProportionalOnesScaled) 
   cells_[2]->write({}, 0.0);
 }
 
+TEST_F(ModbusLoopback, ReportsTheOpeningsItDroveTimeAveraged) {
+  // Every read says what the outputs did since the previous one: the PWM'd coil's pulses
+  // average to its duty, the proportional valve reads its scaled opening.
+  cells_[0]->write({0.3, 0.0, false}, 0.0);
+  cells_[2]->write({0.6, 0.0, false}, 0.0);
+  ASSERT_TRUE(waitFor([this] { return truth(2).inlet_opening > 0.0; }, 1.0));
+  cells_[0]->read(0.0);
+  cells_[2]->read(0.0);
+  double on_s = 0.0, total_s = 0.0;
+  const auto start = std::chrono::steady_clock::now();
+  auto last = start;
+  while (std::chrono::steady_clock::now() - start < std::chrono::milliseconds(1000)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(7));
+    const auto now = std::chrono::steady_clock::now();
+    const nb::CellReadings r = cells_[0]->read(0.0);
+    ASSERT_TRUE(r.inlet_driven.present());
+    const double dt = std::chrono::duration<double>(now - last).count();
+    on_s += r.inlet_driven.value * dt;
+    total_s += dt;
+    last = now;
+    EXPECT_NEAR(r.vent_driven.value, 0.0, 1e-12);
+    const nb::CellReadings p = cells_[2]->read(0.0);
+    ASSERT_TRUE(p.inlet_driven.present());
+    EXPECT_NEAR(p.inlet_driven.value, 0.6, 1e-3);
+  }
+  EXPECT_NEAR(on_s / total_s, 0.3, 0.05) << "the pulses average to the duty";
+  cells_[0]->write({}, 0.0);
+  cells_[2]->write({}, 0.0);
+}
+
 TEST_F(ModbusLoopback, ALostTerminalIsReportedAndReconnectedByItself) {
   cells_[3]->write({0.0, 0.0, false}, 0.0);
   emulator_.reset();

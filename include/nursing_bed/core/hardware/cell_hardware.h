@@ -35,6 +35,11 @@ struct CellReadings {
   StampedReading inflow_kg_s;         ///< inlet mass flow [kg/s], where a flow meter is fitted
   StampedReading gas_temperature_k;   ///< gas temperature [K], where measured
   StampedReading supply_pressure_pa;  ///< supply (regulator outlet) gauge pressure [Pa], where measured
+  /// The valve openings the driver applied since the previous read(), time-averaged (an on/off
+  /// valve: the fraction of the interval its output was on), where it knows them. The command
+  /// is a duty over the control period; the pulses that realise it are what passes the gas, at
+  /// the pressure during each pulse, so an observer integrates these.
+  StampedReading inlet_driven, vent_driven;
   LinkState link = LinkState::kOk;
   std::string link_error;             ///< why the link is down (empty while up)
   /// The device failed and was reset since the last read(): the cell is in its reset state

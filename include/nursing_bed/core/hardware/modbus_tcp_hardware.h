@@ -79,6 +79,8 @@ class ModbusTerminal {
   bool readInputs();
   bool writeOutputs();
   void fillOutputs();
+  /// After a write went out: the valves of every slot are now as written (time-weighted).
+  void markDriven();
   void dropLink(const std::string& why);
   double value(const AnalogInput& in) const;
 
@@ -92,6 +94,15 @@ class ModbusTerminal {
   std::vector<std::uint16_t> holding_;     // by address
   std::vector<ValveOpenings> commands_;    // by slot
   std::vector<PwmChannel> pwm_;            // 2 per slot: inlet, vent
+  /// What the outputs drove, per slot: the openings written last, since when, and their
+  /// time integral since the slot's last readings() (mutable: readings() hands it out).
+  struct Driven {
+    double opening[2] = {0.0, 0.0};
+    double integral_s[2] = {0.0, 0.0};
+    Clock::time_point since, from;
+    bool started = false;
+  };
+  mutable std::vector<Driven> driven_;
   Clock::time_point last_read_;
   bool have_read_ = false;
   bool up_ = false;
