@@ -316,12 +316,14 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   measurement_.temperature_k = readings.gas_temperature_k.value;
   if (!observer_ || (sim_ && !use_estimate_)) return;
   ObserverInputs in;
-  in.inlet_opening = valves_.inlet;
-  in.vent_opening = valves_.vent;
+  // What the driver applied where it says (PWM pulses), else what was commanded.
+  in.inlet_opening = readings.inlet_driven.present() ? readings.inlet_driven.value : valves_.inlet;
+  in.vent_opening = readings.vent_driven.present() ? readings.vent_driven.value : valves_.vent;
   // The vent's outlet as the hardware has it (a bed without a vacuum source vents to the air:
   // modelled with the vacuum, a vented cell's estimate fell 2.5 times too fast, 40 mm off).
   in.vent_back_pressure_pa = ventToVacuum() ? params_.cpr_vacuum_pa : 0.0;
-  in.supply_pressure_pa = readings.supply_pressure_pa.present() ? readings.supply_pressure_pa.value : supply_pressure_pa_;
+  in.supply_pressure_pa = supply_pressure_pa_;
+  if (readings.supply_pressure_pa.present()) in.measured_supply_pa = readings.supply_pressure_pa.value;
   ObserverReadings z;
   z.gauge_pressure_pa = readings.gauge_pressure_pa.value;
   if (!use_estimate_) z.height_m = readings.height_m.value;

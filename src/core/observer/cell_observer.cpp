@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -11,6 +12,10 @@ namespace {
 // Flow noise is taken as correlated over this time: a relative flow error e gives a mass
 // error of e times the gas moved in one such time (a valve's area error is nearly constant).
 constexpr double kFlowCorrelationS = 1.0;
+// The velocity reported is the height's rate, filtered over this time [s].
+constexpr double kVelocityFilterS = 0.05;
+// Readings within their noise of each other are smoothed over this time for the flows [s].
+constexpr double kFlowPressureFilterS = 0.03;
 
 std::string joinErrors(const std::ostringstream& err) {
   std::string s = err.str();
@@ -39,86 +44,64 @@ std::string CellObserverParams::validate() const {
   positive("period_s", period_s);
   positive("pressure_noise_pa", pressure_noise_pa);
   positive("height_noise_m", height_noise_m);
-  positive("inflow_noise_kg_s", inflow_noise_kg_s);
   non_negative("flow_uncertainty", flow_uncertainty);
   non_negative("mass_walk_kg_sqrt_s", mass_walk_kg_sqrt_s);
   non_negative("heat_walk_w_sqrt_s", heat_walk_w_sqrt_s);
-  non_negative("force_noise_n", force_noise_n);
-  non_negative("load_walk_n_sqrt_s", load_walk_n_sqrt_s);
+  positive("load_filter_time_s", load_filter_time_s);
   positive("initial_load_sd_n", initial_load_sd_n);
   non_negative("valve_dead_time_s", valve_dead_time_s);
-  non_negative("reading_time_sd_s", reading_time_sd_s);
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
-  non_negative("mass_lock_height_m", mass_lock_height_m);
-  if (jacobian_refresh_steps < 1 || jacobian_refresh_steps > 100)
-    err << "jacobian_refresh_steps must lie in 1..100, got " << jacobian_refresh_steps << "; ";
   return joinErrors(err);
 }
 
 CellObserver::CellObserver(const CellParams& model, const CellObserverParams& params,
                            const std::vector<CellEffectPtr>& effects)
-    : params_(params), model_(validModel(model, params)) {
+    : params_(params), model_(validModel(model, params)), gamma_(model.gas.heat_capacity_ratio) {
   for (const auto& e : effects) model_.addEffect(e);
+  // Flat means below half the lightest lifted plate's pressure (at most reanchor_pressure_pa).
+  reanchor_pa_ = std::min(params_.reanchor_pressure_pa, 0.5 * lowestLiftedPressure());
   reset(0.6);
 }
 
 void CellObserver::reset(double load_n) {
   model_.reset(load_n);
-  const int n = model_.stateSize();
-  x_.resize(n + 1);
-  x_.head(n) = model_.state();
-  x_[n] = load_n;
-  scale_.setConstant(n + 1, 1e-3);
-  scale_[CellModel::kMass] = 1e-4;
-  scale_[CellModel::kEnergy] = 10.0;
-  scale_[CellModel::kHeight] = 1e-2;
-  scale_[CellModel::kVelocity] = 0.1;
-  scale_[CellModel::kRegulator] = 1e3;
-  scale_[n] = 1.0;
-  p_.setZero(n + 1, n + 1);
-  for (int i = 0; i < n; ++i) p_(i, i) = std::pow(1e-4 * scale_[i], 2);
-  p_(n, n) = std::pow(params_.initial_load_sd_n, 2);
+  x_ = model_.state();
+  x_[CellModel::kRegulator] = model_.params().supply_pressure_pa;
+  p_ = Matrix2::Zero();
+  p_(0, 0) = std::pow(1e-3 * x_[CellModel::kMass], 2);
+  p_(1, 1) = std::pow(1e-3 * x_[CellModel::kEnergy], 2);
+  load_n_ = load_n;
+  load_var_n2_ = std::pow(params_.initial_load_sd_n, 2);
   time_ = 0.0;
   pending_.clear();
   applied_ = ObserverInputs{};
+  last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
+  flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   flat_since_s_ = -1.0;
-  pressure_rate_pa_s_ = 0.0;
-  steps_since_jacobian_ = 1 << 30;
-  refresh();
+  refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
 void CellObserver::resetToHeight(double height_m, double load_n) {
   reset(load_n);
   model_.resetToEquilibrium(height_m, load_n);
-  const int n = model_.stateSize();
-  x_.head(n) = model_.state();
-  p_(CellModel::kMass, CellModel::kMass) = std::pow(1e-3 * x_[CellModel::kMass], 2);
-  p_(n, n) = std::pow(0.5, 2);
-  refresh();
+  x_ = model_.state();
+  p_(0, 0) = std::pow(1e-3 * x_[CellModel::kMass], 2);
+  p_(1, 1) = std::pow(1e-3 * x_[CellModel::kEnergy], 2);
+  load_var_n2_ = std::pow(0.5, 2);
+  refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
-CellInputs CellObserver::modelInputs(const ObserverInputs& in, double load_n) const {
+CellInputs CellObserver::modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const {
   CellInputs c;
   c.inlet_opening = std::clamp(in.inlet_opening, 0.0, 1.0);
   c.vent_opening = std::clamp(in.vent_opening, 0.0, 1.0);
   c.vent_back_pressure_pa = in.vent_back_pressure_pa;
   c.supply_pressure_pa = in.supply_pressure_pa;
-  c.load_n = load_n;
+  c.load_n = load_n_;
+  // The valves pass gas at the cell's measured pressure, not at a model's.
+  c.flow_gauge_pressure_pa = flow_gauge_pressure_pa;
   return c;
-}
-
-CellModel::StateVector CellObserver::rate(const Vector& x, const CellInputs& in, CellVariables* vars) const {
-  CellInputs with_load = in;
-  with_load.load_n = x[loadIndex()];
-  return model_.rate(time_, x.head(loadIndex()), with_load, vars);
-}
-
-void CellObserver::refresh() { rate(x_, modelInputs(applied_, x_[loadIndex()]), &vars_); }
-
-void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
-  predict(inputs, dt_s);
-  correct(readings);
 }
 
 ObserverInputs CellObserver::delayed(const ObserverInputs& in) {
@@ -131,183 +114,278 @@ ObserverInputs CellObserver::delayed(const ObserverInputs& in) {
   return out;
 }
 
-void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
-  const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
-  applied_ = delayed(inputs);
-  const CellInputs in = modelInputs(applied_, x_[loadIndex()]);
-  if (++steps_since_jacobian_ >= params_.jacobian_refresh_steps) linearise(in);
-  propagateCovariance(dt);
-  const double p_before = vars_.gauge_pressure_pa;
-  integrateMean(in, dt);
-  time_ += dt;
-  keepPhysical();
-  refresh();
-  pressure_rate_pa_s_ = (vars_.gauge_pressure_pa - p_before) / dt;
+void CellObserver::refresh(const CellInputs& in) {
+  model_.rate(time_, x_, in, &vars_);
 }
 
-void CellObserver::linearise(const CellInputs& in) {
-  const int n = static_cast<int>(x_.size());
-  const CellModel::StateVector f0 = rate(x_, in);
-  jacobian_.setZero(n, n);
-  for (int j = 0; j < n; ++j) {
-    Vector xp = x_;
-    const double d = 1e-6 * std::max(std::fabs(x_[j]), scale_[j]);
-    xp[j] += d;
-    jacobian_.col(j).head(n - 1) = (rate(xp, in) - f0) / d;
-  }
-  steps_since_jacobian_ = 0;
+void CellObserver::integrateFlows(const CellInputs& in, double dt_s) {
+  // The model's rates at the estimate: the gas's mass and energy change by the flows and heat
+  // (its own work term, p dV/dt at the model's velocity and film rate, is taken back out: the
+  // work is done along the measured pressure in isentropicWork); the regulator outlet and the
+  // effects' states (a sensor lag, ...) follow their own equations.
+  CellVariables v;
+  const Vector dx = model_.rate(time_, x_, in, &v);
+  x_[CellModel::kMass] += dx[CellModel::kMass] * dt_s;
+  x_[CellModel::kEnergy] += (dx[CellModel::kEnergy] + v.pressure_pa * v.volume_rate_m3_s) * dt_s;
+  x_[CellModel::kRegulator] += dx[CellModel::kRegulator] * dt_s;
+  for (int i = CellModel::kShape + model_.structure().shapeDofs(); i < x_.size(); ++i) x_[i] += dx[i] * dt_s;
+  vars_.inflow_kg_s = v.inflow_kg_s;
+  vars_.vent_flow_kg_s = v.vent_flow_kg_s;
+  vars_.leak_flow_kg_s = v.leak_flow_kg_s;
 }
 
-void CellObserver::integrateMean(const CellInputs& in, double dt_s) {
-  // The cell model's own integrator (error-controlled sub-steps through the plate's lift-off
-  // and touch-down), started from the estimate.
-  const int n = loadIndex();
-  CellInputs with_load = in;
-  with_load.load_n = x_[n];
-  model_.setState(time_, x_.head(n), true);
-  model_.advance(dt_s, with_load);
-  x_.head(n) = model_.state();
-}
-
-void CellObserver::propagateCovariance(double dt) {
-  const int n = static_cast<int>(x_.size());
-  // Backward Euler, (I - dt J)^-1: the fast modes (film, bed contact) decay in one period as
-  // they do in the plant, where a W-method map would keep half of them.
-  const Matrix phi = (Matrix::Identity(n, n) - dt * jacobian_).partialPivLu().inverse();
-  p_ = phi * p_ * phi.transpose();
+void CellObserver::propagateCovariance(double dt_s) {
   // Valve and leak flows, each carrying its enthalpy into the energy balance.
   const double cp = model_.params().gas.cp();
   auto add_flow_noise = [&](double variance, double temperature_k) {
-    Vector g = Vector::Zero(n);
-    g[CellModel::kMass] = 1.0;
-    g[CellModel::kEnergy] = cp * temperature_k;
+    const Eigen::Vector2d g(1.0, cp * temperature_k);
     p_ += variance * g * g.transpose();
   };
   const double rel = params_.flow_uncertainty;
-  add_flow_noise(std::pow(rel * vars_.inflow_kg_s, 2) * dt * kFlowCorrelationS, model_.params().supply_temperature_k);
+  add_flow_noise(std::pow(rel * vars_.inflow_kg_s, 2) * dt_s * kFlowCorrelationS, model_.params().supply_temperature_k);
   const double out_flow = std::fabs(vars_.vent_flow_kg_s) + std::fabs(vars_.leak_flow_kg_s);
-  add_flow_noise((std::pow(rel * out_flow, 2) * kFlowCorrelationS + std::pow(params_.mass_walk_kg_sqrt_s, 2)) * dt,
+  add_flow_noise((std::pow(rel * out_flow, 2) * kFlowCorrelationS + std::pow(params_.mass_walk_kg_sqrt_s, 2)) * dt_s,
                  vars_.temperature_k);
-  p_(CellModel::kEnergy, CellModel::kEnergy) += std::pow(params_.heat_walk_w_sqrt_s, 2) * dt;
-  p_(CellModel::kVelocity, CellModel::kVelocity) += std::pow(params_.force_noise_n / vars_.moving_mass_kg, 2) * dt;
-  p_(CellModel::kRegulator, CellModel::kRegulator) += std::pow(100.0, 2) * dt;
-  p_(n - 1, n - 1) += std::pow(params_.load_walk_n_sqrt_s, 2) * dt;
+  p_(1, 1) += std::pow(params_.heat_walk_w_sqrt_s, 2) * dt_s;
 }
 
-void CellObserver::correct(const ObserverReadings& readings) {
-  if (std::isfinite(readings.gauge_pressure_pa)) correctPressure(readings.gauge_pressure_pa);
-  if (std::isfinite(readings.height_m)) {
-    Vector h_row = Vector::Zero(x_.size());
-    h_row[CellModel::kHeight] = 1.0;
-    scalarUpdate(h_row, readings.height_m - x_[CellModel::kHeight], std::pow(params_.height_noise_m, 2));
+double CellObserver::flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s) {
+  // The flows' pressure is the mean over the period. Near ambient (a light plate venting at a
+  // few tens of Pa) the reading's noise is as large as the pressure and the orifice law is
+  // curved there: taken raw, the noise alone biases the flow by percents. So a reading within
+  // three sds of the smoothed one is smoothed over kFlowPressureFilterS; a larger move (a
+  // pulse, a lift-off) is taken as it comes.
+  const double mean = 0.5 * (old_pressure_pa + new_pressure_pa);
+  if (!std::isfinite(flow_pressure_pa_) || std::fabs(mean - flow_pressure_pa_) > 3.0 * params_.pressure_noise_pa) {
+    flow_pressure_pa_ = mean;
+  } else {
+    flow_pressure_pa_ += (mean - flow_pressure_pa_) * std::min(1.0, dt_s / kFlowPressureFilterS);
   }
-  if (std::isfinite(readings.inflow_kg_s)) correctInflow(readings.inflow_kg_s);
+  return flow_pressure_pa_;
+}
+
+void CellObserver::isentropicWork(double old_pressure_pa, double new_pressure_pa) {
+  // dU = -p dV with V = (gamma - 1) U / p at both ends and p the mean (trapezoid):
+  // U1 (1 + pm (gamma - 1) / p1) = U0' + pm V0, U0' the energy after the flows.
+  const double pa = model_.params().ambient_pressure_pa;
+  const double p0 = pa + old_pressure_pa, p1 = pa + new_pressure_pa, pm = 0.5 * (p0 + p1);
+  const double v0 = vars_.structure.volume_m3;
+  const double u_flow = x_[CellModel::kEnergy];
+  const double denominator = 1.0 + pm * (gamma_ - 1.0) / p1;
+  x_[CellModel::kEnergy] = (u_flow + pm * v0) / denominator;
+  // dU1/dU0 through V0 = (gamma - 1) U0 / p0.
+  const double a = (1.0 + pm * (gamma_ - 1.0) / p0) / denominator;
+  p_.row(1) *= a;
+  p_.col(1) *= a;
+}
+
+bool CellObserver::invertVolume(double gauge_pressure_pa, double dt_s) {
+  // The height whose volume, with the film relaxed to the pressure, holds the gas at it.
+  const CellStructure& structure = model_.structure();
+  const int nq = structure.shapeDofs();
+  const double target = (gamma_ - 1.0) * x_[CellModel::kEnergy] / (model_.params().ambient_pressure_pa + gauge_pressure_pa);
+  double shape[kMaxShapeDofs];
+  for (int i = 0; i < nq; ++i) shape[i] = x_[CellModel::kShape + i];
+  auto volume_at = [&](double h) {
+    const auto q = structure.relaxedShape(h, gauge_pressure_pa, shape);
+    for (int i = 0; i < nq; ++i) shape[i] = q[i];
+    return structure.evaluate(h, shape).volume_m3;
+  };
+  const double h_old = x_[CellModel::kHeight];
+  const double top = structure.heightLimit(structure.restShape().data());
+  const double v_flat = volume_at(0.0);
+  bool lifted = target > v_flat;
+  double h = 0.0;
+  if (lifted) {
+    // Secant iterations from the last height, kept within [0, top].
+    double h0 = std::clamp(h_old, 1e-4, top), f0 = volume_at(h0) - target;
+    double h1 = std::clamp(h0 - f0 / std::max(volume_slope_m2_, 1e-5), 0.0, top);
+    double f1 = volume_at(h1) - target;
+    for (int it = 0; it < 12 && std::fabs(f1) > 1e-10; ++it) {
+      const double slope = (f1 - f0) / (h1 - h0);
+      if (!(std::fabs(h1 - h0) > 1e-12) || !(slope > 0.0)) break;
+      volume_slope_m2_ = slope;
+      h0 = h1;
+      f0 = f1;
+      h1 = std::clamp(h1 - f1 / slope, 0.0, top);
+      f1 = volume_at(h1) - target;
+    }
+    h = h1;
+    lifted = h > 0.0;
+  }
+  if (!lifted) volume_at(0.0);
+  for (int i = 0; i < nq; ++i) x_[CellModel::kShape + i] = shape[i];
+  x_[CellModel::kHeight] = h;
+  const double rate = (h - h_old) / dt_s;
+  x_[CellModel::kVelocity] += (rate - x_[CellModel::kVelocity]) * std::min(1.0, dt_s / kVelocityFilterS);
+  return lifted;
+}
+
+void CellObserver::measureEnergy(double energy_j, double variance_j2) {
+  const Eigen::Vector2d k = p_.col(1) / (p_(1, 1) + variance_j2);
+  const Eigen::Vector2d innovation = k * (energy_j - x_[CellModel::kEnergy]);
+  x_[CellModel::kMass] += innovation[0];
+  x_[CellModel::kEnergy] += innovation[1];
+  const Eigen::Matrix2d a = Eigen::Matrix2d::Identity() - k * Eigen::RowVector2d(0.0, 1.0);
+  p_ = a * p_ * a.transpose() + variance_j2 * k * k.transpose();
+}
+
+void CellObserver::fuseHeight(double height_m) {
+  // The gas's height (quasi-static: the film taken as relaxed) and the sensor's, by their
+  // variances; the gas's is the better one while the film lags a fast move only by its sd.
+  const double var_gas = std::max(height_sd_m_ * height_sd_m_, 1e-12);
+  const double var_sensor = params_.height_noise_m * params_.height_noise_m;
+  const double w = var_gas / (var_gas + var_sensor);
+  x_[CellModel::kHeight] += w * (height_m - x_[CellModel::kHeight]);
+  height_sd_m_ = std::sqrt(var_gas * var_sensor / (var_gas + var_sensor));
+}
+
+void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s) {
+  // Lifted: the plate's force balance, p A_eff less the guide's damping (its inertia is a
+  // bounce the filter averages out). Down, the bed carries what the gas does not: unseen.
+  const double cap = std::pow(3.0 * params_.initial_load_sd_n, 2);
+  if (!lifted) {
+    load_var_n2_ = std::min(cap, load_var_n2_ + std::pow(params_.initial_load_sd_n, 2) * dt_s);
+    return;
+  }
+  const double area = vars_.structure.effective_area_m2;
+  const double raw = gauge_pressure_pa * area - model_.params().plate_damping_n_s_m * x_[CellModel::kVelocity];
+  const double w = std::min(1.0, dt_s / params_.load_filter_time_s);
+  load_n_ += (raw - load_n_) * w;
+  load_n_ = std::max(load_n_, model_.params().plate_mass_kg * kGravity);
+  // The filtered reading's noise, and the area's error through the height's.
+  const double h = x_[CellModel::kHeight];
+  const double dh = 1e-3;
+  const double area_up = model_.structure().evaluate(h + dh, &x_[CellModel::kShape]).effective_area_m2;
+  const double noise = std::pow(params_.pressure_noise_pa * area, 2) * w / 2.0;
+  const double from_height = std::pow(gauge_pressure_pa * (area_up - area) / dh * height_sd_m_, 2);
+  load_var_n2_ = std::min(cap, (1.0 - w) * load_var_n2_ + w * from_height + noise);
+}
+
+void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
+  const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
+  const double p_new = readings.gauge_pressure_pa;
+  if (!std::isfinite(p_new)) {
+    predict(inputs, dt);
+    return;
+  }
+  applied_ = delayed(inputs);
+  if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
+  const double p_old = std::isfinite(last_pressure_pa_) ? last_pressure_pa_ : vars_.gauge_pressure_pa;
+  CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
+  if (std::isfinite(readings.inflow_kg_s)) in.prescribed_inflow_kg_s = readings.inflow_kg_s;
+  propagateCovariance(dt);
+  integrateFlows(in, dt);
+  isentropicWork(p_old, p_new);
   keepPhysical();
-  refresh();
+  bool lifted = invertVolume(p_new, dt);
+  const double pa = model_.params().ambient_pressure_pa;
+  if (!lifted) {
+    // The plate is on the bed: the flat cell's volume and the pressure give the energy.
+    const double v_flat = model_.structure().evaluate(0.0, &x_[CellModel::kShape]).volume_m3;
+    const double u = (pa + p_new) * v_flat / (gamma_ - 1.0);
+    measureEnergy(u, std::pow(params_.pressure_noise_pa * v_flat / (gamma_ - 1.0), 2));
+  }
+  if (std::isfinite(readings.height_m)) {
+    const double v = model_.structure().evaluate(readings.height_m, &x_[CellModel::kShape]).volume_m3;
+    const double sd = (pa + p_new) * vars_.structure.effective_area_m2 * params_.height_noise_m / (gamma_ - 1.0);
+    measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
+    lifted = invertVolume(p_new, dt);
+  }
+  keepPhysical();
+  time_ += dt;
+  last_pressure_pa_ = p_new;
+  refresh(modelInputs(applied_, p_new));
+  // The height's sd from the energy's: dV = (gamma - 1) dU / p over the slope dV/dh.
+  height_sd_m_ = lifted ? (gamma_ - 1.0) * std::sqrt(std::max(0.0, p_(1, 1))) / (pa + p_new) / std::max(volume_slope_m2_, 1e-5)
+                        : 0.0;
+  if (std::isfinite(readings.height_m)) fuseHeight(readings.height_m);
+  updateLoad(p_new, lifted, dt);
   checkReanchor(readings);
 }
 
-void CellObserver::correctPressure(double gauge_pressure_pa) {
-  // p_abs = (gamma - 1) U / V(h, q): its gradient from the structure at the estimate.
-  const double gamma = model_.params().gas.heat_capacity_ratio;
-  const StructureEval& s = vars_.structure;
-  const double v = s.volume_m3, p_abs = vars_.pressure_pa;
-  Vector h_row = Vector::Zero(x_.size());
-  h_row[CellModel::kEnergy] = (gamma - 1.0) / v;
-  h_row[CellModel::kHeight] = -p_abs * s.effective_area_m2 / v;
-  for (int i = 0; i < model_.structure().shapeDofs(); ++i)
-    h_row[CellModel::kShape + i] = -p_abs * s.dvolume_dshape[i] / v;
-  // A reading's time is known to reading_time_sd_s only (bus cycle, valve timing): while the
-  // pressure moves fast (a fill, a lift-off) that is worth (dp/dt * sd)^2 more variance, so
-  // that a transient is not taken for a load change.
-  const double timing_pa = pressure_rate_pa_s_ * params_.reading_time_sd_s;
-  scalarUpdate(h_row, gauge_pressure_pa - vars_.gauge_pressure_pa,
-               std::pow(params_.pressure_noise_pa, 2) + timing_pa * timing_pa);
-}
-
-void CellObserver::correctInflow(double inflow_kg_s) {
-  const CellInputs in = modelInputs(applied_, x_[loadIndex()]);
-  const int n = static_cast<int>(x_.size());
-  Vector h_row = Vector::Zero(n);
-  CellVariables v;
-  for (int j = 0; j < n; ++j) {
-    Vector xp = x_;
-    const double d = 1e-6 * std::max(std::fabs(x_[j]), scale_[j]);
-    xp[j] += d;
-    rate(xp, in, &v);
-    h_row[j] = (v.inflow_kg_s - vars_.inflow_kg_s) / d;
-  }
-  scalarUpdate(h_row, inflow_kg_s - vars_.inflow_kg_s, std::pow(params_.inflow_noise_kg_s, 2));
-}
-
-void CellObserver::scalarUpdate(const Vector& h_row, double innovation, double variance) {
-  const Vector ph = p_ * h_row;
-  const double s = h_row.dot(ph) + variance;
-  if (!(s > 0.0) || !std::isfinite(innovation)) return;
-  Vector k = ph / s;
-  // A lifted plate's pressure cannot tell a gas mass error from a load change: the mass is
-  // integrated from the flows alone there, and corrected only while the plate is down.
-  if (x_[CellModel::kHeight] > params_.mass_lock_height_m) k[CellModel::kMass] = 0.0;
-  x_ += k * innovation;
-  p_ -= k * ph.transpose();
-  p_ = 0.5 * (p_ + p_.transpose());
-  refresh();
+void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
+  const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
+  applied_ = delayed(inputs);
+  if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
+  // No reading: the plate is held where it was, the pressure is the gas's in that volume.
+  const CellInputs in = modelInputs(applied_, std::numeric_limits<double>::quiet_NaN());
+  propagateCovariance(dt);
+  integrateFlows(in, dt);
+  keepPhysical();
+  time_ += dt;
+  last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
+  refresh(in);
+  flat_since_s_ = -1.0;
 }
 
 void CellObserver::keepPhysical() {
-  const int l = loadIndex();
   x_[CellModel::kMass] = std::max(x_[CellModel::kMass], 1e-9);
   x_[CellModel::kEnergy] = std::max(x_[CellModel::kEnergy], 1e-6);
-  x_[l] = std::max(x_[l], 0.5 * model_.params().plate_mass_kg * kGravity);
-  // While the load cannot be seen (a flat cell) its variance would grow without bound.
-  const double cap = std::pow(3.0 * params_.initial_load_sd_n, 2);
-  if (p_(l, l) > cap) {
-    const double f = std::sqrt(cap / p_(l, l));
-    p_.row(l) *= f;
-    p_.col(l) *= f;
-  }
 }
 
 void CellObserver::checkReanchor(const ObserverReadings& readings) {
-  const bool flat = applied_.vent_opening >= 0.5 && applied_.vent_back_pressure_pa == 0.0 &&
-                    std::fabs(readings.gauge_pressure_pa) < params_.reanchor_pressure_pa;
-  if (!flat) {
+  const bool venting = applied_.vent_opening >= 0.5 && applied_.vent_back_pressure_pa == 0.0 &&
+                       std::isfinite(readings.gauge_pressure_pa);
+  if (!venting) {
     flat_since_s_ = -1.0;
     return;
   }
-  if (flat_since_s_ < 0.0) flat_since_s_ = time_;
-  if (time_ - flat_since_s_ + 1e-9 >= params_.reanchor_time_s) {
+  // The pressure averaged over a third of the re-anchor time: a lightly loaded plate's vent
+  // holds a few tens of Pa (its weight over the effective area), the reading's noise and ADC
+  // step are as large, so single readings cannot tell it from a flat cell.
+  const double dt = params_.period_s;
+  if (flat_since_s_ < 0.0) {
+    flat_since_s_ = time_;
+    vent_pressure_mean_pa_ = readings.gauge_pressure_pa;
+  }
+  const double tau = std::max(params_.reanchor_time_s / 3.0, dt);
+  vent_pressure_mean_pa_ += (readings.gauge_pressure_pa - vent_pressure_mean_pa_) * std::min(1.0, dt / tau);
+  if (time_ - flat_since_s_ + 1e-9 >= params_.reanchor_time_s && std::fabs(vent_pressure_mean_pa_) < reanchor_pa_) {
     anchorFlat();
     flat_since_s_ = time_;
   }
 }
 
+double CellObserver::lowestLiftedPressure() const {
+  // The plate alone (the least load there is) at rest at heights up to the structure's limit:
+  // below the least of these pressures the plate cannot be lifted, whatever the patient does.
+  const double plate_weight_n = model_.params().plate_mass_kg * kGravity;
+  const CellStructure& structure = model_.structure();
+  const auto rest = structure.restShape();
+  const double top = 0.95 * structure.heightLimit(rest.data());
+  double lowest = std::numeric_limits<double>::infinity();
+  for (int i = 1; i <= 40; ++i) {
+    const StructureEquilibrium e = structure.equilibriumAtHeight(top * i / 40.0, plate_weight_n);
+    if (e.converged && e.gauge_pressure_pa > 0.0) lowest = std::min(lowest, e.gauge_pressure_pa);
+  }
+  return lowest;
+}
+
 void CellObserver::anchorFlat() {
   // The flat cell holds ambient air in its rest volume: mass and energy are known again.
-  const int l = loadIndex();
-  model_.reset(x_[l]);
+  model_.reset(load_n_);
   const CellModel::StateVector flat = model_.state();
-  for (int i = 0; i < l; ++i) {
+  for (int i = 0; i < CellModel::kShape + model_.structure().shapeDofs(); ++i) {
     if (i == CellModel::kRegulator) continue;
     x_[i] = flat[i];
-    p_.row(i).setZero();
-    p_.col(i).setZero();
-    p_(i, i) = std::pow(1e-4 * scale_[i], 2);
   }
+  p_ = Matrix2::Zero();
+  p_(0, 0) = std::pow(1e-4 * x_[CellModel::kMass], 2);
+  p_(1, 1) = std::pow(1e-4 * x_[CellModel::kEnergy], 2);
   ++reanchors_;
-  refresh();
+  refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
 CellEstimate CellObserver::estimate() const {
   CellEstimate e;
-  const int l = loadIndex();
   e.height_m = x_[CellModel::kHeight];
-  e.height_sd_m = std::sqrt(std::max(0.0, p_(CellModel::kHeight, CellModel::kHeight)));
+  e.height_sd_m = height_sd_m_;
   e.velocity_m_s = x_[CellModel::kVelocity];
   e.mass_kg = x_[CellModel::kMass];
-  e.mass_sd_kg = std::sqrt(std::max(0.0, p_(CellModel::kMass, CellModel::kMass)));
-  e.load_n = x_[l];
-  e.load_sd_n = std::sqrt(std::max(0.0, p_(l, l)));
+  e.mass_sd_kg = std::sqrt(std::max(0.0, p_(0, 0)));
+  e.load_n = load_n_;
+  e.load_sd_n = std::sqrt(std::max(0.0, load_var_n2_));
   e.gauge_pressure_pa = vars_.gauge_pressure_pa;
   e.temperature_k = vars_.temperature_k;
   e.volume_m3 = vars_.structure.volume_m3;

@@ -26,11 +26,11 @@ std::shared_ptr<nb::SimulatedCellHardware> rigWithoutHeightSensor(const nb::Airb
   return hw;
 }
 
-/// Real-time-style hardware: the plant behind it runs on read(now); its link can be cut, and
-/// then the terminal's watchdog shuts its valves (as the rig emulator's does).
-class CuttableHardware : public nb::CellHardware {
+/// Real-time-style hardware in front of a simulated plant (which runs on read(now)): the
+/// pressure and the supply pressure only, as a valve terminal reads them.
+class PressureOnlyHardware : public nb::CellHardware {
  public:
-  explicit CuttableHardware(std::shared_ptr<nb::SimulatedCellHardware> plant) : plant_(std::move(plant)) {}
+  explicit PressureOnlyHardware(std::shared_ptr<nb::SimulatedCellHardware> plant) : plant_(std::move(plant)) {}
   void configure(const nb::HardwareConfig&) override {}
   nb::HardwareCapabilities capabilities() const override { return {}; }
   nb::CellReadings read(double now_s) override {
@@ -38,7 +38,19 @@ class CuttableHardware : public nb::CellHardware {
     r.height_m = {};
     r.inflow_kg_s = {};
     r.gas_temperature_k = {};
-    r.supply_pressure_pa = {};
+    return r;
+  }
+  void write(const nb::ValveOpenings& v, double now_s) override { plant_->write(v, now_s); }
+  std::shared_ptr<nb::SimulatedCellHardware> plant_;
+};
+
+/// Its link can be cut, and then the terminal's watchdog shuts its valves (as the rig
+/// emulator's does).
+class CuttableHardware : public PressureOnlyHardware {
+ public:
+  using PressureOnlyHardware::PressureOnlyHardware;
+  nb::CellReadings read(double now_s) override {
+    nb::CellReadings r = PressureOnlyHardware::read(now_s);
     if (cut) {
       plant_->write({}, now_s);
       r = nb::CellReadings{};
@@ -54,10 +66,55 @@ class CuttableHardware : public nb::CellHardware {
   std::string describe() const override { return "cuttable"; }
   bool cut = false;
   int writes_while_cut = 0;
-  std::shared_ptr<nb::SimulatedCellHardware> plant_;
+};
+
+/// A driver that opens its valves at most half way (a saturating proportional driver) and,
+/// when `reports`, says what it applied (CellReadings::inlet_driven / vent_driven).
+class HalfOpeningHardware : public PressureOnlyHardware {
+ public:
+  HalfOpeningHardware(std::shared_ptr<nb::SimulatedCellHardware> plant, bool reports)
+      : PressureOnlyHardware(std::move(plant)), reports_(reports) {}
+  nb::CellReadings read(double now_s) override {
+    nb::CellReadings r = PressureOnlyHardware::read(now_s);
+    if (reports_) {
+      r.inlet_driven = {applied_.inlet, now_s};
+      r.vent_driven = {applied_.vent, now_s};
+    }
+    return r;
+  }
+  void write(const nb::ValveOpenings& v, double now_s) override {
+    applied_ = v;
+    applied_.inlet = std::min(v.inlet, 0.5);
+    applied_.vent = std::min(v.vent, 0.5);
+    plant_->write(applied_, now_s);
+  }
+  std::string describe() const override { return "half-opening"; }
+
+ private:
+  bool reports_;
+  nb::ValveOpenings applied_;
 };
 
 }  // namespace
+
+TEST(AirbagOnHardware, TheObserverIntegratesWhatTheDriverApplied) {
+  // The gas passes through what the valves did, not what was asked of them.
+  double error_m[2] = {0.0, 0.0};
+  for (int reports = 0; reports < 2; ++reports) {
+    nb::AirbagCellParams p;
+    auto plant = rigWithoutHeightSensor(p, 0.0, 15.6);
+    auto hw = std::make_shared<HalfOpeningHardware>(plant, reports == 1);
+    nb::AirbagCell cell(p, hw, nb::AirbagObserverSetup{});
+    cell.reset(15.6);
+    ASSERT_EQ(cell.requestHeight(0.08, 0.0), "");
+    for (double t = 0.005; t <= 4.0; t += 0.005) cell.advanceTo(t);
+    error_m[reports] = std::fabs(plant->variables().height_m - cell.measurement().height_m);
+  }
+  std::cout << "[airbag] driver at most half open: estimate off by " << 1e3 * error_m[0] << " mm taking the command, "
+            << 1e3 * error_m[1] << " mm taking what the driver applied\n";
+  EXPECT_LT(error_m[1], 0.002);
+  EXPECT_GT(error_m[0], 5.0 * error_m[1]);
+}
 
 TEST(AirbagOnHardware, StepWithoutAHeightSensorSettlesNearTheFlowLimit) {
   // Acceptance 2: 20 -> 100 mm under 15.6 N settles within +-2 mm in <= 2x the flow-limited time.

@@ -20,28 +20,19 @@ namespace nursing_bed {
 /// Tuning of the observer. Defaults fit the nominal cell at a 5 ms period with a 12-bit pressure
 /// input (doc/real_bed.md, "Observer").
 struct CellObserverParams {
-  double period_s = 0.005;                 ///< one predict/correct step [s]
-  /// sd of the pressure reading [Pa]: sensor noise and quantisation, and what the model misses
-  /// of the fast plate and film dynamics (50-100 Pa tracks best; the sensor alone is ~10 Pa).
-  double pressure_noise_pa = 70.0;
+  double period_s = 0.005;                 ///< one step [s]
+  double pressure_noise_pa = 15.0;         ///< sd of a pressure reading: sensor noise and ADC step [Pa]
   double height_noise_m = 0.0005;          ///< sd of a height reading, where there is one [m]
-  double inflow_noise_kg_s = 2.0e-6;       ///< sd of an inflow reading, where there is one [kg/s]
   double flow_uncertainty = 0.02;          ///< relative sd of the modelled valve and leak flows over 1 s [-]
   double mass_walk_kg_sqrt_s = 2.0e-8;     ///< random walk of the gas mass (unmodelled leaks) [kg/sqrt(s)]
   double heat_walk_w_sqrt_s = 0.02;        ///< random walk of the gas energy (unmodelled heat) [J/sqrt(s)]
-  double force_noise_n = 0.5;              ///< unmodelled force on the plate, white [N sqrt(s)]
-  double load_walk_n_sqrt_s = 3.0;         ///< random walk of the load (the patient moves) [N/sqrt(s)]
+  double load_filter_time_s = 0.3;         ///< time constant of the load estimate (p A_eff) [s]
   double initial_load_sd_n = 10.0;         ///< sd of the load guess at reset [N]
   double valve_dead_time_s = 0.0;          ///< a valve command acts this late (bus and valve) [s]
-  /// sd of a reading's time against the model's (bus cycle, PWM phase, valve timing) [s]
-  double reading_time_sd_s = 0.0;
-  double reanchor_pressure_pa = 60.0;      ///< |gauge pressure| under which a venting cell is flat [Pa]
+  /// |mean gauge pressure| under which a venting cell is flat [Pa]; at most half the pressure
+  /// at which the plate alone rests lifted (the model's, found at construction).
+  double reanchor_pressure_pa = 60.0;
   double reanchor_time_s = 0.5;            ///< vented and that flat for this long: re-anchor [s]
-  /// Above this estimated height the gas mass is not corrected from the pressure, only
-  /// integrated from the valve flows: a lifted plate's pressure follows the load, and cannot
-  /// tell a mass error from a load change (the two drift together otherwise) [m].
-  double mass_lock_height_m = 0.005;
-  int jacobian_refresh_steps = 2;          ///< steps between linearisations [-]
 
   /// Empty when valid, else every problem found, separated by "; ".
   std::string validate() const;
@@ -52,8 +43,11 @@ struct ObserverInputs {
   double inlet_opening = 0.0;              ///< inlet valve opening 0..1 (mean over the period)
   double vent_opening = 0.0;               ///< vent valve opening 0..1
   double vent_back_pressure_pa = 0.0;      ///< gauge pressure at the vent outlet (CPR vacuum < 0)
-  /// Regulator setting or measured supply pressure, gauge; NaN: the cell parameters' setting.
+  /// Regulator setting, gauge; NaN: the cell parameters' setting.
   double supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
+  /// The regulator outlet's gauge pressure where the hardware measures it (NaN: not measured;
+  /// the observer's regulator then follows the setting, from the setting at reset).
+  double measured_supply_pa = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Readings at the end of the period; NaN where the hardware has none (or it failed).
@@ -76,76 +70,99 @@ struct CellEstimate {
 };
 
 /**
- * EKF on x = [cell model state (gas mass, internal energy, plate height and velocity, regulator
- * outlet, film shape, states of the effects given), load]. The load is a random walk. Effects
- * (a diagnosed leak, heat exchange, ...) join the model exactly as in the simulation.
- *  - Predict: the mean by the cell model's own integrator (error-controlled ROS2 sub-steps:
- *    the plate on its gas spring, its lift-off and the film are stiff); the covariance by a
- *    finite-difference Jacobian J and the linearly implicit map F = I + dt (I - g dt J)^-1 J.
- *    Valve-flow noise enters mass and energy together (gas carries its enthalpy).
- *  - Correct: sequential scalar updates with each reading present; the gas mass only while
- *    the plate is down (mass_lock_height_m).
- *  - Re-anchor: a cell whose vent has been open with |p| < reanchor_pressure_pa for
- *    reanchor_time_s is flat: gas mass and energy are reset to the flat cell's (ambient air in
- *    the rest volume), which ends the drift of a mass that is otherwise only integrated.
+ * A Kalman filter on the gas inventory, the height from the gas and the measured pressure.
+ * The paper's control idea (sections 2.1 and 5): the height is set through the mass of air
+ * filled in and the pressure. The gas in the cell, mass m and internal energy U, changes only
+ * by what flows through the valves (commands delayed by the dead time, supply pressure, the
+ * measured cell pressure), the leaks, the heat exchanged and the work on the plate; the given
+ * effects (a diagnosed leak, heat exchange, ...) join these flows exactly as in the simulation.
+ * Its volume then follows from the pressure read: V = (gamma - 1) U / p, and the height from
+ * the structure's V(h, film relaxed to p). The work p dV of each step is taken along the
+ * isentrope between the two readings, so the plate's own dynamics (a heavy plate bouncing on its
+ * gas spring) and the unknown load do not enter: no model of them is needed to follow them.
+ *  - Gas covariance (m, U): the flows' relative uncertainty (correlated over 1 s) and random
+ *    walks; the height's sd follows from U's through V.
+ *  - Plate down (the volume from the pressure is at most the flat cell's): U is read from the
+ *    pressure (p V_flat = (gamma - 1) U), a measurement of the gas with the pressure's noise.
+ *  - A height reading, where fitted, measures U the same way at its height.
+ *  - An inflow reading, where fitted, replaces the modelled inlet flow.
+ *  - Re-anchor: a cell whose vent has been open for reanchor_time_s with its mean pressure
+ *    below half the plate alone's lifted pressure (and reanchor_pressure_pa) is flat: mass and
+ *    energy are the flat cell's (ambient air in the rest volume), which ends the drift of a
+ *    mass that is otherwise only integrated.
+ *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered.
  */
 class CellObserver {
  public:
-  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, CellModel::kMaxStates + 1, 1>;
-  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, CellModel::kMaxStates + 1,
-                               CellModel::kMaxStates + 1>;
+  using Vector = CellModel::StateVector;
+  using Matrix2 = Eigen::Matrix2d;
 
   /// Throws std::invalid_argument naming what is wrong in either parameter set.
   CellObserver(const CellParams& model, const CellObserverParams& params, const std::vector<CellEffectPtr>& effects = {});
 
-  /// Flat cell at ambient, load guess `load_n` with sd initial_load_sd_n.
+  /// Flat cell at ambient, load guess `load_n` with sd initial_load_sd_n; the supply line at
+  /// its setting (a bed's supply runs before its cells are controlled).
   void reset(double load_n);
   /// Plate at rest at `height_m` under `load_n` (both known well).
   void resetToHeight(double height_m, double load_n);
 
-  /// One period: predict with `inputs`, then correct with `readings`. `dt_s` > 0: the time
-  /// since the last step when it differs from period_s (a real-time loop's jitter).
+  /// One period: the gas over the period with `inputs`, then the readings at its end. `dt_s`
+  /// > 0: the time since the last step when it differs from period_s (a real-time loop's
+  /// jitter).
   void step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
+  /// A period without readings (a lost link): the gas integrated, the plate held.
   void predict(const ObserverInputs& inputs, double dt_s = 0.0);
-  void correct(const ObserverReadings& readings);
 
   CellEstimate estimate() const;
   const CellVariables& variables() const { return vars_; }
   double time() const { return time_; }
+  /// The cell model state at the estimate (m, U, h, v, regulator, film, effect states).
   const Vector& state() const { return x_; }
-  const Matrix& covariance() const { return p_; }
+  /// Covariance of (gas mass, internal energy).
+  const Matrix2& covariance() const { return p_; }
   const CellObserverParams& params() const { return params_; }
   const CellModel& model() const { return model_; }
 
  private:
-  int loadIndex() const { return static_cast<int>(x_.size()) - 1; }
-  CellInputs modelInputs(const ObserverInputs& in, double load_n) const;
-  CellModel::StateVector rate(const Vector& x, const CellInputs& in, CellVariables* vars = nullptr) const;
-  void linearise(const CellInputs& in);
-  void integrateMean(const CellInputs& in, double dt_s);
+  CellInputs modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const;
+  /// Gas flows (mass, enthalpy and heat, no work) and the other states' rates at the estimate.
+  void integrateFlows(const CellInputs& in, double dt_s);
   void propagateCovariance(double dt_s);
-  void scalarUpdate(const Vector& h_row, double innovation, double variance);
-  void correctPressure(double gauge_pressure_pa);
-  void correctInflow(double inflow_kg_s);
+  /// The cell pressure the flows of the period see: the readings' mean, smoothed within noise.
+  double flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s);
+  /// The energy after the volume change at the new pressure, along the isentrope (trapezoid).
+  void isentropicWork(double old_pressure_pa, double new_pressure_pa);
+  /// Height and film from the volume at the pressure read; returns false when the plate is down.
+  bool invertVolume(double gauge_pressure_pa, double dt_s);
+  /// Scalar measurement of U (plate down, or a height reading): value and its variance.
+  void measureEnergy(double energy_j, double variance_j2);
+  /// A height reading and the gas's height, weighed by their variances.
+  void fuseHeight(double height_m);
+  void updateLoad(double gauge_pressure_pa, bool lifted, double dt_s);
   void keepPhysical();
   void checkReanchor(const ObserverReadings& readings);
   void anchorFlat();
-  void refresh();
+  void refresh(const CellInputs& in);
+  double lowestLiftedPressure() const;
   ObserverInputs delayed(const ObserverInputs& in);
 
   CellObserverParams params_;
-  CellModel model_;          ///< integrates the mean from the estimate; resets
+  CellModel model_;          ///< the cell's physics (flows, effects, structure); resets
+  double gamma_;
   double time_ = 0.0;
-  double pressure_rate_pa_s_ = 0.0;  ///< the model's gauge pressure rate over the last period
-  Vector x_;
-  Matrix p_;
-  Matrix jacobian_;          ///< d rate / d x at the last linearisation (load column included)
-  int steps_since_jacobian_ = 1 << 30;
+  Vector x_;                 ///< model state at the estimate
+  Matrix2 p_;                ///< covariance of (m, U)
+  double load_n_ = 0.6, load_var_n2_ = 0.0;
+  double height_sd_m_ = 0.0;
+  double volume_slope_m2_ = 0.01;  ///< dV/dh with the film relaxed, at the estimate
   CellVariables vars_;       ///< variables at the current estimate
-  Vector scale_;             ///< typical magnitudes (finite-difference increments)
   std::deque<ObserverInputs> pending_;  ///< commands not yet acting (valve dead time)
   ObserverInputs applied_;   ///< the inputs acting over the last period
+  double last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< the last reading
+  double flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< see flowPressure
   double flat_since_s_ = -1.0;
+  double vent_pressure_mean_pa_ = 0.0;  ///< the measured pressure averaged while venting
+  double reanchor_pa_ = 0.0;            ///< flat below this mean pressure [Pa]
   int reanchors_ = 0;
 };
 
