@@ -79,7 +79,7 @@ class HeightAccuracy:
         from std_msgs.msg import Float64MultiArray
         self.cols = cols
         self.truth = collections.deque(maxlen=200)  # (receive time [s], heights by cell id)
-        self.sum_sq, self.count, self.worst = {}, {}, {}
+        self.sum_sq, self.sum, self.count, self.worst = {}, {}, {}, {}
         self.recording = False
         self.subs = [rospy.Subscriber("/rig_emulator/truth", Float64MultiArray, self.on_truth, queue_size=5),
                      rospy.Subscriber("/joint_states", JointState, self.on_joints, queue_size=5)]
@@ -112,6 +112,7 @@ class HeightAccuracy:
                 continue
             e = truth[cell] - height
             self.sum_sq[cell] = self.sum_sq.get(cell, 0.0) + e * e
+            self.sum[cell] = self.sum.get(cell, 0.0) + e
             self.count[cell] = self.count.get(cell, 0) + 1
             self.worst[cell] = max(self.worst.get(cell, 0.0), abs(e))
 
@@ -122,7 +123,10 @@ class HeightAccuracy:
         worst_cell = max(self.worst, key=self.worst.get)
         return {"height_error_rms_mm": 1e3 * math.sqrt(sum(self.sum_sq.values()) / n),
                 "height_error_worst_mm": 1e3 * self.worst[worst_cell], "worst_cell": worst_cell,
-                "height_error_samples": n, "cells_compared": len(self.count)}
+                "height_error_samples": n, "cells_compared": len(self.count),
+                # per cell: [RMS, worst, mean (truth - reported)] [mm]
+                "per_cell_mm": {c: [1e3 * math.sqrt(self.sum_sq[c] / self.count[c]), 1e3 * self.worst[c],
+                                    1e3 * self.sum[c] / self.count[c]] for c in sorted(self.count)}}
 
 
 def start_plan(plan, plan_args):

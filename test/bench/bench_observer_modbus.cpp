@@ -4,9 +4,8 @@
 // 15.6 N. Prints the emulator's truth against the estimate every 0.5 s and the RMS and worst
 // height error after the first second.
 //
-// usage: bench_observer_modbus [--proportional] [--reading-time-sd S] [--dead-time S]
+// usage: bench_observer_modbus [--proportional] [--dead-time S]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
-//   --reading-time-sd S   the observer's reading_time_sd_s (default: 0.02, config/observer.yaml)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 #include <chrono>
 #include <cmath>
@@ -28,7 +27,6 @@ namespace {
 
 struct Options {
   bool proportional = false;
-  double reading_time_sd_s = 0.02;
   double dead_time_s = 0.015;
 };
 
@@ -37,14 +35,14 @@ bool parse(int argc, char** argv, Options* o) {
     const std::string a = argv[i];
     if (a == "--proportional") {
       o->proportional = true;
-    } else if ((a == "--reading-time-sd" || a == "--dead-time") && i + 1 < argc) {
+    } else if (a == "--dead-time" && i + 1 < argc) {
       char* end = nullptr;
       const double v = std::strtod(argv[++i], &end);
       if (*end != '\0' || !(v >= 0.0 && v < 1.0)) {
         std::fprintf(stderr, "bench_observer_modbus: %s wants seconds in [0, 1), got '%s'\n", a.c_str(), argv[i]);
         return false;
       }
-      (a == "--dead-time" ? o->dead_time_s : o->reading_time_sd_s) = v;
+      o->dead_time_s = v;
     } else {
       std::fprintf(stderr, "bench_observer_modbus: unknown argument '%s'\n", a.c_str());
       return false;
@@ -59,6 +57,7 @@ std::string writeMap(bool proportional) {
                                  ? "inlet: {holding_register: 0, full_scale: 1000}, vent: {holding_register: 1, full_scale: 1000}"
                                  : "inlet: {coil: 0}, vent: {coil: 1}";
   std::ofstream(path) << "terminals:\n  - {name: bench, host: 127.0.0.1, port: 15790, cycle_s: 0.005,\n"
+                         "     supply_pressure: {input_register: 10, scale_pa: 1.0, offset_pa: -10000},\n"
                          "     cells: [{cell: 0, " << valves
                       << ", pressure: {input_register: 0, scale_pa: 1.0, offset_pa: -10000}}]}\n";
   return path;
@@ -93,7 +92,6 @@ int main(int argc, char** argv) {
   nb::AirbagObserverSetup observer;
   observer.model = params.cell;
   observer.params.valve_dead_time_s = o.dead_time_s;
-  observer.params.reading_time_sd_s = o.reading_time_sd_s;
   nb::AirbagCell cell(params, hardware, observer);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the link comes up
 
@@ -121,8 +119,8 @@ int main(int argc, char** argv) {
       std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true 15.6)\n", now,
                   1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load());
   }
-  std::printf("%s valves, reading_time_sd_s %g, valve_dead_time_s %g: height error RMS %.2f mm, worst %.2f mm\n",
-              o.proportional ? "proportional" : "on/off", o.reading_time_sd_s, o.dead_time_s, 1e3 * error.rmsM(),
+  std::printf("%s valves, valve_dead_time_s %g: height error RMS %.2f mm, worst %.2f mm\n",
+              o.proportional ? "proportional" : "on/off", o.dead_time_s, 1e3 * error.rmsM(),
               1e3 * error.max_abs_m);
   return 0;
 }
