@@ -325,9 +325,11 @@ void CellObserver::keepPhysical() {
 }
 
 void CellObserver::checkReanchor(const ObserverReadings& readings) {
-  const bool venting = applied_.vent_opening >= 0.5 && applied_.vent_back_pressure_pa == 0.0 &&
-                       std::isfinite(readings.gauge_pressure_pa);
-  if (!venting) {
+  // Whatever the valves do: a plate cannot rest lifted below the plate alone's pressure, so a
+  // mean below half of it for reanchor_time_s is a flat cell, vented, or shut (e.g. a terminal
+  // whose cells were emptied while the link was down). Not while venting into a vacuum.
+  const bool to_vacuum = applied_.vent_opening > 0.0 && applied_.vent_back_pressure_pa != 0.0;
+  if (to_vacuum || !std::isfinite(readings.gauge_pressure_pa)) {
     flat_since_s_ = -1.0;
     return;
   }

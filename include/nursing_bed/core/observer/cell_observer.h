@@ -32,7 +32,7 @@ struct CellObserverParams {
   /// |mean gauge pressure| under which a venting cell is flat [Pa]; at most half the pressure
   /// at which the plate alone rests lifted (the model's, found at construction).
   double reanchor_pressure_pa = 60.0;
-  double reanchor_time_s = 0.5;            ///< vented and that flat for this long: re-anchor [s]
+  double reanchor_time_s = 0.5;            ///< that flat (mean pressure) for this long: re-anchor [s]
 
   /// Empty when valid, else every problem found, separated by "; ".
   std::string validate() const;
@@ -86,7 +86,7 @@ struct CellEstimate {
  *    pressure (p V_flat = (gamma - 1) U), a measurement of the gas with the pressure's noise.
  *  - A height reading, where fitted, measures U the same way at its height.
  *  - An inflow reading, where fitted, replaces the modelled inlet flow.
- *  - Re-anchor: a cell whose vent has been open for reanchor_time_s with its mean pressure
+ *  - Re-anchor: a cell (vented or shut) whose mean pressure stays for reanchor_time_s
  *    below half the plate alone's lifted pressure (and reanchor_pressure_pa) is flat: mass and
  *    energy are the flat cell's (ambient air in the rest volume), which ends the drift of a
  *    mass that is otherwise only integrated.
