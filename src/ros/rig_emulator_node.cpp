@@ -101,6 +101,12 @@ void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
     row[3] = t.load_n;
   }
   truth_pub_.publish(msg);
+  ROS_INFO_THROTTLE(10.0, "rig_emulator: %.3f periods per wake-up", emulator_->periodsPerWake());
+  if (emulator_->overruns() > reported_overruns_) {
+    reported_overruns_ = emulator_->overruns();
+    ROS_WARN("rig_emulator: fell behind real time %ld times, %.3f s given up in all: the rig's cells received "
+             "less gas than their valves passed (machine overloaded)", reported_overruns_, emulator_->lostSeconds());
+  }
 }
 
 }  // namespace nursing_bed

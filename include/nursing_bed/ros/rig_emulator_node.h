@@ -42,6 +42,7 @@ class RigEmulatorNode {
   void publishTruth(const ros::TimerEvent&);
 
   RigEmulatorNodeParams params_;
+  long reported_overruns_ = 0;
   std::unique_ptr<RigEmulator> emulator_;
   ros::Subscriber loads_sub_;
   ros::Publisher truth_pub_;

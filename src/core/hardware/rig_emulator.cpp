@@ -40,6 +40,8 @@ RigTerminalServer::RigTerminalServer(const TerminalMap& map, double watchdog_s) 
   if (listen_fd_ < 0)
     throw std::runtime_error("rig emulator: terminal '" + map.name + "' cannot listen on " + map.endpoint() + ": " +
                              modbus_strerror(errno));
+  coil_on_s_.assign(mapping_->nb_bits, 0.0);
+  coils_since_ = coils_window_ = std::chrono::steady_clock::now();
   thread_ = std::thread(&RigTerminalServer::run, this);
 }
 
@@ -81,6 +83,7 @@ void RigTerminalServer::checkWatchdog() {
   idle_s_ += 0.01;
   if (idle_s_ < watchdog_s_) return;
   std::lock_guard<std::mutex> lock(mutex_);
+  accountCoils();
   std::fill(mapping_->tab_bits, mapping_->tab_bits + mapping_->nb_bits, 0);
   std::fill(mapping_->tab_registers, mapping_->tab_registers + mapping_->nb_registers, 0);
 }
@@ -91,6 +94,7 @@ void RigTerminalServer::serveClient(int fd) {
   const int length = modbus_receive(ctx_, query);
   if (length > 0) {
     std::lock_guard<std::mutex> lock(mutex_);
+    accountCoils();  // the coils held their state up to this request
     modbus_reply(ctx_, query, length, mapping_);
     ++requests_;
     idle_s_ = 0.0;
@@ -98,6 +102,26 @@ void RigTerminalServer::serveClient(int fd) {
     ::close(fd);
     clients_.erase(std::remove(clients_.begin(), clients_.end(), fd), clients_.end());
   }
+}
+
+void RigTerminalServer::accountCoils() {
+  const auto now = std::chrono::steady_clock::now();
+  const double held_s = std::chrono::duration<double>(now - coils_since_).count();
+  for (int i = 0; i < mapping_->nb_bits; ++i)
+    if (mapping_->tab_bits[i]) coil_on_s_[i] += held_s;
+  coils_since_ = now;
+}
+
+std::vector<double> RigTerminalServer::takeCoilDuty() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  accountCoils();
+  const double window_s = std::chrono::duration<double>(coils_since_ - coils_window_).count();
+  std::vector<double> duty(coil_on_s_.size());
+  for (std::size_t i = 0; i < duty.size(); ++i)
+    duty[i] = window_s > 0.0 ? std::min(1.0, coil_on_s_[i] / window_s) : (mapping_->tab_bits[i] ? 1.0 : 0.0);
+  std::fill(coil_on_s_.begin(), coil_on_s_.end(), 0.0);
+  coils_window_ = coils_since_;
+  return duty;
 }
 
 RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& options) : options_(options) {
@@ -118,7 +142,7 @@ RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& optio
       cells_.push_back(std::move(cell));
     }
   }
-  stepAll();
+  stepAll(1);
   thread_ = std::thread(&RigEmulator::run, this);
 }
 
@@ -151,11 +175,12 @@ std::vector<CellTruth> RigEmulator::truth() const {
   return out;
 }
 
-void RigEmulator::applyOutputs(RigTerminalServer& server, Cell& cell) {
-  server.withRegisters([&cell](modbus_mapping_t* m) {
-    auto opening = [m](const ValveOutput& v) {
-      return v.kind == ValveOutput::kCoil ? (m->tab_bits[v.address] ? 1.0 : 0.0)
-                                          : std::min(1.0, m->tab_registers[v.address] / v.full_scale);
+void RigEmulator::applyOutputs(RigTerminalServer& server, const std::vector<double>& coil_duty, Cell& cell) {
+  // A coil valve passes its on-time over the last step (the simulated valve takes a fractional
+  // opening as a mean); a proportional valve its register's setting.
+  server.withRegisters([&](modbus_mapping_t* m) {
+    auto opening = [&](const ValveOutput& v) {
+      return v.kind == ValveOutput::kCoil ? coil_duty[v.address] : std::min(1.0, m->tab_registers[v.address] / v.full_scale);
     };
     cell.hardware->write({opening(cell.registers.inlet), opening(cell.registers.vent), false}, 0.0);
   });
@@ -173,26 +198,41 @@ void RigEmulator::publishInputs(RigTerminalServer& server, const Cell& cell) {
   });
 }
 
-void RigEmulator::stepAll() {
+void RigEmulator::stepAll(int periods) {
   std::lock_guard<std::mutex> lock(mutex_);
-  for (Cell& c : cells_) applyOutputs(*servers_[c.terminal], c);
-  for (Cell& c : cells_) c.hardware->stepPeriod();
+  // The coils' on-time since the last wake stands for every period run now.
+  std::vector<std::vector<double>> coil_duty;
+  for (auto& server : servers_) coil_duty.push_back(server->takeCoilDuty());
+  for (Cell& c : cells_) applyOutputs(*servers_[c.terminal], coil_duty[c.terminal], c);
+  for (int k = 0; k < periods; ++k)
+    for (Cell& c : cells_) c.hardware->stepPeriod();
   for (const Cell& c : cells_) publishInputs(*servers_[c.terminal], c);
-  time_s_ += options_.period_s;
+  time_s_ += periods * options_.period_s;
+  steps_ += periods;
+  ++wakes_;
 }
 
 void RigEmulator::run() {
+  // The rig's time is the wall clock's: a late wake-up runs the periods it missed (the valves
+  // held their coils meanwhile), so that the gas a cell receives is what its valves passed in
+  // real time. Dropping them (the old way) lost gas the controller's side had counted: under a
+  // loaded machine the emulator's cells filled slower than real valves would. Only a lag beyond
+  // max_catch_up_s is given up, and counted.
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.period_s));
+  const auto give_up = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.max_catch_up_s));
   Clock::time_point next = Clock::now() + period;
   while (!stop_) {
     std::this_thread::sleep_until(next);
-    stepAll();
-    next += period;
-    if (Clock::now() > next + period) {
+    const Clock::time_point now = Clock::now();
+    if (now - next > give_up) {
       ++overruns_;
-      next = Clock::now();
+      lost_s_ = lost_s_ + std::chrono::duration<double>(now - next).count();
+      next = now;
     }
+    int due = 0;
+    for (; next <= now; next += period) ++due;
+    if (due > 0) stepAll(due);
   }
 }
 

@@ -7,6 +7,8 @@
 #include <functional>
 #include <thread>
 
+#include <modbus/modbus.h>
+
 #include "../../test_helpers.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
 #include "nursing_bed/core/hardware/rig_emulator.h"
@@ -175,6 +177,45 @@ TEST_F(ModbusLoopback, ALostTerminalIsReportedAndReconnectedByItself) {
   EXPECT_EQ(truth(3).inlet_opening, 0.0);
   cells_[3]->write({1.0, 0.0, false}, 0.0);
   EXPECT_TRUE(waitFor([this] { return truth(3).inlet_opening > 0.99; }, 1.0)) << "commands flow again";
+}
+
+TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
+  // A client pulses coil 0 (on 4 ms, off 8 ms, not in step with anything): the valve is open
+  // for the time the coil was on between two takes, whatever its state at the take.
+  nb::TerminalMap t;
+  t.name = "pulsed";
+  t.host = "127.0.0.1";
+  t.port = 15613;
+  nb::CellRegisters c;
+  c.cell_id = 0;
+  c.inlet = {nb::ValveOutput::kCoil, 0};
+  c.vent = {nb::ValveOutput::kCoil, 1};
+  c.pressure_pa.address = 0;
+  c.pressure_pa.scale = 1.0;
+  t.cells = {c};
+  nb::RigTerminalServer server(t, 10.0);
+  modbus_t* client = modbus_new_tcp("127.0.0.1", t.port);
+  ASSERT_EQ(modbus_connect(client), 0);
+  server.takeCoilDuty();
+  using Clock = std::chrono::steady_clock;
+  double on_s = 0.0;
+  const auto start = Clock::now();
+  for (int k = 0; k < 40; ++k) {
+    ASSERT_EQ(modbus_write_bit(client, 0, 1), 1);
+    const auto on = Clock::now();
+    std::this_thread::sleep_for(std::chrono::milliseconds(4));
+    ASSERT_EQ(modbus_write_bit(client, 0, 0), 1);
+    on_s += std::chrono::duration<double>(Clock::now() - on).count();
+    std::this_thread::sleep_for(std::chrono::milliseconds(8));
+  }
+  const double total_s = std::chrono::duration<double>(Clock::now() - start).count();
+  const std::vector<double> duty = server.takeCoilDuty();
+  modbus_close(client);
+  modbus_free(client);
+  ASSERT_EQ(duty.size(), 2u);
+  // The client times each pulse from its own side of the request: within a round trip each.
+  EXPECT_NEAR(duty[0], on_s / total_s, 0.03) << "on " << on_s << " s of " << total_s << " s";
+  EXPECT_EQ(duty[1], 0.0);
 }
 
 TEST(RigEmulator, ListensOnLoopbackOnly) {

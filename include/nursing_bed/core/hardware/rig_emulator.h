@@ -6,6 +6,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -36,6 +37,10 @@ class RigTerminalServer {
     std::lock_guard<std::mutex> lock(mutex_);
     f(mapping_);
   }
+  /// Each coil's fraction of the time it was on since the last call (a solenoid passes gas
+  /// while its coil is energised, not at the instants the simulation samples it; sampled, a
+  /// PWM train of one bus cycle aliases against the simulation step). Thread-safe.
+  std::vector<double> takeCoilDuty();
   long requestsServed() const { return requests_; }
   const TerminalMap& map() const { return map_; }
 
@@ -43,6 +48,8 @@ class RigTerminalServer {
   void run();
   void serveClient(int fd);
   void checkWatchdog();
+  /// Adds each energised coil's time since the last account (called under the lock).
+  void accountCoils();
 
   const TerminalMap map_;
   const double watchdog_s_;
@@ -51,6 +58,8 @@ class RigTerminalServer {
   _modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
   std::vector<int> clients_;
+  std::vector<double> coil_on_s_;                          ///< per coil, since the last take
+  std::chrono::steady_clock::time_point coils_since_, coils_window_;
   std::mutex mutex_;
   std::atomic<long> requests_{0};
   std::atomic<bool> stop_{false};
@@ -61,6 +70,7 @@ struct RigEmulatorOptions {
   HardwareConfig cell;           ///< plant parameters, hidden effects, noise of every cell
   RigImperfections rig;          ///< ADC step, valve dead time (height sensor: from the map)
   double period_s = 0.005;       ///< simulation step [s]
+  double max_catch_up_s = 0.5;   ///< a lag up to this is run through, beyond it given up [s]
 };
 
 /// What a test may know and a controller may not.
@@ -79,8 +89,12 @@ class RigEmulator {
   /// Sets the load of a cell (from the patient simulator) [N]; unknown ids are ignored.
   void setLoad(std::uint32_t cell_id, double load_n);
   std::vector<CellTruth> truth() const;
-  /// Simulation steps that ran late by more than a period (real time not kept).
+  /// Times the simulation fell more than max_catch_up_s behind the wall clock and gave that
+  /// time up (real time not kept), and the time given up [s].
   long overruns() const { return overruns_; }
+  double lostSeconds() const { return lost_s_; }
+  /// Simulation periods run per wake-up on average (1: the thread kept the pace).
+  double periodsPerWake() const { return wakes_ > 0 ? static_cast<double>(steps_) / wakes_ : 0.0; }
   const std::vector<std::unique_ptr<RigTerminalServer>>& servers() const { return servers_; }
 
  private:
@@ -90,9 +104,10 @@ class RigEmulator {
     std::unique_ptr<SimulatedCellHardware> hardware;
   };
   void run();
-  void applyOutputs(RigTerminalServer& server, Cell& cell);
+  void applyOutputs(RigTerminalServer& server, const std::vector<double>& coil_duty, Cell& cell);
   void publishInputs(RigTerminalServer& server, const Cell& cell);
-  void stepAll();
+  /// Runs `periods` simulation periods with the valves the terminals' outputs held since the last call.
+  void stepAll(int periods);
 
   RigEmulatorOptions options_;
   std::vector<std::unique_ptr<RigTerminalServer>> servers_;
@@ -100,6 +115,8 @@ class RigEmulator {
   mutable std::mutex mutex_;    // guards the cells' simulation
   double time_s_ = 0.0;
   std::atomic<long> overruns_{0};
+  std::atomic<double> lost_s_{0.0};
+  std::atomic<long> steps_{0}, wakes_{0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };
