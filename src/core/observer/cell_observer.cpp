@@ -75,6 +75,7 @@ void CellObserver::reset(double load_n) {
   load_var_n2_ = std::pow(params_.initial_load_sd_n, 2);
   time_ = 0.0;
   pending_.clear();
+  pending_s_ = 0.0;
   applied_ = ObserverInputs{};
   last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
@@ -104,13 +105,35 @@ CellInputs CellObserver::modelInputs(const ObserverInputs& in, double flow_gauge
   return c;
 }
 
-ObserverInputs CellObserver::delayed(const ObserverInputs& in) {
-  const auto steps = static_cast<std::size_t>(std::lround(params_.valve_dead_time_s / params_.period_s));
-  if (steps == 0) return in;
-  pending_.push_back(in);
-  if (pending_.size() <= steps) return ObserverInputs{};  // nothing commanded that long ago: shut
-  const ObserverInputs out = pending_.front();
-  pending_.pop_front();
+ObserverInputs CellObserver::delayed(const ObserverInputs& in, double dt) {
+  // A delay line in time, not in periods: each command is kept with the time it was held, and
+  // the openings acting over this period are the mean of those held over the same span
+  // valve_dead_time_s earlier. Shifted by a count of periods, a late tick's long span was
+  // charged with the opening of a short one (or the reverse): on a loaded machine, with valves
+  // chattering, that drifted the gas inventory.
+  const double dead = params_.valve_dead_time_s;
+  if (dead <= 0.0) return in;
+  pending_.push_back({in, dt});
+  pending_s_ += dt;
+  // The queue covers [now - pending_s_, now]; the period acting now is [now - dead - dt, now - dead].
+  while (!pending_.empty() && pending_s_ - pending_.front().held_s >= dead + dt) {
+    pending_s_ -= pending_.front().held_s;
+    pending_.pop_front();
+  }
+  ObserverInputs out = in;
+  out.inlet_opening = out.vent_opening = 0.0;  // before the first command: shut
+  const double from = pending_s_ - dead - dt;  // the acting span's start, from the queue's start
+  double start = 0.0;
+  for (const HeldInputs& h : pending_) {
+    const double overlap = std::min(start + h.held_s, from + dt) - std::max(start, from);
+    if (overlap > 0.0) {
+      out.inlet_opening += h.inputs.inlet_opening * overlap / dt;
+      out.vent_opening += h.inputs.vent_opening * overlap / dt;
+      out.vent_back_pressure_pa = h.inputs.vent_back_pressure_pa;
+    }
+    start += h.held_s;
+    if (start >= from + dt) break;
+  }
   return out;
 }
 
@@ -269,7 +292,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     predict(inputs, dt);
     return;
   }
-  applied_ = delayed(inputs);
+  applied_ = delayed(inputs, dt);
   if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
   const double p_old = std::isfinite(last_pressure_pa_) ? last_pressure_pa_ : vars_.gauge_pressure_pa;
   CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
@@ -306,7 +329,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
 
 void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
-  applied_ = delayed(inputs);
+  applied_ = delayed(inputs, dt);
   if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
   // No reading: the plate is held where it was, the pressure is the gas's in that volume.
   const CellInputs in = modelInputs(applied_, std::numeric_limits<double>::quiet_NaN());
@@ -325,11 +348,13 @@ void CellObserver::keepPhysical() {
 }
 
 void CellObserver::checkReanchor(const ObserverReadings& readings) {
-  // Whatever the valves do: a plate cannot rest lifted below the plate alone's pressure, so a
-  // mean below half of it for reanchor_time_s is a flat cell, vented, or shut (e.g. a terminal
-  // whose cells were emptied while the link was down). Not while venting into a vacuum.
+  // A plate cannot rest lifted below the plate alone's pressure, so a mean below half of it for
+  // reanchor_time_s with the inlet shut is a flat cell, vented or sealed (e.g. a terminal whose
+  // cells were emptied while the link was down). Not while the inlet passes gas (a fill from
+  // flat starts below that pressure: anchored there, the gas already in was lost, up to half a
+  // fill's), nor while venting into a vacuum.
   const bool to_vacuum = applied_.vent_opening > 0.0 && applied_.vent_back_pressure_pa != 0.0;
-  if (to_vacuum || !std::isfinite(readings.gauge_pressure_pa)) {
+  if (applied_.inlet_opening > 0.0 || to_vacuum || !std::isfinite(readings.gauge_pressure_pa)) {
     flat_since_s_ = -1.0;
     return;
   }

@@ -32,7 +32,7 @@ struct CellObserverParams {
   /// |mean gauge pressure| under which a venting cell is flat [Pa]; at most half the pressure
   /// at which the plate alone rests lifted (the model's, found at construction).
   double reanchor_pressure_pa = 60.0;
-  double reanchor_time_s = 0.5;            ///< that flat (mean pressure) for this long: re-anchor [s]
+  double reanchor_time_s = 0.5;            ///< inlet shut and that flat (mean pressure) this long: re-anchor [s]
 
   /// Empty when valid, else every problem found, separated by "; ".
   std::string validate() const;
@@ -86,7 +86,7 @@ struct CellEstimate {
  *    pressure (p V_flat = (gamma - 1) U), a measurement of the gas with the pressure's noise.
  *  - A height reading, where fitted, measures U the same way at its height.
  *  - An inflow reading, where fitted, replaces the modelled inlet flow.
- *  - Re-anchor: a cell (vented or shut) whose mean pressure stays for reanchor_time_s
+ *  - Re-anchor: a cell with its inlet shut (vented or sealed) whose mean pressure stays for reanchor_time_s
  *    below half the plate alone's lifted pressure (and reanchor_pressure_pa) is flat: mass and
  *    energy are the flat cell's (ambient air in the rest volume), which ends the drift of a
  *    mass that is otherwise only integrated.
@@ -144,7 +144,8 @@ class CellObserver {
   void anchorFlat();
   void refresh(const CellInputs& in);
   double lowestLiftedPressure() const;
-  ObserverInputs delayed(const ObserverInputs& in);
+  /// The inputs acting over the next `dt`: the valve openings held valve_dead_time_s earlier.
+  ObserverInputs delayed(const ObserverInputs& in, double dt);
 
   CellObserverParams params_;
   CellModel model_;          ///< the cell's physics (flows, effects, structure); resets
@@ -156,7 +157,12 @@ class CellObserver {
   double height_sd_m_ = 0.0;
   double volume_slope_m2_ = 0.01;  ///< dV/dh with the film relaxed, at the estimate
   CellVariables vars_;       ///< variables at the current estimate
-  std::deque<ObserverInputs> pending_;  ///< commands not yet acting (valve dead time)
+  struct HeldInputs {
+    ObserverInputs inputs;
+    double held_s;
+  };
+  std::deque<HeldInputs> pending_;  ///< commands with the time they were held, not yet acting (dead time)
+  double pending_s_ = 0.0;          ///< time the queue covers [s]
   ObserverInputs applied_;   ///< the inputs acting over the last period
   double last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< the last reading
   double flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< see flowPressure
