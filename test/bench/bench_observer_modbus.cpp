@@ -1,12 +1,14 @@
 // Height from pressure over Modbus TCP in real time (doc/benchmarks.md, doc/real_bed.md): one
 // cell without a height sensor, its valves on a terminal of the rig emulator (127.0.0.1), run
 // by AirbagCell at 200 Hz through a programme of fills, holds, a vent to flat and refills under
-// 15.6 N. Prints the emulator's truth against the estimate every 0.5 s and the RMS and worst
+// 15.6 N (--load). Prints the emulator's truth against the estimate every 0.5 s and the RMS and worst
 // height error after the first second.
 //
-// usage: bench_observer_modbus [--proportional] [--dead-time S]
+// usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
+//   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
+//                         lightest cells)
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -28,6 +30,7 @@ namespace {
 struct Options {
   bool proportional = false;
   double dead_time_s = 0.015;
+  double load_n = 15.6;
 };
 
 bool parse(int argc, char** argv, Options* o) {
@@ -35,14 +38,16 @@ bool parse(int argc, char** argv, Options* o) {
     const std::string a = argv[i];
     if (a == "--proportional") {
       o->proportional = true;
-    } else if (a == "--dead-time" && i + 1 < argc) {
+    } else if ((a == "--dead-time" || a == "--load") && i + 1 < argc) {
       char* end = nullptr;
       const double v = std::strtod(argv[++i], &end);
-      if (*end != '\0' || !(v >= 0.0 && v < 1.0)) {
-        std::fprintf(stderr, "bench_observer_modbus: %s wants seconds in [0, 1), got '%s'\n", a.c_str(), argv[i]);
+      const bool dead_time = a == "--dead-time";
+      if (*end != '\0' || !(dead_time ? (v >= 0.0 && v < 1.0) : (v >= 0.0 && v <= 100.0))) {
+        std::fprintf(stderr, "bench_observer_modbus: %s wants %s, got '%s'\n", a.c_str(),
+                     dead_time ? "seconds in [0, 1)" : "newtons in [0, 100]", argv[i]);
         return false;
       }
-      o->dead_time_s = v;
+      (dead_time ? o->dead_time_s : o->load_n) = v;
     } else {
       std::fprintf(stderr, "bench_observer_modbus: unknown argument '%s'\n", a.c_str());
       return false;
@@ -74,7 +79,7 @@ int main(int argc, char** argv) {
   if (!parse(argc, argv, &o)) return 2;
   const std::string map_path = writeMap(o.proportional);
   nb::RigEmulatorOptions rig;
-  rig.cell.load_n = 15.6;
+  rig.cell.load_n = o.load_n;
   rig.cell.pressure_noise_pa = 10.0;
   rig.rig.adc_step_pa = 12.2;
   rig.rig.valve_dead_time_s = 0.01;
@@ -116,8 +121,8 @@ int main(int argc, char** argv) {
     const double e = truth.height_m - cell.measurement().height_m;
     if (now > 1.0) error.add(e);
     if (i % 100 == 0)
-      std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true 15.6)\n", now,
-                  1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load());
+      std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true %.1f)\n", now,
+                  1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load(), o.load_n);
   }
   std::printf("%s valves, valve_dead_time_s %g: height error RMS %.2f mm, worst %.2f mm\n",
               o.proportional ? "proportional" : "on/off", o.dead_time_s, 1e3 * error.rmsM(),
