@@ -207,7 +207,6 @@ void RigEmulator::stepAll(int periods) {
   for (int k = 0; k < periods; ++k)
     for (Cell& c : cells_) c.hardware->stepPeriod();
   for (const Cell& c : cells_) publishInputs(*servers_[c.terminal], c);
-  time_s_ += periods * options_.period_s;
   steps_ += periods;
   ++wakes_;
 }

@@ -292,8 +292,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     predict(inputs, dt);
     return;
   }
-  applied_ = delayed(inputs, dt);
-  if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
+  takeInputs(inputs, dt);
   const double p_old = std::isfinite(last_pressure_pa_) ? last_pressure_pa_ : vars_.gauge_pressure_pa;
   CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
   if (std::isfinite(readings.inflow_kg_s)) in.prescribed_inflow_kg_s = readings.inflow_kg_s;
@@ -327,10 +326,14 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
   checkReanchor(readings);
 }
 
-void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
-  const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
+void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
   applied_ = delayed(inputs, dt);
   if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
+}
+
+void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
+  const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
+  takeInputs(inputs, dt);
   // No reading: the plate is held where it was, the pressure is the gas's in that volume.
   const CellInputs in = modelInputs(applied_, std::numeric_limits<double>::quiet_NaN());
   propagateCovariance(dt);

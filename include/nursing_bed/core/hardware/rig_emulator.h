@@ -113,7 +113,6 @@ class RigEmulator {
   std::vector<std::unique_ptr<RigTerminalServer>> servers_;
   std::vector<Cell> cells_;
   mutable std::mutex mutex_;    // guards the cells' simulation
-  double time_s_ = 0.0;
   std::atomic<long> overruns_{0};
   std::atomic<double> lost_s_{0.0};
   std::atomic<long> steps_{0}, wakes_{0};

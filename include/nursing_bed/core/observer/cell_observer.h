@@ -144,6 +144,8 @@ class CellObserver {
   void anchorFlat();
   void refresh(const CellInputs& in);
   double lowestLiftedPressure() const;
+  /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
+  void takeInputs(const ObserverInputs& inputs, double dt);
   /// The inputs acting over the next `dt`: the valve openings held valve_dead_time_s earlier.
   ObserverInputs delayed(const ObserverInputs& in, double dt);
 
