@@ -1,14 +1,23 @@
 // Height from pressure over Modbus TCP in real time (doc/benchmarks.md, doc/real_bed.md): one
 // cell without a height sensor, its valves on a terminal of the rig emulator (127.0.0.1), run
-// by AirbagCell at 200 Hz through a programme of fills, holds, a vent to flat and refills under
+// by AirbagCell at 200 Hz (--period) through a programme of fills, holds, a vent to flat and refills under
 // 15.6 N (--load). Prints the emulator's truth against the estimate every 0.5 s and the RMS and worst
 // height error after the first second.
 //
-// usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N]
+// usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
+//          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 //   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
 //                         lightest cells)
+//   --noise PA, --adc PA  the emulator's pressure noise sd and ADC step (default 10, 12.2 Pa)
+//   --rig-dead-time S     the emulator's valve dead time (default 0.01 s)
+//   --rig-period S        the emulator's simulation step (default 0.005 s)
+//   --period S            the cell's control period (default 0.005 s; the bed's nodes: 0.02)
+//   --seed N              the emulator's noise seed (default the emulator's): one seed is one
+//                         noise sequence, so runs differ only by their timing
+//   --trace FILE          every period as CSV: the emulator's gas (mass, temperature, flows,
+//                         acting valves) beside the observer's and the pressure it read
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -31,23 +40,42 @@ struct Options {
   bool proportional = false;
   double dead_time_s = 0.015;
   double load_n = 15.6;
+  double noise_pa = 10.0, adc_pa = 12.2, rig_dead_time_s = 0.01, rig_period_s = 0.005;
+  double period_s = 0.005;  ///< the cell's control period [s]
+  double seed = -1.0;  ///< < 0: the emulator's default
+  std::string trace_path;
 };
+
+double* numberOption(const std::string& a, Options* o) {
+  if (a == "--dead-time") return &o->dead_time_s;
+  if (a == "--load") return &o->load_n;
+  if (a == "--noise") return &o->noise_pa;
+  if (a == "--adc") return &o->adc_pa;
+  if (a == "--rig-dead-time") return &o->rig_dead_time_s;
+  if (a == "--rig-period") return &o->rig_period_s;
+  if (a == "--seed") return &o->seed;
+  if (a == "--period") return &o->period_s;
+  return nullptr;
+}
 
 bool parse(int argc, char** argv, Options* o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--proportional") {
       o->proportional = true;
-    } else if ((a == "--dead-time" || a == "--load") && i + 1 < argc) {
+    } else if (a == "--trace" && i + 1 < argc) {
+      o->trace_path = argv[++i];
+    } else if (double* value = numberOption(a, o); value && i + 1 < argc) {
       char* end = nullptr;
       const double v = std::strtod(argv[++i], &end);
-      const bool dead_time = a == "--dead-time";
-      if (*end != '\0' || !(dead_time ? (v >= 0.0 && v < 1.0) : (v >= 0.0 && v <= 100.0))) {
-        std::fprintf(stderr, "bench_observer_modbus: %s wants %s, got '%s'\n", a.c_str(),
-                     dead_time ? "seconds in [0, 1)" : "newtons in [0, 100]", argv[i]);
+      const double upper = a == "--load" ? 100.0 : a == "--noise" || a == "--adc" ? 1000.0 : a == "--seed" ? 1e9 : 1.0;
+      const double lower_exclusive = a == "--period" ? 0.0 : -1.0;  // a period of 0 never ticks
+      if (*end != '\0' || !(v >= 0.0 && v > lower_exclusive && v <= upper)) {
+        std::fprintf(stderr, "bench_observer_modbus: %s wants a number in [0, %g], got '%s'\n", a.c_str(), upper,
+                     argv[i]);
         return false;
       }
-      (dead_time ? o->dead_time_s : o->load_n) = v;
+      *value = v;
     } else {
       std::fprintf(stderr, "bench_observer_modbus: unknown argument '%s'\n", a.c_str());
       return false;
@@ -68,6 +96,23 @@ std::string writeMap(bool proportional) {
   return path;
 }
 
+void traceHeader(std::FILE* f) {
+  std::fprintf(f,
+               "t_s,true_h_m,true_p_pa,true_m_kg,true_t_k,true_in_kg_s,true_vent_kg_s,true_inlet,true_vent,"
+               "est_h_m,read_p_pa,est_m_kg,est_t_k,est_in_kg_s,est_vent_kg_s,est_inlet,est_vent\n");
+}
+
+void traceRow(std::FILE* f, double t, const nb::CellTruth& truth, const nb::AirbagCell& cell) {
+  const nb::CellObserver& obs = *cell.observer();
+  const nb::CellEstimate e = obs.estimate();
+  const nb::CellVariables& v = obs.variables();
+  std::fprintf(f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f\n", t, truth.height_m,
+               truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
+               truth.vent_flow_kg_s, truth.inlet_opening, truth.vent_opening, e.height_m,
+               cell.measurement().gauge_pressure_pa, e.mass_kg, e.temperature_k, v.inflow_kg_s, v.vent_flow_kg_s,
+               obs.appliedInputs().inlet_opening, obs.appliedInputs().vent_opening);
+}
+
 struct Target {
   double at_s, height_m;  ///< height < 0: vent flat
 };
@@ -80,14 +125,16 @@ int main(int argc, char** argv) {
   const std::string map_path = writeMap(o.proportional);
   nb::RigEmulatorOptions rig;
   rig.cell.load_n = o.load_n;
-  rig.cell.pressure_noise_pa = 10.0;
-  rig.rig.adc_step_pa = 12.2;
-  rig.rig.valve_dead_time_s = 0.01;
+  rig.cell.pressure_noise_pa = o.noise_pa;
+  rig.rig.adc_step_pa = o.adc_pa;
+  rig.rig.valve_dead_time_s = o.rig_dead_time_s;
+  rig.period_s = o.rig_period_s;
+  if (o.seed >= 0.0) rig.cell.noise_seed = static_cast<unsigned>(o.seed);
   nb::RigEmulator emulator(nb::loadRegisterMap(map_path, 1), rig);
 
   nb::HardwareConfig config;
   config.cell_id = 0;
-  config.control_period_s = 0.005;
+  config.control_period_s = o.period_s;
   config.register_map_path = map_path;
   config.bed_cells = 1;
   auto hardware = std::make_shared<nb::ModbusTcpCellHardware>();
@@ -99,6 +146,12 @@ int main(int argc, char** argv) {
   observer.params.valve_dead_time_s = o.dead_time_s;
   nb::AirbagCell cell(params, hardware, observer);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the link comes up
+  std::FILE* trace = o.trace_path.empty() ? nullptr : std::fopen(o.trace_path.c_str(), "w");
+  if (!o.trace_path.empty() && !trace) {
+    std::fprintf(stderr, "bench_observer_modbus: cannot write the trace '%s'\n", o.trace_path.c_str());
+    return 2;
+  }
+  if (trace) traceHeader(trace);
 
   const Target plan[] = {{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1}, {21, 0.10}, {26, 0.05}, {31, 0.12}};
   const double end_s = 36.0;
@@ -107,7 +160,7 @@ int main(int argc, char** argv) {
   const Clock::time_point start = Clock::now();
   Clock::time_point tick = start;
   for (long i = 0;; ++i) {
-    tick += std::chrono::microseconds(5000);
+    tick += std::chrono::microseconds(std::lround(1e6 * o.period_s));
     std::this_thread::sleep_until(tick);
     const double now = std::chrono::duration<double>(Clock::now() - start).count();
     if (now > end_s) break;
@@ -120,10 +173,12 @@ int main(int argc, char** argv) {
     const nb::CellTruth truth = emulator.truth().at(0);
     const double e = truth.height_m - cell.measurement().height_m;
     if (now > 1.0) error.add(e);
-    if (i % 100 == 0)
+    if (trace && cell.observer()) traceRow(trace, now, truth, cell);
+    if (i % std::max(1L, std::lround(0.5 / o.period_s)) == 0)
       std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true %.1f)\n", now,
                   1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load(), o.load_n);
   }
+  if (trace) std::fclose(trace);
   std::printf("%s valves, valve_dead_time_s %g: height error RMS %.2f mm, worst %.2f mm\n",
               o.proportional ? "proportional" : "on/off", o.dead_time_s, 1e3 * error.rmsM(),
               1e3 * error.max_abs_m);

@@ -302,9 +302,11 @@ void AirbagCell::onLink(const CellReadings& readings) {
     mode_ = AirbagMode::kSafe;
   } else if (!down && (faults_ & kFaultCommunication)) {
     faults_ &= ~kFaultCommunication;
-    // A cell found flat (a restarted rig, a bed vented meanwhile) is known again: re-anchor.
-    const double p = readings.gauge_pressure_pa.value;
-    if (std::fabs(p) < observer_->params().reanchor_pressure_pa) observer_->reset(observer_->estimate().load_n);
+    // The observer keeps its gas: the terminal's watchdog shut the valves, so the gas is what
+    // it was. A cell found flat (a restarted rig, a bed vented meanwhile) is re-anchored by the
+    // observer's own test (its mean pressure that low for reanchor_time_s, inlet shut). Reset
+    // on one reading below reanchor_pressure_pa instead, a light plate resting at 55-75 Pa
+    // was taken for flat after a 50 ms bus timeout and filled to the bag's top at 30 kPa.
     mode_ = mode_before_link_loss_ == AirbagMode::kSafe ? resumedMode() : mode_before_link_loss_;
   }
 }

@@ -167,6 +167,9 @@ std::vector<CellTruth> RigEmulator::truth() const {
     t.height_m = v.height_m;
     t.gauge_pressure_pa = v.gauge_pressure_pa;
     t.gas_mass_kg = v.mass_kg;
+    t.temperature_k = v.temperature_k;
+    t.inflow_kg_s = v.inflow_kg_s;
+    t.vent_flow_kg_s = v.vent_flow_kg_s;
     t.load_n = c.hardware->load();
     t.inlet_opening = c.hardware->actingValves().inlet;
     t.vent_opening = c.hardware->actingValves().vent;

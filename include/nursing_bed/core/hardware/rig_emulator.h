@@ -77,7 +77,9 @@ struct RigEmulatorOptions {
 struct CellTruth {
   std::uint32_t cell_id = 0;
   double height_m = 0.0, gauge_pressure_pa = 0.0, gas_mass_kg = 0.0, load_n = 0.0;
+  double temperature_k = 0.0;                      ///< the gas's
   double inlet_opening = 0.0, vent_opening = 0.0;  ///< valves acting now
+  double inflow_kg_s = 0.0, vent_flow_kg_s = 0.0;  ///< at the end of the last step
 };
 
 class RigEmulator {

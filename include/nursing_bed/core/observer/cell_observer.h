@@ -122,13 +122,21 @@ class CellObserver {
   const Matrix2& covariance() const { return p_; }
   const CellObserverParams& params() const { return params_; }
   const CellModel& model() const { return model_; }
+  /// The valve openings acting over the last period (the commands after the dead time).
+  const ObserverInputs& appliedInputs() const { return applied_; }
 
  private:
   CellInputs modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const;
   /// Gas flows (mass, enthalpy and heat, no work) and the other states' rates at the estimate.
   void integrateFlows(const CellInputs& in, double dt_s);
+  /// The gas's (dm/dt, dU/dt less the work) from a model rate and its variables.
+  static Eigen::Vector2d gasRates(const Vector& dx, const CellVariables& v);
+  /// What the readings' noise adds on average to the gas's rates through the flows' curvature
+  /// in pressure near ambient (to take off the rates at the readings).
+  Eigen::Vector2d noiseBias(const CellInputs& in, const Eigen::Vector2d& at_reading);
   void propagateCovariance(double dt_s);
-  /// The cell pressure the flows of the period see: the readings' mean, smoothed within noise.
+  /// The cell pressure the flows of the period see: the readings' mean; away from ambient
+  /// smoothed within the noise (see noiseBias for near ambient).
   double flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s);
   /// The energy after the volume change at the new pressure, along the isentrope (trapezoid).
   void isentropicWork(double old_pressure_pa, double new_pressure_pa);
