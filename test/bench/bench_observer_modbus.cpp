@@ -6,6 +6,7 @@
 //
 // usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
 //          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
+//          [--effects]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 //   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
@@ -13,6 +14,8 @@
 //   --noise PA, --adc PA  the emulator's pressure noise sd and ADC step (default 10, 12.2 Pa)
 //   --rig-dead-time S     the emulator's valve dead time (default 0.01 s)
 //   --rig-period S        the emulator's simulation step (default 0.005 s)
+//   --effects             a leak (1e-8 m2) and heat exchange (8 W/(m2 K)) in the emulator's cell,
+//                         and the observer given them (issue #12's acceptance 3 on one cell)
 //   --period S            the cell's control period (default 0.005 s; the bed's nodes: 0.02)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
@@ -30,6 +33,7 @@
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
 #include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/physics/basic_effects.h"
 
 namespace nb = nursing_bed;
 using Clock = std::chrono::steady_clock;
@@ -38,6 +42,7 @@ namespace {
 
 struct Options {
   bool proportional = false;
+  bool effects = false;  ///< leak 1e-8 m2 and heat 8 W/(m2 K) in the rig and the observer
   double dead_time_s = 0.015;
   double load_n = 15.6;
   double noise_pa = 10.0, adc_pa = 12.2, rig_dead_time_s = 0.01, rig_period_s = 0.005;
@@ -63,6 +68,8 @@ bool parse(int argc, char** argv, Options* o) {
     const std::string a = argv[i];
     if (a == "--proportional") {
       o->proportional = true;
+    } else if (a == "--effects") {
+      o->effects = true;
     } else if (a == "--trace" && i + 1 < argc) {
       o->trace_path = argv[++i];
     } else if (double* value = numberOption(a, o); value && i + 1 < argc) {
@@ -129,6 +136,9 @@ int main(int argc, char** argv) {
   rig.rig.adc_step_pa = o.adc_pa;
   rig.rig.valve_dead_time_s = o.rig_dead_time_s;
   rig.period_s = o.rig_period_s;
+  std::vector<nb::CellEffectPtr> effects;
+  if (o.effects) effects = {std::make_shared<nb::LeakEffect>(1e-8), std::make_shared<nb::HeatTransferEffect>(8.0)};
+  rig.cell.effects = effects;
   if (o.seed >= 0.0) rig.cell.noise_seed = static_cast<unsigned>(o.seed);
   nb::RigEmulator emulator(nb::loadRegisterMap(map_path, 1), rig);
 
@@ -144,6 +154,7 @@ int main(int argc, char** argv) {
   nb::AirbagObserverSetup observer;
   observer.model = params.cell;
   observer.params.valve_dead_time_s = o.dead_time_s;
+  observer.effects = effects;
   nb::AirbagCell cell(params, hardware, observer);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the link comes up
   std::FILE* trace = o.trace_path.empty() ? nullptr : std::fopen(o.trace_path.c_str(), "w");
