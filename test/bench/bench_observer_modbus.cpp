@@ -6,7 +6,7 @@
 //
 // usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
 //          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
-//          [--effects]
+//          [--effects] [--load-guess N]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 //   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
@@ -16,6 +16,8 @@
 //   --rig-period S        the emulator's simulation step (default 0.005 s)
 //   --effects             a leak (1e-8 m2) and heat exchange (8 W/(m2 K)) in the emulator's cell,
 //                         and the observer given them (issue #12's acceptance 3 on one cell)
+//   --load-guess N        the cell's load guess at reset (default the true load; the bed's
+//                         nodes start from load_n, 10.6 N)
 //   --period S            the cell's control period (default 0.005 s; the bed's nodes: 0.02)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
@@ -48,6 +50,7 @@ struct Options {
   double noise_pa = 10.0, adc_pa = 12.2, rig_dead_time_s = 0.01, rig_period_s = 0.005;
   double period_s = 0.005;  ///< the cell's control period [s]
   double seed = -1.0;  ///< < 0: the emulator's default
+  double load_guess_n = -1.0;  ///< < 0: the true load (the bed's nodes start from their load_n, 10.6 N)
   std::string trace_path;
 };
 
@@ -60,6 +63,7 @@ double* numberOption(const std::string& a, Options* o) {
   if (a == "--rig-period") return &o->rig_period_s;
   if (a == "--seed") return &o->seed;
   if (a == "--period") return &o->period_s;
+  if (a == "--load-guess") return &o->load_guess_n;
   return nullptr;
 }
 
@@ -75,7 +79,7 @@ bool parse(int argc, char** argv, Options* o) {
     } else if (double* value = numberOption(a, o); value && i + 1 < argc) {
       char* end = nullptr;
       const double v = std::strtod(argv[++i], &end);
-      const double upper = a == "--load" ? 100.0 : a == "--noise" || a == "--adc" ? 1000.0 : a == "--seed" ? 1e9 : 1.0;
+      const double upper = a == "--load" || a == "--load-guess" ? 100.0 : a == "--noise" || a == "--adc" ? 1000.0 : a == "--seed" ? 1e9 : 1.0;
       const double lower_exclusive = a == "--period" ? 0.0 : -1.0;  // a period of 0 never ticks
       if (*end != '\0' || !(v >= 0.0 && v > lower_exclusive && v <= upper)) {
         std::fprintf(stderr, "bench_observer_modbus: %s wants a number in [0, %g], got '%s'\n", a.c_str(), upper,
@@ -156,6 +160,7 @@ int main(int argc, char** argv) {
   observer.params.valve_dead_time_s = o.dead_time_s;
   observer.effects = effects;
   nb::AirbagCell cell(params, hardware, observer);
+  cell.reset(o.load_guess_n >= 0.0 ? o.load_guess_n : o.load_n);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the link comes up
   std::FILE* trace = o.trace_path.empty() ? nullptr : std::fopen(o.trace_path.c_str(), "w");
   if (!o.trace_path.empty() && !trace) {

@@ -268,9 +268,10 @@ void AirbagCell::stepReal(double now_s) {
   onLink(readings);
   if (readings.device_reset) onDeviceReset();
   if (faults_ & kFaultCommunication) {
-    // Nothing is commanded while the link is down; the observer coasts with the last command
-    // over the period it acted, then with the valves shut (the terminal's watchdog).
-    observer_->predict(ObserverInputs{valves_.inlet, valves_.vent, 0.0, supply_pressure_pa_}, period);
+    // Nothing is commanded while the link is down; the observer coasts with what the terminal
+    // still drove (its outputs hold until its watchdog) where the driver knows it, else with
+    // the last command over the period it acted, then with the valves shut.
+    observer_->predict(linkDownInputs(readings), period);
     valves_ = ValveCommand{};
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
     return;
@@ -281,6 +282,13 @@ void AirbagCell::stepReal(double now_s) {
   if (readings.inflow_kg_s.present()) metered_inlet_mass_kg_ += readings.inflow_kg_s.value * period;
   inlet_opening_s_ += valves_.inlet * period;
   vent_opening_s_ += valves_.vent * period;
+}
+
+ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
+  ObserverInputs in{valves_.inlet, valves_.vent, 0.0, supply_pressure_pa_};
+  if (readings.inlet_driven.present()) in.inlet_opening = readings.inlet_driven.value;
+  if (readings.vent_driven.present()) in.vent_opening = readings.vent_driven.value;
+  return in;
 }
 
 void AirbagCell::onDeviceReset() {

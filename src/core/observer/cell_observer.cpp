@@ -368,10 +368,14 @@ void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
 void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   takeInputs(inputs, dt);
-  // No reading: the plate is held where it was, the pressure is the gas's in that volume.
+  // No reading: the cell model runs open loop under the load estimate, plate and all. Held
+  // where it was instead, a cell still filling (a terminal keeps its outputs until its
+  // watchdog) saw its pressure climb to the supply's and counted a fraction of the gas.
   const CellInputs in = modelInputs(applied_, std::numeric_limits<double>::quiet_NaN());
   propagateCovariance(dt);
-  integrateFlows(in, dt);
+  model_.setState(time_, x_);
+  model_.advance(dt, in);
+  x_ = model_.state();
   keepPhysical();
   time_ += dt;
   last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();

@@ -170,6 +170,8 @@ class AirbagCell {
   /// Turns readings into measurement_ (the observer's height where there is no sensor).
   void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
+  /// The observer's inputs over a period with the link down.
+  ObserverInputs linkDownInputs(const CellReadings& readings) const;
   ValveCommand pressureValves(double gauge_pressure_pa) const;
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.

@@ -38,7 +38,9 @@ struct CellReadings {
   /// The valve openings the driver applied since the previous read(), time-averaged (an on/off
   /// valve: the fraction of the interval its output was on), where it knows them. The command
   /// is a duty over the control period; the pulses that realise it are what passes the gas, at
-  /// the pressure during each pulse, so an observer integrates these.
+  /// the pressure during each pulse, so an observer integrates these. While the link is down
+  /// a driver may still know them: a terminal holds its outputs as last written until its own
+  /// watchdog shuts them, so the gas kept flowing for that long (absent: taken as shut).
   StampedReading inlet_driven, vent_driven;
   LinkState link = LinkState::kOk;
   std::string link_error;             ///< why the link is down (empty while up)
