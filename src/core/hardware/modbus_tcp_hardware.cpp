@@ -17,6 +17,22 @@ int maxAddress(const std::vector<int>& addresses) {
 
 }  // namespace
 
+bool transientModbusError(int error_number) {
+  switch (error_number) {
+    case ETIMEDOUT:    // no reply within response_timeout_s
+    case EMBBADDATA:   // a reply that is not this request's (a late one) or malformed
+    case EMBBADEXC:
+    case EMBUNKEXC:
+    case EMBBADCRC:
+    case EMBBADSLAVE:
+    case EMBXSBUSY:    // the terminal asks for a retry
+    case EMBXGTAR:     // a gateway's target did not answer: a timeout behind the gateway
+      return true;
+    default:
+      return false;
+  }
+}
+
 std::vector<AddressRun> addressRuns(std::vector<int> addresses, int max_count) {
   std::sort(addresses.begin(), addresses.end());
   addresses.erase(std::unique(addresses.begin(), addresses.end()), addresses.end());
@@ -173,11 +189,13 @@ bool ModbusTerminal::connect() {
     dropLink(std::string("connect failed: ") + modbus_strerror(errno));
     return false;
   }
+  last_exchange_ = Clock::now();  // link_loss_after_s runs from the connection until a cycle completes
+  flush_pending_ = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     up_ = true;
     have_read_ = false;
-    error_.clear();
+    error_ = "connected, no reply yet";
     ++stats_.connects;
     std::fill(commands_.begin(), commands_.end(), ValveOpenings{});
   }
@@ -185,8 +203,10 @@ bool ModbusTerminal::connect() {
 }
 
 bool ModbusTerminal::exchange() {
+  if (flush_pending_) flushLateReplies();
   if (!readInputs() || !writeOutputs()) return false;
   markDriven();
+  last_exchange_ = Clock::now();
   std::lock_guard<std::mutex> lock(mutex_);
   ++stats_.cycles;
   return true;
@@ -217,11 +237,8 @@ void ModbusTerminal::markDriven() {
 bool ModbusTerminal::readInputs() {
   std::vector<std::uint16_t> buffer(inputs_.size());
   for (const AddressRun& run : input_runs_) {
-    if (modbus_read_input_registers(ctx_, run.first, run.count, buffer.data() + run.first) != run.count) {
-      dropLink(std::string("reading input registers ") + std::to_string(run.first) + "+" + std::to_string(run.count) +
-               " failed: " + modbus_strerror(errno));
-      return false;
-    }
+    if (modbus_read_input_registers(ctx_, run.first, run.count, buffer.data() + run.first) != run.count)
+      return requestFailed(errno, "reading input registers", run);
   }
   std::lock_guard<std::mutex> lock(mutex_);
   stats_.read_requests += static_cast<long>(input_runs_.size());
@@ -257,21 +274,47 @@ bool ModbusTerminal::writeOutputs() {
     holding = holding_;
   }
   for (const AddressRun& run : coil_runs_) {
-    if (modbus_write_bits(ctx_, run.first, run.count, coils.data() + run.first) != run.count) {
-      dropLink("writing coils " + std::to_string(run.first) + "+" + std::to_string(run.count) + " failed: " + modbus_strerror(errno));
-      return false;
-    }
+    if (modbus_write_bits(ctx_, run.first, run.count, coils.data() + run.first) != run.count)
+      return requestFailed(errno, "writing coils", run);
   }
   for (const AddressRun& run : holding_runs_) {
-    if (modbus_write_registers(ctx_, run.first, run.count, holding.data() + run.first) != run.count) {
-      dropLink("writing holding registers " + std::to_string(run.first) + "+" + std::to_string(run.count) +
-               " failed: " + modbus_strerror(errno));
-      return false;
-    }
+    if (modbus_write_registers(ctx_, run.first, run.count, holding.data() + run.first) != run.count)
+      return requestFailed(errno, "writing holding registers", run);
   }
   std::lock_guard<std::mutex> lock(mutex_);
   stats_.write_requests += static_cast<long>(coil_runs_.size() + holding_runs_.size());
   return true;
+}
+
+bool ModbusTerminal::requestFailed(int error_number, const char* what, const AddressRun& run) {
+  const std::string why = std::string(what) + " " + std::to_string(run.first) + "+" + std::to_string(run.count) +
+                          " failed: " + modbus_strerror(error_number);
+  const double silent_s = std::chrono::duration<double>(Clock::now() - last_exchange_).count();
+  if (!transientModbusError(error_number)) {
+    dropLink(why);
+  } else if (silent_s >= map_.link_loss_after_s) {
+    std::ostringstream s;
+    s << "no bus cycle completed for " << std::lround(silent_s * 1000.0) << " ms (link_loss_after_s " << map_.link_loss_after_s
+      << "), last: " << why;
+    dropLink(s.str());
+  } else {
+    retryNextCycle(why);
+  }
+  return false;
+}
+
+void ModbusTerminal::retryNextCycle(const std::string& why) {
+  flush_pending_ = true;
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++stats_.failed_exchanges;
+  error_ = why;  // what cells see while no reading has come since the connection
+}
+
+void ModbusTerminal::flushLateReplies() {
+  // Not at the failure itself: a reply late by more than the response timeout is still on its
+  // way then; a cycle later it has come (or the next request reports the mismatch).
+  modbus_flush(ctx_);
+  flush_pending_ = false;
 }
 
 void ModbusTerminal::dropLink(const std::string& why) {

@@ -113,8 +113,8 @@ std::vector<CellRegisters> readBlock(const YAML::Node& node, const std::string& 
 }
 
 TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
-  checkKeys(node, {"name", "host", "port", "unit_id", "response_timeout_s", "reconnect_interval_s", "cycle_s",
-                   "stale_after_s", "supply_pressure", "cell_block", "cells"},
+  checkKeys(node, {"name", "host", "port", "unit_id", "response_timeout_s", "link_loss_after_s", "reconnect_interval_s",
+                   "cycle_s", "stale_after_s", "supply_pressure", "cell_block", "cells"},
             where);
   TerminalMap t;
   t.name = get<std::string>(node, "name", where, where);
@@ -123,6 +123,7 @@ TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
   t.port = require<int>(node, "port", at);
   t.unit_id = get<int>(node, "unit_id", at, t.unit_id);
   t.response_timeout_s = get<double>(node, "response_timeout_s", at, t.response_timeout_s);
+  t.link_loss_after_s = get<double>(node, "link_loss_after_s", at, t.link_loss_after_s);
   t.reconnect_interval_s = get<double>(node, "reconnect_interval_s", at, t.reconnect_interval_s);
   t.cycle_s = get<double>(node, "cycle_s", at, t.cycle_s);
   t.stale_after_s = get<double>(node, "stale_after_s", at, t.stale_after_s);
@@ -138,6 +139,24 @@ TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
 
 // --- validation ------------------------------------------------------------------------------
 
+constexpr double kMaxLinkLossAfterS = 0.4;  ///< [s]
+constexpr double kFaultReportS = 0.5;       ///< a silent terminal's cells report a fault within this [s]
+
+/// link_loss_after_s against the request timing: one unanswered request tolerated, a silent
+/// terminal reported within kFaultReportS.
+void checkLinkLoss(const TerminalMap& t, const std::string& at, std::ostringstream& err) {
+  const double l = t.link_loss_after_s, request_s = t.response_timeout_s + t.cycle_s;
+  if (!(l > 0.0 && l <= kMaxLinkLossAfterS)) {
+    err << at << ": link_loss_after_s " << l << " must lie in (0, " << kMaxLinkLossAfterS << "] s; ";
+  } else if (!(l > request_s)) {
+    err << at << ": link_loss_after_s " << l << " must exceed response_timeout_s + cycle_s (" << request_s
+        << " s), or one unanswered request takes the link down; ";
+  } else if (l + request_s > kFaultReportS) {
+    err << at << ": link_loss_after_s + response_timeout_s + cycle_s (" << l + request_s << " s) must not exceed "
+        << kFaultReportS << " s, the time in which a silent terminal is reported; ";
+  }
+}
+
 void checkTerminalValues(const TerminalMap& t, std::ostringstream& err) {
   const std::string at = "terminal '" + t.name + "'";
   if (t.host.empty()) err << at << ": host is empty; ";
@@ -147,6 +166,7 @@ void checkTerminalValues(const TerminalMap& t, std::ostringstream& err) {
   if (!(t.reconnect_interval_s > 0.0)) err << at << ": reconnect_interval_s must be > 0; ";
   if (!(t.cycle_s > 0.0 && t.cycle_s <= 0.1)) err << at << ": cycle_s must lie in (0, 0.1] s; ";
   if (!(t.stale_after_s > t.cycle_s)) err << at << ": stale_after_s must exceed cycle_s; ";
+  checkLinkLoss(t, at, err);
   if (t.cells.empty()) err << at << ": serves no cells; ";
 }
 

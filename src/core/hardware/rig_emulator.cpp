@@ -1,6 +1,8 @@
 #include "nursing_bed/core/hardware/rig_emulator.h"
 
 #include <modbus/modbus.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <sys/select.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -25,6 +27,16 @@ int mappingSize(const TerminalMap& map, bool coils, bool holding) {
   }
   if (!coils && !holding) top = std::max(top, map.supply_pressure_pa.address);
   return top + 1;
+}
+
+/// Replies go out at once (TCP_NODELAY, which libmodbus sets on its clients' sockets only). With
+/// Nagle's algorithm a reply sent while the previous one is unacknowledged waits for the
+/// client's next request to carry the acknowledgement: after two replies back to back (one came
+/// late) every reply would arrive on the request after its own, a transaction id mismatch each.
+int noDelay(int fd) {
+  const int on = 1;
+  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof(on));
+  return fd;
 }
 
 }  // namespace
@@ -71,7 +83,7 @@ void RigTerminalServer::run() {
     }
     if (FD_ISSET(listen_fd_, &readable)) {
       const int fd = ::accept(listen_fd_, nullptr, nullptr);
-      if (fd >= 0) clients_.push_back(fd);
+      if (fd >= 0) clients_.push_back(noDelay(fd));
     }
     const std::vector<int> ready = clients_;
     for (int fd : ready)
@@ -93,6 +105,7 @@ void RigTerminalServer::serveClient(int fd) {
   modbus_set_socket(ctx_, fd);
   const int length = modbus_receive(ctx_, query);
   if (length > 0) {
+    if (withholdReply()) return;
     std::lock_guard<std::mutex> lock(mutex_);
     accountCoils();  // the coils held their state up to this request
     modbus_reply(ctx_, query, length, mapping_);
@@ -102,6 +115,23 @@ void RigTerminalServer::serveClient(int fd) {
     ::close(fd);
     clients_.erase(std::remove(clients_.begin(), clients_.end(), fd), clients_.end());
   }
+}
+
+void RigTerminalServer::answerLate(long requests, double delay_s) {
+  late_delay_s_ = delay_s;
+  late_ = requests;
+}
+
+bool RigTerminalServer::withholdReply() {
+  if (unanswered_ > 0) {
+    --unanswered_;
+    return true;
+  }
+  if (late_ > 0) {
+    --late_;
+    std::this_thread::sleep_for(std::chrono::duration<double>(late_delay_s_.load()));
+  }
+  return false;
 }
 
 void RigTerminalServer::accountCoils() {

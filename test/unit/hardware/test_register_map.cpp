@@ -87,6 +87,23 @@ TEST(RegisterMap, RefusesAMissingCellAZeroScaleAndUnknownKeys) {
   expectContains(parseError("terminals: 3"), {"'terminals' must be a list"});
 }
 
+TEST(RegisterMap, TakesLinkLossAfterSWithinItsBoundsAndRefusesItOutside) {
+  auto with = [](const std::string& keys) { return replaced(kGoodMap, "port: 15600", "port: 15600\n" + keys); };
+  EXPECT_DOUBLE_EQ(nb::parseRegisterMap(kGoodMap, "map.yaml", 2).terminals[0].link_loss_after_s, 0.2) << "default";
+  EXPECT_DOUBLE_EQ(nb::parseRegisterMap(with("    link_loss_after_s: 0.3"), "map.yaml", 2).terminals[0].link_loss_after_s, 0.3);
+  const std::pair<const char*, const char*> out_of_range[] = {{"0", "0"}, {"-0.1", "-0.1"}, {"1.0", "1"}, {"0.41", "0.41"}};
+  for (const auto& [yaml, shown] : out_of_range)
+    expectContains(parseError(with(std::string("    link_loss_after_s: ") + yaml)),
+                   {"map.yaml", "terminal 't0'", std::string("link_loss_after_s ") + shown + " must lie in (0, 0.4] s"});
+  // Not above one request (response timeout 0.05 s + cycle 0.005 s): a single timeout would drop the link.
+  expectContains(parseError(with("    link_loss_after_s: 0.05")),
+                 {"terminal 't0'", "link_loss_after_s 0.05", "must exceed response_timeout_s + cycle_s"});
+  // A silent terminal must be reported within 0.5 s: 0.35 + 0.2 + 0.005 is too late.
+  expectContains(parseError(with("    response_timeout_s: 0.2\n    link_loss_after_s: 0.35")),
+                 {"terminal 't0'", "link_loss_after_s + response_timeout_s + cycle_s", "0.5 s"});
+  expectContains(parseError(with("    link_loss_after_s: soon")), {"terminals[0]", "link_loss_after_s", "not a valid value"});
+}
+
 TEST(RegisterMap, RefusesACellMappedTwiceAndTwoTerminalsOnOneEndpoint) {
   const std::string twice = std::string(kGoodMap) + R"(
   - name: t1

@@ -2,9 +2,13 @@
 // (libmodbus). One connection per terminal, shared by its cells; a bus thread per terminal
 // runs one cycle every cycle_s: one batched read of every input register in use (one request
 // per run of consecutive addresses) and one batched write of the outputs; on/off valves are
-// pulse-width modulated over the control period at the cycle's resolution. A failed request
-// takes the link down: the cells see LinkState::kDown at once, nothing is written while it is
-// down, and the thread reconnects every reconnect_interval_s and resumes by itself.
+// pulse-width modulated over the control period at the cycle's resolution. A request that
+// fails transiently (timeout, bad or mismatched reply: transientModbusError) cuts the cycle
+// short; the next cycle flushes any late reply and tries again, the readings keep their stamps.
+// The link goes down when no cycle has completed for link_loss_after_s, or at once on any
+// other error (the connection closed, reset or refused; a request the terminal refuses): the
+// cells see LinkState::kDown, nothing is written while it is down, and the thread reconnects
+// every reconnect_interval_s and resumes by itself.
 #pragma once
 
 #include <atomic>
@@ -45,12 +49,22 @@ class PwmChannel {
   int on_steps_ = 0;
 };
 
+/// True for a libmodbus errno after which the connection is still usable and the same request
+/// may succeed next cycle: ETIMEDOUT (no reply within response_timeout_s), a reply that does not
+/// match the request or is malformed (EMBBADDATA: transaction id, function, length or count;
+/// EMBBADEXC, EMBUNKEXC, EMBBADCRC, EMBBADSLAVE), and the exceptions a terminal or gateway
+/// sends to ask for a retry (EMBXSBUSY, EMBXGTAR). False for anything else: the connection
+/// gone (ECONNRESET, ECONNREFUSED, EPIPE, EBADF, ENOTCONN, ...) or a request refused for good
+/// (illegal function, address or value, server failure).
+bool transientModbusError(int error_number);
+
 struct TerminalStats {
   long cycles = 0;             ///< completed bus cycles
   long read_requests = 0;      ///< Modbus read requests sent
   long write_requests = 0;     ///< Modbus write requests sent
   long connects = 0;           ///< successful connections
-  long link_losses = 0;
+  long link_losses = 0;        ///< times the link went down
+  long failed_exchanges = 0;   ///< cycles cut short by a transient failure and retried
 };
 
 class ModbusTerminal {
@@ -81,6 +95,13 @@ class ModbusTerminal {
   void fillOutputs();
   /// After a write went out: the valves of every slot are now as written (time-weighted).
   void markDriven();
+  /// A request failed with `error_number` (errno): retry next cycle or take the link down.
+  /// Returns false, for the caller to return.
+  bool requestFailed(int error_number, const char* what, const AddressRun& run);
+  /// A transient failure: counted, the link kept, late replies flushed before the next cycle.
+  void retryNextCycle(const std::string& why);
+  /// Discards replies that came after their request had timed out.
+  void flushLateReplies();
   void dropLink(const std::string& why);
   double value(const AnalogInput& in) const;
 
@@ -88,6 +109,9 @@ class ModbusTerminal {
   const int pwm_steps_;
   _modbus* ctx_ = nullptr;
   std::vector<AddressRun> input_runs_, coil_runs_, holding_runs_;
+  // Bus thread only:
+  Clock::time_point last_exchange_;        // the last completed cycle, or the connection
+  bool flush_pending_ = false;             // a request failed: flush before the next one
   mutable std::mutex mutex_;               // guards everything below
   std::vector<std::uint16_t> inputs_;      // by address
   std::vector<std::uint8_t> coils_;        // by address

@@ -42,7 +42,12 @@ struct TerminalMap {
   std::string host = "127.0.0.1";
   int port = 502;
   int unit_id = 1;
-  double response_timeout_s = 0.05;   ///< a request unanswered this long fails the link
+  double response_timeout_s = 0.05;   ///< a request unanswered this long fails (and is retried next cycle)
+  /// The link goes down when no bus cycle has completed for this long (a closed connection:
+  /// at once). Must exceed response_timeout_s + cycle_s, so that one unanswered request
+  /// alone never takes the link down, and with them stay within 0.5 s, the time in which the
+  /// cells of a silent terminal report a communication fault.
+  double link_loss_after_s = 0.2;
   double reconnect_interval_s = 0.25; ///< time between reconnection attempts
   double cycle_s = 0.005;             ///< bus cycle: one batched read and write of every cell
   double stale_after_s = 0.2;         ///< a reading older than this is a sensor fault

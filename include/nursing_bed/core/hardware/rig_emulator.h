@@ -42,12 +42,20 @@ class RigTerminalServer {
   /// PWM train of one bus cycle aliases against the simulation step). Thread-safe.
   std::vector<double> takeCoilDuty();
   long requestsServed() const { return requests_; }
+  /// Fault injection: the next `requests` requests are read and never answered, the
+  /// connection kept (a silent terminal; 0: answer again).
+  void leaveUnanswered(long requests) { unanswered_ = requests; }
+  /// Fault injection: the next `requests` requests are answered `delay_s` late (the server
+  /// stalls meanwhile, as an overloaded terminal would).
+  void answerLate(long requests, double delay_s);
   const TerminalMap& map() const { return map_; }
 
  private:
   void run();
   void serveClient(int fd);
   void checkWatchdog();
+  /// Applies the injected faults to the request just read: true when it goes unanswered.
+  bool withholdReply();
   /// Adds each energised coil's time since the last account (called under the lock).
   void accountCoils();
 
@@ -62,6 +70,8 @@ class RigTerminalServer {
   std::chrono::steady_clock::time_point coils_since_, coils_window_;
   std::mutex mutex_;
   std::atomic<long> requests_{0};
+  std::atomic<long> unanswered_{0}, late_{0};
+  std::atomic<double> late_delay_s_{0.0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };
