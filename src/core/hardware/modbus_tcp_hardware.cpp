@@ -116,30 +116,39 @@ CellReadings ModbusTerminal::readings(std::size_t slot, double now_s) const {
   if (!up_ || !have_read_) {
     r.link = LinkState::kDown;
     r.link_error = map_.name + " (" + map_.endpoint() + "): " + error_;
+    takeDriven(slot, now_s, &r);  // the outputs held until the terminal's watchdog
     return r;
   }
+  takeDriven(slot, now_s, &r);
   const double age_s = std::chrono::duration<double>(Clock::now() - last_read_).count();
   if (age_s > map_.stale_after_s) return r;  // link up but nothing fresh: every reading NaN
   const double stamp = now_s - age_s;
   const CellRegisters& c = map_.cells.at(slot);
   r.gauge_pressure_pa = {value(c.pressure_pa), stamp};
-  // The valves' mean opening since the last call: what the PWM pulses passed, not the duty.
-  Driven& d = driven_.at(slot);
-  const Clock::time_point t = Clock::now();
-  if (d.started) {
-    const double span_s = std::chrono::duration<double>(t - d.from).count();
-    const double tail_s = std::chrono::duration<double>(t - d.since).count();
-    if (span_s > 1e-4) {
-      r.inlet_driven = {(d.integral_s[0] + d.opening[0] * tail_s) / span_s, now_s};
-      r.vent_driven = {(d.integral_s[1] + d.opening[1] * tail_s) / span_s, now_s};
-    }
-    d.integral_s[0] = d.integral_s[1] = 0.0;
-    d.since = d.from = t;
-  }
   if (c.height_m.present()) r.height_m = {value(c.height_m), stamp};
   if (c.inflow_kg_s.present()) r.inflow_kg_s = {value(c.inflow_kg_s), stamp};
   if (map_.supply_pressure_pa.present()) r.supply_pressure_pa = {value(map_.supply_pressure_pa), stamp};
   return r;
+}
+
+void ModbusTerminal::takeDriven(std::size_t slot, double now_s, CellReadings* r) const {
+  // The valves' mean opening since the last call: what the PWM pulses passed, not the duty.
+  // Over a lost link the terminal holds the outputs last written until its watchdog.
+  Driven& d = driven_.at(slot);
+  if (!d.started) return;
+  const Clock::time_point t = Clock::now();
+  const double span_s = std::chrono::duration<double>(t - d.from).count();
+  const double tail_s = std::max(0.0, std::chrono::duration<double>(std::min(t, outputsHeldUntil()) - d.since).count());
+  if (span_s > 1e-4) {
+    r->inlet_driven = {(d.integral_s[0] + d.opening[0] * tail_s) / span_s, now_s};
+    r->vent_driven = {(d.integral_s[1] + d.opening[1] * tail_s) / span_s, now_s};
+  }
+  d.integral_s[0] = d.integral_s[1] = 0.0;
+  d.since = d.from = t;
+}
+
+ModbusTerminal::Clock::time_point ModbusTerminal::outputsHeldUntil() const {
+  return outputs_written_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.watchdog_s));
 }
 
 bool ModbusTerminal::linkUp() const {
@@ -215,6 +224,7 @@ bool ModbusTerminal::exchange() {
 void ModbusTerminal::markDriven() {
   std::lock_guard<std::mutex> lock(mutex_);
   const Clock::time_point t = Clock::now();
+  const Clock::time_point held_to = std::min(t, outputsHeldUntil());  // a gap past the watchdog: shut
   for (std::size_t s = 0; s < map_.cells.size(); ++s) {
     const CellRegisters& c = map_.cells[s];
     const ValveOutput* out[2] = {&c.inlet, &c.vent};
@@ -223,7 +233,7 @@ void ModbusTerminal::markDriven() {
       d.since = d.from = t;
       d.started = true;
     }
-    const double held_s = std::chrono::duration<double>(t - d.since).count();
+    const double held_s = std::max(0.0, std::chrono::duration<double>(held_to - d.since).count());
     for (int k = 0; k < 2; ++k) {
       d.integral_s[k] += d.opening[k] * held_s;
       d.opening[k] = out[k]->kind == ValveOutput::kCoil
@@ -232,6 +242,7 @@ void ModbusTerminal::markDriven() {
     }
     d.since = t;
   }
+  outputs_written_ = t;
 }
 
 bool ModbusTerminal::readInputs() {
@@ -325,8 +336,7 @@ void ModbusTerminal::dropLink(const std::string& why) {
   have_read_ = false;
   error_ = why;
   std::fill(commands_.begin(), commands_.end(), ValveOpenings{});
-  // The terminal's watchdog shuts the outputs; the driven record starts again on reconnection.
-  std::fill(driven_.begin(), driven_.end(), Driven{});
+  // The driven record runs on: the outputs hold until the terminal's watchdog (takeDriven).
 }
 
 // --- the cell's view ------------------------------------------------------------------------

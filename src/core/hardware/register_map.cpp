@@ -114,7 +114,7 @@ std::vector<CellRegisters> readBlock(const YAML::Node& node, const std::string& 
 
 TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
   checkKeys(node, {"name", "host", "port", "unit_id", "response_timeout_s", "link_loss_after_s", "reconnect_interval_s",
-                   "cycle_s", "stale_after_s", "supply_pressure", "cell_block", "cells"},
+                   "watchdog_s", "cycle_s", "stale_after_s", "supply_pressure", "cell_block", "cells"},
             where);
   TerminalMap t;
   t.name = get<std::string>(node, "name", where, where);
@@ -125,6 +125,7 @@ TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
   t.response_timeout_s = get<double>(node, "response_timeout_s", at, t.response_timeout_s);
   t.link_loss_after_s = get<double>(node, "link_loss_after_s", at, t.link_loss_after_s);
   t.reconnect_interval_s = get<double>(node, "reconnect_interval_s", at, t.reconnect_interval_s);
+  t.watchdog_s = get<double>(node, "watchdog_s", at, t.watchdog_s);
   t.cycle_s = get<double>(node, "cycle_s", at, t.cycle_s);
   t.stale_after_s = get<double>(node, "stale_after_s", at, t.stale_after_s);
   if (node["supply_pressure"]) t.supply_pressure_pa = readInput(node["supply_pressure"], "pa", at + ".supply_pressure");
@@ -166,6 +167,8 @@ void checkTerminalValues(const TerminalMap& t, std::ostringstream& err) {
   if (!(t.reconnect_interval_s > 0.0)) err << at << ": reconnect_interval_s must be > 0; ";
   if (!(t.cycle_s > 0.0 && t.cycle_s <= 0.1)) err << at << ": cycle_s must lie in (0, 0.1] s; ";
   if (!(t.stale_after_s > t.cycle_s)) err << at << ": stale_after_s must exceed cycle_s; ";
+  if (!(t.watchdog_s > t.cycle_s && t.watchdog_s <= 60.0))
+    err << at << ": watchdog_s " << t.watchdog_s << " must exceed cycle_s and be at most 60 s; ";
   checkLinkLoss(t, at, err);
   if (t.cells.empty()) err << at << ": serves no cells; ";
 }

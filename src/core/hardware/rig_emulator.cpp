@@ -41,7 +41,7 @@ int noDelay(int fd) {
 
 }  // namespace
 
-RigTerminalServer::RigTerminalServer(const TerminalMap& map, double watchdog_s) : map_(map), watchdog_s_(watchdog_s) {
+RigTerminalServer::RigTerminalServer(const TerminalMap& map) : map_(map), last_answer_(std::chrono::steady_clock::now()) {
   if (map.host != "127.0.0.1")
     throw std::runtime_error("rig emulator: terminal '" + map.name + "' must listen on 127.0.0.1 (loopback only), not " + map.host);
   ctx_ = modbus_new_tcp("127.0.0.1", map.port);
@@ -77,10 +77,9 @@ void RigTerminalServer::run() {
       top = std::max(top, fd);
     }
     timeval timeout{0, 10000};
-    if (::select(top + 1, &readable, nullptr, nullptr, &timeout) <= 0) {
-      checkWatchdog();
-      continue;
-    }
+    const int ready_count = ::select(top + 1, &readable, nullptr, nullptr, &timeout);
+    checkWatchdog();
+    if (ready_count <= 0) continue;
     if (FD_ISSET(listen_fd_, &readable)) {
       const int fd = ::accept(listen_fd_, nullptr, nullptr);
       if (fd >= 0) clients_.push_back(noDelay(fd));
@@ -92,8 +91,9 @@ void RigTerminalServer::run() {
 }
 
 void RigTerminalServer::checkWatchdog() {
-  idle_s_ += 0.01;
-  if (idle_s_ < watchdog_s_) return;
+  // In real time: counted in select() timeouts, a loaded machine stretched it (0.1 s to 0.3 s
+  // at a bed's start), and a filling cell passed gas the client could not know of.
+  if (std::chrono::steady_clock::now() - last_answer_ < std::chrono::duration<double>(map_.watchdog_s)) return;
   std::lock_guard<std::mutex> lock(mutex_);
   accountCoils();
   std::fill(mapping_->tab_bits, mapping_->tab_bits + mapping_->nb_bits, 0);
@@ -110,7 +110,7 @@ void RigTerminalServer::serveClient(int fd) {
     accountCoils();  // the coils held their state up to this request
     modbus_reply(ctx_, query, length, mapping_);
     ++requests_;
-    idle_s_ = 0.0;
+    last_answer_ = std::chrono::steady_clock::now();
   } else if (length < 0) {  // the client went away
     ::close(fd);
     clients_.erase(std::remove(clients_.begin(), clients_.end(), fd), clients_.end());

@@ -226,6 +226,39 @@ TEST_F(ModbusLoopback, ASilentTerminalGoesDownAfterLinkLossAfterSAndComesBack) {
   EXPECT_TRUE(waitFor([this] { return allUp(); }, 3.0)) << "back by itself when the terminal answers again";
 }
 
+TEST_F(ModbusLoopback, OverALostLinkTheOutputsHeldUntilTheTerminalsWatchdogAreReported) {
+  // A terminal holds its outputs as last written until its watchdog (0.1 s) shuts them: a
+  // filling cell's inlet passed gas for that long after the last exchange, and the cell must
+  // hear of it (reported as driven) though the link is down, and of nothing after it.
+  const double watchdog_s = map_.terminals[0].watchdog_s;
+  cells_[0]->write({1.0, 0.0, false}, 0.0);
+  ASSERT_TRUE(waitFor([this] { return truth(0).inlet_opening > 0.99; }, 1.0));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // past the PWM's first, partial frame
+  cells_[0]->read(0.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  ASSERT_NEAR(cells_[0]->read(0.0).inlet_driven.value, 1.0, 1e-9) << "open throughout";
+  const auto silent = std::chrono::steady_clock::now();
+  auto last = silent;
+  serverA().leaveUnanswered(std::numeric_limits<long>::max());
+  double open_s = 0.0;
+  bool went_down = false;
+  while (std::chrono::steady_clock::now() - silent < std::chrono::milliseconds(900)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    const auto now = std::chrono::steady_clock::now();
+    const nb::CellReadings r = cells_[0]->read(0.0);
+    went_down = went_down || r.link == nb::LinkState::kDown;
+    if (r.inlet_driven.present()) open_s += r.inlet_driven.value * std::chrono::duration<double>(now - last).count();
+    last = now;
+  }
+  std::printf("[          ] inlet reported open %.3f s after the terminal fell silent (watchdog %.2f s)\n", open_s, watchdog_s);
+  EXPECT_TRUE(went_down);
+  EXPECT_NEAR(open_s, watchdog_s, 0.03) << "open until the watchdog, shut after";
+  EXPECT_EQ(truth(0).inlet_opening, 0.0) << "the emulator's watchdog shut it";
+  serverA().leaveUnanswered(0);
+  EXPECT_TRUE(waitFor([this] { return allUp(); }, 3.0));
+  cells_[0]->write({}, 0.0);
+}
+
 TEST(TransientModbusError, TimeoutsAndBadRepliesAreRetriedAClosedConnectionIsNot) {
   for (int e : {ETIMEDOUT, EMBBADDATA, EMBBADEXC, EMBXSBUSY, EMBXGTAR}) EXPECT_TRUE(nb::transientModbusError(e)) << modbus_strerror(e);
   for (int e : {ECONNRESET, ECONNREFUSED, EPIPE, EBADF, ENOTCONN, EMBXILADD, EMBXILFUN, EMBXSFAIL, 0})
@@ -246,7 +279,8 @@ TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
   c.pressure_pa.address = 0;
   c.pressure_pa.scale = 1.0;
   t.cells = {c};
-  nb::RigTerminalServer server(t, 10.0);
+  t.watchdog_s = 10.0;
+  nb::RigTerminalServer server(t);
   modbus_t* client = modbus_new_tcp("127.0.0.1", t.port);
   ASSERT_EQ(modbus_connect(client), 0);
   server.takeCoilDuty();

@@ -104,6 +104,15 @@ TEST(RegisterMap, TakesLinkLossAfterSWithinItsBoundsAndRefusesItOutside) {
   expectContains(parseError(with("    link_loss_after_s: soon")), {"terminals[0]", "link_loss_after_s", "not a valid value"});
 }
 
+TEST(RegisterMap, TakesTheTerminalsWatchdogAndRefusesOneShorterThanACycle) {
+  auto with = [](const std::string& keys) { return replaced(kGoodMap, "port: 15600", "port: 15600\n" + keys); };
+  EXPECT_DOUBLE_EQ(nb::parseRegisterMap(kGoodMap, "map.yaml", 2).terminals[0].watchdog_s, 0.1) << "default";
+  EXPECT_DOUBLE_EQ(nb::parseRegisterMap(with("    watchdog_s: 1.5"), "map.yaml", 2).terminals[0].watchdog_s, 1.5);
+  for (const char* bad : {"0", "0.004", "-1", "61"})
+    expectContains(parseError(with(std::string("    watchdog_s: ") + bad)),
+                   {"map.yaml", "terminal 't0'", std::string("watchdog_s ") + bad, "must exceed cycle_s and be at most 60 s"});
+}
+
 TEST(RegisterMap, RefusesACellMappedTwiceAndTwoTerminalsOnOneEndpoint) {
   const std::string twice = std::string(kGoodMap) + R"(
   - name: t1

@@ -95,6 +95,10 @@ class ModbusTerminal {
   void fillOutputs();
   /// After a write went out: the valves of every slot are now as written (time-weighted).
   void markDriven();
+  /// Hands the cell in `slot` the outputs' mean opening since its previous read (up or down).
+  void takeDriven(std::size_t slot, double now_s, CellReadings* r) const;
+  /// Until when the outputs written last hold: the terminal's watchdog shuts them after that.
+  Clock::time_point outputsHeldUntil() const;
   /// A request failed with `error_number` (errno): retry next cycle or take the link down.
   /// Returns false, for the caller to return.
   bool requestFailed(int error_number, const char* what, const AddressRun& run);
@@ -110,6 +114,7 @@ class ModbusTerminal {
   _modbus* ctx_ = nullptr;
   std::vector<AddressRun> input_runs_, coil_runs_, holding_runs_;
   // Bus thread only:
+  Clock::time_point outputs_written_{};   // the last completed write (guarded by mutex_)
   Clock::time_point last_exchange_;        // the last completed cycle, or the connection
   bool flush_pending_ = false;             // a request failed: flush before the next one
   mutable std::mutex mutex_;               // guards everything below

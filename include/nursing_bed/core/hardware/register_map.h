@@ -49,6 +49,9 @@ struct TerminalMap {
   /// cells of a silent terminal report a communication fault.
   double link_loss_after_s = 0.2;
   double reconnect_interval_s = 0.25; ///< time between reconnection attempts
+  /// The terminal's output watchdog: with no request for this long it shuts every output. Until
+  /// then, over a lost link, the outputs hold their last written state (and pass gas).
+  double watchdog_s = 0.1;
   double cycle_s = 0.005;             ///< bus cycle: one batched read and write of every cell
   double stale_after_s = 0.2;         ///< a reading older than this is a sensor fault
   AnalogInput supply_pressure_pa;     ///< optional supply pressure input

@@ -24,9 +24,9 @@ namespace nursing_bed {
 class RigTerminalServer {
  public:
   /// Throws std::runtime_error when the host is not a loopback address or the port is taken.
-  /// Like a real terminal's fieldbus watchdog, it shuts every output when no request has come
-  /// for `watchdog_s`.
-  explicit RigTerminalServer(const TerminalMap& map, double watchdog_s = 0.1);
+  /// Like a real terminal's fieldbus watchdog, it shuts every output when no request has been
+  /// answered for the map's watchdog_s (real time).
+  explicit RigTerminalServer(const TerminalMap& map);
   ~RigTerminalServer();
   RigTerminalServer(const RigTerminalServer&) = delete;
   RigTerminalServer& operator=(const RigTerminalServer&) = delete;
@@ -60,8 +60,7 @@ class RigTerminalServer {
   void accountCoils();
 
   const TerminalMap map_;
-  const double watchdog_s_;
-  double idle_s_ = 0.0;
+  std::chrono::steady_clock::time_point last_answer_;  ///< the watchdog runs from here
   _modbus* ctx_ = nullptr;
   _modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
