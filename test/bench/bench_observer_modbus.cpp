@@ -216,6 +216,7 @@ int main(int argc, char** argv) {
                                                                         {21, 0.10}, {26, 0.05}, {31, 0.12}};
   const double end_s = o.hold_s > 0.0 ? o.hold_s : 36.0;
   LoadSway sway(o.load_n, o.load_swing_n, o.swing_time_s);
+  double rig_load_n = rig.cell.load_n;
   std::size_t next_target = 0;
   nb::ObserverErrorStats error;
   const Clock::time_point start = Clock::now();
@@ -225,10 +226,9 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_until(tick);
     const double now = std::chrono::duration<double>(Clock::now() - start).count();
     if (now > end_s) break;
-    const bool landed = now >= o.land_s;
-    if (o.land_s > 0.0 && !landed) emulator.setLoad(0, guess_n);
-    else if (o.load_swing_n > 0.0) emulator.setLoad(0, sway.next(o.period_s));
-    else if (o.land_s > 0.0) emulator.setLoad(0, o.load_n);
+    // The guess until the patient lands, then the load (swaying where asked); sent on change.
+    const double load = now < o.land_s ? guess_n : o.load_swing_n > 0.0 ? sway.next(o.period_s) : o.load_n;
+    if (load != rig_load_n) emulator.setLoad(0, rig_load_n = load);
     if (next_target < plan.size() && now >= plan[next_target].at_s) {
       const Target& t = plan[next_target++];
       if (t.height_m < 0.0) cell.requestVent(now);
