@@ -6,7 +6,8 @@
 //
 // usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
 //          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
-//          [--effects] [--load-guess N]
+//          [--effects] [--load-guess N] [--load-swing N] [--swing-time S] [--land S]
+//          [--hold S]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 //   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
@@ -18,19 +19,29 @@
 //                         and the observer given them (issue #12's acceptance 3 on one cell)
 //   --load-guess N        the cell's load guess at reset (default the true load; the bed's
 //                         nodes start from load_n, 10.6 N)
+//   --load-swing N        the load moves as a patient's share does: a random sway of this sd
+//                         about --load (Ornstein-Uhlenbeck, fixed seed; default 0: a dead load)
+//   --swing-time S        the sway's correlation time (default 0.1 s)
+//   --land S              the rig's cell carries the --load-guess load until S s, then --load (a
+//                         patient laid on a bed that filled under the guess)
+//   --hold S              instead of the programme: fill to 91 mm at 1 s and hold until S s
+//                         (the bed's acceptance 3 under a heavy part of the patient)
 //   --period S            the cell's control period (default 0.005 s; the bed's nodes: 0.02)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
 //   --trace FILE          every period as CSV: the emulator's gas (mass, temperature, flows,
-//                         acting valves) beside the observer's and the pressure it read
+//                         acting valves) beside the observer's and the pressure it read, and the
+//                         controller's predicted rest height
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <random>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
@@ -51,6 +62,10 @@ struct Options {
   double period_s = 0.005;  ///< the cell's control period [s]
   double seed = -1.0;  ///< < 0: the emulator's default
   double load_guess_n = -1.0;  ///< < 0: the true load (the bed's nodes start from their load_n, 10.6 N)
+  double load_swing_n = 0.0;   ///< sd of the load's sway about load_n [N]
+  double swing_time_s = 0.1;   ///< its correlation time [s]
+  double hold_s = 0.0;         ///< > 0: one fill to 91 mm, held until then [s]
+  double land_s = 0.0;         ///< > 0: the rig carries load_guess_n until then [s]
   std::string trace_path;
 };
 
@@ -64,6 +79,10 @@ double* numberOption(const std::string& a, Options* o) {
   if (a == "--seed") return &o->seed;
   if (a == "--period") return &o->period_s;
   if (a == "--load-guess") return &o->load_guess_n;
+  if (a == "--load-swing") return &o->load_swing_n;
+  if (a == "--swing-time") return &o->swing_time_s;
+  if (a == "--hold") return &o->hold_s;
+  if (a == "--land") return &o->land_s;
   return nullptr;
 }
 
@@ -79,8 +98,14 @@ bool parse(int argc, char** argv, Options* o) {
     } else if (double* value = numberOption(a, o); value && i + 1 < argc) {
       char* end = nullptr;
       const double v = std::strtod(argv[++i], &end);
-      const double upper = a == "--load" || a == "--load-guess" ? 100.0 : a == "--noise" || a == "--adc" ? 1000.0 : a == "--seed" ? 1e9 : 1.0;
-      const double lower_exclusive = a == "--period" ? 0.0 : -1.0;  // a period of 0 never ticks
+      const double upper = a == "--load" || a == "--load-guess" || a == "--load-swing" ? 100.0
+                           : a == "--noise" || a == "--adc" ? 1000.0
+                           : a == "--seed" ? 1e9
+                           : a == "--hold" || a == "--land" ? 3600.0
+                           : a == "--swing-time" ? 10.0
+                                                 : 1.0;
+      // a period of 0 never ticks, a sway of correlation time 0 is no sway
+      const double lower_exclusive = a == "--period" || a == "--swing-time" ? 0.0 : -1.0;
       if (*end != '\0' || !(v >= 0.0 && v > lower_exclusive && v <= upper)) {
         std::fprintf(stderr, "bench_observer_modbus: %s wants a number in [0, %g], got '%s'\n", a.c_str(), upper,
                      argv[i]);
@@ -110,22 +135,38 @@ std::string writeMap(bool proportional) {
 void traceHeader(std::FILE* f) {
   std::fprintf(f,
                "t_s,true_h_m,true_p_pa,true_m_kg,true_t_k,true_in_kg_s,true_vent_kg_s,true_inlet,true_vent,"
-               "est_h_m,read_p_pa,est_m_kg,est_t_k,est_in_kg_s,est_vent_kg_s,est_inlet,est_vent\n");
+               "est_h_m,read_p_pa,est_m_kg,est_t_k,est_in_kg_s,est_vent_kg_s,est_inlet,est_vent,rest_h_m\n");
 }
 
 void traceRow(std::FILE* f, double t, const nb::CellTruth& truth, const nb::AirbagCell& cell) {
   const nb::CellObserver& obs = *cell.observer();
   const nb::CellEstimate e = obs.estimate();
   const nb::CellVariables& v = obs.variables();
-  std::fprintf(f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f\n", t, truth.height_m,
+  std::fprintf(f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f\n", t, truth.height_m,
                truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
                truth.vent_flow_kg_s, truth.inlet_opening, truth.vent_opening, e.height_m,
                cell.measurement().gauge_pressure_pa, e.mass_kg, e.temperature_k, v.inflow_kg_s, v.vent_flow_kg_s,
-               obs.appliedInputs().inlet_opening, obs.appliedInputs().vent_opening);
+               obs.appliedInputs().inlet_opening, obs.appliedInputs().vent_opening, cell.controller().restingHeight());
 }
 
 struct Target {
   double at_s, height_m;  ///< height < 0: vent flat
+};
+
+/// The load a patient's part puts on one cell: a sway about the mean (Ornstein-Uhlenbeck).
+class LoadSway {
+ public:
+  LoadSway(double mean_n, double sd_n, double time_s) : mean_n_(mean_n), sd_n_(sd_n), time_s_(time_s), rng_(7) {}
+  double next(double dt_s) {
+    const double a = std::exp(-dt_s / time_s_);
+    sway_n_ = a * sway_n_ + sd_n_ * std::sqrt(1.0 - a * a) * normal_(rng_);
+    return std::max(0.0, mean_n_ + sway_n_);
+  }
+
+ private:
+  double mean_n_, sd_n_, time_s_, sway_n_ = 0.0;
+  std::mt19937 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
 };
 
 }  // namespace
@@ -135,7 +176,8 @@ int main(int argc, char** argv) {
   if (!parse(argc, argv, &o)) return 2;
   const std::string map_path = writeMap(o.proportional);
   nb::RigEmulatorOptions rig;
-  rig.cell.load_n = o.load_n;
+  const double guess_n = o.load_guess_n >= 0.0 ? o.load_guess_n : o.load_n;
+  rig.cell.load_n = o.land_s > 0.0 ? guess_n : o.load_n;
   rig.cell.pressure_noise_pa = o.noise_pa;
   rig.rig.adc_step_pa = o.adc_pa;
   rig.rig.valve_dead_time_s = o.rig_dead_time_s;
@@ -160,7 +202,7 @@ int main(int argc, char** argv) {
   observer.params.valve_dead_time_s = o.dead_time_s;
   observer.effects = effects;
   nb::AirbagCell cell(params, hardware, observer);
-  cell.reset(o.load_guess_n >= 0.0 ? o.load_guess_n : o.load_n);
+  cell.reset(guess_n);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the link comes up
   std::FILE* trace = o.trace_path.empty() ? nullptr : std::fopen(o.trace_path.c_str(), "w");
   if (!o.trace_path.empty() && !trace) {
@@ -169,8 +211,11 @@ int main(int argc, char** argv) {
   }
   if (trace) traceHeader(trace);
 
-  const Target plan[] = {{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1}, {21, 0.10}, {26, 0.05}, {31, 0.12}};
-  const double end_s = 36.0;
+  const std::vector<Target> plan = o.hold_s > 0.0 ? std::vector<Target>{{1, 0.091}}
+                                                  : std::vector<Target>{{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1},
+                                                                        {21, 0.10}, {26, 0.05}, {31, 0.12}};
+  const double end_s = o.hold_s > 0.0 ? o.hold_s : 36.0;
+  LoadSway sway(o.load_n, o.load_swing_n, o.swing_time_s);
   std::size_t next_target = 0;
   nb::ObserverErrorStats error;
   const Clock::time_point start = Clock::now();
@@ -180,7 +225,11 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_until(tick);
     const double now = std::chrono::duration<double>(Clock::now() - start).count();
     if (now > end_s) break;
-    if (next_target < std::size(plan) && now >= plan[next_target].at_s) {
+    const bool landed = now >= o.land_s;
+    if (o.land_s > 0.0 && !landed) emulator.setLoad(0, guess_n);
+    else if (o.load_swing_n > 0.0) emulator.setLoad(0, sway.next(o.period_s));
+    else if (o.land_s > 0.0) emulator.setLoad(0, o.load_n);
+    if (next_target < plan.size() && now >= plan[next_target].at_s) {
       const Target& t = plan[next_target++];
       if (t.height_m < 0.0) cell.requestVent(now);
       else cell.requestHeight(t.height_m, now);

@@ -86,6 +86,8 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
     CellObserverParams op = observer.params;
     op.period_s = params_.control_period_s;
     observer_ = std::make_unique<CellObserver>(observer.model, op, observer.effects);
+    // The valves act this late for the controller too: it counts the gas still in flight.
+    controller_.setDeadTime(op.valve_dead_time_s);
   }
   reset(0.6);
 }
