@@ -238,10 +238,12 @@ ValveCommand HeightController::decide(double dt_s, double gauge_pressure_pa, dou
     return cmd;
   }
   const double swing = height_m - resting_height_m_;  // the swing about the gas's rest now
-  // Active damping lags the swing by the valves' dead time too: beyond an eighth of the plate's
-  // period it no longer damps (at a quarter it pumps); the cell then holds on the gas alone and
-  // the swing rings out on the plate's own damping.
-  const bool damp_swing = dead_time_s_ < 0.25 * halfPeriod();
+  // Active damping lags the swing by the valves' dead time too: past an eighth of the plate's
+  // period it hardly damps, at a quarter it pumps. The loop's delay exceeds the valves' dead
+  // time (a bus cycle's wait, the readings' age), so beyond a sixteenth the cell holds on the
+  // gas alone and the swing rings out on the plate's own damping (on the Modbus bed: every
+  // cell; the simulated one, without dead time, damps).
+  const bool damp_swing = dead_time_s_ < 0.125 * halfPeriod();
   const double tolerance = params_.height_tolerance_m;
   const bool on_target = damp_swing ? std::fabs(error) < tolerance && std::fabs(swing) < tolerance
                                     : !resting || std::fabs(error) < tolerance;

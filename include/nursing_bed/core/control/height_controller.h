@@ -52,13 +52,16 @@ struct ValveCommand {
  *    plus (h - h_rest) / damping_band_m: gas in while the plate swings above its rest
  *    height, out while below, makes the pressure lag the swing by a quarter period and so
  *    damps the lightly damped plate actively. Deadband height_tolerance_m.
- *  - Hold: once on target (predicted, measured and swing errors within the deadband) the
- *    valves stay shut while the predicted rest error stays within hold_band_m and, at rest,
- *    the measured error too. A plate swinging after a load change then rings out on its own
- *    damping: active damping on a swing within the band spends gas on the readings' noise,
- *    and with the bus's and valves' dead time near a quarter of a heavy plate's period
- *    (5-10 Hz) it pumps the swing instead (a limit cycle whose throughput the observer's
- *    flow model cannot follow; doc/real_bed.md).
+ *  - Valves that act late (setDeadTime): the gas of the commands still in flight counts in
+ *    h_rest (a Smith predictor), and where the dead time exceeds a sixteenth of the plate's
+ *    period the swing term is dropped (a quarter period late it pumps the swing: a 36 N
+ *    plate over Modbus limit-cycled at 5 Hz, a throughput the observer's flow model cannot
+ *    follow; doc/real_bed.md).
+ *  - Hold: once on target (predicted and measured errors within the deadband; where the
+ *    swing is damped, the swing too) the valves stay shut while the predicted rest error
+ *    stays within hold_band_m and, at rest, the measured error too. A swing after a load
+ *    change rings out on the plate's own damping instead of spending gas on the readings'
+ *    noise.
  * The feed-forward is the characteristic (h, load) -> p; the feedback is the measured height:
  * a resting error is integrated into the target the predictor aims at. The load is estimated
  * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
