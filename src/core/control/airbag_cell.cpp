@@ -357,6 +357,7 @@ void AirbagCell::controlStep() {
   // sucked below -50 kPa for up to 15 ms), and a fault there levelled the whole bed.
   if (!sensor_ok) {
     valves_ = ValveCommand{};
+    controller_.noteWritten(valves_, params_.control_period_s);
     if (++bad_readings_ >= s.sensor_fault_periods) {
       faults_ |= kFaultSensor;
       mode_ = AirbagMode::kSafe;
@@ -400,6 +401,7 @@ void AirbagCell::controlStep() {
   } else if (p < s.relief_pressure_pa - 2.0 * s.relief_margin_pa - rise) {
     faults_ &= ~kFaultOverpressure;
   }
+  controller_.noteWritten(valves_, params_.control_period_s);  // the gas in flight is what was sent
 }
 
 }  // namespace nursing_bed

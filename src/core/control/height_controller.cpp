@@ -114,12 +114,10 @@ void HeightController::setDeadTime(double dead_time_s) {
 }
 
 ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
-  const ValveCommand cmd = decide(dt_s, gauge_pressure_pa, height_m);
-  rememberCommand(cmd, dt_s);
-  return cmd;
+  return decide(dt_s, gauge_pressure_pa, height_m);
 }
 
-void HeightController::rememberCommand(const ValveCommand& cmd, double dt_s) {
+void HeightController::noteWritten(const ValveCommand& cmd, double dt_s) {
   if (dead_time_s_ <= 0.0 || !(dt_s > 0.0)) return;
   in_flight_.push_back({cmd, dt_s});
   double held_s = 0.0;

@@ -86,6 +86,9 @@ class HeightController {
   /// without it every correction of a heavy plate overshoots by the dead time's worth of
   /// full flow (36 N at 91 mm: ~0.1 m/s of rest height) and the hold limit-cycles.
   void setDeadTime(double dead_time_s);
+  /// The valves written for the next `dt_s` (what the cell sent after its modes and safety,
+  /// not what update() wanted): kept for the last dead time as the gas in flight.
+  void noteWritten(const ValveCommand& cmd, double dt_s);
   /// Pressure of the supply behind the inlet valve, gauge [Pa] (default: the cell's setting).
   void setSupplyPressure(double pressure_pa) { supply_pressure_pa_ = pressure_pa; }
   /// Seeds the load estimate (e.g. from a load cell or the nominal load) [N].
@@ -122,8 +125,6 @@ class HeightController {
   double stretch_guess_ = 1.0;
   /// The change of the rest height the commands in flight will still make [m].
   double inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const;
-  /// Keeps the last dead time's commands.
-  void rememberCommand(const ValveCommand& cmd, double dt_s);
   /// The valve law proper (update() less the bookkeeping of commands in flight).
   ValveCommand decide(double dt_s, double gauge_pressure_pa, double height_m);
   /// Holding: whether an error has left hold_band_m (the measured one only counts at rest).
