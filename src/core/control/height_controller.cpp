@@ -113,10 +113,6 @@ void HeightController::setDeadTime(double dead_time_s) {
   in_flight_.clear();
 }
 
-ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
-  return decide(dt_s, gauge_pressure_pa, height_m);
-}
-
 void HeightController::noteWritten(const ValveCommand& cmd, double dt_s) {
   if (dead_time_s_ <= 0.0 || !(dt_s > 0.0)) return;
   in_flight_.push_back({cmd, dt_s});
@@ -142,7 +138,7 @@ double HeightController::inFlightRestShift(double gauge_pressure_pa, double volu
   return shift;
 }
 
-ValveCommand HeightController::decide(double dt_s, double gauge_pressure_pa, double height_m) {
+ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
   ValveCommand cmd;
   const double speed = has_last_ && dt_s > 0.0 ? std::fabs(height_m - last_height_m_) / dt_s : 0.0;
   last_height_m_ = height_m;
@@ -170,7 +166,7 @@ ValveCommand HeightController::decide(double dt_s, double gauge_pressure_pa, dou
 
   // Feedback: a resting height error is integrated into the height the predictor aims at.
   const double error = target_m_ - height_m;
-  if (holding_ && !leavesHold(target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_, error, resting))
+  if (holding_ && !leavesHold(predictedError(), error, resting))
     return cmd;
   holding_ = false;
   if (resting && move_direction_ == 0 && std::fabs(error) > params_.height_tolerance_m * 0.5) {
@@ -178,7 +174,7 @@ ValveCommand HeightController::decide(double dt_s, double gauge_pressure_pa, dou
     integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
   }
   // Where the plate rests once the commands in flight have acted (a Smith predictor).
-  const double predicted_error = target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_;
+  const double predicted_error = predictedError();
   const bool lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
   auto apply = [&](int direction, double opening) {
     if (direction > 0) {

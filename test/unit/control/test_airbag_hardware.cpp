@@ -102,12 +102,13 @@ class CuttableHardware : public PressureOnlyHardware {
 /// A cell without a height sensor on cuttable hardware, controlled every 10 ms, resting at
 /// `height_m` under `load_n` and asked for `target_m`.
 struct CuttableCell {
-  CuttableCell(double height_m, double load_n, double target_m) {
+  /// The valves act `observer.params.valve_dead_time_s` late (the observer knows it).
+  CuttableCell(double height_m, double load_n, double target_m, const nb::AirbagObserverSetup& observer = {}) {
     nb::AirbagCellParams p;
     p.control_period_s = 0.01;
-    plant = rigWithoutHeightSensor(p, height_m, load_n);
+    plant = rigWithoutHeightSensor(p, height_m, load_n, observer.params.valve_dead_time_s);
     hw = std::make_shared<CuttableHardware>(plant);
-    cell = std::make_unique<nb::AirbagCell>(p, hw, nb::AirbagObserverSetup{});
+    cell = std::make_unique<nb::AirbagCell>(p, hw, observer);
     cell->resetToHeight(height_m, load_n);
     request_error = cell->requestHeight(target_m, 0.0);
   }
@@ -276,6 +277,54 @@ TEST(AirbagOnHardware, ABriefLinkLossKeepsALightCellsGas) {
   EXPECT_FALSE(rig.cell->faults() & nb::kFaultCommunication);
   EXPECT_LE(worst_m, 0.005);
   EXPECT_LE(highest_pa, 500.0);
+}
+
+/// A cell held at 15 mm under `load_n` loses its link for 1 s. When `emptied`, its bed is
+/// emptied meanwhile and sealed again with a puff of gas in (a restarted rig's cells): flat,
+/// the plate floating on the residual gas at the pressure that just carries it (487 Pa under
+/// 15.6 N), near what the cell held at 15 mm reads (560 Pa). With the observer's
+/// `resume_vent_s`; returns the true height 6 s after the link is back, `worst_m` the largest
+/// |true height - 15 mm| over the last 5 s, `flat_pa` the emptied cell's pressure.
+double heightAfterALostLink(double load_n, bool emptied, double resume_vent_s, double* worst_m, double* flat_pa) {
+  nb::AirbagObserverSetup observer;
+  observer.params.resume_vent_s = resume_vent_s;
+  observer.params.valve_dead_time_s = 0.015;  // a terminal's: the controller holds quietly on target
+  CuttableCell rig(0.015, load_n, 0.015, observer);
+  rig.runTo(1.0);
+  rig.hw->cut = true;
+  rig.runTo(1.5);
+  if (emptied) rig.plant->resetToHeight(0.0, load_n);
+  *flat_pa = rig.plant->variables().gauge_pressure_pa;
+  rig.runTo(2.0);
+  rig.hw->cut = false;
+  rig.runTo(3.0);
+  *worst_m = 0.0;
+  rig.runTo(8.0, [&] { *worst_m = std::max(*worst_m, std::fabs(rig.plant->variables().height_m - 0.015)); });
+  return rig.plant->variables().height_m;
+}
+
+TEST(AirbagOnHardware, ACellEmptiedWhileTheLinkWasDownIsFoundFlatAndRefilled) {
+  // Pressure alone cannot tell the two apart, and a cell holding on target does nothing that
+  // would; the vent after the link is back does (the flat cell grounds and reads ambient).
+  for (const double load_n : {15.6, 36.0}) {
+    double worst_m = 0.0, flat_pa = 0.0;
+    const double checked_m = heightAfterALostLink(load_n, true, 0.05, &worst_m, &flat_pa);
+    std::cout << "[airbag] " << load_n << " N, emptied while the link was down (flat at " << flat_pa
+              << " Pa): true height 6 s later " << 1e3 * checked_m << " mm, worst " << 1e3 * worst_m << " mm off over the last 5 s\n";
+    EXPECT_GE(flat_pa, 200.0) << load_n << " N: the case must be a flat cell holding pressure";
+    EXPECT_NEAR(checked_m, 0.015, 0.003) << load_n << " N";
+    EXPECT_LE(worst_m, 0.004) << load_n << " N";
+    // Not emptied: the check costs a dip that the controller restores.
+    double kept_m = heightAfterALostLink(load_n, false, 0.05, &worst_m, &flat_pa);
+    std::cout << "[airbag] " << load_n << " N, kept its gas: true height 6 s later " << 1e3 * kept_m << " mm, worst "
+              << 1e3 * worst_m << " mm off over the last 5 s\n";
+    EXPECT_NEAR(kept_m, 0.015, 0.002) << load_n << " N";
+    EXPECT_LE(worst_m, 0.004) << load_n << " N";
+  }
+  double worst_m = 0.0, flat_pa = 0.0;
+  const double unchecked_m = heightAfterALostLink(15.6, true, 0.0, &worst_m, &flat_pa);
+  std::cout << "[airbag] 15.6 N, emptied, no check: true height 6 s later " << 1e3 * unchecked_m << " mm\n";
+  EXPECT_LE(unchecked_m, 0.01) << "the case must be one the unchecked cell gets wrong";
 }
 
 /// Gas error (estimate over truth - 1) of a cell filling 20 -> 100 mm under 15.6 N right

@@ -125,8 +125,8 @@ class HeightController {
   double stretch_guess_ = 1.0;
   /// The change of the rest height the commands in flight will still make [m].
   double inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const;
-  /// The valve law proper (update() less the bookkeeping of commands in flight).
-  ValveCommand decide(double dt_s, double gauge_pressure_pa, double height_m);
+  /// Target + integral - where the gas rests the plate once the commands in flight have acted.
+  double predictedError() const { return target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_; }
   /// Holding: whether an error has left hold_band_m (the measured one only counts at rest).
   bool leavesHold(double predicted_error_m, double error_m, bool resting) const;
   /// Rate at which h_rest moves with the valve of `direction` fully open [m/s].
