@@ -86,6 +86,8 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
     CellObserverParams op = observer.params;
     op.period_s = params_.control_period_s;
     observer_ = std::make_unique<CellObserver>(observer.model, op, observer.effects);
+    // The valves act this late for the controller too: it counts the gas still in flight.
+    controller_.setDeadTime(op.valve_dead_time_s);
   }
   reset(0.6);
 }
@@ -101,6 +103,9 @@ void AirbagCell::resetControl(double load_n) {
   last_command_s_ = 0.0;
   last_pressure_pa_ = 0.0;
   time_s_ = 0.0;
+  gas_check_pending_ = false;
+  gas_check_vent_left_s_ = 0.0;
+  gas_check_until_s_ = -1.0;
 }
 
 void AirbagCell::reset(double load_n) {
@@ -273,6 +278,7 @@ void AirbagCell::stepReal(double now_s) {
     // the last command over the period it acted, then with the valves shut.
     observer_->predict(linkDownInputs(readings), period);
     valves_ = ValveCommand{};
+    controller_.noteWritten(valves_, period);  // nothing sent: nothing in flight once the link is back
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
     return;
   }
@@ -289,6 +295,37 @@ ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
   if (readings.inlet_driven.present()) in.inlet_opening = readings.inlet_driven.value;
   if (readings.vent_driven.present()) in.vent_opening = readings.vent_driven.value;
   return in;
+}
+
+ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
+  // Over a lost link the gas is unverified: the bed may have been emptied meanwhile (a restarted
+  // terminal, a CPR dump). Pressure cannot tell: a sealed flat cell under 15.6 N floats its plate on its residual
+  // gas at 487 Pa (a restarted emulator's cell after one inlet pulse), as a cell lifted under
+  // half the load reads; the observer kept its gas, lowered its load, and with the controller
+  // holding quietly on target nothing told them apart (a flat cell reported at 60 mm for 40 s).
+  // Venting does: the floating flat cell grounds and reads ambient within a few tens of ms, and
+  // the observer's re-anchor test takes it with the valves shut; a lifted cell keeps its load's
+  // pressure and loses 1-3 mm, which the controller restores after the check.
+  const CellObserverParams& op = observer_->params();
+  if (gas_check_pending_) {
+    gas_check_pending_ = false;
+    gas_check_vent_left_s_ = op.resume_vent_s;
+    gas_check_reanchors_ = observer_->estimate().reanchors;
+  }
+  const double period = params_.control_period_s;
+  if (gas_check_vent_left_s_ > 0.0) {
+    const bool grounded = measurement_.gauge_pressure_pa < observer_->flatPressure();
+    const double opening = grounded ? 0.0 : std::min(1.0, gas_check_vent_left_s_ / period);
+    gas_check_vent_left_s_ = grounded ? 0.0 : std::max(0.0, gas_check_vent_left_s_ - period);
+    // The test's mean pressure starts above the flat cell's: twice its time, after the dead time.
+    if (gas_check_vent_left_s_ <= 0.0) gas_check_until_s_ = now_s + period + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
+    return ValveCommand{0.0, opening};
+  }
+  if (gas_check_until_s_ < 0.0) return wanted;
+  // Found flat (re-anchored), the controller takes over at once; else after the test's time.
+  if (now_s < gas_check_until_s_ && observer_->estimate().reanchors == gas_check_reanchors_) return ValveCommand{};
+  gas_check_until_s_ = -1.0;
+  return wanted;
 }
 
 void AirbagCell::onDeviceReset() {
@@ -316,6 +353,7 @@ void AirbagCell::onLink(const CellReadings& readings) {
     // on one reading below reanchor_pressure_pa instead, a light plate resting at 55-75 Pa
     // was taken for flat after a 50 ms bus timeout and filled to the bag's top at 30 kPa.
     mode_ = mode_before_link_loss_ == AirbagMode::kSafe ? resumedMode() : mode_before_link_loss_;
+    gas_check_pending_ = observer_->params().resume_vent_s > 0.0;
   }
 }
 
@@ -355,6 +393,7 @@ void AirbagCell::controlStep() {
   // sucked below -50 kPa for up to 15 ms), and a fault there levelled the whole bed.
   if (!sensor_ok) {
     valves_ = ValveCommand{};
+    controller_.noteWritten(valves_, params_.control_period_s);
     if (++bad_readings_ >= s.sensor_fault_periods) {
       faults_ |= kFaultSensor;
       mode_ = AirbagMode::kSafe;
@@ -388,6 +427,7 @@ void AirbagCell::controlStep() {
       valves_ = ValveCommand{};
       break;
   }
+  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = checkingGas(now, valves_);
   // Relief, whatever the mode: act before the next period's rise could cross it.
   const double rise = std::max(0.0, p - last_pressure_pa_);
   last_pressure_pa_ = p;
@@ -398,6 +438,7 @@ void AirbagCell::controlStep() {
   } else if (p < s.relief_pressure_pa - 2.0 * s.relief_margin_pa - rise) {
     faults_ &= ~kFaultOverpressure;
   }
+  controller_.noteWritten(valves_, params_.control_period_s);  // the gas in flight is what was sent
 }
 
 }  // namespace nursing_bed

@@ -24,6 +24,7 @@ ParamTable<P> makeFields() {
       NB_FIELD("controller/integral_limit_m", "bound of that correction [m]", p.controller.integral_limit_m),
       NB_FIELD("controller/move_threshold_m", "predicted error above which a move uses the shaped full-flow law [m]", p.controller.move_threshold_m),
       NB_FIELD("controller/damping_band_m", "plate swing about its rest height that opens a valve fully [m]", p.controller.damping_band_m),
+      NB_FIELD("controller/hold_band_m", "once on target, valves shut until the predicted or resting error leaves this [m]", p.controller.hold_band_m),
       NB_FIELD("safety/relief_pressure_pa", "gauge pressure never exceeded [Pa]", p.safety.relief_pressure_pa),
       NB_FIELD("safety/relief_margin_pa", "act this far below the relief pressure [Pa]", p.safety.relief_margin_pa),
       NB_FIELD("safety/command_timeout_s", "hold and flag when no command or heartbeat for this long; 0 = off [s]", p.safety.command_timeout_s),

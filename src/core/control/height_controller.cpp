@@ -25,6 +25,7 @@ std::string HeightControllerParams::validate() const {
   check(integral_limit_m >= 0.0, "integral_limit_m must be >= 0");
   check(move_threshold_m > 0.0, "move_threshold_m must be positive");
   check(damping_band_m > 0.0, "damping_band_m must be positive");
+  check(hold_band_m >= height_tolerance_m && hold_band_m < 0.01, "hold_band_m must lie in [height_tolerance_m, 0.01) m");
   std::string s = err.str();
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
@@ -57,9 +58,13 @@ void HeightController::setTarget(double height_m) {
   has_target_ = true;
   target_m_ = height_m;
   integral_m_ = 0.0;
+  holding_ = false;
 }
 
-void HeightController::clearTarget() { has_target_ = false; }
+void HeightController::clearTarget() {
+  has_target_ = false;
+  holding_ = false;
+}
 
 double HeightController::targetPressure() const {
   return characteristic_->pressureAt(target_m_, load_.load());
@@ -101,6 +106,38 @@ double HeightController::halfPeriod() const {
   return half_period_s_;
 }
 
+void HeightController::setDeadTime(double dead_time_s) {
+  if (!(dead_time_s >= 0.0 && dead_time_s <= 1.0))
+    throw std::invalid_argument("height controller: the valves' dead time must lie in [0, 1] s");
+  dead_time_s_ = dead_time_s;
+  in_flight_.clear();
+}
+
+void HeightController::noteWritten(const ValveCommand& cmd, double dt_s) {
+  if (dead_time_s_ <= 0.0 || !(dt_s > 0.0)) return;
+  in_flight_.push_back({cmd, dt_s});
+  double held_s = 0.0;
+  for (const IssuedCommand& c : in_flight_) held_s += c.held_s;
+  // The oldest commands have begun to act: only the last dead time's are still in flight.
+  while (!in_flight_.empty() && held_s - in_flight_.front().held_s >= dead_time_s_) {
+    held_s -= in_flight_.front().held_s;
+    in_flight_.pop_front();
+  }
+  if (!in_flight_.empty() && held_s > dead_time_s_) in_flight_.front().held_s -= held_s - dead_time_s_;
+}
+
+double HeightController::inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const {
+  double inlet_s = 0.0, vent_s = 0.0;  // full-opening seconds still to act
+  for (const IssuedCommand& c : in_flight_) {
+    inlet_s += c.valves.inlet * c.held_s;
+    vent_s += c.valves.vent * c.held_s;
+  }
+  double shift = 0.0;
+  if (inlet_s > 0.0) shift += inlet_s * fullFlowRestRate(1, gauge_pressure_pa, volume_m3, invariant);
+  if (vent_s > 0.0) shift -= vent_s * fullFlowRestRate(-1, gauge_pressure_pa, volume_m3, invariant);
+  return shift;
+}
+
 ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
   ValveCommand cmd;
   const double speed = has_last_ && dt_s > 0.0 ? std::fabs(height_m - last_height_m_) / dt_s : 0.0;
@@ -121,6 +158,7 @@ ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, dou
   const double volume = characteristic_->relaxedVolume(height_m, gauge_pressure_pa, &stretch_guess_);
   const double invariant = characteristic_->invariant(gauge_pressure_pa, volume);
   resting_height_m_ = characteristic_->restingHeight(invariant, load_.load());
+  in_flight_shift_m_ = in_flight_.empty() ? 0.0 : inFlightRestShift(gauge_pressure_pa, volume, invariant);
   if (!has_target_) {
     move_direction_ = 0;
     return cmd;
@@ -128,11 +166,15 @@ ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, dou
 
   // Feedback: a resting height error is integrated into the height the predictor aims at.
   const double error = target_m_ - height_m;
+  if (holding_ && !leavesHold(predictedError(), error, resting))
+    return cmd;
+  holding_ = false;
   if (resting && move_direction_ == 0 && std::fabs(error) > params_.height_tolerance_m * 0.5) {
     integral_m_ += params_.integral_rate_per_s * error * dt_s;
     integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
   }
-  const double predicted_error = target_m_ + integral_m_ - resting_height_m_;
+  // Where the plate rests once the commands in flight have acted (a Smith predictor).
+  const double predicted_error = predictedError();
   const bool lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
   auto apply = [&](int direction, double opening) {
     if (direction > 0) {
@@ -189,13 +231,29 @@ ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, dou
     apply(-1, 1.0);
     return cmd;
   }
-  const double swing = height_m - resting_height_m_;
-  if (std::fabs(predicted_error) < params_.height_tolerance_m && std::fabs(error) < params_.height_tolerance_m &&
-      std::fabs(swing) < params_.height_tolerance_m)
-    return cmd;  // on target and at rest: hold the gas
-  const double demand = predicted_error / params_.approach_band_m + swing / params_.damping_band_m;
+  const double swing = height_m - resting_height_m_;  // the swing about the gas's rest now
+  // Active damping lags the swing by the valves' dead time too: past an eighth of the plate's
+  // period it hardly damps, at a quarter it pumps. The loop's delay exceeds the valves' dead
+  // time (a bus cycle's wait, the readings' age), so beyond a sixteenth the cell holds on the
+  // gas alone and the swing rings out on the plate's own damping (on the Modbus bed: every
+  // cell; the simulated one, without dead time, damps).
+  const bool damp_swing = dead_time_s_ < 0.125 * halfPeriod();
+  const double tolerance = params_.height_tolerance_m;
+  const bool on_target = damp_swing ? std::fabs(error) < tolerance && std::fabs(swing) < tolerance
+                                    : !resting || std::fabs(error) < tolerance;
+  if (std::fabs(predicted_error) < tolerance && on_target) {
+    holding_ = true;  // the gas rests the plate on target (where the swing is damped: and it has rung out)
+    return cmd;
+  }
+  const double demand = predicted_error / params_.approach_band_m + (damp_swing ? swing / params_.damping_band_m : 0.0);
   apply(demand > 0.0 ? 1 : -1, std::clamp(std::fabs(demand), 0.0, 1.0));
   return cmd;
+}
+
+bool HeightController::leavesHold(double predicted_error_m, double error_m, bool resting) const {
+  // The gas decides where the plate rests: the prediction is the test while it swings; the
+  // measured height only at rest, where the swing does not enter it.
+  return std::fabs(predicted_error_m) > params_.hold_band_m || (resting && std::fabs(error_m) > params_.hold_band_m);
 }
 
 double flowLimitedMinimumTime(const CellParams& params, double load_n, double from_m, double to_m) {

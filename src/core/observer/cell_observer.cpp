@@ -56,6 +56,8 @@ std::string CellObserverParams::validate() const {
   non_negative("valve_dead_time_s", valve_dead_time_s);
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
+  non_negative("resume_vent_s", resume_vent_s);
+  if (resume_vent_s > 0.2) err << "resume_vent_s must be at most 0.2 (a check, not a vent), got " << resume_vent_s << "; ";
   return joinErrors(err);
 }
 
@@ -409,8 +411,10 @@ void CellObserver::checkReanchor(const ObserverReadings& readings) {
   }
   const double tau = std::max(params_.reanchor_time_s / 3.0, dt);
   vent_pressure_mean_pa_ += (readings.gauge_pressure_pa - vent_pressure_mean_pa_) * std::min(1.0, dt / tau);
-  if (time_ - flat_since_s_ + 1e-9 >= params_.reanchor_time_s && std::fabs(vent_pressure_mean_pa_) < reanchor_pa_) {
-    anchorFlat();
+  // One-sided: a plate cannot rest lifted on gas below ambient, so a sealed flat cell that the
+  // plate pressed, or a vent left a little below ambient (seen: -104 Pa), is flat too.
+  if (time_ - flat_since_s_ + 1e-9 >= params_.reanchor_time_s && vent_pressure_mean_pa_ < reanchor_pa_) {
+    anchorFlat(vent_pressure_mean_pa_);
     flat_since_s_ = time_;
   }
 }
@@ -430,14 +434,20 @@ double CellObserver::lowestLiftedPressure() const {
   return lowest;
 }
 
-void CellObserver::anchorFlat() {
-  // The flat cell holds ambient air in its rest volume: mass and energy are known again.
+void CellObserver::anchorFlat(double gauge_pressure_pa) {
+  // The flat cell holds air at ambient temperature in its rest volume, at the pressure read
+  // (p V = m R T: mass and energy scale with the absolute pressure): the gas is known again.
   model_.reset(load_n_);
   const CellModel::StateVector flat = model_.state();
   for (int i = 0; i < CellModel::kShape + model_.structure().shapeDofs(); ++i) {
     if (i == CellModel::kRegulator) continue;
     x_[i] = flat[i];
   }
+  const double pa = model_.params().ambient_pressure_pa;
+  const double scale = std::max(0.0, pa + gauge_pressure_pa) / pa;
+  x_[CellModel::kMass] *= scale;
+  x_[CellModel::kEnergy] *= scale;
+  keepPhysical();
   p_ = Matrix2::Zero();
   p_(0, 0) = std::pow(1e-4 * x_[CellModel::kMass], 2);
   p_(1, 1) = std::pow(1e-4 * x_[CellModel::kEnergy], 2);

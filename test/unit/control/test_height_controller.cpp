@@ -247,6 +247,17 @@ TEST(AirbagCell, InvalidParametersAreRefusedByName) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("relief"), std::string::npos) << e.what();
   }
+  for (double band : {0.0002, 0.01, std::nan("")}) {  // inside the deadband, too wide, not a number
+    SCOPED_TRACE(band);
+    nb::AirbagCellParams p;
+    p.controller.hold_band_m = band;
+    try {
+      nb::AirbagCell cell(p);
+      FAIL();
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("hold_band_m"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(FlowLimit, MinimumTimeGrowsWithTheMove) {

@@ -173,6 +173,9 @@ class AirbagCell {
   /// The observer's inputs over a period with the link down.
   ObserverInputs linkDownInputs(const CellReadings& readings) const;
   ValveCommand pressureValves(double gauge_pressure_pa) const;
+  /// After a lost link: a short vent, then both valves shut while the observer's re-anchor
+  /// test runs (observer resume_vent_s); otherwise `wanted`.
+  ValveCommand checkingGas(double now_s, const ValveCommand& wanted);
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
@@ -206,6 +209,10 @@ class AirbagCell {
   bool cpr_ = false;
   HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
   int bad_readings_ = 0;  ///< consecutive control periods with an out-of-range reading
+  bool gas_check_pending_ = false;    ///< the link came back: the gas is to be checked
+  double gas_check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
+  double gas_check_until_s_ = -1.0;   ///< valves kept shut until then for the re-anchor test [s]
+  int gas_check_reanchors_ = 0;       ///< the observer's re-anchors when the check began
 };
 
 }  // namespace nursing_bed

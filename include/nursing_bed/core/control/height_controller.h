@@ -3,6 +3,7 @@
 // closed on measured height and pressure.
 #pragma once
 
+#include <deque>
 #include <memory>
 #include <string>
 
@@ -23,6 +24,7 @@ struct HeightControllerParams {
   double integral_limit_m = 0.02;         ///< bound of that correction [m]
   double move_threshold_m = 0.003;        ///< predicted error above which a move uses the shaped full-flow law [m]
   double damping_band_m = 0.01;           ///< plate swing about its rest height that opens a valve fully (active damping) [m]
+  double hold_band_m = 0.0004;            ///< once on target, the valves stay shut until the predicted or resting error leaves this [m]
 
   /// Empty when valid, else every problem found.
   std::string validate() const;
@@ -50,6 +52,16 @@ struct ValveCommand {
  *    plus (h - h_rest) / damping_band_m: gas in while the plate swings above its rest
  *    height, out while below, makes the pressure lag the swing by a quarter period and so
  *    damps the lightly damped plate actively. Deadband height_tolerance_m.
+ *  - Valves that act late (setDeadTime): the gas of the commands still in flight counts in
+ *    h_rest (a Smith predictor), and where the dead time exceeds a sixteenth of the plate's
+ *    period the swing term is dropped (a quarter period late it pumps the swing: a 36 N
+ *    plate over Modbus limit-cycled at 5 Hz, a throughput the observer's flow model cannot
+ *    follow; doc/real_bed.md).
+ *  - Hold: once on target (predicted and measured errors within the deadband; where the
+ *    swing is damped, the swing too) the valves stay shut while the predicted rest error
+ *    stays within hold_band_m and, at rest, the measured error too. A swing after a load
+ *    change rings out on the plate's own damping instead of spending gas on the readings'
+ *    noise.
  * The feed-forward is the characteristic (h, load) -> p; the feedback is the measured height:
  * a resting error is integrated into the target the predictor aims at. The load is estimated
  * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
@@ -69,6 +81,14 @@ class HeightController {
   /// One control period: measured gauge pressure [Pa], height [m], their time step [s].
   ValveCommand update(double dt_s, double gauge_pressure_pa, double height_m);
 
+  /// The valves act this late after a command (bus, terminal, valve) [s]; default 0. The gas
+  /// of the commands still in flight counts in the predicted rest height (a Smith predictor):
+  /// without it every correction of a heavy plate overshoots by the dead time's worth of
+  /// full flow (36 N at 91 mm: ~0.1 m/s of rest height) and the hold limit-cycles.
+  void setDeadTime(double dead_time_s);
+  /// The valves written for the next `dt_s` (what the cell sent after its modes and safety,
+  /// not what update() wanted): kept for the last dead time as the gas in flight.
+  void noteWritten(const ValveCommand& cmd, double dt_s);
   /// Pressure of the supply behind the inlet valve, gauge [Pa] (default: the cell's setting).
   void setSupplyPressure(double pressure_pa) { supply_pressure_pa_ = pressure_pa; }
   /// Seeds the load estimate (e.g. from a load cell or the nominal load) [N].
@@ -94,7 +114,21 @@ class HeightController {
   double resting_height_m_ = 0.0;
   double last_height_m_ = 0.0;
   bool has_last_ = false;
+  bool holding_ = false;  ///< on target: valves shut until an error leaves hold_band_m
+  double dead_time_s_ = 0.0;
+  struct IssuedCommand {
+    ValveCommand valves;
+    double held_s;
+  };
+  std::deque<IssuedCommand> in_flight_;  ///< commands of the last dead_time_s_, not yet acting
+  double in_flight_shift_m_ = 0.0;       ///< rest height they still add (this period's)
   double stretch_guess_ = 1.0;
+  /// The change of the rest height the commands in flight will still make [m].
+  double inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const;
+  /// Target + integral - where the gas rests the plate once the commands in flight have acted.
+  double predictedError() const { return target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_; }
+  /// Holding: whether an error has left hold_band_m (the measured one only counts at rest).
+  bool leavesHold(double predicted_error_m, double error_m, bool resting) const;
   /// Rate at which h_rest moves with the valve of `direction` fully open [m/s].
   double fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3, double invariant) const;
 

@@ -33,6 +33,9 @@ struct CellObserverParams {
   /// at which the plate alone rests lifted (the model's, found at construction).
   double reanchor_pressure_pa = 60.0;
   double reanchor_time_s = 0.5;            ///< inlet shut and that flat (mean pressure) this long: re-anchor [s]
+  /// After a lost link the cell vents at most this long (until its pressure reads flat), then
+  /// keeps both valves shut while the re-anchor test runs (AirbagCell); 0: no check [s].
+  double resume_vent_s = 0.05;
 
   /// Empty when valid, else every problem found, separated by "; ".
   std::string validate() const;
@@ -87,9 +90,9 @@ struct CellEstimate {
  *  - A height reading, where fitted, measures U the same way at its height.
  *  - An inflow reading, where fitted, replaces the modelled inlet flow.
  *  - Re-anchor: a cell with its inlet shut (vented or sealed) whose mean pressure stays for reanchor_time_s
- *    below half the plate alone's lifted pressure (and reanchor_pressure_pa) is flat: mass and
- *    energy are the flat cell's (ambient air in the rest volume), which ends the drift of a
- *    mass that is otherwise only integrated.
+ *    below half the plate alone's lifted pressure (and reanchor_pressure_pa; below ambient too)
+ *    is flat: mass and energy are the flat cell's (the rest volume's air at the mean pressure),
+ *    which ends the drift of a mass that is otherwise only integrated.
  *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered.
  */
 class CellObserver {
@@ -124,6 +127,8 @@ class CellObserver {
   const CellModel& model() const { return model_; }
   /// The valve openings acting over the last period (the commands after the dead time).
   const ObserverInputs& appliedInputs() const { return applied_; }
+  /// Mean pressure under which a cell with its inlet shut counts as flat [Pa].
+  double flatPressure() const { return reanchor_pa_; }
 
  private:
   CellInputs modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const;
@@ -149,7 +154,8 @@ class CellObserver {
   void updateLoad(double gauge_pressure_pa, bool lifted, double dt_s);
   void keepPhysical();
   void checkReanchor(const ObserverReadings& readings);
-  void anchorFlat();
+  /// The flat cell's gas at `gauge_pressure_pa` (the mean read).
+  void anchorFlat(double gauge_pressure_pa);
   void refresh(const CellInputs& in);
   double lowestLiftedPressure() const;
   /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
