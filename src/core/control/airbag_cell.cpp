@@ -318,7 +318,10 @@ ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
     const double opening = grounded ? 0.0 : std::min(1.0, gas_check_vent_left_s_ / period);
     gas_check_vent_left_s_ = grounded ? 0.0 : std::max(0.0, gas_check_vent_left_s_ - period);
     // The test's mean pressure starts above the flat cell's: twice its time, after the dead time.
-    if (gas_check_vent_left_s_ <= 0.0) gas_check_until_s_ = now_s + period + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
+    if (gas_check_vent_left_s_ <= 0.0) {
+      gas_check_until_s_ = now_s + period + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
+      observer_->expectFlat(gas_check_until_s_ - now_s);
+    }
     return ValveCommand{0.0, opening};
   }
   if (gas_check_until_s_ < 0.0) return wanted;

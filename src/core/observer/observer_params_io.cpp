@@ -16,7 +16,7 @@ ParamTable<P> makeFields() {
       NB_FIELD("load_filter_time_s", "time constant of the load estimate [s]", p.load_filter_time_s),
       NB_FIELD("initial_load_sd_n", "sd of the load guess at reset [N]", p.initial_load_sd_n),
       NB_FIELD("valve_dead_time_s", "a valve command acts this late [s]", p.valve_dead_time_s),
-      NB_FIELD("reanchor_pressure_pa", "mean gauge pressure under which a cell with its inlet shut is flat (below ambient too) [Pa]", p.reanchor_pressure_pa),
+      NB_FIELD("reanchor_pressure_pa", "|mean gauge pressure| under which a cell with its inlet shut is flat [Pa]", p.reanchor_pressure_pa),
       NB_FIELD("reanchor_time_s", "inlet shut and that flat this long: re-anchor the gas mass [s]", p.reanchor_time_s),
       NB_FIELD("resume_vent_s", "after a lost link: vent at most this long (until the pressure reads flat), then valves shut for the re-anchor test; 0 = off [s]", p.resume_vent_s),
   };

@@ -56,8 +56,11 @@ class RigTerminalServer {
   void checkWatchdog();
   /// Applies the injected faults to the request just read: true when it goes unanswered.
   bool withholdReply();
-  /// Adds each energised coil's time since the last account (called under the lock).
+  /// Adds each energised coil's time since the last account, up to the watchdog's trip, and
+  /// shuts every output once it has tripped (called under the lock).
   void accountCoils();
+  /// When the watchdog trips (or tripped): watchdog_s after the last answered request.
+  std::chrono::steady_clock::time_point watchdogTrip() const;
 
   const TerminalMap map_;
   std::chrono::steady_clock::time_point last_answer_;  ///< the watchdog runs from here

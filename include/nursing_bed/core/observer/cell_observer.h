@@ -89,10 +89,11 @@ struct CellEstimate {
  *    pressure (p V_flat = (gamma - 1) U), a measurement of the gas with the pressure's noise.
  *  - A height reading, where fitted, measures U the same way at its height.
  *  - An inflow reading, where fitted, replaces the modelled inlet flow.
- *  - Re-anchor: a cell with its inlet shut (vented or sealed) whose mean pressure stays for reanchor_time_s
- *    below half the plate alone's lifted pressure (and reanchor_pressure_pa; below ambient too)
- *    is flat: mass and energy are the flat cell's (the rest volume's air at the mean pressure),
- *    which ends the drift of a mass that is otherwise only integrated.
+ *  - Re-anchor: a cell with its inlet shut (vented or sealed) whose |mean pressure| stays for
+ *    reanchor_time_s below half the plate alone's lifted pressure (and reanchor_pressure_pa;
+ *    while expectFlat, anything below) is flat: mass and energy are the flat cell's (the rest
+ *    volume's air at the mean pressure), which ends the drift of a mass that is otherwise only
+ *    integrated.
  *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered.
  */
 class CellObserver {
@@ -129,6 +130,9 @@ class CellObserver {
   const ObserverInputs& appliedInputs() const { return applied_; }
   /// Mean pressure under which a cell with its inlet shut counts as flat [Pa].
   double flatPressure() const { return reanchor_pa_; }
+  /// The cell has vented and keeps its valves shut for `for_s` to test for a flat cell (after a
+  /// lost link): meanwhile a mean pressure below ambient counts as flat too.
+  void expectFlat(double for_s);
 
  private:
   CellInputs modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const;
@@ -185,6 +189,7 @@ class CellObserver {
   double flat_since_s_ = -1.0;
   double vent_pressure_mean_pa_ = 0.0;  ///< the measured pressure averaged while venting
   double reanchor_pa_ = 0.0;            ///< flat below this mean pressure [Pa]
+  double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlat
   int reanchors_ = 0;
 };
 
