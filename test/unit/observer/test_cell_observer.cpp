@@ -296,5 +296,16 @@ TEST(CellObserver, RefusesBadParametersNamingThem) {
     EXPECT_NE(what.find("pressure_noise_pa"), std::string::npos) << what;
     EXPECT_NE(what.find("load_filter_time_s"), std::string::npos) << what;
   }
+  // The gas check after a lost link: a short vent, not an emptying.
+  for (const double vent_s : {-0.01, 0.5, std::nan("")}) {
+    p = nb::CellObserverParams{};
+    p.resume_vent_s = vent_s;
+    try {
+      nb::CellObserver o(nb::CellParams{}, p);
+      FAIL() << "accepted resume_vent_s " << vent_s;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("resume_vent_s"), std::string::npos) << e.what();
+    }
+  }
 }
 
