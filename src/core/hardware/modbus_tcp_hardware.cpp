@@ -148,7 +148,7 @@ void ModbusTerminal::takeDriven(std::size_t slot, double now_s, CellReadings* r)
 }
 
 ModbusTerminal::Clock::time_point ModbusTerminal::outputsHeldUntil() const {
-  return outputs_written_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.watchdog_s));
+  return watchdog_fed_ + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.watchdog_s));
 }
 
 bool ModbusTerminal::linkUp() const {
@@ -214,48 +214,66 @@ bool ModbusTerminal::connect() {
 bool ModbusTerminal::exchange() {
   if (flush_pending_) flushLateReplies();
   if (!readInputs() || !writeOutputs()) return false;
-  markDriven();
   last_exchange_ = Clock::now();
   std::lock_guard<std::mutex> lock(mutex_);
   ++stats_.cycles;
   return true;
 }
 
-void ModbusTerminal::markDriven() {
+ModbusTerminal::Clock::time_point ModbusTerminal::midpoint(Clock::time_point sent, Clock::time_point replied) {
+  return sent + (replied - sent) / 2;
+}
+
+void ModbusTerminal::requestHandled(Clock::time_point t, bool wrote) {
+  // Any request the terminal handles restarts its watchdog (reads too: a cycle cut short after
+  // its read kept the outputs on); past its trip, the outputs were shut from the trip on.
   std::lock_guard<std::mutex> lock(mutex_);
-  const Clock::time_point t = Clock::now();
-  const Clock::time_point held_to = std::min(t, outputsHeldUntil());  // a gap past the watchdog: shut
+  const Clock::time_point trip = outputsHeldUntil();
+  if (t > trip) advanceDriven(trip, true);
+  if (wrote) advanceDriven(t, false);
+  watchdog_fed_ = t;
+}
+
+void ModbusTerminal::advanceDriven(Clock::time_point t, bool shut) {
+  // Every slot's record runs to t with its openings so far, then holds the outputs written
+  // last (or nothing, after a watchdog trip). A record already handed out past t (a cell read
+  // while the write was on its way) keeps its time: the new openings act from then.
   for (std::size_t s = 0; s < map_.cells.size(); ++s) {
     const CellRegisters& c = map_.cells[s];
     const ValveOutput* out[2] = {&c.inlet, &c.vent};
     Driven& d = driven_[s];
     if (!d.started) {
+      if (shut) continue;
       d.since = d.from = t;
       d.started = true;
     }
-    const double held_s = std::max(0.0, std::chrono::duration<double>(held_to - d.since).count());
+    const double held_s = std::max(0.0, std::chrono::duration<double>(t - d.since).count());
     for (int k = 0; k < 2; ++k) {
       d.integral_s[k] += d.opening[k] * held_s;
-      d.opening[k] = out[k]->kind == ValveOutput::kCoil
+      d.opening[k] = shut ? 0.0
+                     : out[k]->kind == ValveOutput::kCoil
                          ? (coils_[out[k]->address] ? 1.0 : 0.0)
                          : static_cast<double>(holding_[out[k]->address]) / out[k]->full_scale;
     }
-    d.since = t;
+    d.since = std::max(t, d.since);
   }
-  outputs_written_ = t;
 }
 
 bool ModbusTerminal::readInputs() {
   std::vector<std::uint16_t> buffer(inputs_.size());
+  const Clock::time_point sent = Clock::now();
   for (const AddressRun& run : input_runs_) {
     if (modbus_read_input_registers(ctx_, run.first, run.count, buffer.data() + run.first) != run.count)
       return requestFailed(errno, "reading input registers", run);
   }
-  std::lock_guard<std::mutex> lock(mutex_);
-  stats_.read_requests += static_cast<long>(input_runs_.size());
-  inputs_.swap(buffer);
-  last_read_ = Clock::now();
-  have_read_ = true;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stats_.read_requests += static_cast<long>(input_runs_.size());
+    inputs_.swap(buffer);
+    last_read_ = Clock::now();
+    have_read_ = true;
+  }
+  requestHandled(midpoint(sent, Clock::now()), false);
   return true;
 }
 
@@ -284,6 +302,11 @@ bool ModbusTerminal::writeOutputs() {
     coils = coils_;
     holding = holding_;
   }
+  // The outputs act when the terminal handles the write: between sending and its reply, taken
+  // at the middle (the end, as before, stamped every edge late by a loaded thread's wait).
+  // One answered too late counts from the next write's: a terminal slow to answer is as slow
+  // to act (timeouts come from its side; a client that woke late still finds the reply).
+  const Clock::time_point sent = Clock::now();
   for (const AddressRun& run : coil_runs_) {
     if (modbus_write_bits(ctx_, run.first, run.count, coils.data() + run.first) != run.count)
       return requestFailed(errno, "writing coils", run);
@@ -292,6 +315,7 @@ bool ModbusTerminal::writeOutputs() {
     if (modbus_write_registers(ctx_, run.first, run.count, holding.data() + run.first) != run.count)
       return requestFailed(errno, "writing holding registers", run);
   }
+  requestHandled(midpoint(sent, Clock::now()), true);
   std::lock_guard<std::mutex> lock(mutex_);
   stats_.write_requests += static_cast<long>(coil_runs_.size() + holding_runs_.size());
   return true;

@@ -53,6 +53,7 @@ RigTerminalServer::RigTerminalServer(const TerminalMap& map) : map_(map), last_a
     throw std::runtime_error("rig emulator: terminal '" + map.name + "' cannot listen on " + map.endpoint() + ": " +
                              modbus_strerror(errno));
   coil_on_s_.assign(mapping_->nb_bits, 0.0);
+  coil_total_on_s_.assign(mapping_->nb_bits, 0.0);
   coils_since_ = coils_window_ = std::chrono::steady_clock::now();
   thread_ = std::thread(&RigTerminalServer::run, this);
 }
@@ -146,8 +147,11 @@ void RigTerminalServer::accountCoils() {
   const auto trip = watchdogTrip();
   const auto held_until = std::min(now, std::max(trip, coils_since_));
   const double held_s = std::chrono::duration<double>(held_until - coils_since_).count();
-  for (int i = 0; i < mapping_->nb_bits; ++i)
-    if (mapping_->tab_bits[i]) coil_on_s_[i] += held_s;
+  for (int i = 0; i < mapping_->nb_bits; ++i) {
+    if (!mapping_->tab_bits[i]) continue;
+    coil_on_s_[i] += held_s;
+    coil_total_on_s_[i] += held_s;
+  }
   coils_since_ = now;
   if (now >= trip) {
     std::fill(mapping_->tab_bits, mapping_->tab_bits + mapping_->nb_bits, 0);
@@ -165,6 +169,12 @@ std::vector<double> RigTerminalServer::takeCoilDuty() {
   std::fill(coil_on_s_.begin(), coil_on_s_.end(), 0.0);
   coils_window_ = coils_since_;
   return duty;
+}
+
+double RigTerminalServer::coilOnSeconds(int address) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  accountCoils();
+  return coil_total_on_s_.at(static_cast<std::size_t>(address));
 }
 
 RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& options) : options_(options) {

@@ -180,6 +180,39 @@ TEST_F(ModbusLoopback, ReportsTheOpeningsItDroveTimeAveraged) {
   cells_[2]->write({}, 0.0);
 }
 
+TEST_F(ModbusLoopback, TheOpeningsReportedAsDrivenAreTheTerminalsCoilOnTime) {
+  // The observer counts a cell's gas by what the driver says its valves did; a fill passes
+  // 0.2 % of a cell's gas per ms, so each edge must be placed within a bus cycle. Over a second
+  // of a cell pulsing its inlet, the driven record's on-time is the terminal's coils'.
+  nb::RigTerminalServer& server = serverA();
+  const int inlet = map_.terminals[0].cells[0].inlet.address;
+  cells_[0]->read(0.0);
+  const double on_before_s = server.coilOnSeconds(inlet);
+  double driven_s = 0.0;
+  auto last = std::chrono::steady_clock::now();
+  auto take = [&] {
+    const auto now = std::chrono::steady_clock::now();
+    const nb::CellReadings r = cells_[0]->read(0.0);
+    ASSERT_TRUE(r.inlet_driven.present());
+    driven_s += r.inlet_driven.value * std::chrono::duration<double>(now - last).count();
+    last = now;
+  };
+  for (int i = 0; i < 60; ++i) {
+    cells_[0]->write({i % 3 == 0 ? 1.0 : 0.0, 0.0, false}, 0.0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(17));
+    take();
+  }
+  cells_[0]->write({}, 0.0);
+  for (int i = 0; i < 10; ++i) {  // past the last PWM frame: shut on both sides
+    std::this_thread::sleep_for(std::chrono::milliseconds(15));
+    take();
+  }
+  const double on_s = server.coilOnSeconds(inlet) - on_before_s;
+  std::printf("[          ] inlet on %.4f s at the terminal, %.4f s in the driven record\n", on_s, driven_s);
+  EXPECT_GT(on_s, 0.2) << "the inlet pulsed";
+  EXPECT_NEAR(driven_s, on_s, 0.005) << "within a bus cycle over 20 pulses";
+}
+
 TEST_F(ModbusLoopback, ALostTerminalIsReportedAndReconnectedByItself) {
   cells_[3]->write({0.0, 0.0, false}, 0.0);
   emulator_.reset();

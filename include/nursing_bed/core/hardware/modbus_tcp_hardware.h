@@ -93,11 +93,16 @@ class ModbusTerminal {
   bool readInputs();
   bool writeOutputs();
   void fillOutputs();
-  /// After a write went out: the valves of every slot are now as written (time-weighted).
-  void markDriven();
+  /// The middle of a request's wait: when the terminal most likely handled it.
+  static Clock::time_point midpoint(Clock::time_point sent, Clock::time_point replied);
+  /// The terminal handled a request at t: its watchdog restarts there (past its trip, the
+  /// outputs were shut from the trip), and after a write (`wrote`) the outputs last written act.
+  void requestHandled(Clock::time_point t, bool wrote);
+  /// Every slot's record run to t, then the outputs last written (or shut) held.
+  void advanceDriven(Clock::time_point t, bool shut);
   /// Hands the cell in `slot` the outputs' mean opening since its previous read (up or down).
   void takeDriven(std::size_t slot, double now_s, CellReadings* r) const;
-  /// Until when the outputs written last hold: the terminal's watchdog shuts them after that.
+  /// Until when the outputs hold: the terminal's watchdog shuts them after that.
   Clock::time_point outputsHeldUntil() const;
   /// A request failed with `error_number` (errno): retry next cycle or take the link down.
   /// Returns false, for the caller to return.
@@ -114,7 +119,7 @@ class ModbusTerminal {
   _modbus* ctx_ = nullptr;
   std::vector<AddressRun> input_runs_, coil_runs_, holding_runs_;
   // Bus thread only:
-  Clock::time_point outputs_written_{};   // the last completed write (guarded by mutex_)
+  Clock::time_point watchdog_fed_{};      // the terminal's last handled request (guarded by mutex_)
   Clock::time_point last_exchange_;        // the last completed cycle, or the connection
   bool flush_pending_ = false;             // a request failed: flush before the next one
   mutable std::mutex mutex_;               // guards everything below

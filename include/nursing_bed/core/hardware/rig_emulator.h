@@ -41,6 +41,9 @@ class RigTerminalServer {
   /// while its coil is energised, not at the instants the simulation samples it; sampled, a
   /// PWM train of one bus cycle aliases against the simulation step). Thread-safe.
   std::vector<double> takeCoilDuty();
+  /// A coil's on-time since the server started [s] (what a client's record of the outputs it
+  /// drove is checked against). Thread-safe.
+  double coilOnSeconds(int address);
   long requestsServed() const { return requests_; }
   /// Fault injection: the next `requests` requests are read and never answered, the
   /// connection kept (a silent terminal; 0: answer again).
@@ -69,6 +72,7 @@ class RigTerminalServer {
   int listen_fd_ = -1;
   std::vector<int> clients_;
   std::vector<double> coil_on_s_;                          ///< per coil, since the last take
+  std::vector<double> coil_total_on_s_;                    ///< per coil, since the start
   std::chrono::steady_clock::time_point coils_since_, coils_window_;
   std::mutex mutex_;
   std::atomic<long> requests_{0};
