@@ -227,7 +227,6 @@ ModbusTerminal::Clock::time_point ModbusTerminal::midpoint(Clock::time_point sen
 void ModbusTerminal::requestHandled(Clock::time_point t, bool wrote) {
   // Any request the terminal handles restarts its watchdog (reads too: a cycle cut short after
   // its read kept the outputs on); past its trip, the outputs were shut from the trip on.
-  std::lock_guard<std::mutex> lock(mutex_);
   const Clock::time_point trip = outputsHeldUntil();
   if (t > trip) advanceDriven(trip, true);
   if (wrote) advanceDriven(t, false);
@@ -266,14 +265,13 @@ bool ModbusTerminal::readInputs() {
     if (modbus_read_input_registers(ctx_, run.first, run.count, buffer.data() + run.first) != run.count)
       return requestFailed(errno, "reading input registers", run);
   }
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stats_.read_requests += static_cast<long>(input_runs_.size());
-    inputs_.swap(buffer);
-    last_read_ = Clock::now();
-    have_read_ = true;
-  }
-  requestHandled(midpoint(sent, Clock::now()), false);
+  const Clock::time_point replied = Clock::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  stats_.read_requests += static_cast<long>(input_runs_.size());
+  inputs_.swap(buffer);
+  last_read_ = replied;
+  have_read_ = true;
+  requestHandled(midpoint(sent, replied), false);
   return true;
 }
 
@@ -315,8 +313,9 @@ bool ModbusTerminal::writeOutputs() {
     if (modbus_write_registers(ctx_, run.first, run.count, holding.data() + run.first) != run.count)
       return requestFailed(errno, "writing holding registers", run);
   }
-  requestHandled(midpoint(sent, Clock::now()), true);
+  const Clock::time_point replied = Clock::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  requestHandled(midpoint(sent, replied), true);
   stats_.write_requests += static_cast<long>(coil_runs_.size() + holding_runs_.size());
   return true;
 }

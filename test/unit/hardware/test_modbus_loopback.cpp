@@ -83,6 +83,16 @@ class ModbusLoopback : public ::testing::Test {
   /// Terminal a (cells 0 and 1): the client side and the rig's server.
   std::shared_ptr<nb::ModbusTerminal> terminalA() { return nb::ModbusTerminal::shared(map_.terminals[0], 0.02); }
   nb::RigTerminalServer& serverA() { return *emulator_->servers().at(0); }
+  /// Reads cell k; its inlet's reported (driven) opening times the time since `*last` is added
+  /// to `*on_s` (the driver reports the mean opening since the previous read).
+  nb::CellReadings readDriven(int k, std::chrono::steady_clock::time_point* last, double* on_s) {
+    const auto now = std::chrono::steady_clock::now();
+    const nb::CellReadings r = cells_[k]->read(0.0);
+    EXPECT_TRUE(r.inlet_driven.present());
+    *on_s += r.inlet_driven.value * std::chrono::duration<double>(now - *last).count();
+    *last = now;
+    return r;
+  }
   /// After `fault` (injected into terminal a's server), at least one cycle fails and is
   /// retried, exchanges go on, and the link never went down.
   void expectRetriedWithoutLinkLoss(const std::function<void()>& fault) {
@@ -158,23 +168,18 @@ TEST_F(ModbusLoopback, ReportsTheOpeningsItDroveTimeAveraged) {
   ASSERT_TRUE(waitFor([this] { return truth(2).inlet_opening > 0.0; }, 1.0));
   cells_[0]->read(0.0);
   cells_[2]->read(0.0);
-  double on_s = 0.0, total_s = 0.0;
+  double on_s = 0.0;
   const auto start = std::chrono::steady_clock::now();
   auto last = start;
   while (std::chrono::steady_clock::now() - start < std::chrono::milliseconds(1000)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(7));
-    const auto now = std::chrono::steady_clock::now();
-    const nb::CellReadings r = cells_[0]->read(0.0);
-    ASSERT_TRUE(r.inlet_driven.present());
-    const double dt = std::chrono::duration<double>(now - last).count();
-    on_s += r.inlet_driven.value * dt;
-    total_s += dt;
-    last = now;
+    const nb::CellReadings r = readDriven(0, &last, &on_s);
     EXPECT_NEAR(r.vent_driven.value, 0.0, 1e-12);
     const nb::CellReadings p = cells_[2]->read(0.0);
     ASSERT_TRUE(p.inlet_driven.present());
     EXPECT_NEAR(p.inlet_driven.value, 0.6, 1e-3);
   }
+  const double total_s = std::chrono::duration<double>(last - start).count();
   EXPECT_NEAR(on_s / total_s, 0.3, 0.05) << "the pulses average to the duty";
   cells_[0]->write({}, 0.0);
   cells_[2]->write({}, 0.0);
@@ -190,22 +195,15 @@ TEST_F(ModbusLoopback, TheOpeningsReportedAsDrivenAreTheTerminalsCoilOnTime) {
   const double on_before_s = server.coilOnSeconds(inlet);
   double driven_s = 0.0;
   auto last = std::chrono::steady_clock::now();
-  auto take = [&] {
-    const auto now = std::chrono::steady_clock::now();
-    const nb::CellReadings r = cells_[0]->read(0.0);
-    ASSERT_TRUE(r.inlet_driven.present());
-    driven_s += r.inlet_driven.value * std::chrono::duration<double>(now - last).count();
-    last = now;
-  };
   for (int i = 0; i < 60; ++i) {
     cells_[0]->write({i % 3 == 0 ? 1.0 : 0.0, 0.0, false}, 0.0);
     std::this_thread::sleep_for(std::chrono::milliseconds(17));
-    take();
+    readDriven(0, &last, &driven_s);
   }
   cells_[0]->write({}, 0.0);
   for (int i = 0; i < 10; ++i) {  // past the last PWM frame: shut on both sides
     std::this_thread::sleep_for(std::chrono::milliseconds(15));
-    take();
+    readDriven(0, &last, &driven_s);
   }
   const double on_s = server.coilOnSeconds(inlet) - on_before_s;
   std::printf("[          ] inlet on %.4f s at the terminal, %.4f s in the driven record\n", on_s, driven_s);

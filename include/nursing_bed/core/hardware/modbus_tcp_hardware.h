@@ -97,6 +97,7 @@ class ModbusTerminal {
   static Clock::time_point midpoint(Clock::time_point sent, Clock::time_point replied);
   /// The terminal handled a request at t: its watchdog restarts there (past its trip, the
   /// outputs were shut from the trip), and after a write (`wrote`) the outputs last written act.
+  /// Called with mutex_ held.
   void requestHandled(Clock::time_point t, bool wrote);
   /// Every slot's record run to t, then the outputs last written (or shut) held.
   void advanceDriven(Clock::time_point t, bool shut);
