@@ -167,7 +167,29 @@ void AirbagNode::update(const ros::Time& now) {
                                                       : elapsed(now);
   stepDirectRamp(until_s);
   cell_->advanceTo(until_s);
+  reportGasSearch();
   takeSnapshot();
+}
+
+void AirbagNode::reportGasSearch() {
+  // A bed started flat is found flat within reanchor_time_s (its first commands wait that
+  // long, at debug level); a cell that held gas vents for seconds, and that is worth a warning.
+  const bool finding = cell_->findingGas();
+  if (finding && !finding_gas_) {
+    gas_search_start_s_ = cell_->time();
+    ROS_DEBUG("%s: commanded before its gas was known: venting until found flat", layout_.link_name.c_str());
+  }
+  if (finding && !gas_search_warned_ && cell_->time() - gas_search_start_s_ > kGasSearchWarnS) {
+    gas_search_warned_ = true;
+    ROS_WARN("%s: started over a cell holding gas (%.0f Pa now, no height sensor): venting it flat before it is "
+             "controlled; its height is unknown until then (height_sd_m inf)",
+             layout_.link_name.c_str(), cell_->measurement().gauge_pressure_pa);
+  }
+  if (!finding && finding_gas_ && gas_search_warned_) {
+    ROS_INFO("%s: vented flat in %.1f s, its gas known again: controlled from here", layout_.link_name.c_str(),
+             cell_->time() - gas_search_start_s_);
+  }
+  finding_gas_ = finding;
 }
 
 void AirbagNode::stepDirectRamp(double now_s) {

@@ -97,6 +97,8 @@ class AirbagNode {
   };
   /// Copies the cell's state for the publishing thread (mutex_ held).
   void takeSnapshot();
+  /// Logs when the cell starts and ends venting to find its gas (AirbagCell::findingGas).
+  void reportGasSearch();
   void publishState(const CellSnapshot& snapshot, const ros::Time& stamp);
   /// Moves a direct call's ramp one period on (simulation thread, mutex held).
   void stepDirectRamp(double now_s);
@@ -111,6 +113,10 @@ class AirbagNode {
   std::timed_mutex mutex_;  // callbacks may run on several nodelet worker threads
   std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
   CellSnapshot snapshot_;
+  bool finding_gas_ = false;  ///< the cell was venting to find its gas at the last update
+  bool gas_search_warned_ = false;
+  double gas_search_start_s_ = 0.0;
+  static constexpr double kGasSearchWarnS = 1.0;  ///< a search this long is a cell that held gas [s]
   static constexpr double kNoLoad = -1.0;
   static constexpr double kCatchUpPeriods = 2.0;  ///< most update periods a cell advances per round
   std::atomic<double> pending_load_n_{kNoLoad};

@@ -106,6 +106,7 @@ void AirbagCell::resetControl(double load_n) {
   gas_check_pending_ = false;
   gas_check_vent_left_s_ = 0.0;
   gas_check_until_s_ = -1.0;
+  gas_ = GasKnowledge::kKnown;
 }
 
 void AirbagCell::reset(double load_n) {
@@ -113,6 +114,14 @@ void AirbagCell::reset(double load_n) {
   if (sim_) sim_->reset(load_n);
   if (observer_) observer_->reset(load_n);
   if (sim_) observe(sim_->read(0.0));
+  // Real hardware keeps its gas through a reset (a node restarted over an inflated bed): the
+  // observer's flat start holds once its re-anchor test finds the cell flat (half a second of
+  // readings, not one: a flat cell reads an ADC step or two of noise, the plate alone lifted
+  // 20-75 Pa). A height sensor measures the gas.
+  if (observer_ && !sim_ && use_estimate_) {
+    gas_ = GasKnowledge::kUnverified;
+    finding_reanchors_ = observer_->estimate().reanchors;
+  }
 }
 
 void AirbagCell::resetToHeight(double height_m, double load_n) {
@@ -153,6 +162,7 @@ const CellModel& AirbagCell::model() const { return sim_ ? sim_->model() : obser
 double AirbagCell::load() const { return sim_ ? load_n_ : observer_->estimate().load_n; }
 
 double AirbagCell::heightSd() const {
+  if (gas_ == GasKnowledge::kFinding) return std::numeric_limits<double>::infinity();  // its gas is unknown
   return use_estimate_ ? observer_->estimate().height_sd_m : params_.height_noise_m;
 }
 
@@ -331,6 +341,27 @@ ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
   return wanted;
 }
 
+ValveCommand AirbagCell::findingGas(const ValveCommand& wanted) {
+  // Started flat over a cell that holds gas, the observer would count every fill from nothing:
+  // commanded to 80 mm, such a cell filled to the bag's top at the supply pressure (140-150 mm,
+  // 20 kPa, the estimate at 30 mm). Its pressure alone cannot give its gas (nor its height or
+  // load); a flat cell's can. So it vents, the one safe direction, until the observer's
+  // re-anchor test finds it flat (below ambient counts: a heavy plate's vented cell settles
+  // there), and is then controlled to its kept setpoint.
+  if (gas_ == GasKnowledge::kKnown) return wanted;
+  if (observer_->estimate().reanchors > finding_reanchors_) {
+    const bool vented = gas_ == GasKnowledge::kFinding;
+    gas_ = GasKnowledge::kKnown;
+    if (!vented) return wanted;  // found flat before any command (a bed started flat)
+    // Its integral ran on the flat start's error through the vent: restart it.
+    if (controller_.hasTarget()) controller_.setTarget(controller_.target());
+    return ValveCommand{};
+  }
+  gas_ = GasKnowledge::kFinding;
+  observer_->expectFlat(2.0 * params_.control_period_s);
+  return ValveCommand{0.0, 1.0};
+}
+
 void AirbagCell::onDeviceReset() {
   controller_.clearTarget();
   pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
@@ -430,7 +461,7 @@ void AirbagCell::controlStep() {
       valves_ = ValveCommand{};
       break;
   }
-  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = checkingGas(now, valves_);
+  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = findingGas(checkingGas(now, valves_));
   // Relief, whatever the mode: act before the next period's rise could cross it.
   const double rise = std::max(0.0, p - last_pressure_pa_);
   last_pressure_pa_ = p;

@@ -367,3 +367,51 @@ TEST(AirbagOnHardware, HoldsAPressureSetpointAndRefusesABadOne) {
   ASSERT_EQ(cell.requestHeight(0.05, 8.0), "");
   EXPECT_TRUE(std::isnan(cell.pressureSetpoint()));
 }
+
+/// A node restarted over a cell resting at `height_m` under `load_n`: the cell reset (the
+/// observer flat), then commanded to 80 mm `command_s` later. Returns the true height 60 s
+/// after the restart; `highest_m` the highest it reached, `vented` whether it vented to find
+/// its gas.
+double heightAfterARestart(double height_m, double load_n, double command_s, double* highest_m, bool* vented) {
+  CuttableCell rig(height_m, load_n, 0.08);
+  rig.cell->reset(load_n);
+  *highest_m = 0.0;
+  *vented = false;
+  auto watch = [&] {
+    *highest_m = std::max(*highest_m, rig.plant->variables().height_m);
+    *vented = *vented || rig.cell->findingGas();
+  };
+  rig.runTo(command_s, watch);
+  EXPECT_EQ(rig.cell->requestHeight(0.08, command_s), "");
+  rig.runTo(60.0, watch);
+  std::cout << "[airbag] restarted over " << load_n << " N at " << 1e3 * height_m << " mm, commanded after " << command_s
+            << " s: " << (*vented ? "vented flat, " : "") << "true " << 1e3 * rig.plant->variables().height_m
+            << " mm after 60 s (estimate " << 1e3 * rig.cell->observer()->estimate().height_m << "), highest "
+            << 1e3 * *highest_m << " mm\n";
+  return rig.plant->variables().height_m;
+}
+
+TEST(AirbagOnHardware, ANodeRestartedOverAnInflatedCellVentsItFlatBeforeControllingIt) {
+  // Started flat, the observer counted every fill from nothing: commanded to 80 mm, a cell
+  // already at 80 mm was filled to the bag's top at the supply pressure (140-150 mm, 20 kPa).
+  for (const double load_n : {0.6, 15.6, 36.0}) {
+    for (const double command_s : {0.0, 2.0}) {
+      double highest_m = 0.0;
+      bool vented = false;
+      const double h = heightAfterARestart(0.08, load_n, command_s, &highest_m, &vented);
+      EXPECT_TRUE(vented) << load_n << " N";
+      EXPECT_NEAR(h, 0.08, 0.003) << load_n << " N";
+      EXPECT_LE(highest_m, 0.085) << load_n << " N: never filled past its target";
+    }
+  }
+  // Over a flat cell: found flat within half a second, a command after that fills at once.
+  double highest_m = 0.0;
+  bool vented = true;
+  double h = heightAfterARestart(0.0, 15.6, 1.0, &highest_m, &vented);
+  EXPECT_FALSE(vented);
+  EXPECT_NEAR(h, 0.08, 0.003);
+  // Commanded at once, it vents (flat already) until found so, then fills.
+  h = heightAfterARestart(0.0, 15.6, 0.0, &highest_m, &vented);
+  EXPECT_NEAR(h, 0.08, 0.003);
+  EXPECT_LE(highest_m, 0.085);
+}

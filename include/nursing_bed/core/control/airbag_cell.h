@@ -152,7 +152,8 @@ class AirbagCell {
   /// The simulated load; on real hardware the observer's estimate.
   double load() const;
   HeightSource heightSource() const { return use_estimate_ ? HeightSource::kEstimated : HeightSource::kMeasured; }
-  /// Standard deviation of the reported height [m]: the observer's, or the sensor's noise.
+  /// Standard deviation of the reported height [m]: the observer's, or the sensor's noise;
+  /// infinite while the cell's gas is unknown (findingGas).
   double heightSd() const;
   const AirbagCellParams& params() const { return params_; }
   const CellModel& model() const;
@@ -160,6 +161,9 @@ class AirbagCell {
   const CellHardware& hardware() const { return *hardware_; }
   /// The observer (null when the height is measured).
   const CellObserver* observer() const { return observer_.get(); }
+  /// Reset over hardware without a height sensor and commanded before the observer found the
+  /// cell flat: its gas is unknown, and it vents flat before it is controlled.
+  bool findingGas() const { return gas_ == GasKnowledge::kFinding; }
 
  private:
   void controlStep();
@@ -176,6 +180,9 @@ class AirbagCell {
   /// After a lost link: a short vent, then both valves shut while the observer's re-anchor
   /// test runs (observer resume_vent_s); otherwise `wanted`.
   ValveCommand checkingGas(double now_s, const ValveCommand& wanted);
+  /// Reset flat over a cell that held gas (a node restarted over an inflated bed): a full vent
+  /// until the observer re-anchors the flat cell; otherwise `wanted`.
+  ValveCommand findingGas(const ValveCommand& wanted);
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
@@ -213,6 +220,12 @@ class AirbagCell {
   double gas_check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double gas_check_until_s_ = -1.0;   ///< valves kept shut until then for the re-anchor test [s]
   int gas_check_reanchors_ = 0;       ///< the observer's re-anchors when the check began
+  /// What the observer's gas is worth after a reset: known (a simulated plant reset with it,
+  /// a height given, a height sensor, or the cell since found flat), unverified (reset flat
+  /// over real hardware, not yet found flat), or being found (commanded meanwhile: venting).
+  enum class GasKnowledge { kKnown, kUnverified, kFinding };
+  GasKnowledge gas_ = GasKnowledge::kKnown;
+  int finding_reanchors_ = 0;         ///< the observer's re-anchors at the reset
 };
 
 }  // namespace nursing_bed
