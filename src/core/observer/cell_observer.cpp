@@ -239,6 +239,16 @@ void CellObserver::isentropicWork(double old_pressure_pa, double new_pressure_pa
   p_.col(1) *= a;
 }
 
+double CellObserver::topHeight(double gauge_pressure_pa) const {
+  // The film stretches under pressure and the bag's top rises with it: the structure's limit
+  // with the film relaxed to the pressure (145-149 mm at 20 kPa against 142 mm unstretched;
+  // clamped there, a plate at 145.5 mm read 142).
+  const CellStructure& structure = model_.structure();
+  const double unstretched = structure.heightLimit(structure.restShape().data());
+  const auto q = structure.relaxedShape(std::min(x_[CellModel::kHeight], unstretched), gauge_pressure_pa, &x_[CellModel::kShape]);
+  return std::max(unstretched, structure.heightLimit(q.data()));
+}
+
 bool CellObserver::invertVolume(double gauge_pressure_pa, double dt_s) {
   // The height whose volume, with the film relaxed to the pressure, holds the gas at it.
   const CellStructure& structure = model_.structure();
@@ -252,7 +262,7 @@ bool CellObserver::invertVolume(double gauge_pressure_pa, double dt_s) {
     return structure.evaluate(h, shape).volume_m3;
   };
   const double h_old = x_[CellModel::kHeight];
-  const double top = structure.heightLimit(structure.restShape().data());
+  const double top = topHeight(gauge_pressure_pa);
   const double v_flat = volume_at(0.0);
   bool lifted = target > v_flat;
   double h = 0.0;

@@ -149,6 +149,8 @@ class CellObserver {
   double flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s);
   /// The energy after the volume change at the new pressure, along the isentrope (trapezoid).
   void isentropicWork(double old_pressure_pa, double new_pressure_pa);
+  /// The bag's top at the pressure: the structure's height limit with the film relaxed to it.
+  double topHeight(double gauge_pressure_pa) const;
   /// Height and film from the volume at the pressure read; returns false when the plate is down.
   bool invertVolume(double gauge_pressure_pa, double dt_s);
   /// Scalar measurement of U (plate down, or a height reading): value and its variance.
