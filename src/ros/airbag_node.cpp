@@ -177,6 +177,7 @@ void AirbagNode::reportGasSearch() {
   const bool finding = cell_->findingGas();
   if (finding && !finding_gas_) {
     gas_search_start_s_ = cell_->time();
+    gas_search_warned_ = false;
     ROS_DEBUG("%s: commanded before its gas was known: venting until found flat", layout_.link_name.c_str());
   }
   if (finding && !gas_search_warned_ && cell_->time() - gas_search_start_s_ > kGasSearchWarnS) {

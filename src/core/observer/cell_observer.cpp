@@ -242,9 +242,12 @@ void CellObserver::isentropicWork(double old_pressure_pa, double new_pressure_pa
 double CellObserver::topHeight(double gauge_pressure_pa) const {
   // The film stretches under pressure and the bag's top rises with it: the structure's limit
   // with the film relaxed to the pressure (145-149 mm at 20 kPa against 142 mm unstretched;
-  // clamped there, a plate at 145.5 mm read 142).
+  // clamped there, a plate at 145.5 mm read 142). Relaxing the film costs a solve per period
+  // and cell: only for a plate already within a tenth of the unstretched top (a step does not
+  // cross that tenth; the next one then takes the stretched top).
   const CellStructure& structure = model_.structure();
   const double unstretched = structure.heightLimit(structure.restShape().data());
+  if (x_[CellModel::kHeight] < 0.9 * unstretched) return unstretched;
   const auto q = structure.relaxedShape(std::min(x_[CellModel::kHeight], unstretched), gauge_pressure_pa, &x_[CellModel::kShape]);
   return std::max(unstretched, structure.heightLimit(q.data()));
 }
