@@ -12,8 +12,9 @@
 //
 // usage: bench_observer_loads [--cycle-s S] [--loads a,b,c] [--group 0..2] [--trace S]
 //          [--no-pwm] [--duty-only] [--no-read-delay] [--no-noise]
-//          [--observer-dead-time S] [--rig-dead-time S]
+//          [--observer-dead-time S] [--rig-dead-time S] [--no-weight-bound]
 //   --duty-only   the terminal does not report its pulses (the observer takes the duty)
+//   --no-weight-bound  the observer without the plate's weight bound (weight_bound_window_s 0)
 //   --trace S     print truth and estimate every S seconds
 // The sensor noise and ADC step (10 Pa, 12.2 Pa) can be changed with NOISE=.. ADC=.. in the
 // environment.
@@ -40,6 +41,7 @@ struct Options {
   bool read_delay = true;      ///< readings one bus cycle old
   bool sensor_noise = true;    ///< pressure noise (10 Pa) and ADC step (12.2 Pa)
   bool report_driven = true;   ///< the terminal reports the pulses it drove
+  bool weight_bound = true;    ///< the observer's weight bound (weight_bound_window_s)
   double observer_dead_time_s = 0.015;  ///< the observer's valve_dead_time_s (config/observer.yaml)
   double rig_dead_time_s = 0.01;        ///< the rig's valve dead time (the emulator's default)
   double trace_s = 0.0;        ///< > 0: print truth and estimate at this interval [s]
@@ -58,6 +60,8 @@ bool parse(int argc, char** argv, Options* o) {
       o->pwm = false;
     } else if (a == "--duty-only") {
       o->report_driven = false;
+    } else if (a == "--no-weight-bound") {
+      o->weight_bound = false;
     } else if (a == "--no-noise") {
       o->sensor_noise = false;
     } else if (a == "--no-read-delay") {
@@ -183,6 +187,7 @@ Result runOne(double load_n, const Options& o) {
   nb::AirbagObserverSetup setup;
   setup.model = p.cell;
   setup.params.valve_dead_time_s = o.observer_dead_time_s;
+  if (!o.weight_bound) setup.params.weight_bound_window_s = 0.0;
   nb::AirbagCell cell(p, hw, setup);
   cell.reset(10.6);  // the launch's load guess
 
@@ -232,7 +237,7 @@ int main(int argc, char** argv) {
   if (!parse(argc, argv, &o)) {
     std::fprintf(stderr,
                  "usage: bench_observer_loads [--cycle-s S] [--loads a,b,c] [--group 0..2] [--trace S] [--no-pwm] "
-                 "[--duty-only] [--no-read-delay] [--no-noise] [--observer-dead-time S] [--rig-dead-time S]\n");
+                 "[--duty-only] [--no-read-delay] [--no-noise] [--observer-dead-time S] [--rig-dead-time S] [--no-weight-bound]\n");
     return 2;
   }
   nb::ObserverErrorStats total;

@@ -26,12 +26,16 @@
 //                         patient laid on a bed that filled under the guess)
 //   --hold S              instead of the programme: fill to 91 mm at 1 s and hold until S s
 //                         (the bed's acceptance 3 under a heavy part of the patient)
+//   --alternate           instead of the programme: the alternating plan's moves as the bed
+//                         manager streams them (0.10 m, then 0.03 / 0.12 m every 20 s, targets
+//                         rate-limited to 0.02 m/s and sent at 50 Hz), 100 s
 //   --period S            the cell's control period (default 0.005 s; the bed's nodes: 0.02)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
 //   --trace FILE          every period as CSV: the emulator's gas (mass, temperature, flows,
 //                         acting valves) beside the observer's and the pressure it read, and the
 //                         controller's predicted rest height
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -56,6 +60,7 @@ namespace {
 struct Options {
   bool proportional = false;
   bool effects = false;  ///< leak 1e-8 m2 and heat 8 W/(m2 K) in the rig and the observer
+  bool alternate = false;  ///< the alternating plan's streamed moves instead of the programme
   double dead_time_s = 0.015;
   double load_n = 15.6;
   double noise_pa = 10.0, adc_pa = 12.2, rig_dead_time_s = 0.01, rig_period_s = 0.005;
@@ -93,6 +98,8 @@ bool parse(int argc, char** argv, Options* o) {
       o->proportional = true;
     } else if (a == "--effects") {
       o->effects = true;
+    } else if (a == "--alternate") {
+      o->alternate = true;
     } else if (a == "--trace" && i + 1 < argc) {
       o->trace_path = argv[++i];
     } else if (double* value = numberOption(a, o); value && i + 1 < argc) {
@@ -212,9 +219,11 @@ int main(int argc, char** argv) {
   if (trace) traceHeader(trace);
 
   const std::vector<Target> plan = o.hold_s > 0.0 ? std::vector<Target>{{1, 0.091}}
+                                   : o.alternate ? std::vector<Target>{{1, 0.10}, {20, 0.03}, {40, 0.12}, {60, 0.03}, {80, 0.12}}
                                                   : std::vector<Target>{{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1},
                                                                         {21, 0.10}, {26, 0.05}, {31, 0.12}};
-  const double end_s = o.hold_s > 0.0 ? o.hold_s : 36.0;
+  const double end_s = o.hold_s > 0.0 ? o.hold_s : o.alternate ? 100.0 : 36.0;
+  double wanted_m = 0.0, streamed_m = 0.0, next_stream_s = 0.0;  // --alternate: the bed manager's stream
   LoadSway sway(o.load_n, o.load_swing_n, o.swing_time_s);
   double rig_load_n = rig.cell.load_n;
   std::size_t next_target = 0;
@@ -231,8 +240,14 @@ int main(int argc, char** argv) {
     if (load != rig_load_n) emulator.setLoad(0, rig_load_n = load);
     if (next_target < plan.size() && now >= plan[next_target].at_s) {
       const Target& t = plan[next_target++];
-      if (t.height_m < 0.0) cell.requestVent(now);
+      if (o.alternate) wanted_m = t.height_m;
+      else if (t.height_m < 0.0) cell.requestVent(now);
       else cell.requestHeight(t.height_m, now);
+    }
+    if (o.alternate && now >= next_stream_s && wanted_m > 0.0) {
+      next_stream_s = now + 0.02;
+      streamed_m += std::clamp(wanted_m - streamed_m, -0.02 * 0.02, 0.02 * 0.02);
+      cell.requestHeight(std::max(streamed_m, 0.02), now);
     }
     cell.advanceTo(now);
     const nb::CellTruth truth = emulator.truth().at(0);

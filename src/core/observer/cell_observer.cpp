@@ -14,6 +14,8 @@ namespace {
 constexpr double kFlowCorrelationS = 1.0;
 // The velocity reported is the height's rate, filtered over this time [s].
 constexpr double kVelocityFilterS = 0.05;
+// Rests of the plate alone tabulated up to the bag's top (the weight bound, the flat test).
+constexpr int kPlateAloneRests = 80;
 // Within this many orifice linear bands of ambient the flows take the readings' mean as it is
 // and their noise bias is taken off; beyond, the square-root law's curvature biases them by
 // less than 0.05 % at the readings' noise, and the readings are smoothed within their noise.
@@ -57,6 +59,7 @@ std::string CellObserverParams::validate() const {
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
   non_negative("resume_vent_s", resume_vent_s);
+  non_negative("weight_bound_window_s", weight_bound_window_s);
   if (resume_vent_s > 0.2) err << "resume_vent_s must be at most 0.2 (a check, not a vent), got " << resume_vent_s << "; ";
   return joinErrors(err);
 }
@@ -66,6 +69,7 @@ CellObserver::CellObserver(const CellParams& model, const CellObserverParams& pa
     : params_(params), model_(validModel(model, params)), gamma_(model.gas.heat_capacity_ratio) {
   for (const auto& e : effects) model_.addEffect(e);
   // Flat means below half the lightest lifted plate's pressure (at most reanchor_pressure_pa).
+  tabulatePlateAlone();
   reanchor_pa_ = std::min(params_.reanchor_pressure_pa, 0.5 * lowestLiftedPressure());
   reset(0.6);
 }
@@ -87,6 +91,8 @@ void CellObserver::reset(double load_n) {
   flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   flat_since_s_ = -1.0;
   sub_ambient_flat_until_s_ = -1.0;
+  quiet_s_ = quiet_sum_pa_ = 0.0;
+  quiet_count_ = 0;
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
@@ -363,6 +369,8 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     const double sd = (pa + p_new) * vars_.structure.effective_area_m2 * params_.height_noise_m / (gamma_ - 1.0);
     measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
     lifted = invertVolume(p_new, dt);
+  } else {
+    boundByPlateWeight(p_new, lifted, dt);
   }
   keepPhysical();
   time_ += dt;
@@ -437,19 +445,102 @@ void CellObserver::checkReanchor(const ObserverReadings& readings) {
   }
 }
 
-double CellObserver::lowestLiftedPressure() const {
-  // The plate alone (the least load there is) at rest at heights up to the structure's limit:
-  // below the least of these pressures the plate cannot be lifted, whatever the patient does.
+void CellObserver::tabulatePlateAlone() {
+  // The plate alone (the least load there is) at rest at heights up to the structure's limit.
   const double plate_weight_n = model_.params().plate_mass_kg * kGravity;
   const CellStructure& structure = model_.structure();
   const auto rest = structure.restShape();
   const double top = 0.95 * structure.heightLimit(rest.data());
-  double lowest = std::numeric_limits<double>::infinity();
-  for (int i = 1; i <= 40; ++i) {
-    const StructureEquilibrium e = structure.equilibriumAtHeight(top * i / 40.0, plate_weight_n);
-    if (e.converged && e.gauge_pressure_pa > 0.0) lowest = std::min(lowest, e.gauge_pressure_pa);
+  plate_alone_h_m_.clear();
+  plate_alone_p_pa_.clear();
+  for (int i = 1; i <= kPlateAloneRests; ++i) {
+    const double h = top * i / kPlateAloneRests;
+    const StructureEquilibrium e = structure.equilibriumAtHeight(h, plate_weight_n);
+    plate_alone_h_m_.push_back(h);
+    plate_alone_p_pa_.push_back(e.converged && e.gauge_pressure_pa > 0.0 ? e.gauge_pressure_pa
+                                                                          : std::numeric_limits<double>::quiet_NaN());
   }
+}
+
+double CellObserver::lowestLiftedPressure() const {
+  // Below the least of the plate alone's rest pressures the plate cannot be lifted, whatever
+  // the patient does.
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const double p : plate_alone_p_pa_)
+    if (std::isfinite(p)) lowest = std::min(lowest, p);
   return lowest;
+}
+
+double CellObserver::plateAloneHeight(double gauge_pressure_pa) const {
+  // From the top down, the first rest the pressure can hold: above it every rest needs more
+  // (a rest not found counts as holdable, so it never tightens the bound). Interpolated in the
+  // pressure's logarithm between neighbouring rests (the rest pressure grows about
+  // exponentially towards the top: 76 Pa at 100 mm, 151 at 120, 1350 at 140 for the pillow).
+  const std::size_t n = plate_alone_p_pa_.size();
+  for (std::size_t k = n; k-- > 0;) {
+    const double p = plate_alone_p_pa_[k];
+    if (std::isfinite(p) && p > gauge_pressure_pa) continue;
+    if (k + 1 == n) return std::numeric_limits<double>::infinity();
+    if (!std::isfinite(p) || gauge_pressure_pa <= 0.0) return plate_alone_h_m_[k];
+    const double p_up = plate_alone_p_pa_[k + 1];
+    const double f = std::log(gauge_pressure_pa / p) / std::log(p_up / p);
+    return plate_alone_h_m_[k] + std::clamp(f, 0.0, 1.0) * (plate_alone_h_m_[k + 1] - plate_alone_h_m_[k]);
+  }
+  return plate_alone_h_m_.empty() ? std::numeric_limits<double>::infinity() : plate_alone_h_m_.front();
+}
+
+void CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s) {
+  // A patient presses on a plate and never lifts it, so its load is at least its own weight,
+  // and the plate alone rests the higher the more pressure holds it: a settled plate's mean
+  // pressure p bounds its height by h_W(p). The inventory integrates every valve pulse, and
+  // near the bag's top 1 % of gas moves a light plate 10 mm (a descent to 0.03 m under the
+  // plate alone counts its ~30 Pa vent within 1-2 % for the readings' noise); where it has
+  // drifted above the bound, the energy is measured at the bound.
+  double mean = 0.0, se = 0.0;
+  if (!quietMean(gauge_pressure_pa, lifted, dt_s, &mean, &se)) return;
+  // The bound at a pressure three standard errors above the mean (tested every window, the
+  // readings' noise must not move a plate that is where the inventory says), and the estimate
+  // moved only as far as that.
+  const double bound = plateAloneHeight(mean + 3.0 * se);
+  if (!(x_[CellModel::kHeight] > bound)) return;
+  const double sd = 0.5 * (plateAloneHeight(mean + 4.0 * se) - plateAloneHeight(mean + 2.0 * se));
+  if (!std::isfinite(sd)) return;
+  const double velocity = x_[CellModel::kVelocity];
+  measureSettledHeight(bound, std::max(sd, 1e-4), mean);
+  invertVolume(gauge_pressure_pa, dt_s);
+  x_[CellModel::kVelocity] = velocity;  // a settled plate: the correction is no motion
+  ++weight_bounds_;
+}
+
+bool CellObserver::quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa) {
+  // With both valves shut the plate first settles for one window, then the readings are
+  // averaged for as long as the valves stay shut; true at the end of each window.
+  const double window = params_.weight_bound_window_s;
+  const bool shut = applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0;
+  if (window <= 0.0 || !shut || !lifted) {
+    quiet_s_ = quiet_sum_pa_ = 0.0;
+    quiet_count_ = 0;
+    return false;
+  }
+  quiet_s_ += dt_s;
+  if (quiet_s_ <= window) return false;
+  quiet_sum_pa_ += gauge_pressure_pa;
+  ++quiet_count_;
+  const double since_settled = quiet_s_ - window;
+  if (std::floor(since_settled / window) == std::floor((since_settled - dt_s) / window)) return false;
+  *mean_pa = quiet_sum_pa_ / static_cast<double>(quiet_count_);
+  *se_pa = params_.pressure_noise_pa / std::sqrt(static_cast<double>(quiet_count_));
+  return true;
+}
+
+void CellObserver::measureSettledHeight(double height_m, double sd_m, double gauge_pressure_pa) {
+  // U whose volume at that height (the film relaxed to the pressure) holds the gas at the
+  // pressure.
+  const CellStructure& structure = model_.structure();
+  const auto shape = structure.relaxedShape(height_m, gauge_pressure_pa, &x_[CellModel::kShape]);
+  const double volume = structure.evaluate(height_m, shape.data()).volume_m3;
+  const double to_energy = (model_.params().ambient_pressure_pa + gauge_pressure_pa) / (gamma_ - 1.0);
+  measureEnergy(to_energy * volume, std::pow(to_energy * volume_slope_m2_ * sd_m, 2));
 }
 
 void CellObserver::expectFlat(double for_s) { sub_ambient_flat_until_s_ = time_ + for_s; }
@@ -488,6 +579,7 @@ CellEstimate CellObserver::estimate() const {
   e.temperature_k = vars_.temperature_k;
   e.volume_m3 = vars_.structure.volume_m3;
   e.reanchors = reanchors_;
+  e.weight_bounds = weight_bounds_;
   return e;
 }
 

@@ -311,5 +311,79 @@ TEST(CellObserver, RefusesBadParametersNamingThem) {
       EXPECT_NE(std::string(e.what()).find("resume_vent_s"), std::string::npos) << e.what();
     }
   }
+  p = nb::CellObserverParams{};
+  p.weight_bound_window_s = -0.5;
+  EXPECT_THROW(nb::CellObserver(nb::CellParams{}, p), std::invalid_argument);
 }
 
+namespace {
+
+struct BoundRun {
+  double true_height_m = 0.0, estimate_m = 0.0;
+  double worst_below_truth_m = 0.0;  ///< largest (truth - estimate) over the hold [m]
+  int bounds = 0;
+};
+
+/// A fill from flat with the inlet passing `inlet_gain` of what the observer is told (a valve
+/// whose flow the inventory counts a few % off), then the valves shut for `hold_s`.
+BoundRun fillAndHold(double load_n, double fill_s, double inlet_gain, double hold_s, double window_s) {
+  const nb::CellParams cell;
+  nb::CellModel plant(cell);
+  plant.reset(load_n);
+  nb::CellModel::StateVector x = plant.state();
+  x[nb::CellModel::kRegulator] = cell.supply_pressure_pa;
+  plant.setState(0.0, x);
+  nb::CellObserverParams op;
+  op.weight_bound_window_s = window_s;
+  nb::CellObserver observer(cell, op);
+  observer.reset(load_n);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 10.0);
+  BoundRun r;
+  const double dt = op.period_s;
+  for (double t = 0.0; t < fill_s + hold_s; t += dt) {
+    const double inlet = t < fill_s ? 1.0 : 0.0;
+    nb::CellInputs in;
+    in.inlet_opening = inlet * inlet_gain;
+    in.load_n = load_n;
+    plant.advance(dt, in);
+    nb::ObserverReadings z;
+    z.gauge_pressure_pa = adc(plant.variables().gauge_pressure_pa + noise(rng), 12.2);
+    observer.step({inlet, 0.0, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+    if (t > fill_s + 1.0)
+      r.worst_below_truth_m = std::max(r.worst_below_truth_m, plant.variables().height_m - observer.estimate().height_m);
+  }
+  r.true_height_m = plant.variables().height_m;
+  r.estimate_m = observer.estimate().height_m;
+  r.bounds = observer.estimate().weight_bounds;
+  std::cout << "[observer] load " << load_n << " N, inlet passing " << inlet_gain << " of the modelled flow, weight bound "
+            << (window_s > 0.0 ? "on" : "off") << ": truth " << 1e3 * r.true_height_m << " mm, estimate "
+            << 1e3 * r.estimate_m << " mm, bounded " << r.bounds << "x, worst below the truth "
+            << 1e3 * r.worst_below_truth_m << " mm\n";
+  return r;
+}
+
+}  // namespace
+
+TEST(CellObserver, ThePlatesWeightBoundsALightPlatesHeight) {
+  // The plate alone filled to ~105 mm by an inlet passing 3 % less than the inventory counts:
+  // there 1 % of gas is ~8 mm, and without the bound the estimate stays far above the plate.
+  const BoundRun off = fillAndHold(0.6, 0.75, 0.97, 10.0, 0.0);
+  const BoundRun on = fillAndHold(0.6, 0.75, 0.97, 10.0, 0.5);
+  ASSERT_GT(off.true_height_m, 0.1);
+  EXPECT_GT(off.estimate_m - off.true_height_m, 0.01);
+  EXPECT_GT(on.bounds, 0);
+  EXPECT_NEAR(on.estimate_m, on.true_height_m, 0.003);
+  EXPECT_LE(on.worst_below_truth_m, 0.0015) << "the bound is taken conservatively: never much below the plate";
+}
+
+TEST(CellObserver, ThePlatesWeightBoundLeavesARightEstimateAndAHeavyPlateAlone) {
+  // An inventory that is right is not moved by the bound (10 s of readings tested every
+  // window), and a heavy plate's pressure is far above the plate alone's, whatever its gas.
+  const BoundRun right_off = fillAndHold(0.6, 0.75, 1.0, 10.0, 0.0);
+  const BoundRun right_on = fillAndHold(0.6, 0.75, 1.0, 10.0, 0.5);
+  EXPECT_NEAR(right_on.estimate_m, right_off.estimate_m, 0.001);
+  EXPECT_LE(right_on.worst_below_truth_m, std::max(right_off.worst_below_truth_m, 0.0) + 0.0005);
+  const BoundRun heavy = fillAndHold(15.6, 0.8, 0.97, 10.0, 0.5);
+  EXPECT_EQ(heavy.bounds, 0);
+}

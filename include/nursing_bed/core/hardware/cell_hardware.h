@@ -95,7 +95,9 @@ class CellHardware {
   /// once, before any read() or write() (pluginlib needs a default constructor).
   virtual void configure(const HardwareConfig& config) = 0;
   virtual HardwareCapabilities capabilities() const = 0;
-  /// The latest readings at `now_s` (a simulation advances its plant to `now_s` first).
+  /// The latest readings at `now_s` (a simulation advances its plant to `now_s` first). Real
+  /// hardware is read at `now_s` = the time of the call: its driven openings are averaged over
+  /// the interval since the previous call, which the caller integrates over its own period.
   virtual CellReadings read(double now_s) = 0;
   /// Commands the valves from `now_s` on (until the next write()).
   virtual void write(const ValveOpenings& valves, double now_s) = 0;

@@ -36,6 +36,9 @@ struct CellObserverParams {
   /// After a lost link the cell vents at most this long (until its pressure reads flat), then
   /// keeps both valves shut while the re-anchor test runs (AirbagCell); 0: no check [s].
   double resume_vent_s = 0.05;
+  /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
+  /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
+  double weight_bound_window_s = 0.5;
 
   /// Empty when valid, else every problem found, separated by "; ".
   std::string validate() const;
@@ -70,6 +73,7 @@ struct CellEstimate {
   double temperature_k = 0.0;
   double volume_m3 = 0.0;
   int reanchors = 0;                       ///< how often the mass was re-anchored on a flat cell
+  int weight_bounds = 0;                   ///< how often the plate's weight bounded the height
 };
 
 /**
@@ -95,6 +99,9 @@ struct CellEstimate {
  *    volume's air at the mean pressure), which ends the drift of a mass that is otherwise only
  *    integrated.
  *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered.
+ *  - Weight bound: no load is less than the plate's own weight and the plate alone rests
+ *    higher the more pressure holds it, so a settled plate's mean pressure bounds its height
+ *    from above (p A_eff(h) >= m_plate g). An inventory drifted past it is measured back to it.
  */
 class CellObserver {
  public:
@@ -163,7 +170,19 @@ class CellObserver {
   /// The flat cell's gas at `gauge_pressure_pa` (the mean read).
   void anchorFlat(double gauge_pressure_pa);
   void refresh(const CellInputs& in);
+  /// The plate alone's rest pressure over the structure's heights (plate_alone_h_m_/_p_pa_).
+  void tabulatePlateAlone();
   double lowestLiftedPressure() const;
+  /// The highest height at which the plate alone rests at no more than `gauge_pressure_pa`:
+  /// a settled plate at that mean pressure is not above it (+inf beyond the table's top).
+  double plateAloneHeight(double gauge_pressure_pa) const;
+  /// The weight bound: the readings averaged over quiet windows (both valves shut, settled).
+  void boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
+  /// Accumulates the quiet readings; true (with their mean and standard error) at the end of
+  /// each weight_bound_window_s after the first.
+  bool quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa);
+  /// Scalar measurement of U: the plate at rest at `height_m` (sd `sd_m`) under the pressure.
+  void measureSettledHeight(double height_m, double sd_m, double gauge_pressure_pa);
   /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
   void takeInputs(const ObserverInputs& inputs, double dt);
   /// The inputs acting over the next `dt`: the valve openings held valve_dead_time_s earlier.
@@ -193,6 +212,11 @@ class CellObserver {
   double reanchor_pa_ = 0.0;            ///< flat below this mean pressure [Pa]
   double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlat
   int reanchors_ = 0;
+  std::vector<double> plate_alone_h_m_, plate_alone_p_pa_;  ///< rests of the plate alone (NaN: none found)
+  double quiet_s_ = 0.0;        ///< both valves shut this long [s]
+  double quiet_sum_pa_ = 0.0;   ///< readings summed over the current window
+  long quiet_count_ = 0;
+  int weight_bounds_ = 0;
 };
 
 /// Height errors (true minus estimated) accumulated over a run: RMS and worst.
