@@ -164,9 +164,9 @@ void AirbagNode::update(const ros::Time& now) {
   // whole time the valves kept their command), and to its own now, read at its turn in the
   // round, not the round's: the driver reports its valves' pulses averaged since the last
   // read(), and the cell integrates that mean over its own period. With the round's time a
-  // cell late in the round had periods a few ms off the driver's spans, and a 5 ms pulse was
-  // counted 5 ms x period / span: on average more than it passed (the mean of 1/span), light
-  // cells' PWM fills over-counted by 1-6 % on the bed.
+  // cell late in the round had periods a few ms off the driver's spans (a pulse counted as
+  // pulse x period / span); on the bed the PWM fills were over-counted by 1.6 % on average,
+  // 1.1 % after (one recorded run each, doc/real_bed.md).
   const double period_s = 1.0 / params_.update_rate_hz;
   const double until_s = params_.hardware.simulated() ? std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s)
                                                       : elapsed(ros::Time::now());

@@ -29,7 +29,7 @@
 //   --alternate           instead of the programme: the alternating plan's moves as the bed
 //                         manager streams them (0.10 m, then 0.03 / 0.12 m every 20 s, targets
 //                         rate-limited to 0.02 m/s and sent at 50 Hz), 100 s
-//   --period S            the cell's control period (default 0.005 s; the bed's nodes: 0.02)
+//   --period S            the cell's control period (default 0.005 s, as the bed's nodes)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
 //   --trace FILE          every period as CSV: the emulator's gas (mass, temperature, flows,

@@ -68,6 +68,7 @@ CellObserver::CellObserver(const CellParams& model, const CellObserverParams& pa
                            const std::vector<CellEffectPtr>& effects)
     : params_(params), model_(validModel(model, params)), gamma_(model.gas.heat_capacity_ratio) {
   for (const auto& e : effects) model_.addEffect(e);
+  unstretched_top_m_ = model_.structure().heightLimit(model_.structure().restShape().data());
   // Flat means below half the lightest lifted plate's pressure (at most reanchor_pressure_pa).
   tabulatePlateAlone();
   reanchor_pa_ = std::min(params_.reanchor_pressure_pa, 0.5 * lowestLiftedPressure());
@@ -252,7 +253,7 @@ double CellObserver::topHeight(double gauge_pressure_pa) const {
   // and cell: only for a plate already within a tenth of the unstretched top (a step does not
   // cross that tenth; the next one then takes the stretched top).
   const CellStructure& structure = model_.structure();
-  const double unstretched = structure.heightLimit(structure.restShape().data());
+  const double unstretched = unstretched_top_m_;
   if (x_[CellModel::kHeight] < 0.9 * unstretched) return unstretched;
   const auto q = structure.relaxedShape(std::min(x_[CellModel::kHeight], unstretched), gauge_pressure_pa, &x_[CellModel::kShape]);
   return std::max(unstretched, structure.heightLimit(q.data()));
@@ -449,8 +450,7 @@ void CellObserver::tabulatePlateAlone() {
   // The plate alone (the least load there is) at rest at heights up to the structure's limit.
   const double plate_weight_n = model_.params().plate_mass_kg * kGravity;
   const CellStructure& structure = model_.structure();
-  const auto rest = structure.restShape();
-  const double top = 0.95 * structure.heightLimit(rest.data());
+  const double top = 0.95 * unstretched_top_m_;
   plate_alone_h_m_.clear();
   plate_alone_p_pa_.clear();
   for (int i = 1; i <= kPlateAloneRests; ++i) {

@@ -212,6 +212,7 @@ class CellObserver {
   double reanchor_pa_ = 0.0;            ///< flat below this mean pressure [Pa]
   double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlat
   int reanchors_ = 0;
+  double unstretched_top_m_ = 0.0;  ///< the structure's height limit with the film at rest
   std::vector<double> plate_alone_h_m_, plate_alone_p_pa_;  ///< rests of the plate alone (NaN: none found)
   double quiet_s_ = 0.0;        ///< both valves shut this long [s]
   double quiet_sum_pa_ = 0.0;   ///< readings summed over the current window
