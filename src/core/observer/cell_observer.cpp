@@ -22,6 +22,12 @@ constexpr int kPlateAloneRests = 80;
 constexpr double kCurvedFlowBands = 3.0;
 // Readings within their noise of each other are smoothed over this time for the flows [s].
 constexpr double kFlowPressureFilterS = 0.03;
+// The readings' noise: both valves shut this long before their readings count (a heavy plate
+// rings on its gas spring after an edge) [s]; the configured sd counts as this many readings;
+// about this many are remembered.
+constexpr double kStillSettleS = 0.5;
+constexpr double kNoisePriorReadings = 20.0;
+constexpr double kNoiseMemoryReadings = 24000.0;
 
 std::string joinErrors(const std::ostringstream& err) {
   std::string s = err.str();
@@ -66,7 +72,10 @@ std::string CellObserverParams::validate() const {
 
 CellObserver::CellObserver(const CellParams& model, const CellObserverParams& params,
                            const std::vector<CellEffectPtr>& effects)
-    : params_(params), model_(validModel(model, params)), gamma_(model.gas.heat_capacity_ratio) {
+    : params_(params),
+      model_(validModel(model, params)),
+      gamma_(model.gas.heat_capacity_ratio),
+      reading_noise_(params.pressure_noise_pa, kNoisePriorReadings, kNoiseMemoryReadings) {
   for (const auto& e : effects) model_.addEffect(e);
   unstretched_top_m_ = model_.structure().heightLimit(model_.structure().restShape().data());
   // Flat means below half the lightest lifted plate's pressure (at most reanchor_pressure_pa).
@@ -94,6 +103,8 @@ void CellObserver::reset(double load_n) {
   sub_ambient_flat_until_s_ = -1.0;
   quiet_s_ = quiet_sum_pa_ = 0.0;
   quiet_count_ = 0;
+  still_s_ = 0.0;
+  reading_noise_.interrupt();
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
@@ -185,7 +196,7 @@ Eigen::Vector2d CellObserver::noiseBias(const CellInputs& in, const Eigen::Vecto
   // the readings instead lagged the step a valve edge makes on a light plate (77 to 44 Pa
   // within one sample): each vent opening then counted 0.3 % of the cell's gas too much.
   const double p = in.flow_gauge_pressure_pa;
-  const double s = params_.pressure_noise_pa / std::sqrt(2.0);
+  const double s = pressureNoise() / std::sqrt(2.0);
   if (!std::isfinite(p) || std::fabs(p) > kCurvedFlowBands * model_.params().orifice_linear_band_pa)
     return Eigen::Vector2d::Zero();
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
@@ -223,7 +234,7 @@ double CellObserver::flowPressure(double old_pressure_pa, double new_pressure_pa
   const double mean = 0.5 * (old_pressure_pa + new_pressure_pa);
   const bool near_ambient = std::fabs(mean) <= kCurvedFlowBands * model_.params().orifice_linear_band_pa;
   if (near_ambient || !std::isfinite(flow_pressure_pa_) ||
-      std::fabs(mean - flow_pressure_pa_) > 3.0 * params_.pressure_noise_pa) {
+      std::fabs(mean - flow_pressure_pa_) > 3.0 * pressureNoise()) {
     flow_pressure_pa_ = mean;
   } else {
     flow_pressure_pa_ += (mean - flow_pressure_pa_) * std::min(1.0, dt_s / kFlowPressureFilterS);
@@ -337,7 +348,7 @@ void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s
   const double h = x_[CellModel::kHeight];
   const double dh = 1e-3;
   const double area_up = model_.structure().evaluate(h + dh, &x_[CellModel::kShape]).effective_area_m2;
-  const double noise = std::pow(params_.pressure_noise_pa * area, 2) * w / 2.0;
+  const double noise = std::pow(pressureNoise() * area, 2) * w / 2.0;
   const double from_height = std::pow(gauge_pressure_pa * (area_up - area) / dh * height_sd_m_, 2);
   load_var_n2_ = std::min(cap, (1.0 - w) * load_var_n2_ + w * from_height + noise);
 }
@@ -350,6 +361,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     return;
   }
   takeInputs(inputs, dt);
+  trackReadingNoise(p_new, dt);
   const double p_old = std::isfinite(last_pressure_pa_) ? last_pressure_pa_ : vars_.gauge_pressure_pa;
   CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
   if (std::isfinite(readings.inflow_kg_s)) in.prescribed_inflow_kg_s = readings.inflow_kg_s;
@@ -363,7 +375,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     // The plate is on the bed: the flat cell's volume and the pressure give the energy.
     const double v_flat = model_.structure().evaluate(0.0, &x_[CellModel::kShape]).volume_m3;
     const double u = (pa + p_new) * v_flat / (gamma_ - 1.0);
-    measureEnergy(u, std::pow(params_.pressure_noise_pa * v_flat / (gamma_ - 1.0), 2));
+    measureEnergy(u, std::pow(pressureNoise() * v_flat / (gamma_ - 1.0), 2));
   }
   if (std::isfinite(readings.height_m)) {
     const double v = model_.structure().evaluate(readings.height_m, &x_[CellModel::kShape]).volume_m3;
@@ -385,6 +397,16 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
   checkReanchor(readings);
 }
 
+void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
+  const bool shut = applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0;
+  still_s_ = shut ? still_s_ + dt_s : 0.0;
+  if (still_s_ > kStillSettleS) {
+    reading_noise_.addQuiet(gauge_pressure_pa);
+  } else {
+    reading_noise_.interrupt();
+  }
+}
+
 void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
   applied_ = delayed(inputs, dt);
   if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
@@ -393,6 +415,7 @@ void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
 void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   takeInputs(inputs, dt);
+  reading_noise_.interrupt();
   // No reading: the cell model runs open loop under the load estimate, plate and all. Held
   // where it was instead, a cell still filling (a terminal keeps its outputs until its
   // watchdog) saw its pressure climb to the supply's and counted a fraction of the gas.
@@ -529,7 +552,7 @@ bool CellObserver::quietMean(double gauge_pressure_pa, bool lifted, double dt_s,
   const double since_settled = quiet_s_ - window;
   if (std::floor(since_settled / window) == std::floor((since_settled - dt_s) / window)) return false;
   *mean_pa = quiet_sum_pa_ / static_cast<double>(quiet_count_);
-  *se_pa = params_.pressure_noise_pa / std::sqrt(static_cast<double>(quiet_count_));
+  *se_pa = pressureNoise() / std::sqrt(static_cast<double>(quiet_count_));
   return true;
 }
 
@@ -580,6 +603,7 @@ CellEstimate CellObserver::estimate() const {
   e.volume_m3 = vars_.structure.volume_m3;
   e.reanchors = reanchors_;
   e.weight_bounds = weight_bounds_;
+  e.pressure_noise_pa = pressureNoise();
   return e;
 }
 

@@ -8,7 +8,7 @@ using P = CellObserverParams;
 
 ParamTable<P> makeFields() {
   return {
-      NB_FIELD("pressure_noise_pa", "sd of a pressure reading: sensor noise and ADC step [Pa]", p.pressure_noise_pa),
+      NB_FIELD("pressure_noise_pa", "sd of a pressure reading until measured from the still gas's readings [Pa]", p.pressure_noise_pa),
       NB_FIELD("height_noise_m", "sd of a height reading [m]", p.height_noise_m),
       NB_FIELD("flow_uncertainty", "relative sd of the modelled valve and leak flows over 1 s [-]", p.flow_uncertainty),
       NB_FIELD("mass_walk_kg_sqrt_s", "random walk of the gas mass [kg/sqrt(s)]", p.mass_walk_kg_sqrt_s),

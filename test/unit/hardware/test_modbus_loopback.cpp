@@ -314,7 +314,7 @@ TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
   nb::RigTerminalServer server(t);
   modbus_t* client = modbus_new_tcp("127.0.0.1", t.port);
   ASSERT_EQ(modbus_connect(client), 0);
-  server.takeCoilDuty();
+  server.takeCoilDuty(1.0);
   using Clock = std::chrono::steady_clock;
   double on_s = 0.0;
   const auto start = Clock::now();
@@ -327,13 +327,50 @@ TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
     std::this_thread::sleep_for(std::chrono::milliseconds(8));
   }
   const double total_s = std::chrono::duration<double>(Clock::now() - start).count();
-  const std::vector<double> duty = server.takeCoilDuty();
+  const std::vector<double> duty = server.takeCoilDuty(total_s);
   modbus_close(client);
   modbus_free(client);
   ASSERT_EQ(duty.size(), 2u);
   // The client times each pulse from its own side of the request: within a round trip each.
   EXPECT_NEAR(duty[0], on_s / total_s, 0.03) << "on " << on_s << " s of " << total_s << " s";
   EXPECT_EQ(duty[1], 0.0);
+}
+
+TEST(RigEmulator, ACoilsOnTimeIsPassedWholeWhateverTheSpansItIsTakenOver) {
+  // The emulator's wakes run whole periods while the wall time between them varies: a coil on
+  // through a 30 ms window taken over a 10 ms span is open for all of that span and passes the
+  // rest over the next spans, so that the gas follows the coil's real on-time.
+  nb::TerminalMap t;
+  t.name = "carried";
+  t.host = "127.0.0.1";
+  t.port = 15614;
+  nb::CellRegisters c;
+  c.cell_id = 0;
+  c.inlet = {nb::ValveOutput::kCoil, 0};
+  c.vent = {nb::ValveOutput::kCoil, 1};
+  c.pressure_pa.address = 0;
+  c.pressure_pa.scale = 1.0;
+  t.cells = {c};
+  t.watchdog_s = 10.0;
+  nb::RigTerminalServer server(t);
+  modbus_t* client = modbus_new_tcp("127.0.0.1", t.port);
+  ASSERT_EQ(modbus_connect(client), 0);
+  server.takeCoilDuty(1.0);
+  const double on_before_s = server.coilOnSeconds(0);
+  ASSERT_EQ(modbus_write_bit(client, 0, 1), 1);
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  ASSERT_EQ(modbus_write_bit(client, 0, 0), 1);
+  const double on_s = server.coilOnSeconds(0) - on_before_s;
+  modbus_close(client);
+  modbus_free(client);
+  const std::vector<double> first = server.takeCoilDuty(0.01);
+  EXPECT_EQ(first[0], 1.0) << "open through the whole span";
+  double passed_s = first[0] * 0.01;
+  for (int k = 0; k < 10; ++k) passed_s += server.takeCoilDuty(0.005)[0] * 0.005;
+  std::printf("[          ] coil on %.4f s, passed %.4f s\n", on_s, passed_s);
+  EXPECT_GT(on_s, 0.029);
+  EXPECT_NEAR(passed_s, on_s, 1e-9) << "all of the on-time, none twice";
+  EXPECT_EQ(server.takeCoilDuty(0.005)[0], 0.0) << "and nothing after";
 }
 
 TEST(RigEmulator, ListensOnLoopbackOnly) {

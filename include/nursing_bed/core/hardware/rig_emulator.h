@@ -37,10 +37,13 @@ class RigTerminalServer {
     std::lock_guard<std::mutex> lock(mutex_);
     f(mapping_);
   }
-  /// Each coil's fraction of the time it was on since the last call (a solenoid passes gas
-  /// while its coil is energised, not at the instants the simulation samples it; sampled, a
-  /// PWM train of one bus cycle aliases against the simulation step). Thread-safe.
-  std::vector<double> takeCoilDuty();
+  /// Each coil's on-time since the last call as a fraction of `span_s`, the simulated time
+  /// that will pass it (a solenoid passes gas while its coil is energised, not at the
+  /// instants the simulation samples it; sampled, a PWM train of one bus cycle aliases against
+  /// the simulation step). On-time beyond the span (a late wake runs fewer periods than the
+  /// wall time it took) is carried into the next call: the cell passes gas for all of it.
+  /// Thread-safe.
+  std::vector<double> takeCoilDuty(double span_s);
   /// A coil's on-time since the server started [s] (what a client's record of the outputs it
   /// drove is checked against). Thread-safe.
   double coilOnSeconds(int address);
@@ -71,9 +74,9 @@ class RigTerminalServer {
   _modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
   std::vector<int> clients_;
-  std::vector<double> coil_on_s_;                          ///< per coil, since the last take
+  std::vector<double> coil_on_s_;                          ///< per coil, since the last take and carried
   std::vector<double> coil_total_on_s_;                    ///< per coil, since the start
-  std::chrono::steady_clock::time_point coils_since_, coils_window_;
+  std::chrono::steady_clock::time_point coils_since_;
   std::mutex mutex_;
   std::atomic<long> requests_{0};
   std::atomic<long> unanswered_{0}, late_{0};

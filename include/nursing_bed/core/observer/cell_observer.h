@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/observer/reading_noise.h"
 #include "nursing_bed/core/physics/cell_model.h"
 
 namespace nursing_bed {
@@ -21,7 +22,7 @@ namespace nursing_bed {
 /// input (doc/real_bed.md, "Observer").
 struct CellObserverParams {
   double period_s = 0.005;                 ///< one step [s]
-  double pressure_noise_pa = 15.0;         ///< sd of a pressure reading: sensor noise and ADC step [Pa]
+  double pressure_noise_pa = 15.0;         ///< sd of a pressure reading until the still gas's readings measured it [Pa]
   double height_noise_m = 0.0005;          ///< sd of a height reading, where there is one [m]
   double flow_uncertainty = 0.02;          ///< relative sd of the modelled valve and leak flows over 1 s [-]
   double mass_walk_kg_sqrt_s = 2.0e-8;     ///< random walk of the gas mass (unmodelled leaks) [kg/sqrt(s)]
@@ -74,6 +75,7 @@ struct CellEstimate {
   double volume_m3 = 0.0;
   int reanchors = 0;                       ///< how often the mass was re-anchored on a flat cell
   int weight_bounds = 0;                   ///< how often the plate's weight bounded the height
+  double pressure_noise_pa = 0.0;          ///< the readings' sd as measured (ReadingNoise) [Pa]
 };
 
 /**
@@ -99,6 +101,9 @@ struct CellEstimate {
  *    volume's air at the mean pressure), which ends the drift of a mass that is otherwise only
  *    integrated.
  *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered.
+ *  - Reading noise: measured from the readings while both valves are shut and the plate has
+ *    settled (ReadingNoise), the configured pressure_noise_pa until then; it sets the flows'
+ *    noise bias near ambient, the measurements' variances and the weight bound's error.
  *  - Weight bound: no load is less than the plate's own weight and the plate alone rests
  *    higher the more pressure holds it, so a settled plate's mean pressure bounds its height
  *    from above (p A_eff(h) >= m_plate g). An inventory drifted past it is measured back to it.
@@ -183,6 +188,10 @@ class CellObserver {
   bool quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa);
   /// Scalar measurement of U: the plate at rest at `height_m` (sd `sd_m`) under the pressure.
   void measureSettledHeight(double height_m, double sd_m, double gauge_pressure_pa);
+  /// Feeds the readings taken while the gas is still (both valves shut a settling time) to
+  /// reading_noise_.
+  void trackReadingNoise(double gauge_pressure_pa, double dt_s);
+  double pressureNoise() const { return reading_noise_.sd(); }
   /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
   void takeInputs(const ObserverInputs& inputs, double dt);
   /// The inputs acting over the next `dt`: the valve openings held valve_dead_time_s earlier.
@@ -218,6 +227,8 @@ class CellObserver {
   double quiet_sum_pa_ = 0.0;   ///< readings summed over the current window
   long quiet_count_ = 0;
   int weight_bounds_ = 0;
+  ReadingNoise reading_noise_;  ///< kept over resets: the sensor's, not the gas's
+  double still_s_ = 0.0;        ///< both valves shut this long, for the noise [s]
 };
 
 /// Height errors (true minus estimated) accumulated over a run: RMS and worst.
