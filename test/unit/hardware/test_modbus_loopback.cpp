@@ -296,13 +296,14 @@ TEST(TransientModbusError, TimeoutsAndBadRepliesAreRetriedAClosedConnectionIsNot
     EXPECT_FALSE(nb::transientModbusError(e)) << modbus_strerror(e);
 }
 
-TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
-  // A client pulses coil 0 (on 4 ms, off 8 ms, not in step with anything): the valve is open
-  // for the time the coil was on between two takes, whatever its state at the take.
+namespace {
+
+/// A terminal of one cell on 127.0.0.1: inlet coil 0, vent coil 1, pressure input 0.
+nb::TerminalMap oneCoilCellTerminal(const std::string& name, int port) {
   nb::TerminalMap t;
-  t.name = "pulsed";
+  t.name = name;
   t.host = "127.0.0.1";
-  t.port = 15613;
+  t.port = port;
   nb::CellRegisters c;
   c.cell_id = 0;
   c.inlet = {nb::ValveOutput::kCoil, 0};
@@ -311,10 +312,34 @@ TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
   c.pressure_pa.scale = 1.0;
   t.cells = {c};
   t.watchdog_s = 10.0;
-  nb::RigTerminalServer server(t);
-  modbus_t* client = modbus_new_tcp("127.0.0.1", t.port);
-  ASSERT_EQ(modbus_connect(client), 0);
-  server.takeCoilDuty(1.0);
+  return t;
+}
+
+/// A rig server of that terminal, its coils' on-time taken so far, and a client connected.
+struct OneCellServer {
+  OneCellServer(const std::string& name, int port)
+      : server(oneCoilCellTerminal(name, port)), client(modbus_new_tcp("127.0.0.1", port)) {
+    connected = modbus_connect(client) == 0;
+    server.takeCoilDuty(1.0);
+  }
+  ~OneCellServer() {
+    modbus_close(client);
+    modbus_free(client);
+  }
+  nb::RigTerminalServer server;
+  modbus_t* client;
+  bool connected = false;
+};
+
+}  // namespace
+
+TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
+  // A client pulses coil 0 (on 4 ms, off 8 ms, not in step with anything): the valve is open
+  // for the time the coil was on between two takes, whatever its state at the take.
+  OneCellServer rig("pulsed", 15613);
+  ASSERT_TRUE(rig.connected);
+  nb::RigTerminalServer& server = rig.server;
+  modbus_t* client = rig.client;
   using Clock = std::chrono::steady_clock;
   double on_s = 0.0;
   const auto start = Clock::now();
@@ -328,8 +353,6 @@ TEST(RigEmulator, AValvePassesItsCoilsOnTimeNotTheSampledState) {
   }
   const double total_s = std::chrono::duration<double>(Clock::now() - start).count();
   const std::vector<double> duty = server.takeCoilDuty(total_s);
-  modbus_close(client);
-  modbus_free(client);
   ASSERT_EQ(duty.size(), 2u);
   // The client times each pulse from its own side of the request: within a round trip each.
   EXPECT_NEAR(duty[0], on_s / total_s, 0.03) << "on " << on_s << " s of " << total_s << " s";
@@ -340,29 +363,15 @@ TEST(RigEmulator, ACoilsOnTimeIsPassedWholeWhateverTheSpansItIsTakenOver) {
   // The emulator's wakes run whole periods while the wall time between them varies: a coil on
   // through a 30 ms window taken over a 10 ms span is open for all of that span and passes the
   // rest over the next spans, so that the gas follows the coil's real on-time.
-  nb::TerminalMap t;
-  t.name = "carried";
-  t.host = "127.0.0.1";
-  t.port = 15614;
-  nb::CellRegisters c;
-  c.cell_id = 0;
-  c.inlet = {nb::ValveOutput::kCoil, 0};
-  c.vent = {nb::ValveOutput::kCoil, 1};
-  c.pressure_pa.address = 0;
-  c.pressure_pa.scale = 1.0;
-  t.cells = {c};
-  t.watchdog_s = 10.0;
-  nb::RigTerminalServer server(t);
-  modbus_t* client = modbus_new_tcp("127.0.0.1", t.port);
-  ASSERT_EQ(modbus_connect(client), 0);
-  server.takeCoilDuty(1.0);
+  OneCellServer rig("carried", 15614);
+  ASSERT_TRUE(rig.connected);
+  nb::RigTerminalServer& server = rig.server;
+  modbus_t* client = rig.client;
   const double on_before_s = server.coilOnSeconds(0);
   ASSERT_EQ(modbus_write_bit(client, 0, 1), 1);
   std::this_thread::sleep_for(std::chrono::milliseconds(30));
   ASSERT_EQ(modbus_write_bit(client, 0, 0), 1);
   const double on_s = server.coilOnSeconds(0) - on_before_s;
-  modbus_close(client);
-  modbus_free(client);
   const std::vector<double> first = server.takeCoilDuty(0.01);
   EXPECT_EQ(first[0], 1.0) << "open through the whole span";
   double passed_s = first[0] * 0.01;

@@ -128,6 +128,31 @@ RunResult run(const RunOptions& o, const std::string& label) {
   return r;
 }
 
+/// The plate alone (0.6 N) at rest at 100 mm, an observer started there; `advance` runs both
+/// with the vent at an opening, the observer reading `read(true pressure)`.
+struct PlateAlone {
+  explicit PlateAlone(const nb::CellObserverParams& params) : plant(cell), op(params), observer(cell, op) {
+    plant.resetToEquilibrium(0.10, 0.6);
+    observer.resetToHeight(0.10, 0.6);
+  }
+  template <typename Read>
+  void advance(double vent, double seconds, Read read) {
+    for (double t = 0.0; t < seconds - 1e-9; t += op.period_s) {
+      nb::CellInputs in;
+      in.vent_opening = vent;
+      in.load_n = 0.6;
+      plant.advance(op.period_s, in);
+      nb::ObserverReadings z;
+      z.gauge_pressure_pa = read(plant.variables().gauge_pressure_pa);
+      observer.step({0.0, vent, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+    }
+  }
+  const nb::CellParams cell;
+  nb::CellModel plant;
+  nb::CellObserverParams op;
+  nb::CellObserver observer;
+};
+
 std::vector<nb::CellEffectPtr> hiddenEffects() {
   return {std::make_shared<nb::LeakEffect>(1e-8), std::make_shared<nb::HeatTransferEffect>(8.0)};
 }
@@ -232,24 +257,10 @@ TEST(CellObserver, TakesALightPlatesVentStepAsItComes) {
   // ~44 Pa within one period (the plate's inertia is small against its gas spring). Taken for
   // noise and smoothed, the readings after the step lagged it, and the first 0.2 s of venting
   // let out 8 % more gas than the cell did. Readings noise-free here, the observer told 10 Pa.
-  const nb::CellParams cell;
-  nb::CellModel plant(cell);
-  plant.resetToEquilibrium(0.10, 0.6);
-  nb::CellObserverParams op;
-  nb::CellObserver observer(cell, op);
-  observer.resetToHeight(0.10, 0.6);
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  auto advance = [&](double vent, double seconds) {
-    for (double t = 0.0; t < seconds - 1e-9; t += op.period_s) {
-      nb::CellInputs in;
-      in.vent_opening = vent;
-      in.load_n = 0.6;
-      plant.advance(op.period_s, in);
-      nb::ObserverReadings z;
-      z.gauge_pressure_pa = plant.variables().gauge_pressure_pa;
-      observer.step({0.0, vent, 0.0, nan}, z);
-    }
-  };
+  PlateAlone rig{nb::CellObserverParams{}};
+  nb::CellModel& plant = rig.plant;
+  nb::CellObserver& observer = rig.observer;
+  auto advance = [&](double vent, double seconds) { rig.advance(vent, seconds, [](double p) { return p; }); };
   advance(0.0, 0.5);
   const double plant_m0 = plant.variables().mass_kg, observer_m0 = observer.estimate().mass_kg;
   const double sealed_p = plant.variables().gauge_pressure_pa;
@@ -415,27 +426,15 @@ namespace {
 /// noise it measured. Readings with `noise_pa` of noise (the sequence `seed`, times `sign`) on
 /// an `adc_pa` step.
 double lightDescent(double told_pa, double noise_pa, double adc_pa, unsigned seed, double sign, double* measured_pa) {
-  const nb::CellParams cell;
-  nb::CellModel plant(cell);
-  plant.resetToEquilibrium(0.10, 0.6);
   nb::CellObserverParams op;
   op.pressure_noise_pa = told_pa;
-  nb::CellObserver observer(cell, op);
-  observer.resetToHeight(0.10, 0.6);
+  PlateAlone rig(op);
+  nb::CellModel& plant = rig.plant;
+  nb::CellObserver& observer = rig.observer;
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 1.0);
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  auto advance = [&](double vent, double seconds) {
-    for (double t = 0.0; t < seconds - 1e-9; t += op.period_s) {
-      nb::CellInputs in;
-      in.vent_opening = vent;
-      in.load_n = 0.6;
-      plant.advance(op.period_s, in);
-      nb::ObserverReadings z;
-      z.gauge_pressure_pa = adc(plant.variables().gauge_pressure_pa + sign * noise_pa * noise(rng), adc_pa);
-      observer.step({0.0, vent, 0.0, nan}, z);
-    }
-  };
+  auto read = [&](double p) { return adc(p + sign * noise_pa * noise(rng), adc_pa); };
+  auto advance = [&](double vent, double seconds) { rig.advance(vent, seconds, read); };
   advance(0.0, 10.0);
   *measured_pa = observer.estimate().pressure_noise_pa;
   const double plant_m0 = plant.variables().mass_kg, observer_m0 = observer.estimate().mass_kg;
