@@ -16,21 +16,21 @@ void ReadingNoise::addQuiet(double reading) {
     interrupt();
     return;
   }
-  const double previous = last_;
+  const double r0 = before_last_, r1 = last_;
+  before_last_ = last_;
   last_ = reading;
-  if (!std::isfinite(previous)) return;
-  const double d = reading - previous;
-  // var(d) = 2 sd^2; beyond five of its sds the pressure moved.
-  if (d * d > 25.0 * 2.0 * sd() * sd()) return;
-  sum_half_sq_ += 0.5 * d * d;
+  if (!std::isfinite(r0) || !std::isfinite(r1)) return;
+  const double d2 = reading - 2.0 * r1 + r0;
+  // var(d2) = 6 sd^2; beyond five of its sds the pressure moved.
+  if (d2 * d2 > 25.0 * 6.0 * sd() * sd()) return;
+  sum_var_ += d2 * d2 / 6.0;
   pairs_ += 1.0;
   if (pairs_ > memory_n_) {
-    const double keep = memory_n_ / pairs_;
-    sum_half_sq_ *= keep;
+    sum_var_ *= memory_n_ / pairs_;
     pairs_ = memory_n_;
   }
 }
 
-double ReadingNoise::sd() const { return std::sqrt((prior_var_ * prior_n_ + sum_half_sq_) / (prior_n_ + pairs_)); }
+double ReadingNoise::sd() const { return std::sqrt((prior_var_ * prior_n_ + sum_var_) / (prior_n_ + pairs_)); }
 
 }  // namespace nursing_bed

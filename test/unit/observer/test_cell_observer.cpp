@@ -399,9 +399,9 @@ TEST(CellObserver, ThePlatesWeightBoundLeavesARightEstimateAndAHeavyPlateAlone) 
   EXPECT_EQ(heavy.bounds, 0);
 }
 
-TEST(ReadingNoise, MeasuresTheReadingsSdWhateverItWasToldAndLeavesStepsOut) {
+TEST(ReadingNoise, MeasuresTheReadingsSdWhateverItWasToldAndLeavesStepsAndSwaysOut) {
   // 10 Pa of sensor noise on a 12.2 Pa ADC step: 10.6 Pa a reading. Told 3 or 30 Pa, and with
-  // a 200 Pa load step every second (a patient moving), it finds that within 5 %.
+  // a 200 Pa load step every second (a patient moving) or a sway, it finds that within 5 %.
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 10.0);
   const double truth = std::sqrt(100.0 + 12.2 * 12.2 / 12.0);
@@ -415,6 +415,12 @@ TEST(ReadingNoise, MeasuresTheReadingsSdWhateverItWasToldAndLeavesStepsOut) {
     EXPECT_NEAR(n.sd(), truth, 0.05 * truth) << "told " << told << " Pa";
     EXPECT_GT(n.pairs(), 5000.0);
   }
+  // A patient's sway on the plate, 300 Pa at 2 Hz, read at 200 Hz: in first differences it
+  // would read 13.8 Pa; the second differences leave it out.
+  nb::ReadingNoise swayed(15.0, 20.0, 24000.0);
+  for (int k = 0; k < 6000; ++k)
+    swayed.addQuiet(adc(500.0 + 300.0 * std::sin(2.0 * M_PI * 2.0 * k * 0.005) + noise(rng), 12.2));
+  EXPECT_NEAR(swayed.sd(), truth, 0.05 * truth) << "under a sway";
   EXPECT_THROW(nb::ReadingNoise(0.0, 200.0, 24000.0), std::invalid_argument);
   EXPECT_THROW(nb::ReadingNoise(10.0, 200.0, 100.0), std::invalid_argument);
 }
