@@ -398,8 +398,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
 }
 
 void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
-  const bool shut = applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0;
-  still_s_ = shut ? still_s_ + dt_s : 0.0;
+  still_s_ = valvesShut() ? still_s_ + dt_s : 0.0;
   if (still_s_ > kStillSettleS) {
     reading_noise_.addQuiet(gauge_pressure_pa);
   } else {
@@ -539,8 +538,7 @@ bool CellObserver::quietMean(double gauge_pressure_pa, bool lifted, double dt_s,
   // With both valves shut the plate first settles for one window, then the readings are
   // averaged for as long as the valves stay shut; true at the end of each window.
   const double window = params_.weight_bound_window_s;
-  const bool shut = applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0;
-  if (window <= 0.0 || !shut || !lifted) {
+  if (window <= 0.0 || !valvesShut() || !lifted) {
     quiet_s_ = quiet_sum_pa_ = 0.0;
     quiet_count_ = 0;
     return false;

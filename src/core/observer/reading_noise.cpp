@@ -24,13 +24,13 @@ void ReadingNoise::addQuiet(double reading) {
   // var(d2) = 6 sd^2; beyond five of its sds the pressure moved.
   if (d2 * d2 > 25.0 * 6.0 * sd() * sd()) return;
   sum_var_ += d2 * d2 / 6.0;
-  pairs_ += 1.0;
-  if (pairs_ > memory_n_) {
-    sum_var_ *= memory_n_ / pairs_;
-    pairs_ = memory_n_;
+  differences_ += 1.0;
+  if (differences_ > memory_n_) {
+    sum_var_ *= memory_n_ / differences_;
+    differences_ = memory_n_;
   }
 }
 
-double ReadingNoise::sd() const { return std::sqrt((prior_var_ * prior_n_ + sum_var_) / (prior_n_ + pairs_)); }
+double ReadingNoise::sd() const { return std::sqrt((prior_var_ * prior_n_ + sum_var_) / (prior_n_ + differences_)); }
 
 }  // namespace nursing_bed

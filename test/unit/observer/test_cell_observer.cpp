@@ -413,7 +413,7 @@ TEST(ReadingNoise, MeasuresTheReadingsSdWhateverItWasToldAndLeavesStepsAndSwaysO
       n.addQuiet(adc(level + noise(rng), 12.2));
     }
     EXPECT_NEAR(n.sd(), truth, 0.05 * truth) << "told " << told << " Pa";
-    EXPECT_GT(n.pairs(), 5000.0);
+    EXPECT_GT(n.differences(), 5000.0);
   }
   // A patient's sway on the plate, 300 Pa at 2 Hz, read at 200 Hz: in first differences it
   // would read 13.8 Pa; the second differences leave it out.

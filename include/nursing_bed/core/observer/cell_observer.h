@@ -192,6 +192,8 @@ class CellObserver {
   /// reading_noise_.
   void trackReadingNoise(double gauge_pressure_pa, double dt_s);
   double pressureNoise() const { return reading_noise_.sd(); }
+  /// Both valves shut over the last period (the inputs acting, after the dead time).
+  bool valvesShut() const { return applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0; }
   /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
   void takeInputs(const ObserverInputs& inputs, double dt);
   /// The inputs acting over the next `dt`: the valve openings held valve_dead_time_s earlier.

@@ -30,11 +30,11 @@ class ReadingNoise {
   void interrupt() { last_ = before_last_ = std::numeric_limits<double>::quiet_NaN(); }
   double sd() const;
   /// Second differences counted so far (not the prior).
-  double pairs() const { return pairs_; }
+  double differences() const { return differences_; }
 
  private:
   double prior_var_, prior_n_, memory_n_;
-  double sum_var_ = 0.0, pairs_ = 0.0;  ///< d2^2 / 6 summed, and their count
+  double sum_var_ = 0.0, differences_ = 0.0;  ///< d2^2 / 6 summed, and their count
   double last_ = std::numeric_limits<double>::quiet_NaN(), before_last_ = std::numeric_limits<double>::quiet_NaN();
 };
 
