@@ -196,6 +196,13 @@ void AirbagNode::reportGasSearch() {
              cell_->time() - gas_search_start_s_);
   }
   finding_gas_ = finding;
+  const bool anchoring = cell_->anchoringGas();
+  if (anchoring != anchoring_gas_) {
+    ROS_DEBUG("%s: %s", layout_.link_name.c_str(),
+              anchoring ? "lowered into the low band (observer/reanchor_below_m): venting flat to re-anchor its gas"
+                        : "re-anchoring over");
+  }
+  anchoring_gas_ = anchoring;
 }
 
 void AirbagNode::stepDirectRamp(double now_s) {

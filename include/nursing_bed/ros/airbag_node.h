@@ -97,7 +97,8 @@ class AirbagNode {
   };
   /// Copies the cell's state for the publishing thread (mutex_ held).
   void takeSnapshot();
-  /// Logs when the cell starts and ends venting to find its gas (AirbagCell::findingGas).
+  /// Logs when the cell starts and ends venting to find its gas (AirbagCell::findingGas) or,
+  /// at debug level, to re-anchor it (AirbagCell::anchoringGas).
   void reportGasSearch();
   void publishState(const CellSnapshot& snapshot, const ros::Time& stamp);
   /// Moves a direct call's ramp one period on (simulation thread, mutex held).
@@ -114,6 +115,7 @@ class AirbagNode {
   std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
   CellSnapshot snapshot_;
   bool finding_gas_ = false;  ///< the cell was venting to find its gas at the last update
+  bool anchoring_gas_ = false;  ///< the cell was venting flat to re-anchor its gas at the last update
   bool gas_search_warned_ = false;
   double gas_search_start_s_ = 0.0;
   static constexpr double kGasSearchWarnS = 1.0;  ///< a search this long is a cell that held gas [s]

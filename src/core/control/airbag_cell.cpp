@@ -180,6 +180,7 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   const std::string error = checkHeight(height_m);
   if (!error.empty()) return error;
   controller_.setTarget(height_m);
+  planAnchor(height_m);
   pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
   mode_ = AirbagMode::kHeight;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
@@ -206,6 +207,7 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   const std::string error = checkPressure(pressure_pa);
   if (!error.empty()) return error;
   controller_.clearTarget();
+  if (gas_ == GasKnowledge::kAnchoring) gas_ = GasKnowledge::kKnown;  // a pressure is held from where the cell is
   pressure_setpoint_pa_ = pressure_pa;
   mode_ = AirbagMode::kPressure;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
@@ -341,23 +343,40 @@ ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
   return wanted;
 }
 
+void AirbagCell::planAnchor(double target_m) {
+  // Near the bag's top 1 % of gas moves a light plate 8-10 mm, and pressure alone cannot tell
+  // a plate higher than counted from a heavier load on it: each move's count error (0.4-2 % on
+  // the bed) stays in the inventory until the cell is found flat. A cell lowered into the low
+  // band has little height to lose there, so it passes through flat on the way.
+  if (!use_estimate_) return;
+  const double band = observer_->params().reanchor_below_m;
+  const bool low = target_m <= band;
+  if (gas_ == GasKnowledge::kAnchoring && !low) {
+    gas_ = GasKnowledge::kKnown;  // raised again before it was found flat
+  } else if (gas_ == GasKnowledge::kKnown && low && band > 0.0 && measurement_.height_m > band) {
+    gas_ = GasKnowledge::kAnchoring;
+    finding_reanchors_ = observer_->estimate().reanchors;
+  }
+}
+
 ValveCommand AirbagCell::findingGas(const ValveCommand& wanted) {
   // Started flat over a cell that holds gas, the observer would count every fill from nothing:
   // commanded to 80 mm, such a cell filled to the bag's top at the supply pressure (140-150 mm,
   // 20 kPa, the estimate at 30 mm). Its pressure alone cannot give its gas (nor its height or
   // load); a flat cell's can. So it vents, the one safe direction, until the observer's
   // re-anchor test finds it flat (below ambient counts: a heavy plate's vented cell settles
-  // there), and is then controlled to its kept setpoint.
+  // there), and is then controlled to its kept setpoint. A cell anchoring (planAnchor) does the
+  // same with its height tracked meanwhile.
   if (gas_ == GasKnowledge::kKnown) return wanted;
   if (observer_->estimate().reanchors > finding_reanchors_) {
-    const bool vented = gas_ == GasKnowledge::kFinding;
+    const bool vented = gas_ != GasKnowledge::kUnverified;
     gas_ = GasKnowledge::kKnown;
     if (!vented) return wanted;  // found flat before any command (a bed started flat)
     // Its integral ran on the flat start's error through the vent: restart it.
     if (controller_.hasTarget()) controller_.setTarget(controller_.target());
     return ValveCommand{};
   }
-  gas_ = GasKnowledge::kFinding;
+  if (gas_ == GasKnowledge::kUnverified) gas_ = GasKnowledge::kFinding;
   observer_->expectFlat(2.0 * params_.control_period_s);
   return ValveCommand{0.0, 1.0};
 }

@@ -65,6 +65,7 @@ std::string CellObserverParams::validate() const {
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
   non_negative("resume_vent_s", resume_vent_s);
+  non_negative("reanchor_below_m", reanchor_below_m);
   non_negative("weight_bound_window_s", weight_bound_window_s);
   if (resume_vent_s > 0.2) err << "resume_vent_s must be at most 0.2 (a check, not a vent), got " << resume_vent_s << "; ";
   return joinErrors(err);

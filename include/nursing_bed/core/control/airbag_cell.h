@@ -164,6 +164,9 @@ class AirbagCell {
   /// Reset over hardware without a height sensor and commanded before the observer found the
   /// cell flat: its gas is unknown, and it vents flat before it is controlled.
   bool findingGas() const { return gas_ == GasKnowledge::kFinding; }
+  /// Lowered into the low band (observer reanchor_below_m): venting flat so that the observer
+  /// re-anchors its gas, the target kept; its height is still tracked.
+  bool anchoringGas() const { return gas_ == GasKnowledge::kAnchoring; }
 
  private:
   void controlStep();
@@ -180,9 +183,13 @@ class AirbagCell {
   /// After a lost link: a short vent, then both valves shut while the observer's re-anchor
   /// test runs (observer resume_vent_s); otherwise `wanted`.
   ValveCommand checkingGas(double now_s, const ValveCommand& wanted);
-  /// Reset flat over a cell that held gas (a node restarted over an inflated bed): a full vent
-  /// until the observer re-anchors the flat cell; otherwise `wanted`.
+  /// Reset flat over a cell that held gas (a node restarted over an inflated bed), or lowered
+  /// into the low band (planAnchor): a full vent until the observer re-anchors the flat cell;
+  /// otherwise `wanted`.
   ValveCommand findingGas(const ValveCommand& wanted);
+  /// A new height target: lowered into the low band from above it, the cell is to pass through
+  /// flat (kAnchoring); raised out of it before that, it need not.
+  void planAnchor(double target_m);
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
@@ -220,12 +227,13 @@ class AirbagCell {
   double gas_check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double gas_check_until_s_ = -1.0;   ///< valves kept shut until then for the re-anchor test [s]
   int gas_check_reanchors_ = 0;       ///< the observer's re-anchors when the check began
-  /// What the observer's gas is worth after a reset: known (a simulated plant reset with it,
-  /// a height given, a height sensor, or the cell since found flat), unverified (reset flat
-  /// over real hardware, not yet found flat), or being found (commanded meanwhile: venting).
-  enum class GasKnowledge { kKnown, kUnverified, kFinding };
+  /// What the observer's gas is worth: known (a simulated plant reset with it, a height given,
+  /// a height sensor, or the cell since found flat), unverified (reset flat over real hardware,
+  /// not yet found flat), being found (commanded meanwhile: venting, height unknown), or being
+  /// re-anchored (lowered into the low band: venting, height tracked).
+  enum class GasKnowledge { kKnown, kUnverified, kFinding, kAnchoring };
   GasKnowledge gas_ = GasKnowledge::kKnown;
-  int finding_reanchors_ = 0;         ///< the observer's re-anchors at the reset
+  int finding_reanchors_ = 0;         ///< the observer's re-anchors at the reset (or the anchoring's start)
 };
 
 }  // namespace nursing_bed

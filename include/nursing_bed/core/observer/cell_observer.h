@@ -37,6 +37,11 @@ struct CellObserverParams {
   /// After a lost link the cell vents at most this long (until its pressure reads flat), then
   /// keeps both valves shut while the re-anchor test runs (AirbagCell); 0: no check [s].
   double resume_vent_s = 0.05;
+  /// A height target at or below this, sent while the cell's height is above it, is reached
+  /// through a flat cell: the cell vents until the re-anchor test finds it flat, then fills to
+  /// the target (AirbagCell). The gas the moves before left uncounted is gone before the low
+  /// hold and the next rise; 0: never [m].
+  double reanchor_below_m = 0.035;
   /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
