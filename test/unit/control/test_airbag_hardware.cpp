@@ -477,8 +477,7 @@ TEST(AirbagOnHardware, ACellLoweredIntoTheLowBandPassesThroughFlatAndLeavesItsCo
 }
 
 TEST(AirbagOnHardware, ACellRaisedOutOfTheLowBandBeforeItIsFoundFlatStopsVenting) {
-  nb::AirbagObserverSetup setup;
-  CuttableCell rig(0.12, 0.6, 0.12, setup);
+  CuttableCell rig(0.12, 0.6, 0.12);  // the observer's defaults: reanchor_below_m 35 mm
   rig.runTo(1.0);
   EXPECT_EQ(rig.cell->requestHeight(0.03, rig.t), "");
   rig.runTo(2.0);

@@ -311,20 +311,25 @@ TEST(CellObserver, RefusesBadParametersNamingThem) {
     EXPECT_NE(what.find("pressure_noise_pa"), std::string::npos) << what;
     EXPECT_NE(what.find("load_filter_time_s"), std::string::npos) << what;
   }
-  // The gas check after a lost link: a short vent, not an emptying.
-  for (const double vent_s : {-0.01, 0.5, std::nan("")}) {
-    p = nb::CellObserverParams{};
-    p.resume_vent_s = vent_s;
-    try {
-      nb::CellObserver o(nb::CellParams{}, p);
-      FAIL() << "accepted resume_vent_s " << vent_s;
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("resume_vent_s"), std::string::npos) << e.what();
+  // Each value of one key refused, the message naming it.
+  auto expectRefused = [](const char* key, double nb::CellObserverParams::*field, std::initializer_list<double> values) {
+    for (const double v : values) {
+      nb::CellObserverParams q;
+      q.*field = v;
+      try {
+        nb::CellObserver o(nb::CellParams{}, q);
+        ADD_FAILURE() << "accepted " << key << " " << v;
+      } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+      }
     }
-  }
+  };
+  // The gas check after a lost link: a short vent, not an emptying.
+  expectRefused("resume_vent_s", &nb::CellObserverParams::resume_vent_s, {-0.01, 0.5, std::nan("")});
   p = nb::CellObserverParams{};
   p.weight_bound_window_s = -0.5;
   EXPECT_THROW(nb::CellObserver(nb::CellParams{}, p), std::invalid_argument);
+  expectRefused("reanchor_below_m", &nb::CellObserverParams::reanchor_below_m, {-0.01, std::nan("")});
 }
 
 namespace {
