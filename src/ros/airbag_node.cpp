@@ -117,6 +117,8 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); },
                               [this](const ros::Time& now) { publish(now); });
   ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->hardware().describe().c_str());
+  const std::string warning = cell_->hardware().warning();
+  if (!warning.empty()) ROS_WARN_ONCE("%s", warning.c_str());  // once per process: a terminal's cells share it
 }
 
 std::unique_ptr<AirbagCell> AirbagNode::makeCell() {

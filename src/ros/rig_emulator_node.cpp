@@ -5,6 +5,7 @@
 
 #include "nursing_bed/core/control/airbag_params_io.h"
 #include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/core/hardware/thread_priority.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"
 
@@ -72,6 +73,10 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
   truth_timer_ = nh.createTimer(ros::Duration(1.0 / params_.truth_rate_hz), &RigEmulatorNode::publishTruth, this);
   ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(), params_.register_map.c_str(),
            params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
+  for (const auto& server : emulator_->servers())
+    if (realtimeRefused(server->scheduling()))
+      ROS_WARN("rig_emulator: terminal '%s' serves at %s: on a loaded machine it answers (and switches its valves) late",
+               server->map().name.c_str(), server->scheduling().c_str());
 }
 
 void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {

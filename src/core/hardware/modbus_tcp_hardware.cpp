@@ -8,6 +8,8 @@
 #include <map>
 #include <sstream>
 
+#include "nursing_bed/core/hardware/thread_priority.h"
+
 namespace nursing_bed {
 namespace {
 
@@ -78,6 +80,7 @@ ModbusTerminal::ModbusTerminal(const TerminalMap& map, double pwm_period_s)
   pwm_.assign(2 * map_.cells.size(), PwmChannel{});
   driven_.assign(map_.cells.size(), Driven{});
   thread_ = std::thread(&ModbusTerminal::run, this);
+  scheduling_ = scheduleRealtime(thread_, map_.realtime_priority);
 }
 
 ModbusTerminal::~ModbusTerminal() {
@@ -132,19 +135,34 @@ CellReadings ModbusTerminal::readings(std::size_t slot, double now_s) const {
 }
 
 void ModbusTerminal::takeDriven(std::size_t slot, double now_s, CellReadings* r) const {
-  // The valves' mean opening since the last call: what the PWM pulses passed, not the duty.
+  // The valves' on-time since the last call (what the PWM pulses passed, not the duty) as a
+  // mean over the caller's interval since then, which is the period its observer integrates
+  // the mean over: so every pulse is counted once by construction, whatever time the read
+  // waited for the lock (over the real spans, such a read's span runs long by the wait and the
+  // next one short). On-time beyond a full opening of the interval is carried to the next read.
   // Over a lost link the terminal holds the outputs last written until its watchdog.
   Driven& d = driven_.at(slot);
   if (!d.started) return;
   const Clock::time_point t = Clock::now();
-  const double span_s = std::chrono::duration<double>(t - d.from).count();
   const double tail_s = std::max(0.0, std::chrono::duration<double>(std::min(t, outputsHeldUntil()) - d.since).count());
-  if (span_s > 1e-4) {
-    r->inlet_driven = {(d.integral_s[0] + d.opening[0] * tail_s) / span_s, now_s};
-    r->vent_driven = {(d.integral_s[1] + d.opening[1] * tail_s) / span_s, now_s};
+  for (int k = 0; k < 2; ++k) d.integral_s[k] += d.opening[k] * tail_s;
+  d.since = t;
+  const double span_s = callerSpan(d, now_s, t);
+  d.from = t;
+  d.from_caller_s = now_s;
+  if (!(span_s > 1e-4)) return;  // nothing to average over: kept for the next read
+  StampedReading* out[2] = {&r->inlet_driven, &r->vent_driven};
+  for (int k = 0; k < 2; ++k) {
+    const double mean = std::min(1.0, d.integral_s[k] / span_s);
+    *out[k] = {mean, now_s};
+    d.integral_s[k] -= mean * span_s;
   }
-  d.integral_s[0] = d.integral_s[1] = 0.0;
-  d.since = d.from = t;
+}
+
+double ModbusTerminal::callerSpan(const Driven& d, double now_s, Clock::time_point t) {
+  // A caller whose clock does not advance between reads (a test reading at 0): the real span.
+  const double caller_s = now_s - d.from_caller_s;
+  return std::isfinite(caller_s) && caller_s > 0.0 ? caller_s : std::chrono::duration<double>(t - d.from).count();
 }
 
 ModbusTerminal::Clock::time_point ModbusTerminal::outputsHeldUntil() const {
@@ -407,8 +425,14 @@ std::string ModbusTcpCellHardware::describe() const {
   s << "modbus_tcp " << terminal_->map().name << " (" << terminal_->map().endpoint() << "), cell " << registers_.cell_id
     << ": inlet " << (registers_.inlet.kind == ValveOutput::kCoil ? "coil " : "register ") << registers_.inlet.address
     << ", vent " << (registers_.vent.kind == ValveOutput::kCoil ? "coil " : "register ") << registers_.vent.address
-    << ", pressure input " << registers_.pressure_pa.address;
+    << ", pressure input " << registers_.pressure_pa.address << "; bus thread " << terminal_->scheduling();
   return s.str();
+}
+
+std::string ModbusTcpCellHardware::warning() const {
+  if (!realtimeRefused(terminal_->scheduling())) return {};
+  return "modbus_tcp " + terminal_->map().name + ": bus thread at " + terminal_->scheduling() +
+         ": on a loaded machine the valves' edges are stamped less exactly and the observer's gas count scatters more";
 }
 
 }  // namespace nursing_bed

@@ -114,7 +114,7 @@ std::vector<CellRegisters> readBlock(const YAML::Node& node, const std::string& 
 
 TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
   checkKeys(node, {"name", "host", "port", "unit_id", "response_timeout_s", "link_loss_after_s", "reconnect_interval_s",
-                   "watchdog_s", "cycle_s", "stale_after_s", "supply_pressure", "cell_block", "cells"},
+                   "watchdog_s", "cycle_s", "stale_after_s", "realtime_priority", "supply_pressure", "cell_block", "cells"},
             where);
   TerminalMap t;
   t.name = get<std::string>(node, "name", where, where);
@@ -128,6 +128,7 @@ TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
   t.watchdog_s = get<double>(node, "watchdog_s", at, t.watchdog_s);
   t.cycle_s = get<double>(node, "cycle_s", at, t.cycle_s);
   t.stale_after_s = get<double>(node, "stale_after_s", at, t.stale_after_s);
+  t.realtime_priority = get<int>(node, "realtime_priority", at, t.realtime_priority);
   if (node["supply_pressure"]) t.supply_pressure_pa = readInput(node["supply_pressure"], "pa", at + ".supply_pressure");
   if (node["cell_block"]) t.cells = readBlock(node["cell_block"], at + ".cell_block");
   if (node["cells"]) {
@@ -169,6 +170,8 @@ void checkTerminalValues(const TerminalMap& t, std::ostringstream& err) {
   if (!(t.stale_after_s > t.cycle_s)) err << at << ": stale_after_s must exceed cycle_s; ";
   if (!(t.watchdog_s > t.cycle_s && t.watchdog_s <= 60.0))
     err << at << ": watchdog_s " << t.watchdog_s << " must exceed cycle_s and be at most 60 s; ";
+  if (t.realtime_priority < 0 || t.realtime_priority > 99)
+    err << at << ": realtime_priority " << t.realtime_priority << " not in 0..99 (0: the normal scheduler); ";
   checkLinkLoss(t, at, err);
   if (t.cells.empty()) err << at << ": serves no cells; ";
 }

@@ -12,6 +12,8 @@
 #include <chrono>
 #include <stdexcept>
 
+#include "nursing_bed/core/hardware/thread_priority.h"
+
 namespace nursing_bed {
 namespace {
 
@@ -56,6 +58,7 @@ RigTerminalServer::RigTerminalServer(const TerminalMap& map) : map_(map), last_a
   coil_total_on_s_.assign(mapping_->nb_bits, 0.0);
   coils_since_ = std::chrono::steady_clock::now();
   thread_ = std::thread(&RigTerminalServer::run, this);
+  scheduling_ = scheduleRealtime(thread_, map_.realtime_priority);
 }
 
 RigTerminalServer::~RigTerminalServer() {

@@ -257,6 +257,36 @@ TEST_F(ModbusLoopback, ASilentTerminalGoesDownAfterLinkLossAfterSAndComesBack) {
   EXPECT_TRUE(waitFor([this] { return allUp(); }, 3.0)) << "back by itself when the terminal answers again";
 }
 
+TEST_F(ModbusLoopback, TheOnTimeIsHandedOutOverTheCallersPeriods) {
+  // A cell integrates each read's mean opening over its own period (its now_s less the
+  // previous read's), not over the driver's clock: on a loaded bed a read that waited for the
+  // terminal's lock has a real span longer than the cell's period, the next one a shorter.
+  // Here the caller's clock advances 5 ms per read while about 8 ms pass: averaged over the
+  // real spans the pulses would be counted 5/8 of their on-time; over the caller's periods,
+  // the excess carried to later reads, each is counted once, as the rig's coil passed it.
+  const int coil = map_.terminals[0].cells[0].inlet.address;
+  double caller_s = 1.0, counted_s = 0.0;
+  auto readAfter = [&](int reads) {
+    for (int k = 0; k < reads; ++k) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(8));
+      caller_s += 0.005;
+      const nb::CellReadings r = cells_[0]->read(caller_s);
+      if (r.inlet_driven.present()) counted_s += r.inlet_driven.value * 0.005;
+    }
+  };
+  cells_[0]->read(caller_s);
+  const double coil_before_s = serverA().coilOnSeconds(coil);
+  cells_[0]->write({0.5, 0.0, false}, 0.0);
+  readAfter(60);
+  cells_[0]->write({}, 0.0);
+  readAfter(60);  // the valve shut a PWM frame later; the carried on-time handed out
+  const double coil_s = serverA().coilOnSeconds(coil) - coil_before_s;
+  std::printf("[          ] the coil was on %.4f s, the reads' means over the caller's periods give %.4f s\n", coil_s,
+              counted_s);
+  ASSERT_GT(coil_s, 0.15) << "the PWM'd inlet was on about half the time";
+  EXPECT_NEAR(counted_s, coil_s, 0.03 * coil_s) << "each pulse counted once";
+}
+
 TEST_F(ModbusLoopback, OverALostLinkTheOutputsHeldUntilTheTerminalsWatchdogAreReported) {
   // A terminal holds its outputs as last written until its watchdog (0.1 s) shuts them: a
   // filling cell's inlet passed gas for that long after the last exchange, and the cell must

@@ -69,6 +69,7 @@ TEST(RegisterMap, TheShippedMapServesTheWholeBedOnThreeTerminals) {
   for (const auto& t : map.terminals) EXPECT_EQ(t.cells.size(), 60u) << t.name;
   EXPECT_EQ(map.terminals[2].cells[59].cell_id, 179u);
   EXPECT_EQ(map.terminals[1].cells[3].vent.address, 103);
+  for (const auto& t : map.terminals) EXPECT_EQ(t.realtime_priority, 20) << t.name << ": its bus thread real-time";
 }
 
 TEST(RegisterMap, RefusesOverlappingAddressesNamingBothEntries) {
@@ -111,6 +112,16 @@ TEST(RegisterMap, TakesTheTerminalsWatchdogAndRefusesOneShorterThanACycle) {
   for (const char* bad : {"0", "0.004", "-1", "61"})
     expectContains(parseError(with(std::string("    watchdog_s: ") + bad)),
                    {"map.yaml", "terminal 't0'", std::string("watchdog_s ") + bad, "must exceed cycle_s and be at most 60 s"});
+}
+
+TEST(RegisterMap, TakesTheBusThreadsRealtimePriorityAndRefusesOneOutOfRange) {
+  auto with = [](const std::string& keys) { return replaced(kGoodMap, "port: 15600", "port: 15600\n" + keys); };
+  EXPECT_EQ(nb::parseRegisterMap(kGoodMap, "map.yaml", 2).terminals[0].realtime_priority, 0) << "default: normal";
+  EXPECT_EQ(nb::parseRegisterMap(with("    realtime_priority: 20"), "map.yaml", 2).terminals[0].realtime_priority, 20);
+  for (const char* bad : {"-1", "100"})
+    expectContains(parseError(with(std::string("    realtime_priority: ") + bad)),
+                   {"map.yaml", "terminal 't0'", std::string("realtime_priority ") + bad, "not in 0..99"});
+  expectContains(parseError(with("    realtime_priority: high")), {"terminals[0]", "realtime_priority", "not a valid value"});
 }
 
 TEST(RegisterMap, RefusesACellMappedTwiceAndTwoTerminalsOnOneEndpoint) {

@@ -36,7 +36,9 @@ struct CellReadings {
   StampedReading gas_temperature_k;   ///< gas temperature [K], where measured
   StampedReading supply_pressure_pa;  ///< supply (regulator outlet) gauge pressure [Pa], where measured
   /// The valve openings the driver applied since the previous read(), time-averaged (an on/off
-  /// valve: the fraction of the interval its output was on), where it knows them. The command
+  /// valve: the fraction of the interval its output was on), where it knows them; the interval
+  /// is the caller's (read()'s now_s less the previous one's), so that the caller, integrating
+  /// them over its periods, counts every pulse once. The command
   /// is a duty over the control period; the pulses that realise it are what passes the gas, at
   /// the pressure during each pulse, so an observer integrates these. While the link is down
   /// a driver may still know them: a terminal holds its outputs as last written until its own
@@ -103,6 +105,9 @@ class CellHardware {
   virtual void write(const ValveOpenings& valves, double now_s) = 0;
   /// Short description for logs ("simulated", "modbus_tcp 127.0.0.1:15020 unit 1, coils 3/63").
   virtual std::string describe() const = 0;
+  /// A condition the hardware works under that degrades it, for the node to log once (empty:
+  /// none), e.g. a bus thread refused its real-time priority.
+  virtual std::string warning() const { return {}; }
 };
 
 using CellHardwarePtr = std::shared_ptr<CellHardware>;

@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -83,6 +84,8 @@ class ModbusTerminal {
   CellReadings readings(std::size_t slot, double now_s) const;
   bool linkUp() const;
   TerminalStats stats() const;
+  /// How the bus thread is scheduled (scheduleRealtime's answer for the map's realtime_priority).
+  const std::string& scheduling() const { return scheduling_; }
   const TerminalMap& map() const { return map_; }
 
  private:
@@ -101,7 +104,8 @@ class ModbusTerminal {
   void requestHandled(Clock::time_point t, bool wrote);
   /// Every slot's record run to t, then the outputs last written (or shut) held.
   void advanceDriven(Clock::time_point t, bool shut);
-  /// Hands the cell in `slot` the outputs' mean opening since its previous read (up or down).
+  /// Hands the cell in `slot` the outputs' on-time since its previous read as a mean opening
+  /// over its own clock's interval (`now_s` less the previous read's), up or down.
   void takeDriven(std::size_t slot, double now_s, CellReadings* r) const;
   /// Until when the outputs hold: the terminal's watchdog shuts them after that.
   Clock::time_point outputsHeldUntil() const;
@@ -133,10 +137,14 @@ class ModbusTerminal {
   /// time integral since the slot's last readings() (mutable: readings() hands it out).
   struct Driven {
     double opening[2] = {0.0, 0.0};
-    double integral_s[2] = {0.0, 0.0};
+    double integral_s[2] = {0.0, 0.0};   ///< on-time not yet handed out [s]
     Clock::time_point since, from;
+    double from_caller_s = std::numeric_limits<double>::quiet_NaN();  ///< the last read's now_s
     bool started = false;
   };
+  /// The interval a read's mean is over: the caller's since its previous read, else (a clock
+  /// that did not advance, or the first read) the real time since then.
+  static double callerSpan(const Driven& d, double now_s, Clock::time_point t);
   mutable std::vector<Driven> driven_;
   Clock::time_point last_read_;
   bool have_read_ = false;
@@ -146,6 +154,7 @@ class ModbusTerminal {
   TerminalStats stats_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  std::string scheduling_;
 };
 
 class ModbusTcpCellHardware : public CellHardware {
@@ -157,6 +166,7 @@ class ModbusTcpCellHardware : public CellHardware {
   CellReadings read(double now_s) override;
   void write(const ValveOpenings& valves, double now_s) override;
   std::string describe() const override;
+  std::string warning() const override;
 
  private:
   std::shared_ptr<ModbusTerminal> terminal_;

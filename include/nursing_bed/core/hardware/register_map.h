@@ -54,6 +54,11 @@ struct TerminalMap {
   double watchdog_s = 0.1;
   double cycle_s = 0.005;             ///< bus cycle: one batched read and write of every cell
   double stale_after_s = 0.2;         ///< a reading older than this is a sensor fault
+  /// SCHED_FIFO priority (1-99) of the bus thread serving this terminal, and of the rig
+  /// emulator's server standing in for it (a terminal answers in deterministic time); 0: the
+  /// normal scheduler. Refused by the system (no CAP_SYS_NICE), the thread runs normally and
+  /// the cells' hardware says so (CellHardware::warning).
+  int realtime_priority = 0;
   AnalogInput supply_pressure_pa;     ///< optional supply pressure input
   std::vector<CellRegisters> cells;
   std::string endpoint() const { return host + ":" + std::to_string(port) + " unit " + std::to_string(unit_id); }

@@ -48,6 +48,8 @@ class RigTerminalServer {
   /// drove is checked against). Thread-safe.
   double coilOnSeconds(int address);
   long requestsServed() const { return requests_; }
+  /// How the server thread is scheduled (the map's realtime_priority; scheduleRealtime).
+  const std::string& scheduling() const { return scheduling_; }
   /// Fault injection: the next `requests` requests are read and never answered, the
   /// connection kept (a silent terminal; 0: answer again).
   void leaveUnanswered(long requests) { unanswered_ = requests; }
@@ -83,6 +85,7 @@ class RigTerminalServer {
   std::atomic<double> late_delay_s_{0.0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  std::string scheduling_;
 };
 
 struct RigEmulatorOptions {
