@@ -91,35 +91,28 @@ class HeightAccuracy:
         self.truth.append((rospy.get_time(), list(msg.data[0::stride])))
 
     def truth_at(self, t):
-        """The truth at t: linear between the samples received before and after t (the emulator's
-        truth timer runs late at times, up to 80 ms between samples, while a cell filling from
-        flat rises at 130 mm/s: the nearest sample alone was then up to 5 mm off the plate it
-        describes), the nearest sample outside them."""
+        """(interpolated, nearest) truth at t. Interpolated: linear between the samples received
+        before and after t (the emulator's truth timer runs late at times, up to 80 ms between
+        samples, while a cell filling from flat rises at 130 mm/s: the nearest sample alone was
+        then up to 5 mm off the plate it describes); outside them, the nearest. Nearest: the
+        sample received nearest to t, the measure until 2026-11-25."""
         samples = list(self.truth)
         if not samples:
-            return None
-        times = [s[0] for s in samples]
-        i = bisect.bisect_left(times, t)
+            return None, None
+        i = bisect.bisect_left([s[0] for s in samples], t)
         if i == 0 or i == len(samples):
-            return samples[min(i, len(samples) - 1)][1]
+            edge = samples[min(i, len(samples) - 1)][1]
+            return edge, edge
         (t0, h0), (t1, h1) = samples[i - 1], samples[i]
         w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
-        return [a + w * (b - a) for a, b in zip(h0, h1)]
-
-    def nearest_truth_at(self, t):
-        samples = list(self.truth)
-        times = [s[0] for s in samples]
-        i = bisect.bisect_left(times, t)
-        near = [j for j in (i - 1, i) if 0 <= j < len(samples)]
-        return samples[min(near, key=lambda j: abs(times[j] - t))][1]
+        return [a + w * (b - a) for a, b in zip(h0, h1)], (h1 if t1 - t < t - t0 else h0)
 
     def on_joints(self, msg):
         if not self.recording:
             return
-        truth = self.truth_at(msg.header.stamp.to_sec())
+        truth, nearest = self.truth_at(msg.header.stamp.to_sec())
         if truth is None:
             return
-        nearest = self.nearest_truth_at(msg.header.stamp.to_sec())
         for name, height in zip(msg.name, msg.position):
             m = re.search(r"(\d+)_(\d+)", name)
             if not m:
