@@ -26,6 +26,12 @@ constexpr double kFlowPressureFilterS = 0.03;
 // rings on its gas spring after an edge) [s]; the configured sd counts as this many readings;
 // about this many are remembered.
 constexpr double kStillSettleS = 0.5;
+// The weight bound's margin in standard errors of the readings' running mean. It is tested at
+// every window of a hold (120 looks a minute), and a running mean crosses 3 of its standard
+// errors somewhere in a long hold far more often than once in 740 (at 3, 2 of 40 simulated
+// 60 s holds of a right inventory were pulled down, one by 0.4 mm: 1 % of a light plate's gas
+// at a low hold, 3-4 mm at the top); at 4 none.
+constexpr double kBoundStandardErrors = 4.0;
 constexpr double kNoisePriorReadings = 20.0;
 constexpr double kNoiseMemoryReadings = 24000.0;
 
@@ -521,12 +527,12 @@ void CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, dou
   // drifted above the bound, the energy is measured at the bound.
   double mean = 0.0, se = 0.0;
   if (!quietMean(gauge_pressure_pa, lifted, dt_s, &mean, &se)) return;
-  // The bound at a pressure three standard errors above the mean (tested every window, the
-  // readings' noise must not move a plate that is where the inventory says), and the estimate
-  // moved only as far as that.
-  const double bound = plateAloneHeight(mean + 3.0 * se);
+  // The bound at a pressure kBoundStandardErrors above the mean (the readings' noise must not
+  // move a plate that is where the inventory says), and the estimate moved only as far as that.
+  const double bound = plateAloneHeight(mean + kBoundStandardErrors * se);
   if (!(x_[CellModel::kHeight] > bound)) return;
-  const double sd = 0.5 * (plateAloneHeight(mean + 4.0 * se) - plateAloneHeight(mean + 2.0 * se));
+  const double sd = 0.5 * (plateAloneHeight(mean + (kBoundStandardErrors + 1.0) * se) -
+                           plateAloneHeight(mean + (kBoundStandardErrors - 1.0) * se));
   if (!std::isfinite(sd)) return;
   const double velocity = x_[CellModel::kVelocity];
   measureSettledHeight(bound, std::max(sd, 1e-4), mean);
@@ -551,7 +557,7 @@ bool CellObserver::quietMean(double gauge_pressure_pa, bool lifted, double dt_s,
   const double since_settled = quiet_s_ - window;
   if (std::floor(since_settled / window) == std::floor((since_settled - dt_s) / window)) return false;
   *mean_pa = quiet_sum_pa_ / static_cast<double>(quiet_count_);
-  *se_pa = pressureNoise() / std::sqrt(static_cast<double>(quiet_count_));
+  *se_pa = reading_noise_.meanSd(static_cast<double>(quiet_count_));
   return true;
 }
 
