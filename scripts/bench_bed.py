@@ -8,10 +8,11 @@ It also checks that the cells' simulation keeps pace with wall time: a cell that
 would publish late or rarely. Prints a table and writes --json FILE.
 
 On the Modbus path (--launch real_bed.launch emulator:=true) --accuracy also compares every
-cell's reported height (/joint_states, the observer's estimate where there is no height sensor)
-with the rig emulator's truth (/rig_emulator/truth, interpolated between the samples received
-before and after the joint state's stamp) over the window: RMS and worst error over all cells,
-and the worst cell (and the worst against the nearest sample alone, as measured until 2026-11-25).
+cell's reported height (/bed_manager/heights: each cell's last state with its own stamp; the
+observer's estimate where there is no height sensor) with the rig emulator's truth
+(/rig_emulator/truth, stamped with the instant it describes, interpolated at the state's stamp)
+over the window: RMS and worst error over all cells, the worst cell and when, the cells whose
+worst exceeds 6 mm; and the same at /joint_states' publish stamps (the measure until 2026-11-25).
 --plan starts a posture plan through /bed_manager/set_posture when the window opens
 (--plan-arg key=value for its arguments, repeatable).
 
@@ -72,74 +73,121 @@ def cpu_and_rss(pids):
     return cpu, rss
 
 
+class ErrorTally:
+    """Height error (truth - reported) per cell: RMS, worst (and when), mean."""
+
+    def __init__(self):
+        self.sum_sq, self.sum, self.count, self.worst, self.worst_at = {}, {}, {}, {}, {}
+
+    def add(self, cell, error, at_s):
+        self.sum_sq[cell] = self.sum_sq.get(cell, 0.0) + error * error
+        self.sum[cell] = self.sum.get(cell, 0.0) + error
+        self.count[cell] = self.count.get(cell, 0) + 1
+        if abs(error) > self.worst.get(cell, -1.0):
+            self.worst[cell], self.worst_at[cell] = abs(error), at_s
+
+    def result(self, prefix):
+        n = sum(self.count.values())
+        if n == 0:
+            return {prefix + "samples": 0}
+        worst_cell = max(self.worst, key=self.worst.get)
+        return {prefix + "rms_mm": 1e3 * math.sqrt(sum(self.sum_sq.values()) / n),
+                prefix + "worst_mm": 1e3 * self.worst[worst_cell], prefix + "worst_cell": worst_cell,
+                prefix + "worst_at_s": self.worst_at[worst_cell], prefix + "samples": n,
+                prefix + "cells": len(self.count),
+                prefix + "cells_over_6_mm": sum(1 for w in self.worst.values() if w > 6e-3)}
+
+    def per_cell(self):
+        """per cell: [RMS, worst, mean (truth - reported)] [mm], and when the worst was [s into the window]."""
+        return {c: [1e3 * math.sqrt(self.sum_sq[c] / self.count[c]), 1e3 * self.worst[c],
+                    1e3 * self.sum[c] / self.count[c], self.worst_at[c]] for c in sorted(self.count)}
+
+
 class HeightAccuracy:
-    """Reported heights (/joint_states) against the rig emulator's truth, cell by cell."""
+    """Reported heights against the rig emulator's truth, cell by cell, each at its own stamp.
+
+    The primary measure takes every cell's states from /bed_manager/heights (each height with the
+    stamp of the state it came from) and the truth (/rig_emulator/truth, stamped with the instant
+    it describes) interpolated at that stamp; a sample waits until truth after its stamp has
+    arrived. The /joint_states measure (the bench's until 2026-11-25) compares the same heights at
+    the joint state's publish stamp, up to a state period newer than the heights it carries."""
 
     def __init__(self, cols):
         from sensor_msgs.msg import JointState
-        from std_msgs.msg import Float64MultiArray
+        from nursing_bed.msg import BedHeights, RigTruth
         self.cols = cols
-        self.truth = collections.deque(maxlen=200)  # (receive time [s], heights by cell id)
-        self.sum_sq, self.sum, self.count, self.worst = {}, {}, {}, {}
-        self.worst_nearest = 0.0  # against the nearest truth sample alone (before 2026-11-25)
+        self.truth = collections.deque(maxlen=200)  # (stamp [s], heights by cell id)
+        self.pending = collections.deque()  # (stamp [s], tally, [(cell, reported height)])
+        self.own_stamp, self.joint_states = ErrorTally(), ErrorTally()
+        self.last_stamp = {}  # per cell: the stamp last counted (a state repeated is counted once)
+        self.window_start = None
         self.recording = False
-        self.subs = [rospy.Subscriber("/rig_emulator/truth", Float64MultiArray, self.on_truth, queue_size=5),
-                     rospy.Subscriber("/joint_states", JointState, self.on_joints, queue_size=5)]
+        self.subs = [rospy.Subscriber("/rig_emulator/truth", RigTruth, self.on_truth, queue_size=20),
+                     rospy.Subscriber("/bed_manager/heights", BedHeights, self.on_heights, queue_size=20),
+                     rospy.Subscriber("/joint_states", JointState, self.on_joints, queue_size=20)]
+
+    def start(self):
+        self.window_start = rospy.get_time()
+        self.recording = True
 
     def on_truth(self, msg):
-        stride = msg.layout.dim[1].stride if len(msg.layout.dim) > 1 and msg.layout.dim[1].stride else 4
-        self.truth.append((rospy.get_time(), list(msg.data[0::stride])))
+        self.truth.append((msg.header.stamp.to_sec(), list(msg.height_m)))
+        self.settle()
 
-    def truth_at(self, t):
-        """(interpolated, nearest) truth at t. Interpolated: linear between the samples received
-        before and after t (the emulator's truth timer runs late at times, up to 80 ms between
-        samples, while a cell filling from flat rises at 130 mm/s: the nearest sample alone was
-        then up to 5 mm off the plate it describes); outside them, the nearest. Nearest: the
-        sample received nearest to t, the measure until 2026-11-25."""
-        samples = list(self.truth)
-        if not samples:
-            return None, None
-        i = bisect.bisect_left([s[0] for s in samples], t)
-        if i == 0 or i == len(samples):
-            edge = samples[min(i, len(samples) - 1)][1]
-            return edge, edge
-        (t0, h0), (t1, h1) = samples[i - 1], samples[i]
-        w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
-        return [a + w * (b - a) for a, b in zip(h0, h1)], (h1 if t1 - t < t - t0 else h0)
+    def on_heights(self, msg):
+        if not self.recording:
+            return
+        for cell, (stamp, height) in enumerate(zip(msg.stamps, msg.height_m)):
+            t = stamp.to_sec()
+            if t > self.last_stamp.get(cell, 0.0) and math.isfinite(height):
+                self.last_stamp[cell] = t
+                self.pending.append((t, self.own_stamp, [(cell, height)]))
 
     def on_joints(self, msg):
         if not self.recording:
             return
-        truth, nearest = self.truth_at(msg.header.stamp.to_sec())
-        if truth is None:
-            return
+        cells = []
         for name, height in zip(msg.name, msg.position):
             m = re.search(r"(\d+)_(\d+)", name)
-            if not m:
+            if m:
+                cells.append((int(m.group(1)) * self.cols + int(m.group(2)), height))
+        self.pending.append((msg.header.stamp.to_sec(), self.joint_states, cells))
+
+    def settle(self):
+        """Compares the pending samples the truth now covers (truth stamped at or after theirs)."""
+        if not self.truth:
+            return
+        latest = self.truth[-1][0]
+        still = collections.deque()
+        while self.pending:
+            t, tally, cells = self.pending.popleft()
+            if t > latest:
+                still.append((t, tally, cells))
                 continue
-            cell = int(m.group(1)) * self.cols + int(m.group(2))
-            if cell >= len(truth) or not math.isfinite(truth[cell]):
-                continue
-            e = truth[cell] - height
-            self.sum_sq[cell] = self.sum_sq.get(cell, 0.0) + e * e
-            self.sum[cell] = self.sum.get(cell, 0.0) + e
-            self.count[cell] = self.count.get(cell, 0) + 1
-            self.worst[cell] = max(self.worst.get(cell, 0.0), abs(e))
-            if math.isfinite(nearest[cell]):
-                self.worst_nearest = max(self.worst_nearest, abs(nearest[cell] - height))
+            truth = self.truth_at(t)
+            for cell, height in cells:
+                if cell < len(truth) and math.isfinite(truth[cell]):
+                    tally.add(cell, truth[cell] - height, t - self.window_start)
+        self.pending = still
+
+    def truth_at(self, t):
+        """Truth linearly interpolated between the samples stamped before and after t (the
+        emulator steps every 5 ms, its truth is published at 50 Hz); before the first, the first."""
+        stamps = [s[0] for s in self.truth]
+        i = bisect.bisect_left(stamps, t)
+        if i == 0:
+            return self.truth[0][1]
+        if i == len(stamps):
+            return self.truth[-1][1]
+        (t0, h0), (t1, h1) = self.truth[i - 1], self.truth[i]
+        w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
+        return [a + w * (b - a) for a, b in zip(h0, h1)]
 
     def result(self):
-        n = sum(self.count.values())
-        if n == 0:
-            return {"height_error_samples": 0}
-        worst_cell = max(self.worst, key=self.worst.get)
-        return {"height_error_rms_mm": 1e3 * math.sqrt(sum(self.sum_sq.values()) / n),
-                "height_error_worst_mm": 1e3 * self.worst[worst_cell], "worst_cell": worst_cell,
-                "height_error_worst_nearest_sample_mm": 1e3 * self.worst_nearest,
-                "height_error_samples": n, "cells_compared": len(self.count),
-                # per cell: [RMS, worst, mean (truth - reported)] [mm]
-                "per_cell_mm": {c: [1e3 * math.sqrt(self.sum_sq[c] / self.count[c]), 1e3 * self.worst[c],
-                                    1e3 * self.sum[c] / self.count[c]] for c in sorted(self.count)}}
+        out = {"height_error_" + k: v for k, v in self.own_stamp.result("").items()}
+        out.update(self.joint_states.result("joint_states_error_"))
+        out["per_cell_mm"] = self.own_stamp.per_cell()
+        return out
 
 
 def start_plan(plan, plan_args):
@@ -198,7 +246,7 @@ def main():
         if args.plan:
             start_plan(args.plan, args.plan_arg)
         if accuracy:
-            accuracy.recording = True
+            accuracy.start()
         counts.clear()
         max_gap.clear()
         last.clear()
@@ -232,13 +280,17 @@ def main():
         print("  CPU %.2f cores (of %d), resident memory %.0f MB" % (result["cpu_cores_used"], os.cpu_count(),
                                                                    result["rss_mb_mean"]))
         if accuracy and result.get("height_error_samples"):
-            print("  reported height vs truth: RMS %.2f mm, worst %.2f mm (cell %d; %.2f mm against the nearest truth "
-                  "sample alone), %d cells, %d samples"
-                  % (result["height_error_rms_mm"], result["height_error_worst_mm"], result["worst_cell"],
-                     result["height_error_worst_nearest_sample_mm"], result["cells_compared"],
-                     result["height_error_samples"]))
+            print("  reported height vs truth at each state's stamp: RMS %.2f mm, worst %.2f mm (cell %d at %.1f s), "
+                  "%d cells over 6 mm, %d cells, %d samples"
+                  % (result["height_error_rms_mm"], result["height_error_worst_mm"], result["height_error_worst_cell"],
+                     result["height_error_worst_at_s"], result["height_error_cells_over_6_mm"],
+                     result["height_error_cells"], result["height_error_samples"]))
+            if result.get("joint_states_error_samples"):
+                print("  the same at /joint_states' publish stamps: RMS %.2f mm, worst %.2f mm (cell %d), %d cells over 6 mm"
+                      % (result["joint_states_error_rms_mm"], result["joint_states_error_worst_mm"],
+                         result["joint_states_error_worst_cell"], result["joint_states_error_cells_over_6_mm"]))
         elif accuracy:
-            print("  reported height vs truth: no samples (is /rig_emulator/truth published?)")
+            print("  reported height vs truth: no samples (are /rig_emulator/truth and /bed_manager/heights published?)")
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(result, f, indent=2)

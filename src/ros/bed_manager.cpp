@@ -1,7 +1,6 @@
 #include "nursing_bed/ros/bed_manager.h"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
-#include <sensor_msgs/JointState.h>
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
 
@@ -109,6 +108,7 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   cpr_pub_ = nh_.advertise<std_msgs::Bool>(names::kCpr, 1, true);
   cpr_sub_ = nh_.subscribe(names::kCpr, 2, &BedManager::onCpr, this);
   joint_state_pub_ = nh_.advertise<sensor_msgs::JointState>(names::kJointStates, 2);
+  heights_pub_ = private_nh_.advertise<BedHeights>("heights", 2);
   diagnostics_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 2);
   state_pub_ = private_nh_.advertise<BedState>("state", 2);
   set_height_srv_ = private_nh_.advertiseService("set_airbag_height", &BedManager::setHeight, this);
@@ -124,7 +124,7 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     start(std::shared_ptr<PosturePlan>(std::move(plan)), request, ros::Time::now());
   }
   joint_state_timer_ =
-      nh_.createTimer(ros::Duration(1.0 / params_.joint_state_rate_hz), &BedManager::publishJointStates, this);
+      nh_.createTimer(ros::Duration(1.0 / params_.joint_state_rate_hz), &BedManager::publishHeights, this);
   diagnostics_timer_ =
       nh_.createTimer(ros::Duration(1.0 / params_.diagnostics_rate_hz), &BedManager::publishDiagnostics, this);
   step_timer_ = nh_.createTimer(ros::Duration(1.0 / params_.plan_rate_hz), &BedManager::step, this);
@@ -152,17 +152,43 @@ void BedManager::onState(const AirbagState::ConstPtr& msg) {
   last_seen_[msg->cell_id] = now;
 }
 
-void BedManager::publishJointStates(const ros::TimerEvent&) {
-  sensor_msgs::JointState js;
-  js.header.stamp = ros::Time::now();
+void BedManager::publishHeights(const ros::TimerEvent&) {
+  const ros::Time now = ros::Time::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  joint_state_pub_.publish(jointStates(now));
+  heights_pub_.publish(bedHeights(now));
+}
+
+sensor_msgs::JointState BedManager::jointStates(const ros::Time& now) const {
+  sensor_msgs::JointState js;
+  js.header.stamp = now;
   for (const CellLayout& c : layout_.cells()) {
     if (last_seen_[c.id].isZero()) continue;  // unknown height: leave the joint out
     js.name.push_back(c.joint_name);
     const double h = last_state_[c.id].height_m;
     js.position.push_back(std::isfinite(h) ? std::clamp(h, c.min_height_m, c.max_height_m) : 0.0);
   }
-  joint_state_pub_.publish(js);
+  return js;
+}
+
+BedHeights BedManager::bedHeights(const ros::Time& now) const {
+  // The heights as the cells reported them (not clamped for the URDF), each at its own stamp.
+  BedHeights out;
+  out.header.stamp = now;
+  const std::size_t n = layout_.cells().size();
+  out.stamps.assign(n, ros::Time());
+  out.height_m.assign(n, kNaN);
+  out.height_sd_m.assign(n, kNaN);
+  out.height_source.assign(n, AirbagState::HEIGHT_MEASURED);
+  for (const CellLayout& c : layout_.cells()) {
+    if (last_seen_[c.id].isZero()) continue;
+    const AirbagState& s = last_state_[c.id];
+    out.stamps[c.id] = s.header.stamp;
+    out.height_m[c.id] = s.height_m;
+    out.height_sd_m[c.id] = s.height_sd_m;
+    out.height_source[c.id] = s.height_source;
+  }
+  return out;
 }
 
 void BedManager::start(std::shared_ptr<PosturePlan> plan, const PlanRequest& request, const ros::Time& now) {

@@ -1,6 +1,8 @@
 #include "nursing_bed/ros/rig_emulator_node.h"
 
+#include <chrono>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "nursing_bed/core/control/airbag_params_io.h"
@@ -69,14 +71,14 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
   const RegisterMap map = loadRegisterMap(params_.register_map, static_cast<std::uint32_t>(params_.bed_cells));
   emulator_ = std::make_unique<RigEmulator>(map, options);
   loads_sub_ = nh.subscribe(names::kCellLoads, 2, &RigEmulatorNode::onCellLoads, this, ros::TransportHints().tcpNoDelay());
-  truth_pub_ = private_nh.advertise<std_msgs::Float64MultiArray>("truth", 2);
+  truth_pub_ = private_nh.advertise<RigTruth>("truth", 2);
   truth_timer_ = nh.createTimer(ros::Duration(1.0 / params_.truth_rate_hz), &RigEmulatorNode::publishTruth, this);
   ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(), params_.register_map.c_str(),
            params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
   for (const auto& server : emulator_->servers())
-    if (realtimeRefused(server->scheduling()))
+    if (server->scheduling().refused)
       ROS_WARN("rig_emulator: terminal '%s' serves at %s: on a loaded machine it answers (and switches its valves) late",
-               server->map().name.c_str(), server->scheduling().c_str());
+               server->map().name.c_str(), server->scheduling().text.c_str());
 }
 
 void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
@@ -85,25 +87,24 @@ void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& m
 }
 
 void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
-  // Rows by cell id: height_m, gauge_pressure_pa, gas_mass_kg, load_n.
-  const std::vector<CellTruth> truth = emulator_->truth();
-  std_msgs::Float64MultiArray msg;
-  msg.layout.dim.resize(2);
-  msg.layout.dim[0].label = "cell";
-  msg.layout.dim[1].label = "height_m,gauge_pressure_pa,gas_mass_kg,load_n";
+  std::chrono::steady_clock::time_point at;
+  const std::vector<CellTruth> truth = emulator_->truth(&at);
+  RigTruth msg;
+  // Stamped with the instant the state describes, not the publish time: the timer runs up to
+  // tens of ms late on a loaded machine, and a cell filling from flat rises 130 mm/s.
+  msg.header.stamp = ros::Time::now() - ros::Duration(std::chrono::duration<double>(std::chrono::steady_clock::now() - at).count());
   std::uint32_t cells = 0;
   for (const CellTruth& t : truth) cells = std::max(cells, t.cell_id + 1);
-  msg.layout.dim[0].size = cells;
-  msg.layout.dim[1].size = 4;
-  msg.layout.dim[0].stride = 4 * cells;
-  msg.layout.dim[1].stride = 4;
-  msg.data.assign(4 * cells, std::numeric_limits<double>::quiet_NaN());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  msg.height_m.assign(cells, nan);
+  msg.gauge_pressure_pa.assign(cells, nan);
+  msg.gas_mass_kg.assign(cells, nan);
+  msg.load_n.assign(cells, nan);
   for (const CellTruth& t : truth) {
-    double* row = &msg.data[4 * t.cell_id];
-    row[0] = t.height_m;
-    row[1] = t.gauge_pressure_pa;
-    row[2] = t.gas_mass_kg;
-    row[3] = t.load_n;
+    msg.height_m[t.cell_id] = t.height_m;
+    msg.gauge_pressure_pa[t.cell_id] = t.gauge_pressure_pa;
+    msg.gas_mass_kg[t.cell_id] = t.gas_mass_kg;
+    msg.load_n[t.cell_id] = t.load_n;
   }
   truth_pub_.publish(msg);
   ROS_INFO_THROTTLE(10.0, "rig_emulator: %.3f periods per wake-up", emulator_->periodsPerWake());

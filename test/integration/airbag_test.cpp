@@ -1,11 +1,13 @@
 // rostest node for the airbag nodes and the bed manager. Each .test file runs one of these
 // cases (--gtest_filter) against a small bed from bed_under_test.launch.
 #include <cmath>
+#include <iterator>
 #include <limits>
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 
 #include "bed_fixture.h"
+#include "nursing_bed/BedHeights.h"
 
 namespace nursing_bed {
 namespace test {
@@ -100,6 +102,49 @@ TEST_F(BedFixture, EveryCellPublishesAtItsRate) {
   const double seconds = (ros::WallTime::now() - start).toSec();
   for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id)
     EXPECT_GE(counts_[id] / seconds, 45.0) << "cell " << id;
+}
+
+TEST_F(BedFixture, TheBedsHeightsCarryEachCellsOwnStamp) {
+  // Every state each cell publishes, by stamp; and ~heights while the cells move.
+  std::map<uint32_t, std::map<ros::Time, double>> published;
+  std::vector<ros::Subscriber> cell_subs;
+  for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id) {
+    const boost::function<void(const AirbagState::ConstPtr&)> on_state = [&published](const AirbagState::ConstPtr& m) {
+      published[m->cell_id][m->header.stamp] = m->height_m;
+    };
+    const std::string cell = "/airbag_" + std::to_string(id / cols_) + "_" + std::to_string(id % cols_);
+    cell_subs.push_back(nh_.subscribe<AirbagState>(cell + "/state", 50, on_state));
+  }
+  std::vector<BedHeights> heights;
+  const boost::function<void(const BedHeights::ConstPtr&)> on_heights = [&heights](const BedHeights::ConstPtr& m) {
+    heights.push_back(*m);
+  };
+  ros::Subscriber sub = nh_.subscribe<BedHeights>("/bed_manager/heights", 50, on_heights);
+  ASSERT_TRUE(waitFor([&] { return published.size() == static_cast<std::size_t>(rows_ * cols_) && !heights.empty(); }, 10.0));
+  std::vector<uint32_t> ids;
+  for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id) ids.push_back(id);
+  ASSERT_TRUE(callBed(ids, std::vector<double>(ids.size(), 0.08)).success);
+  heights.clear();
+  waitFor([] { return false; }, 2.0);
+  sub.shutdown();
+  waitFor([] { return false; }, 0.5);  // the states those messages carried have arrived here too
+  ASSERT_GE(heights.size(), 30u);  // ~joint_state_rate_hz 30 Hz for 2 s
+  int moving = 0;
+  for (const BedHeights& h : heights) {
+    ASSERT_EQ(h.stamps.size(), ids.size());
+    ASSERT_EQ(h.height_m.size(), ids.size());
+    ASSERT_EQ(h.height_sd_m.size(), ids.size());
+    ASSERT_EQ(h.height_source.size(), ids.size());
+    for (uint32_t id : ids) {
+      EXPECT_LE(h.stamps[id], h.header.stamp) << "cell " << id;
+      const auto state = published[id].find(h.stamps[id]);
+      ASSERT_NE(state, published[id].end()) << "cell " << id << ": no state stamped " << h.stamps[id];
+      EXPECT_EQ(h.height_m[id], state->second) << "cell " << id;
+      EXPECT_EQ(h.height_source[id], AirbagState::HEIGHT_MEASURED) << "cell " << id;
+      if (state != published[id].begin() && std::prev(state)->second != state->second) ++moving;
+    }
+  }
+  EXPECT_GT(moving, 0) << "the cells did not move: the heights' stamps were not put to the test";
 }
 
 TEST_F(BedFixture, DiagnosticsReportEveryCell) {

@@ -4,7 +4,6 @@
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/xmlrpc_manager.h>
-#include <std_msgs/Float64MultiArray.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
 #include <csignal>
@@ -13,6 +12,7 @@
 
 #include "../test_helpers.h"
 #include "bed_fixture.h"
+#include "nursing_bed/RigTruth.h"
 #include "nursing_bed/SetPressure.h"
 
 namespace nursing_bed {
@@ -27,9 +27,9 @@ std::string executable(const std::string& name) {
 class RealBedFixture : public BedFixture {
  protected:
   void SetUp() override {
-    truth_sub_ = nh_.subscribe<std_msgs::Float64MultiArray>(
-        "/rig_emulator/truth", 2, [this](const std_msgs::Float64MultiArray::ConstPtr& m) {
-          for (std::size_t id = 0; 4 * id < m->data.size(); ++id) truth_m_[id] = m->data[4 * id];
+    truth_sub_ = nh_.subscribe<nursing_bed::RigTruth>(
+        "/rig_emulator/truth", 2, [this](const nursing_bed::RigTruth::ConstPtr& m) {
+          for (std::size_t id = 0; id < m->height_m.size(); ++id) truth_m_[id] = m->height_m[id];
         });
     BedFixture::SetUp();
     ASSERT_TRUE(waitFor([this] { return static_cast<int>(truth_m_.size()) == rows_ * cols_; }, 30.0)) << "no emulator truth";

@@ -5,6 +5,8 @@
 #pragma once
 
 #include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+#include <std_msgs/Bool.h>
 
 #include <memory>
 #include <mutex>
@@ -12,12 +14,12 @@
 #include <vector>
 
 #include "nursing_bed/AirbagState.h"
+#include "nursing_bed/BedHeights.h"
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetHeights.h"
 #include "nursing_bed/SetPosture.h"
 #include "nursing_bed/core/bed/posture_plans.h"
 #include "nursing_bed/core/control/rate_limiter.h"
-#include <std_msgs/Bool.h>
 #include "nursing_bed/ros/bed_layout.h"
 
 namespace nursing_bed {
@@ -55,7 +57,10 @@ class BedManager {
   };
 
   void onState(const AirbagState::ConstPtr& msg);
-  void publishJointStates(const ros::TimerEvent&);
+  /// /joint_states (the URDF's joints) and ~heights (each cell's height at its own stamp).
+  void publishHeights(const ros::TimerEvent&);
+  sensor_msgs::JointState jointStates(const ros::Time& now) const;  ///< mutex_ held
+  BedHeights bedHeights(const ros::Time& now) const;                ///< mutex_ held
   void publishDiagnostics(const ros::TimerEvent&);
   void step(const ros::TimerEvent&);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
@@ -117,7 +122,7 @@ class BedManager {
   ros::Subscriber cpr_sub_;
   ros::Publisher heartbeat_pub_, cpr_pub_;
   std::vector<ros::Publisher> setpoint_pubs_, vent_pubs_;  // by cell id
-  ros::Publisher joint_state_pub_, diagnostics_pub_, state_pub_;
+  ros::Publisher joint_state_pub_, heights_pub_, diagnostics_pub_, state_pub_;
   ros::ServiceServer set_height_srv_, set_heights_srv_, set_posture_srv_;
   ros::Timer joint_state_timer_, diagnostics_timer_, step_timer_;
 };

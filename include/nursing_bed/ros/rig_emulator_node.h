@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "nursing_bed/RigTruth.h"
 #include "nursing_bed/core/hardware/rig_emulator.h"
 
 namespace nursing_bed {

@@ -425,13 +425,13 @@ std::string ModbusTcpCellHardware::describe() const {
   s << "modbus_tcp " << terminal_->map().name << " (" << terminal_->map().endpoint() << "), cell " << registers_.cell_id
     << ": inlet " << (registers_.inlet.kind == ValveOutput::kCoil ? "coil " : "register ") << registers_.inlet.address
     << ", vent " << (registers_.vent.kind == ValveOutput::kCoil ? "coil " : "register ") << registers_.vent.address
-    << ", pressure input " << registers_.pressure_pa.address << "; bus thread " << terminal_->scheduling();
+    << ", pressure input " << registers_.pressure_pa.address << "; bus thread " << terminal_->scheduling().text;
   return s.str();
 }
 
 std::string ModbusTcpCellHardware::warning() const {
-  if (!realtimeRefused(terminal_->scheduling())) return {};
-  return "modbus_tcp " + terminal_->map().name + ": bus thread at " + terminal_->scheduling() +
+  if (!terminal_->scheduling().refused) return {};
+  return "modbus_tcp " + terminal_->map().name + ": bus thread at " + terminal_->scheduling().text +
          ": on a loaded machine the valves' edges are stamped less exactly and the observer's gas count scatters more";
 }
 

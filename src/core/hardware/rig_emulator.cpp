@@ -201,7 +201,7 @@ RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& optio
       cells_.push_back(std::move(cell));
     }
   }
-  stepAll(1);
+  stepAll(1, std::chrono::steady_clock::now());
   thread_ = std::thread(&RigEmulator::run, this);
 }
 
@@ -216,8 +216,9 @@ void RigEmulator::setLoad(std::uint32_t cell_id, double load_n) {
     if (c.registers.cell_id == cell_id) c.hardware->setLoad(load_n);
 }
 
-std::vector<CellTruth> RigEmulator::truth() const {
+std::vector<CellTruth> RigEmulator::truth(std::chrono::steady_clock::time_point* at) const {
   std::lock_guard<std::mutex> lock(mutex_);
+  if (at) *at = simulated_until_;
   std::vector<CellTruth> out;
   for (const Cell& c : cells_) {
     const CellVariables& v = c.hardware->variables();
@@ -260,7 +261,7 @@ void RigEmulator::publishInputs(RigTerminalServer& server, const Cell& cell) {
   });
 }
 
-void RigEmulator::stepAll(int periods) {
+void RigEmulator::stepAll(int periods, std::chrono::steady_clock::time_point until) {
   std::lock_guard<std::mutex> lock(mutex_);
   // The coils' on-time since the last wake is passed over the periods run now.
   std::vector<std::vector<double>> coil_duty;
@@ -269,6 +270,7 @@ void RigEmulator::stepAll(int periods) {
   for (int k = 0; k < periods; ++k)
     for (Cell& c : cells_) c.hardware->stepPeriod();
   for (const Cell& c : cells_) publishInputs(*servers_[c.terminal], c);
+  simulated_until_ = until;
   steps_ += periods;
   ++wakes_;
 }
@@ -293,7 +295,7 @@ void RigEmulator::run() {
     }
     int due = 0;
     for (; next <= now; next += period) ++due;
-    if (due > 0) stepAll(due);
+    if (due > 0) stepAll(due, next - period);
   }
 }
 

@@ -7,15 +7,14 @@
 
 namespace nursing_bed {
 
-std::string scheduleRealtime(std::thread& thread, int priority) {
-  if (priority <= 0) return "normal";
+ThreadScheduling scheduleRealtime(std::thread& thread, int priority) {
+  if (priority <= 0) return {false, "normal"};
   sched_param param{};
   param.sched_priority = priority;
   const int error = pthread_setschedparam(thread.native_handle(), SCHED_FIFO, &param);
   const std::string fifo = "SCHED_FIFO " + std::to_string(priority);
-  return error == 0 ? fifo : "normal (" + fifo + " refused: " + std::strerror(error) + ")";
+  if (error == 0) return {false, fifo};
+  return {true, "normal (" + fifo + " refused: " + std::strerror(error) + ")"};
 }
-
-bool realtimeRefused(const std::string& scheduling) { return scheduling.find("refused") != std::string::npos; }
 
 }  // namespace nursing_bed

@@ -36,21 +36,22 @@ struct Waiting {
 
 TEST(ScheduleRealtime, PriorityZeroLeavesTheThreadOnTheNormalScheduler) {
   Waiting w;
-  EXPECT_EQ(nb::scheduleRealtime(w.thread, 0), "normal");
+  const nb::ThreadScheduling answer = nb::scheduleRealtime(w.thread, 0);
+  EXPECT_EQ(answer.text, "normal");
+  EXPECT_FALSE(answer.refused);
   EXPECT_EQ(w.policy(), SCHED_OTHER);
-  EXPECT_FALSE(nb::realtimeRefused("normal"));
 }
 
 TEST(ScheduleRealtime, SaysWhetherTheSystemGrantedIt) {
   // Granted (root, or CAP_SYS_NICE): the thread runs under SCHED_FIFO. Refused (an ordinary
   // user without an RT limit): it runs on, normally, and the answer names the refusal.
   Waiting w;
-  const std::string answer = nb::scheduleRealtime(w.thread, 20);
-  if (nb::realtimeRefused(answer)) {
-    EXPECT_EQ(w.policy(), SCHED_OTHER) << answer;
-    EXPECT_NE(answer.find("normal (SCHED_FIFO 20 refused: "), std::string::npos) << answer;
+  const nb::ThreadScheduling answer = nb::scheduleRealtime(w.thread, 20);
+  if (answer.refused) {
+    EXPECT_EQ(w.policy(), SCHED_OTHER) << answer.text;
+    EXPECT_EQ(answer.text.rfind("normal (SCHED_FIFO 20 refused: ", 0), 0u) << answer.text;
   } else {
-    EXPECT_EQ(answer, "SCHED_FIFO 20");
+    EXPECT_EQ(answer.text, "SCHED_FIFO 20");
     EXPECT_EQ(w.policy(), SCHED_FIFO);
   }
 }

@@ -21,6 +21,7 @@
 
 #include "nursing_bed/core/hardware/cell_hardware.h"
 #include "nursing_bed/core/hardware/register_map.h"
+#include "nursing_bed/core/hardware/thread_priority.h"
 
 struct _modbus;
 
@@ -85,7 +86,7 @@ class ModbusTerminal {
   bool linkUp() const;
   TerminalStats stats() const;
   /// How the bus thread is scheduled (scheduleRealtime's answer for the map's realtime_priority).
-  const std::string& scheduling() const { return scheduling_; }
+  const ThreadScheduling& scheduling() const { return scheduling_; }
   const TerminalMap& map() const { return map_; }
 
  private:
@@ -154,7 +155,7 @@ class ModbusTerminal {
   TerminalStats stats_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
-  std::string scheduling_;
+  ThreadScheduling scheduling_;
 };
 
 class ModbusTcpCellHardware : public CellHardware {

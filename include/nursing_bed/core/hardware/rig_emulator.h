@@ -14,6 +14,7 @@
 
 #include "nursing_bed/core/hardware/register_map.h"
 #include "nursing_bed/core/hardware/simulated_cell_hardware.h"
+#include "nursing_bed/core/hardware/thread_priority.h"
 
 struct _modbus;
 struct _modbus_mapping_t;
@@ -49,7 +50,7 @@ class RigTerminalServer {
   double coilOnSeconds(int address);
   long requestsServed() const { return requests_; }
   /// How the server thread is scheduled (the map's realtime_priority; scheduleRealtime).
-  const std::string& scheduling() const { return scheduling_; }
+  const ThreadScheduling& scheduling() const { return scheduling_; }
   /// Fault injection: the next `requests` requests are read and never answered, the
   /// connection kept (a silent terminal; 0: answer again).
   void leaveUnanswered(long requests) { unanswered_ = requests; }
@@ -85,7 +86,7 @@ class RigTerminalServer {
   std::atomic<double> late_delay_s_{0.0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
-  std::string scheduling_;
+  ThreadScheduling scheduling_;
 };
 
 struct RigEmulatorOptions {
@@ -112,7 +113,9 @@ class RigEmulator {
 
   /// Sets the load of a cell (from the patient simulator) [N]; unknown ids are ignored.
   void setLoad(std::uint32_t cell_id, double load_n);
-  std::vector<CellTruth> truth() const;
+  /// The cells' true state; with `at`, also the instant it describes (the wall-clock tick the
+  /// simulation has run to, taken under the same lock: the state and its time belong together).
+  std::vector<CellTruth> truth(std::chrono::steady_clock::time_point* at = nullptr) const;
   /// Times the simulation fell more than max_catch_up_s behind the wall clock and gave that
   /// time up (real time not kept), and the time given up [s].
   long overruns() const { return overruns_; }
@@ -130,13 +133,15 @@ class RigEmulator {
   void run();
   void applyOutputs(RigTerminalServer& server, const std::vector<double>& coil_duty, Cell& cell);
   void publishInputs(RigTerminalServer& server, const Cell& cell);
-  /// Runs `periods` simulation periods with the valves the terminals' outputs held since the last call.
-  void stepAll(int periods);
+  /// Runs `periods` simulation periods with the valves the terminals' outputs held since the
+  /// last call, up to the wall-clock tick `until`.
+  void stepAll(int periods, std::chrono::steady_clock::time_point until);
 
   RigEmulatorOptions options_;
   std::vector<std::unique_ptr<RigTerminalServer>> servers_;
   std::vector<Cell> cells_;
-  mutable std::mutex mutex_;    // guards the cells' simulation
+  mutable std::mutex mutex_;    // guards the cells' simulation and simulated_until_
+  std::chrono::steady_clock::time_point simulated_until_;  ///< the tick the cells' state describes
   std::atomic<long> overruns_{0};
   std::atomic<double> lost_s_{0.0};
   std::atomic<long> steps_{0}, wakes_{0};

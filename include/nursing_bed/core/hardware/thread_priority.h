@@ -9,12 +9,15 @@
 
 namespace nursing_bed {
 
-/// Puts `thread` under SCHED_FIFO at `priority` (1-99; 0: leaves it on the normal scheduler).
-/// Returns how it is scheduled: "SCHED_FIFO <priority>", "normal", or, when the system refuses
-/// (no CAP_SYS_NICE, an RT limit of 0), "normal (SCHED_FIFO <priority> refused: <reason>)".
-std::string scheduleRealtime(std::thread& thread, int priority);
+/// How a thread runs after scheduleRealtime.
+struct ThreadScheduling {
+  bool refused = false;  ///< a real-time priority was asked for and the system refused it
+  std::string text;      ///< "SCHED_FIFO <priority>", "normal" or "normal (SCHED_FIFO <priority> refused: <reason>)"
+};
 
-/// True when scheduleRealtime's answer is a refusal.
-bool realtimeRefused(const std::string& scheduling);
+/// Puts `thread` under SCHED_FIFO at `priority` (1-99; 0: leaves it on the normal scheduler).
+/// When the system refuses (no CAP_SYS_NICE, an RT limit of 0) the thread runs on normally and
+/// the answer says so.
+ThreadScheduling scheduleRealtime(std::thread& thread, int priority);
 
 }  // namespace nursing_bed
