@@ -153,8 +153,9 @@ void BedManager::onState(const AirbagState::ConstPtr& msg) {
 }
 
 void BedManager::publishHeights(const ros::TimerEvent&) {
-  const ros::Time now = ros::Time::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  // Taken under the lock: a state stored meanwhile (by onState) is stamped before this.
+  const ros::Time now = ros::Time::now();
   joint_state_pub_.publish(jointStates(now));
   heights_pub_.publish(bedHeights(now));
 }
