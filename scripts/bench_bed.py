@@ -157,31 +157,29 @@ class HeightAccuracy:
         """Compares the pending samples the truth now covers (truth stamped at or after theirs)."""
         if not self.truth:
             return
-        latest = self.truth[-1][0]
+        stamps = [s[0] for s in self.truth]
         still = collections.deque()
         while self.pending:
             t, tally, cells = self.pending.popleft()
-            if t > latest:
+            if t > stamps[-1]:
                 still.append((t, tally, cells))
                 continue
-            truth = self.truth_at(t)
+            h0, h1, w = self.truth_around(stamps, t)
             for cell, height in cells:
-                if cell < len(truth) and math.isfinite(truth[cell]):
-                    tally.add(cell, truth[cell] - height, t - self.window_start)
+                truth = h0[cell] + w * (h1[cell] - h0[cell]) if cell < len(h0) else float("nan")
+                if math.isfinite(truth):
+                    tally.add(cell, truth - height, t - self.window_start)
         self.pending = still
 
-    def truth_at(self, t):
-        """Truth linearly interpolated between the samples stamped before and after t (the
-        emulator steps every 5 ms, its truth is published at 50 Hz); before the first, the first."""
-        stamps = [s[0] for s in self.truth]
+    def truth_around(self, stamps, t):
+        """(h0, h1, w): the truth at t is h0 + w (h1 - h0), linear between the samples stamped
+        before and after t (the emulator steps every 5 ms, its truth is published at 50 Hz);
+        before the first, the first. Only the cells compared are interpolated (one a sample)."""
         i = bisect.bisect_left(stamps, t)
         if i == 0:
-            return self.truth[0][1]
-        if i == len(stamps):
-            return self.truth[-1][1]
+            return self.truth[0][1], self.truth[0][1], 0.0
         (t0, h0), (t1, h1) = self.truth[i - 1], self.truth[i]
-        w = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
-        return [a + w * (b - a) for a, b in zip(h0, h1)]
+        return h0, h1, (t - t0) / (t1 - t0) if t1 > t0 else 0.0
 
     def result(self):
         out = {"height_error_" + k: v for k, v in self.own_stamp.result("").items()}
