@@ -24,6 +24,8 @@ std::string RigEmulatorNodeParams::validate() const {
   if (!(load_n >= 0.0 && std::isfinite(load_n))) err << "~load_n must be >= 0; ";
   if (!(initial_height_m >= 0.0 && initial_height_m <= 0.2)) err << "~initial_height_m must lie in [0, 0.2] m; ";
   if (!(truth_rate_hz > 0.0 && truth_rate_hz <= 1000.0)) err << "~truth_rate_hz must lie in (0, 1000]; ";
+  if (simulation_realtime_priority < 0 || simulation_realtime_priority > 99)
+    err << "~simulation_realtime_priority must lie in 0..99 (0: the normal scheduler); ";
   try {
     effectsFromText(effects, noise_seed);
   } catch (const std::invalid_argument& e) {
@@ -47,6 +49,7 @@ RigEmulatorNodeParams RigEmulatorNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("load_n", p.load_n, p.load_n);
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
   pnh.param("truth_rate_hz", p.truth_rate_hz, p.truth_rate_hz);
+  pnh.param("simulation_realtime_priority", p.simulation_realtime_priority, p.simulation_realtime_priority);
   int seed = static_cast<int>(p.noise_seed);
   pnh.param("noise_seed", seed, seed);
   p.noise_seed = static_cast<std::uint32_t>(seed);
@@ -60,6 +63,7 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
   const AirbagCellParams airbag = airbagParamsFrom(values, "rig_emulator cell parameters");
   RigEmulatorOptions options;
   options.period_s = params_.period_s;
+  options.realtime_priority = params_.simulation_realtime_priority;
   options.rig.adc_step_pa = params_.adc_step_pa;
   options.rig.valve_dead_time_s = params_.valve_dead_time_s;
   options.cell.cell = airbag.cell;
@@ -75,6 +79,9 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
   truth_timer_ = nh.createTimer(ros::Duration(1.0 / params_.truth_rate_hz), &RigEmulatorNode::publishTruth, this);
   ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(), params_.register_map.c_str(),
            params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
+  if (emulator_->scheduling().refused)
+    ROS_WARN("rig_emulator: the simulation runs at %s: on a loaded machine it pauses, and its sensors with it",
+             emulator_->scheduling().text.c_str());
   for (const auto& server : emulator_->servers())
     if (server->scheduling().refused)
       ROS_WARN("rig_emulator: terminal '%s' serves at %s: on a loaded machine it answers (and switches its valves) late",
@@ -82,8 +89,7 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
 }
 
 void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
-  for (std::size_t id = 0; id < msg->data.size(); ++id)
-    if (std::isfinite(msg->data[id]) && msg->data[id] >= 0.0) emulator_->setLoad(static_cast<std::uint32_t>(id), msg->data[id]);
+  emulator_->setLoads(msg->data);
 }
 
 void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
@@ -107,7 +113,8 @@ void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
     msg.load_n[t.cell_id] = t.load_n;
   }
   truth_pub_.publish(msg);
-  ROS_INFO_THROTTLE(10.0, "rig_emulator: %.3f periods per wake-up", emulator_->periodsPerWake());
+  ROS_INFO_THROTTLE(10.0, "rig_emulator: %.3f periods per wake-up, at most %ld", emulator_->periodsPerWake(),
+                    emulator_->mostPeriodsPerWake());
   if (emulator_->overruns() > reported_overruns_) {
     reported_overruns_ = emulator_->overruns();
     ROS_WARN("rig_emulator: fell behind real time %ld times, %.3f s given up in all: the rig's cells received "

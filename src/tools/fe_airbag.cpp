@@ -3,7 +3,7 @@
 //   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT] [--vtk-all 1]
 //   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]
 //   fe_airbag table     [--geometry G] [--elements N] [--table FILE] [--heights-mm LO,HI,COUNT]
-//                       [--branch inflation|flat]
+//                       [--branch inflation|flat|equilibria]
 //   fe_airbag reduced   [--inflow-mass-kg M] [--load L]          today's reduced model on the same axes
 //   fe_airbag check     --table FILE [--geometry G] [--elements N]   cell on the table vs the FE h(p) CSVs
 // G is pillows (two flat square pillows joined in the middle) or gusseted (--gusset-mm H
@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "nursing_bed/core/fe/airbag_fe.h"
+#include "nursing_bed/core/fe/equilibrium_curve.h"
 #include "nursing_bed/core/fe/fe_output.h"
 #include "nursing_bed/core/fe/verification.h"
 #include "nursing_bed/core/physics/cell_model.h"
@@ -89,7 +90,8 @@ Args parse(int argc, char** argv) {
     } else throw std::invalid_argument("unknown option " + k);
   }
   if (a.geometry != "pillows" && a.geometry != "gusseted") throw std::invalid_argument("--geometry: pillows or gusseted");
-  if (a.branch != "inflation" && a.branch != "flat") throw std::invalid_argument("--branch: inflation or flat");
+  if (a.branch != "inflation" && a.branch != "flat" && a.branch != "equilibria")
+    throw std::invalid_argument("--branch: inflation, flat or equilibria");
   return a;
 }
 
@@ -347,16 +349,25 @@ void reduced(const Args& a) {
 }
 
 // States of the inflation branch (the h(p) procedure: loaded plate, pressure raised step by
-// step from the flat bag) for a spread of loads, per pressure: (plate height, film positions).
-using BranchStates = std::vector<std::vector<std::pair<double, Eigen::Matrix3Xd>>>;
+// step from the flat bag) for a spread of loads, per pressure.
+struct BranchState {
+  fe::LoadedState state;
+  Eigen::Matrix3Xd positions;
+};
+using BranchStates = std::vector<std::vector<BranchState>>;
+
+// Loads of the inflation branch [N]: dense enough that the equilibria between two of them are
+// near-linear in height (the check's off-branch loads, 8 and 25 N, fall between), and one
+// lighter than the plate (0.2 N) so that the plate-alone curve is not the table's edge.
+const std::vector<double> kBranchLoadsN{0.2, 0.6, 1.5, 3.0, 4.5, 6.0, 10.6, 13.0, 15.6, 18.0, 20.6, 23.0, 28.0, 33.0, 39.0, 45.0};
 
 BranchStates inflationBranch(fe::AirbagFe* bag, const std::vector<double>& pressures) {
   BranchStates states(pressures.size());
-  for (double load : {0.6, 3.0, 6.0, 10.6, 15.6, 20.6, 30.0, 45.0}) {
+  for (double load : kBranchLoadsN) {
     bag->reset();
     for (std::size_t j = 0; j < pressures.size(); ++j) {
       const fe::QuasiStaticPoint q = bag->solveLoaded(pressures[j], load);
-      if (q.converged) states[j].emplace_back(q.height_m, bag->model().positions());
+      if (q.converged) states[j].push_back({{load, q.height_m, q.volume_m3}, bag->model().positions()});
     }
     std::printf("  inflation branch under %.1f N done\n", load);
     std::fflush(stdout);
@@ -364,49 +375,74 @@ BranchStates inflationBranch(fe::AirbagFe* bag, const std::vector<double>& press
   return states;
 }
 
+// Starts the bag from the branch state nearest in height at this pressure, if one is near.
+void startNearBranch(fe::AirbagFe* bag, const std::vector<BranchState>& at_pressure, double h) {
+  if (at_pressure.empty()) return;
+  const auto nearest = std::min_element(at_pressure.begin(), at_pressure.end(), [h](const auto& x, const auto& y) {
+    return std::abs(x.state.height_m - h) < std::abs(y.state.height_m - h);
+  });
+  // Only a nearby branch state: lowering the plate far onto an inflated bag crushes it.
+  if (std::abs(nearest->state.height_m - h) <= 2.0 * bag->options().geometry.elementSize())
+    bag->model().setPositions(nearest->positions);
+}
+
+// One table state with the plate held at h (false when the solve did not converge; kept).
+bool heldPlateState(fe::AirbagFe* bag, double h, double p, double* force_n, double* volume_m3) {
+  fe::QuasiStaticPoint q = bag->solveAtHeight(h, p);
+  if (!bag->model().positions().allFinite()) {  // diverged from the start it was given: from flat
+    bag->reset();
+    q = bag->solveAtHeight(h, p);
+  }
+  if (!q.converged) std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
+  *force_n = q.plate_force_n;
+  *volume_m3 = q.volume_m3;
+  return q.converged;
+}
+
 // Table rows: the plate held at each height. "inflation" starts each state from the nearest
 // inflation-branch state at that pressure (so the table lies on the branch the h(p) curves
-// follow through the snaps); "flat" inflates each row from the flat bag.
+// follow through the snaps); "flat" inflates each row from the flat bag; "equilibria" takes,
+// between the lightest and the heaviest branch load's heights at a pressure, the branch's own
+// equilibria (force = the load, interpolated in height between loads) and holds the plate
+// only outside them. Through the snaps the bag held at (h, p) may sit in another fold than
+// the loaded bag that passed there (hysteresis): the held-plate table then snaps later than
+// the FE does; the equilibria are the states the loaded bag does pass through.
 void table(const Args& a) {
   fe::AirbagFe bag(bagOptions(a));
   fe::StructureTable t;
   t.description = bag.options().geometry.describe() + ", " + a.branch + " branch";
   for (int i = 0; i < a.h_count; ++i) t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
   for (int i = 0; i < a.p_count; ++i) t.pressures_pa.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
-  int unconverged = 0;
+  int unconverged = 0, from_equilibria = 0;
   const auto start = std::chrono::steady_clock::now();
-  const BranchStates branch = a.branch == "inflation" ? inflationBranch(&bag, t.pressures_pa) : BranchStates{};
+  const BranchStates branch = a.branch == "flat" ? BranchStates(t.pressures_pa.size()) : inflationBranch(&bag, t.pressures_pa);
+  std::vector<std::vector<fe::LoadedState>> curves(t.pressures_pa.size());
+  if (a.branch == "equilibria") {
+    for (std::size_t j = 0; j < curves.size(); ++j) {
+      std::vector<fe::LoadedState> states;
+      for (const BranchState& b : branch[j]) states.push_back(b.state);
+      std::vector<std::string> left_out;
+      curves[j] = fe::equilibriumCurve(states, &left_out);
+      for (const std::string& why : left_out) std::printf("  p %.1f kPa: %s, left out\n", t.pressures_pa[j] / 1e3, why.c_str());
+    }
+  }
   for (double h : t.heights_m) {
     bag.reset();
-    std::vector<double> v, force;
+    std::vector<double> v(t.pressures_pa.size()), force(t.pressures_pa.size());
     for (std::size_t j = 0; j < t.pressures_pa.size(); ++j) {
-      const double p = t.pressures_pa[j];
-      if (!branch.empty() && !branch[j].empty()) {
-        const auto nearest = std::min_element(branch[j].begin(), branch[j].end(), [h](const auto& x, const auto& y) {
-          return std::abs(x.first - h) < std::abs(y.first - h);
-        });
-        // Only a nearby branch state: lowering the plate far onto an inflated bag crushes it.
-        if (std::abs(nearest->first - h) <= 2.0 * bag.options().geometry.elementSize()) {
-          bag.model().setPositions(nearest->second);
-        }
+      if (fe::onEquilibriumCurve(curves[j], h, &force[j], &v[j])) {
+        ++from_equilibria;
+        continue;
       }
-      fe::QuasiStaticPoint q = bag.solveAtHeight(h, p);
-      if (!bag.model().positions().allFinite()) {  // diverged from the start it was given: from flat
-        bag.reset();
-        q = bag.solveAtHeight(h, p);
-      }
-      if (!q.converged) {
-        std::printf("  warning: h %.0f mm p %.1f kPa: %s\n", h * 1e3, p / 1e3, q.message.c_str());
-        ++unconverged;
-      }
-      v.push_back(q.volume_m3);
-      force.push_back(q.plate_force_n);
+      startNearBranch(&bag, branch[j], h);
+      if (!heldPlateState(&bag, h, t.pressures_pa[j], &force[j], &v[j])) ++unconverged;
     }
     std::printf("  table row h %.0f mm done\n", h * 1e3);
     std::fflush(stdout);
     t.volume_m3.push_back(v);
     t.plate_force_n.push_back(force);
   }
+  if (a.branch == "equilibria") std::printf("  %d states from the branch's equilibria\n", from_equilibria);
   fe::writeStructureTable(a.table.empty() ? a.out + "/table_" + tag(a) + ".yaml" : a.table, t);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("table %s: %zu x %zu states, %d not converged (kept, flagged above), wall %.0f s\n", tag(a).c_str(),

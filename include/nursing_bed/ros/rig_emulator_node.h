@@ -27,6 +27,7 @@ struct RigEmulatorNodeParams {
   double load_n = 0.6;                 ///< ~load_n: load until /airbag_loads says otherwise [N]
   double initial_height_m = 0.0;       ///< ~initial_height_m: cells start at rest at this height [m]
   double truth_rate_hz = 50.0;         ///< ~truth_rate_hz: rate of ~truth
+  int simulation_realtime_priority = 20;  ///< ~simulation_realtime_priority: SCHED_FIFO priority of the simulation thread (0: normal)
   std::uint32_t noise_seed = 1;        ///< ~noise_seed
 
   std::string validate() const;

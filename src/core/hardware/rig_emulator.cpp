@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 #include "nursing_bed/core/hardware/thread_priority.h"
@@ -203,6 +204,7 @@ RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& optio
   }
   stepAll(1, std::chrono::steady_clock::now());
   thread_ = std::thread(&RigEmulator::run, this);
+  scheduling_ = scheduleRealtime(thread_, options_.realtime_priority);
 }
 
 RigEmulator::~RigEmulator() {
@@ -214,6 +216,15 @@ void RigEmulator::setLoad(std::uint32_t cell_id, double load_n) {
   std::lock_guard<std::mutex> lock(mutex_);
   for (Cell& c : cells_)
     if (c.registers.cell_id == cell_id) c.hardware->setLoad(load_n);
+}
+
+void RigEmulator::setLoads(const std::vector<double>& load_n_by_id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (Cell& c : cells_) {
+    const std::uint32_t id = c.registers.cell_id;
+    if (id < load_n_by_id.size() && std::isfinite(load_n_by_id[id]) && load_n_by_id[id] >= 0.0)
+      c.hardware->setLoad(load_n_by_id[id]);
+  }
 }
 
 std::vector<CellTruth> RigEmulator::truth(std::chrono::steady_clock::time_point* at) const {
@@ -273,6 +284,7 @@ void RigEmulator::stepAll(int periods, std::chrono::steady_clock::time_point unt
   simulated_until_ = until;
   steps_ += periods;
   ++wakes_;
+  if (periods > most_periods_) most_periods_ = periods;
 }
 
 void RigEmulator::run() {

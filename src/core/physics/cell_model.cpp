@@ -75,7 +75,8 @@ double CellParams::reliefOpening(double gauge_pressure_pa) const {
 std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params) {
   if (params.structure_type == "table")
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
-                                                params.structure.film_relaxation_time_s);
+                                                params.structure.film_relaxation_time_s,
+                                                params.structure.dead_volume_m3);
   return std::make_shared<PillowStructure>(params.structure);
 }
 

@@ -52,11 +52,14 @@ std::string StructureTableData::validate() const {
   return "";
 }
 
-TabulatedStructure::TabulatedStructure(StructureTableData table, double film_relaxation_time_s)
-    : table_(std::move(table)), relaxation_time_s_(film_relaxation_time_s) {
+TabulatedStructure::TabulatedStructure(StructureTableData table, double film_relaxation_time_s, double dead_volume_m3)
+    : table_(std::move(table)), relaxation_time_s_(film_relaxation_time_s), dead_volume_m3_(dead_volume_m3) {
   const std::string e = table_.validate();
   if (!e.empty()) throw std::invalid_argument("TabulatedStructure: " + e);
   if (!(relaxation_time_s_ > 0.0)) throw std::invalid_argument("TabulatedStructure: film_relaxation_time_s must be positive");
+  if (!(dead_volume_m3_ > 0.0 && std::isfinite(dead_volume_m3_)))
+    throw std::invalid_argument("TabulatedStructure: dead_volume_m3 must be positive");
+  if (table_.heights_m.size() < 2) throw std::invalid_argument("TabulatedStructure: heights_m needs at least 2 heights");
 }
 
 StructureTableData TabulatedStructure::load(const std::string& path) {
@@ -96,10 +99,17 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   e.effective_area_m2 = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
   // Volume: the table, extended below its lowest height along the lowest row's area.
   e.volume_m3 = interpolate(table_.volume_m3, height_m, q);
+  // Below the lowest height V follows the lowest rows' dV/dh down to the dead volume (fitting,
+  // tube, folds). Not A_eff: near flat the plate force is the film stack's contact (F/q reached
+  // 2.7x the face area at 3 mm, 1 kPa), which emptied the flat cell to nothing (67 K gas).
   // A plate pressed into the bed (h < 0: the contact spring) squeezes the bed, not the flat bag:
   // the volume stays the flat one there, as the pillow model's does. Extended on, a cell reset
   // flat under 20 N started at 206 kPa (reset again every period).
-  if (height_m < h0) e.volume_m3 = std::max(1e-9, e.volume_m3 - (h0 - std::max(height_m, 0.0)) * e.effective_area_m2);
+  if (height_m < h0) {
+    const double h1 = table_.heights_m[1];
+    const double dvdh = (interpolate(table_.volume_m3, h1, q) - e.volume_m3) / (h1 - h0);
+    e.volume_m3 = std::max(dead_volume_m3_, e.volume_m3 - (h0 - std::max(height_m, 0.0)) * std::max(dvdh, 0.0));
+  }
   // dV/dq from the bracketing pressure columns (floored: q must keep relaxing to p).
   const auto [j, b] = locate(table_.pressures_pa, q);
   (void)b;

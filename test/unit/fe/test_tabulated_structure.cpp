@@ -54,6 +54,29 @@ TEST(TabulatedStructure, EquilibriumIsWhereThePlateForceCarriesTheLoad) {
   EXPECT_NEAR(s.evaluate(0.05, &q).volume_m3, 0.01 * 0.05 + 1e-8 * 12e3, 1e-12);
 }
 
+TEST(TabulatedStructure, BelowItsLowestHeightTheVolumeFollowsTheRowsSlopeDownToTheDeadVolume) {
+  // The lowest row's plate force is a folded stack's contact (F/q far above the face's area):
+  // extended along it, V would fall to nothing above the bed. Along dV/dh it reaches the dead
+  // volume only at the bed.
+  fe::StructureTable t = syntheticTable();  // V = 0.01 h + 1e-8 p, lowest row at 15 mm
+  for (double& f : t.plate_force_n[0]) f *= 5.0;
+  const TabulatedStructure s(TabulatedStructure::load([&] {
+    const std::string path = tmpDir() + "/contact.yaml";
+    fe::writeStructureTable(path, t);
+    return path;
+  }()), 2e-3, 4e-6);
+  const double q = 0.1;  // 1 kPa
+  EXPECT_NEAR(s.evaluate(0.010, &q).volume_m3, 0.01 * 0.010 + 1e-5, 1e-12);
+  EXPECT_NEAR(s.evaluate(0.0, &q).volume_m3, 1e-5, 1e-12) << "the row's slope carried to the bed";
+  EXPECT_NEAR(s.evaluate(-0.01, &q).volume_m3, 1e-5, 1e-12) << "pressed into the bed: the flat volume";
+  // A steeper slope than the flat volume allows stops at the dead volume.
+  for (auto& row : t.volume_m3) for (double& v : row) v -= 1e-5;
+  const std::string steep = tmpDir() + "/steep.yaml";
+  fe::writeStructureTable(steep, t);
+  EXPECT_NEAR(TabulatedStructure(TabulatedStructure::load(steep), 2e-3, 4e-6).evaluate(0.0, &q).volume_m3, 4e-6, 1e-15);
+  EXPECT_THROW(TabulatedStructure(TabulatedStructure::load(steep), 2e-3, 0.0), std::invalid_argument);
+}
+
 TEST(TabulatedStructure, BadTablesAreRefusedWithTheField) {
   const std::string path = tmpDir() + "/bad.yaml";
   auto refused = [&](fe::StructureTable t, const std::string& field) {

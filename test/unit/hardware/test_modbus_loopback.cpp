@@ -320,6 +320,37 @@ TEST_F(ModbusLoopback, OverALostLinkTheOutputsHeldUntilTheTerminalsWatchdogAreRe
   cells_[0]->write({}, 0.0);
 }
 
+TEST_F(ModbusLoopback, TheRigsSimulationRunsAtTheRealtimePriorityAskedFor) {
+  // Left on the normal scheduler (the fixture's default) it says so; asked for SCHED_FIFO it
+  // runs there or names the refusal, and it keeps the pace either way.
+  EXPECT_EQ(emulator_->scheduling().text, "normal");
+  emulator_.reset();
+  options_.realtime_priority = 15;
+  startEmulator();
+  const nb::ThreadScheduling& s = emulator_->scheduling();
+  if (s.refused)
+    EXPECT_EQ(s.text.rfind("normal (SCHED_FIFO 15 refused: ", 0), 0u) << s.text;
+  else
+    EXPECT_EQ(s.text, "SCHED_FIFO 15");
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_GE(emulator_->mostPeriodsPerWake(), 1);
+  EXPECT_LT(emulator_->periodsPerWake(), 1.5) << "the simulation keeps the wall clock's pace";
+}
+
+TEST_F(ModbusLoopback, TheRigTakesEveryCellsLoadAtOnceAndIgnoresBadOnes) {
+  // One vector by cell id (the patient simulator's /airbag_loads): NaN, negative loads and ids
+  // beyond the rig's cells leave those cells' loads as they were.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  emulator_->setLoads({20.6, nan, -3.0, 0.6, 99.0, 99.0});
+  EXPECT_DOUBLE_EQ(truth(0).load_n, 20.6);
+  EXPECT_DOUBLE_EQ(truth(1).load_n, 15.6) << "NaN ignored";
+  EXPECT_DOUBLE_EQ(truth(2).load_n, 15.6) << "a negative load ignored";
+  EXPECT_DOUBLE_EQ(truth(3).load_n, 0.6);
+  EXPECT_EQ(emulator_->truth().size(), 4u);
+  emulator_->setLoads({});
+  EXPECT_DOUBLE_EQ(truth(0).load_n, 20.6) << "an empty vector changes nothing";
+}
+
 TEST(TransientModbusError, TimeoutsAndBadRepliesAreRetriedAClosedConnectionIsNot) {
   for (int e : {ETIMEDOUT, EMBBADDATA, EMBBADEXC, EMBXSBUSY, EMBXGTAR}) EXPECT_TRUE(nb::transientModbusError(e)) << modbus_strerror(e);
   for (int e : {ECONNRESET, ECONNREFUSED, EPIPE, EBADF, ENOTCONN, EMBXILADD, EMBXILFUN, EMBXSFAIL, 0})

@@ -94,6 +94,10 @@ struct RigEmulatorOptions {
   RigImperfections rig;          ///< ADC step, valve dead time (height sensor: from the map)
   double period_s = 0.005;       ///< simulation step [s]
   double max_catch_up_s = 0.5;   ///< a lag up to this is run through, beyond it given up [s]
+  /// SCHED_FIFO priority of the simulation thread (1-99; 0: the normal scheduler). A rig's
+  /// physics does not pause: a simulation starved for tens of ms serves the same pressure
+  /// while its valves (on the servers' real-time threads) pass gas, which no real sensor does.
+  int realtime_priority = 0;
 };
 
 /// What a test may know and a controller may not.
@@ -113,6 +117,9 @@ class RigEmulator {
 
   /// Sets the load of a cell (from the patient simulator) [N]; unknown ids are ignored.
   void setLoad(std::uint32_t cell_id, double load_n);
+  /// Sets every cell's load from a vector by cell id [N] under one lock (the simulation thread
+  /// waits for it); ids beyond the cells, and loads not finite or negative, are ignored.
+  void setLoads(const std::vector<double>& load_n_by_id);
   /// The cells' true state; with `at`, also the instant it describes (the wall-clock tick the
   /// simulation has run to, taken under the same lock: the state and its time belong together).
   std::vector<CellTruth> truth(std::chrono::steady_clock::time_point* at = nullptr) const;
@@ -122,6 +129,10 @@ class RigEmulator {
   double lostSeconds() const { return lost_s_; }
   /// Simulation periods run per wake-up on average (1: the thread kept the pace).
   double periodsPerWake() const { return wakes_ > 0 ? static_cast<double>(steps_) / wakes_ : 0.0; }
+  /// The most periods one wake-up had to run (1: never late by a period) since the start.
+  long mostPeriodsPerWake() const { return most_periods_; }
+  /// How the simulation thread is scheduled (options' realtime_priority; scheduleRealtime).
+  const ThreadScheduling& scheduling() const { return scheduling_; }
   const std::vector<std::unique_ptr<RigTerminalServer>>& servers() const { return servers_; }
 
  private:
@@ -144,9 +155,10 @@ class RigEmulator {
   std::chrono::steady_clock::time_point simulated_until_;  ///< the tick the cells' state describes
   std::atomic<long> overruns_{0};
   std::atomic<double> lost_s_{0.0};
-  std::atomic<long> steps_{0}, wakes_{0};
+  std::atomic<long> steps_{0}, wakes_{0}, most_periods_{0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  ThreadScheduling scheduling_;
 };
 
 }  // namespace nursing_bed

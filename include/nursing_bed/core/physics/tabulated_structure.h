@@ -27,14 +27,15 @@ struct StructureTableData {
  * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
  * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
  * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row is
- * used for A_eff and V is extended linearly; above the highest height, or with the film
+ * used for A_eff and V follows the lowest rows' dV/dh down to the dead volume; above the highest height, or with the film
  * relaxed to a pressure above the highest tabulated one (the force is extrapolated there), the
  * cell is outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
  */
 class TabulatedStructure : public CellStructure {
  public:
   /// Throws std::invalid_argument naming the field when the table is inconsistent.
-  TabulatedStructure(StructureTableData table, double film_relaxation_time_s = 2.0e-3);
+  /// `dead_volume_m3`: the gas volume left at zero height (fitting, tube, folds) [m^3].
+  TabulatedStructure(StructureTableData table, double film_relaxation_time_s = 2.0e-3, double dead_volume_m3 = 5.0e-6);
   /// Reads the YAML table; throws std::runtime_error naming the file and the key.
   static StructureTableData load(const std::string& path);
 
@@ -53,6 +54,7 @@ class TabulatedStructure : public CellStructure {
 
   StructureTableData table_;
   double relaxation_time_s_;
+  double dead_volume_m3_;
 };
 
 }  // namespace nursing_bed
