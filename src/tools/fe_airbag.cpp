@@ -356,9 +356,9 @@ struct BranchState {
 };
 using BranchStates = std::vector<std::vector<BranchState>>;
 
-// Loads of the inflation branch [N]: dense enough that the equilibria between two of them are
-// near-linear in height (the check's off-branch loads, 8 and 25 N, fall between), and one
-// lighter than the plate (0.2 N) so that the plate-alone curve is not the table's edge.
+// Loads of the inflation branch [N]: 1.5-6 N apart (the table interpolates linearly between
+// two; 8 and 25 N, which `check --loads 8,25` tries, are not among them), and one lighter than
+// the plate (0.2 N) so that the plate-alone curve is not the table's edge.
 const std::vector<double> kBranchLoadsN{0.2, 0.6, 1.5, 3.0, 4.5, 6.0, 10.6, 13.0, 15.6, 18.0, 20.6, 23.0, 28.0, 33.0, 39.0, 45.0};
 
 BranchStates inflationBranch(fe::AirbagFe* bag, const std::vector<double>& pressures) {
