@@ -24,8 +24,8 @@ std::string RigEmulatorNodeParams::validate() const {
   if (!(load_n >= 0.0 && std::isfinite(load_n))) err << "~load_n must be >= 0; ";
   if (!(initial_height_m >= 0.0 && initial_height_m <= 0.2)) err << "~initial_height_m must lie in [0, 0.2] m; ";
   if (!(truth_rate_hz > 0.0 && truth_rate_hz <= 1000.0)) err << "~truth_rate_hz must lie in (0, 1000]; ";
-  if (simulation_realtime_priority < 0 || simulation_realtime_priority > 99)
-    err << "~simulation_realtime_priority must lie in 0..99 (0: the normal scheduler); ";
+  const std::string priority = realtimePriorityProblem(simulation_realtime_priority);
+  if (!priority.empty()) err << "~simulation_realtime_priority " << simulation_realtime_priority << " " << priority << "; ";
   try {
     effectsFromText(effects, noise_seed);
   } catch (const std::invalid_argument& e) {

@@ -10,6 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/hardware/thread_priority.h"
+
 namespace nursing_bed {
 namespace {
 
@@ -170,8 +172,8 @@ void checkTerminalValues(const TerminalMap& t, std::ostringstream& err) {
   if (!(t.stale_after_s > t.cycle_s)) err << at << ": stale_after_s must exceed cycle_s; ";
   if (!(t.watchdog_s > t.cycle_s && t.watchdog_s <= 60.0))
     err << at << ": watchdog_s " << t.watchdog_s << " must exceed cycle_s and be at most 60 s; ";
-  if (t.realtime_priority < 0 || t.realtime_priority > 99)
-    err << at << ": realtime_priority " << t.realtime_priority << " not in 0..99 (0: the normal scheduler); ";
+  const std::string priority = realtimePriorityProblem(t.realtime_priority);
+  if (!priority.empty()) err << at << ": realtime_priority " << t.realtime_priority << " " << priority << "; ";
   checkLinkLoss(t, at, err);
   if (t.cells.empty()) err << at << ": serves no cells; ";
 }

@@ -7,6 +7,10 @@
 
 namespace nursing_bed {
 
+std::string realtimePriorityProblem(int priority) {
+  return priority < 0 || priority > 99 ? "not in 0..99 (0: the normal scheduler)" : "";
+}
+
 ThreadScheduling scheduleRealtime(std::thread& thread, int priority) {
   if (priority <= 0) return {false, "normal"};
   sched_param param{};

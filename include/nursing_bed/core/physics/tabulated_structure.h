@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "nursing_bed/core/physics/cell_structure.h"
+#include "nursing_bed/core/physics/pillow_structure.h"
 
 namespace nursing_bed {
 
@@ -27,15 +28,17 @@ struct StructureTableData {
  * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
  * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
  * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row is
- * used for A_eff and V follows the lowest rows' dV/dh down to the dead volume; above the highest height, or with the film
- * relaxed to a pressure above the highest tabulated one (the force is extrapolated there), the
- * cell is outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
+ * used for A_eff and V follows the lowest rows' dV/dh down to the dead volume; above the
+ * highest height, or with the film relaxed to a pressure above the highest tabulated one (the
+ * force is extrapolated there), the cell is outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
  */
 class TabulatedStructure : public CellStructure {
  public:
   /// Throws std::invalid_argument naming the field when the table is inconsistent.
-  /// `dead_volume_m3`: the gas volume left at zero height (fitting, tube, folds) [m^3].
-  TabulatedStructure(StructureTableData table, double film_relaxation_time_s = 2.0e-3, double dead_volume_m3 = 5.0e-6);
+  /// `dead_volume_m3`: the gas volume left at zero height (fitting, tube, folds) [m^3]; the
+  /// cell's structure parameter, whichever structure it runs on.
+  TabulatedStructure(StructureTableData table, double film_relaxation_time_s = PillowParams{}.film_relaxation_time_s,
+                     double dead_volume_m3 = PillowParams{}.dead_volume_m3);
   /// Reads the YAML table; throws std::runtime_error naming the file and the key.
   static StructureTableData load(const std::string& path);
 
