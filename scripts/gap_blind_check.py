@@ -10,7 +10,7 @@ matrix and the acceptance rates:
   - clean data gives "none" in every case
   - out-of-library effects give "unexplained" (not a wrong name) in >= 70 %
   - median withheld nrmse shrink >= 80 % where effects are named
-and, for the calibration (issue #11; doc/gap_calibration.md), datasets whose rig differs from the
+and, for the calibration (doc/gap_calibration.md), datasets whose rig differs from the
 model's parameter file (`gap synth --airbag-param`, magnitudes drawn from the seed):
   - parameter mismatch alone (film stiffness +-5-20 %, gusset +-1-3 mm, dead volume x0.5-3,
     plate mass +-20 %) gives "calibrated" with exactly that parameter moved, or honestly "none"

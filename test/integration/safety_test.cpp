@@ -1,4 +1,4 @@
-// rostest node for issue #14, "fail safe at the edges": hostile inputs, CPR -> flat cycles, the
+// rostest node for doc/safety.md, "fail safe at the edges": hostile inputs, CPR -> flat cycles, the
 // body's roll rate through plan switches and a cell fault, the bed manager killed and restarted.
 // Each .test file runs one case (--gtest_filter); the figures are printed and recorded.
 #include <nodelet/NodeletUnload.h>
