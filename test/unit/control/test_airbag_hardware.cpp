@@ -176,7 +176,7 @@ TEST(AirbagOnHardware, TheObserverIntegratesWhatTheDriverApplied) {
 }
 
 TEST(AirbagOnHardware, StepWithoutAHeightSensorSettlesNearTheFlowLimit) {
-  // Acceptance 2: 20 -> 100 mm under 15.6 N settles within +-2 mm in <= 2x the flow-limited time.
+  // Target: 20 -> 100 mm under 15.6 N settles within +-2 mm in <= 2x the flow-limited time.
   nb::AirbagCellParams p;
   auto rig = rigWithoutHeightSensor(p, 0.02, 15.6);
   nb::AirbagCell cell(p, rig, nb::AirbagObserverSetup{});

@@ -35,7 +35,7 @@ StepResult step(nb::AirbagCell& cell, double load, double from, double to, doubl
 }
 
 TEST(HeightController, StepFrom20To100mmUnder15NIsNearTheFlowLimit) {
-  // Acceptance: settles within +-1 mm in at most 1.5x the flow-limited minimum time,
+  // Target: settles within +-1 mm in at most 1.5x the flow-limited minimum time,
   // overshoot <= 2 mm (the benchmark reports the figures).
   nb::AirbagCell cell{nb::AirbagCellParams{}};
   const double t_min = nb::flowLimitedMinimumTime(cell.params().cell, 15.6, 0.02, 0.10);
