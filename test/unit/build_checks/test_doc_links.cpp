@@ -112,8 +112,8 @@ TEST(DocLinks, AFileOutsideTheRepositoryIsFlaggedInCommentsAndPages) {
 }
 
 TEST(DocLinks, ABareMarkdownNameThatIsNoPageOfTheRepositoryIsFlagged) {
-  const ToolResult r = checkLinks(treeWith("bare", "src/w.cpp", "// a.md is fine; the format of gap-report.md is not here\n"));
+  const ToolResult r = checkLinks(treeWith("bare", "src/w.cpp", "// a.md is fine; the format of run-format.md is not here\n"));
   EXPECT_EQ(r.code, 1) << r.output;
-  EXPECT_TRUE(mentions(r, "src/w.cpp:1: mention of gap-report.md: no such page in the repository")) << r.output;
+  EXPECT_TRUE(mentions(r, "src/w.cpp:1: mention of run-format.md: no such page in the repository")) << r.output;
   EXPECT_FALSE(mentions(r, "mention of a.md")) << r.output;
 }

@@ -77,8 +77,8 @@ double estimateNoise(const std::vector<double>& signal);
 /// estimate of estimateNoise() over the samples i-w .. i+w (a meter's noise grows with its
 /// reading), from the samples where the valve held still (valve_cmd equal at i-1, i, i+1, when
 /// the run has it). A valve that the controller opens for a few ms at a time moves gas in
-/// pulses, and those are flow, not the meter's noise: on recordings of the bed they posed as a
-/// noise hundreds of times the meter's. Where fewer than 5 such samples are near, the estimate
+/// pulses, and those are flow, not the meter's noise (taken as noise they would pose as one
+/// hundreds of times the meter's). Where fewer than 5 such samples are near, the estimate
 /// over all of the run's; a run whose valve never held still, every sample.
 std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w);
 
