@@ -1,16 +1,16 @@
 #!/usr/bin/env python3
-"""Blind check of the gap diagnosis (issue: sim-to-real gap; doc/gap_diagnosis.md).
+"""Blind check of the gap diagnosis (doc/gap_diagnosis.md).
 
 For every candidate effect (several seeds, random magnitudes in the documented range), clean
 data, and every effect the generator can plant that is not a candidate: `gap synth` writes a
 dataset and its truth.json, `gap diagnose` diagnoses it WITHOUT the truth (truth.json is moved
 out of the dataset first), and the verdict is compared with the truth. Prints the confusion
-matrix and the acceptance rates:
+matrix and the pass rates against these criteria:
   - single candidate effects named top-1 (verdict "explained" by exactly that effect) >= 90 %
   - clean data gives "none" in every case
   - out-of-library effects give "unexplained" (not a wrong name) in >= 70 %
   - median withheld nrmse shrink >= 80 % where effects are named
-and, for the calibration (issue #11; doc/gap_calibration.md), datasets whose rig differs from the
+and, for the calibration (doc/gap_calibration.md), datasets whose rig differs from the
 model's parameter file (`gap synth --airbag-param`, magnitudes drawn from the seed):
   - parameter mismatch alone (film stiffness +-5-20 %, gusset +-1-3 mm, dead volume x0.5-3,
     plate mass +-20 %) gives "calibrated" with exactly that parameter moved, or honestly "none"
@@ -57,7 +57,7 @@ PAIR_PARAMS = {"leak": "leak:leak_area_m2=1.5e-8", "heat_transfer": "heat_transf
 
 
 def draw_mismatch(param, rng):
-    """A parameter mismatch of the issue's ranges, sign and size from `rng`."""
+    """A parameter mismatch within the blind check's ranges, sign and size from `rng`."""
     sign = rng.choice([-1.0, 1.0])
     if param == "film_stiffness_scale":
         return 1.0 + sign * rng.uniform(0.05, 0.20)

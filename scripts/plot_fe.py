@@ -14,7 +14,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-# Paper eq. 24 with x read as bar (specs/paper-targets.md point 7).
+# Paper eq. 24 with x read as bar (doc/paper_targets.md, target 7).
 EQ24 = [-4.603e5, 4.099e5, -1.349e5, 1.955e4, -9.741e2]
 
 

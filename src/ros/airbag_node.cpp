@@ -165,10 +165,8 @@ void AirbagNode::update(const ros::Time& now) {
   // Real hardware does not wait: its cell always runs to now (the observer integrates the
   // whole time the valves kept their command), and to its own now, read at its turn in the
   // round, not the round's: the driver reports its valves' pulses averaged since the last
-  // read(), and the cell integrates that mean over its own period. With the round's time a
-  // cell late in the round had periods a few ms off the driver's spans (a pulse counted as
-  // pulse x period / span); on the bed the PWM fills were over-counted by 1.6 % on average,
-  // 1.1 % after (one recorded run each, doc/real_bed.md).
+  // read(), and the cell integrates that mean over its own period (with the round's time a
+  // cell late in the round would count a pulse as pulse x period / span; doc/real_bed.md).
   const double period_s = 1.0 / params_.update_rate_hz;
   const double until_s = params_.hardware.simulated() ? std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s)
                                                       : elapsed(ros::Time::now());
@@ -242,8 +240,8 @@ void AirbagNode::takeSnapshot() {
 
 void AirbagNode::publish(const ros::Time& now) {
   // The publishing thread reads the snapshot the simulation thread left after the cell's last
-  // period, never the cell itself: it never waits for a cell being advanced (waiting 5 ms per
-  // cell, it followed a slow round cell by cell: 0.4 s gaps after CPR).
+  // period, never the cell itself: it never waits for a cell being advanced (waiting per cell,
+  // it would follow a slow round cell by cell and leave gaps after CPR).
   CellSnapshot s;
   {
     std::lock_guard<std::mutex> lock(snapshot_mutex_);

@@ -1,4 +1,4 @@
-// fe_airbag: the FE membrane model of one airbag (issue #13, doc/fe_membrane.md).
+// fe_airbag: the FE membrane model of one airbag (doc/fe_membrane.md).
 //   fe_airbag verify    [--out DIR]                       sphere and tube against closed forms
 //   fe_airbag hp        [--geometry G] [--elements N] [--loads L1,L2] [--pressures-kpa LO,HI,COUNT] [--vtk-all 1]
 //   fe_airbag transient [--geometry G] [--elements N] [--load L] [--inflow-mass-kg M]

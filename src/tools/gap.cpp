@@ -63,7 +63,7 @@ constexpr const char* kSynthUsage =
     "                 (gap calibrate --help) or a key of the file, e.g. film_stiffness_scale=1.15,\n"
     "                 structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)\n"
     "  --no-flow-meter runs driven through the valves: valve_cmd and p_supply_gauge_pa, no\n"
-    "                 mdot_in_kg_s (run-data.md)\n"
+    "                 mdot_in_kg_s (doc/formats/run_data.md)\n"
     "  --no-height    no height sensor: h_m left out\n";
 
 std::string calibrationParamText() {

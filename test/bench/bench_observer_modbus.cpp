@@ -16,7 +16,7 @@
 //   --rig-dead-time S     the emulator's valve dead time (default 0.01 s)
 //   --rig-period S        the emulator's simulation step (default 0.005 s)
 //   --effects             a leak (1e-8 m2) and heat exchange (8 W/(m2 K)) in the emulator's cell,
-//                         and the observer given them (issue #12's acceptance 3 on one cell)
+//                         and the observer given them (the hidden-effects check of doc/real_bed.md on one cell)
 //   --load-guess N        the cell's load guess at reset (default the true load; the bed's
 //                         nodes start from load_n, 10.6 N)
 //   --load-swing N        the load moves as a patient's share does: a random sway of this sd
@@ -25,7 +25,7 @@
 //   --land S              the rig's cell carries the --load-guess load until S s, then --load (a
 //                         patient laid on a bed that filled under the guess)
 //   --hold S              instead of the programme: fill to 91 mm at 1 s and hold until S s
-//                         (the bed's acceptance 3 under a heavy part of the patient)
+//                         (the hidden-effects hold under a heavy part of the patient)
 //   --alternate           instead of the programme: the alternating plan's moves as the bed
 //                         manager streams them (0.10 m, then 0.03 / 0.12 m every 20 s, targets
 //                         rate-limited to 0.02 m/s and sent at 50 Hz), 100 s

@@ -110,8 +110,8 @@ TEST_F(RealBedFixture, OneCellReachesItsHeightWithoutAHeightSensor) {
   const SetHeight::Response r = callCell("/airbag_0_0", 0, 0.10);
   ASSERT_TRUE(r.success) << r.message;
   // The loop closes on the estimate: it settles on the target. The truth is checked loosely
-  // only: over Modbus under heavy machine load the estimate has been 3-40 mm off (an open
-  // problem, doc/real_bed.md); the accuracy itself is tested offline (test_observer, test_control).
+  // only (a CI machine's load varies; the accuracy over Modbus is a benchmark, doc/benchmarks.md);
+  // the accuracy itself is tested offline (test_observer, test_control).
   EXPECT_TRUE(settle({{0, 0.10}}, 0.002, 1.0, 30.0)) << "estimate " << states_[0].height_m;
   EXPECT_TRUE(truthSettles(0.10, 0.05, 1.0, 10.0)) << "truth " << truth_m_[0] << ", estimate " << states_[0].height_m;
   EXPECT_GT(states_[0].height_sd_m, 0.0);
@@ -159,7 +159,7 @@ TEST_F(RealBedFixture, EveryCellFlagsTheLostEmulatorAndResumesWhenItIsBack) {
   restartEmulator();
   ASSERT_TRUE(waitFor([this] { return allFlagged(AirbagState::FAULT_COMMUNICATION, false); }, 20.0));
   // The restarted rig's cells are flat: the observers re-anchor and the cells go back up (to
-  // within the estimate's error over Modbus: 7-19 mm after a fill from flat, doc/real_bed.md).
+  // within a loose bound on the estimate's error over Modbus right after a fill from flat).
   EXPECT_TRUE(truthSettles(0.06, 0.025, 0.5, 40.0)) << truthText();
 }
 

@@ -36,7 +36,7 @@ struct AirbagNodeParams {
   double initial_height_m = 0.0;      ///< ~initial_height_m: start at rest at this height [m]
   double supply_pressure_pa = -1.0;   ///< ~supply_pressure_pa: regulator setting; < 0 keeps cell/supply/pressure_pa
   /// ~effects: effects the simulated cell has and the nominal model leaves out, for sim-to-real
-  /// tests of the gap diagnosis: "NAME[:param=value,...][;NAME...]" (gap_effects.h; parameters
+  /// tests of the gap diagnosis: "NAME[:param=value,...][;NAME...]" (core/gap/effects.h; parameters
   /// not given are drawn from the noise seed). Default "": the nominal cell.
   std::string effects;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)

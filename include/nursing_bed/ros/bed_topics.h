@@ -1,8 +1,8 @@
 // One subscription per process to the bed-wide topics every airbag listens to (/airbag_loads,
 // the bed manager's heartbeat), fanned out to the airbags of the process. With one subscription
-// per airbag nodelet, every message became 180 callbacks, each queued and woken on a worker
-// thread: at 50 Hz of loads and 10 Hz of heartbeats that was 10800 callbacks/s, and their thread
-// switches took a fifth of the cells' process (perf, doc/safety.md). Handlers run on this class's
+// per airbag nodelet, every message would become 180 callbacks, each queued and woken on a worker
+// thread (10800 callbacks/s at 50 Hz of loads and 10 Hz of heartbeats), and their thread
+// switches would cost a large share of the cells' process (doc/safety.md). Handlers run on this class's
 // own spinner thread, so a busy nodelet worker never delays them.
 #pragma once
 

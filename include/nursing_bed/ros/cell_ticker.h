@@ -1,6 +1,6 @@
 // One clock thread per process that advances every airbag in it, and a second one that publishes
 // their states. roscpp's timer manager searches its timers linearly on every expiry, so 180
-// nodelet timers in one manager spend most of their CPU there (measured: 57 %); a single ticker
+// nodelet timers in one manager spend most of their CPU there; a single ticker
 // keeps the cost per cell constant. Publishing has its own thread because simulating the plants
 // can take longer than a period for a moment (every cell filling from flat at once after CPR
 // costs ~1000 integration sub-steps each): the cells' controllers stay alive meanwhile, and the

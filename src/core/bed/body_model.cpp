@@ -56,7 +56,7 @@ enum : int {
 // occiput, the sacrum (pelvis) and the heels are calibrated so that, with
 // tissue_stiffness_pa_m = 1.5e5 Pa/m on a flat bed, the point peaks of a 70 kg, 1.70 m patient
 // fall in the supine references on foam (sacrum 36-44, heels 46-59, occiput 43-63 mmHg;
-// paper-targets.md): see doc/simulator.md for the values obtained. The heel's small effective
+// doc/paper_targets.md): see doc/simulator.md for the values obtained. The heel's small effective
 // radius stands in for its thin, stiff tissue over the calcaneus.
 const std::vector<SegmentSpec> kSegmentTable = {
     // name             mass     length start  end    width  depth  lateral  R_x    R_y   parent       trunk

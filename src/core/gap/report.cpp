@@ -1,4 +1,4 @@
-// report.json (gap-report.md), report.md and the traces behind the plots of a gap diagnosis.
+// report.json (doc/formats/gap_report.md), report.md and the traces behind the plots of a gap diagnosis.
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -93,7 +93,7 @@ double shrinkPercent(double before, double after) {
   return before > 0.0 ? 100.0 * (1.0 - after / before) : NAN;
 }
 
-/// The `calibration` block of gap-report.md.
+/// The `calibration` block of report.json (doc/formats/gap_report.md).
 std::string calibrationJson(const CalibrationSummary& c) {
   std::ostringstream j;
   j << "{\n    \"parameters\": [";

@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const char* const kVersionKey = "nursing_bed_run";
 /// Always required (h_m may be empty throughout: no height sensor); mdot_in_kg_s too unless the
-/// run is valve-driven (valve_cmd and a supply pressure; run-data.md).
+/// run is valve-driven (valve_cmd and a supply pressure; doc/formats/run_data.md).
 const char* const kRequiredColumns[] = {"t_s", "p_gauge_pa", "h_m"};
 const char* const kSupplyKey = "p_supply_gauge_pa";
 
@@ -88,7 +88,7 @@ double RunData::loadAt(std::size_t i) const {
 
 namespace {
 
-/// Reads one run CSV line by line: metadata, the header, the data rows (run-data.md). Every
+/// Reads one run CSV line by line: metadata, the header, the data rows (doc/formats/run_data.md). Every
 /// error names the file and line (and the column where there is one).
 class RunCsvReader {
  public:

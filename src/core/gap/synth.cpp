@@ -280,7 +280,7 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
     run.p_gauge_pa.push_back(pressure);
     run.h_m.push_back(height);
     // Metered: the command in force from this sample on; valve-driven: the mean opening over
-    // the interval that ends here (run-data.md).
+    // the interval that ends here (doc/formats/run_data.md).
     run.valve_cmd.push_back(command);
   }
   if (protocol.valve_driven) run.p_supply_gauge_pa.assign(run.size(), p.supply_pressure_pa);

@@ -319,7 +319,7 @@ bool ModbusTerminal::writeOutputs() {
     holding = holding_;
   }
   // The outputs act when the terminal handles the write: between sending and its reply, taken
-  // at the middle (the end, as before, stamped every edge late by a loaded thread's wait).
+  // at the middle (at the reply every edge would be late by a loaded thread's wait).
   // One answered too late counts from the next write's: a terminal slow to answer is as slow
   // to act (timeouts come from its side; a client that woke late still finds the reply).
   const Clock::time_point sent = Clock::now();

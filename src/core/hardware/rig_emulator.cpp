@@ -96,8 +96,8 @@ void RigTerminalServer::run() {
 }
 
 void RigTerminalServer::checkWatchdog() {
-  // In real time: counted in select() timeouts, a loaded machine stretched it (0.1 s to 0.3 s
-  // at a bed's start), and a filling cell passed gas the client could not know of.
+  // In real time: counted in select() timeouts a loaded machine would stretch it, and a filling
+  // cell would pass gas the client cannot know of.
   if (std::chrono::steady_clock::now() < watchdogTrip()) return;
   std::lock_guard<std::mutex> lock(mutex_);
   accountCoils();
@@ -146,7 +146,7 @@ void RigTerminalServer::accountCoils() {
   // a real terminal's watchdog shuts its outputs on time, while this server's thread, starved
   // on a loaded machine (a bed's start), may only get here hundreds of ms later. Counted up to
   // now, a cell passed gas for the whole stall that the client's driven record (which stops at
-  // the watchdog) never counted: light cells' estimates were 8-17 % off after their first fill.
+  // the watchdog) never counts.
   const auto now = std::chrono::steady_clock::now();
   const auto trip = watchdogTrip();
   const auto held_until = std::min(now, std::max(trip, coils_since_));
@@ -164,10 +164,8 @@ void RigTerminalServer::accountCoils() {
 }
 
 std::vector<double> RigTerminalServer::takeCoilDuty(double span_s) {
-  // Divided by the wall time since the last take instead, a wake 1 ms late (6 ms of on-time
-  // taken, 5 ms run) passed five sixths of it and an early one stretched its own. On the
-  // loaded bed the loaded cells' PWM fills then reached the cells 1 % short of their valves'
-  // on-time, sd 1.9 % per fill; passed whole, +0.1 %, sd 0.5 % (one 600 s run each).
+  // The on-time is passed whole over the periods run: divided by the wall time since the last
+  // take, a wake 1 ms late (6 ms of on-time taken, 5 ms run) would pass five sixths of it.
   std::lock_guard<std::mutex> lock(mutex_);
   accountCoils();
   std::vector<double> duty(coil_on_s_.size());
@@ -290,8 +288,8 @@ void RigEmulator::stepAll(int periods, std::chrono::steady_clock::time_point unt
 void RigEmulator::run() {
   // The rig's time is the wall clock's: a late wake-up runs the periods it missed (the valves
   // held their coils meanwhile), so that the gas a cell receives is what its valves passed in
-  // real time. Dropping them (the old way) lost gas the controller's side had counted: under a
-  // loaded machine the emulator's cells filled slower than real valves would. Only a lag beyond
+  // real time. Dropped, they would lose gas the controller's side counted, and the cells would
+  // fill slower than real valves. Only a lag beyond
   // max_catch_up_s is given up, and counted.
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.period_s));

@@ -95,7 +95,7 @@ void SimulatedCellHardware::stepPeriod() {
 }
 
 bool SimulatedCellHardware::plantValid() const {
-  // What an absurd input left behind (seen: volume -0.05 m^3, 1.4 K). No upper bound on the
+  // What an absurd input leaves behind (a negative volume, a gas at a few K). No upper bound on the
   // temperature: the nominal model heats the last milligram of gas to ~1400 K for a few ms when
   // CPR's vacuum empties the cell onto its dead volume, and recovers by itself.
   const CellVariables& v = model_->variables();

@@ -79,7 +79,7 @@ TEST(BodyModel, FlatBedLoadsAreSymmetric) {
 }
 
 TEST(BodyModel, FlatBedPeaksMatchSupineReferences) {
-  // paper-targets.md: supine peaks on foam, sacrum 36-44, heels 46-59, occiput 43-63 mmHg.
+  // doc/paper_targets.md: supine peaks on foam, sacrum 36-44, heels 46-59, occiput 43-63 mmHg.
   nb::BedGrid g;
   nb::BodyModel body(nb::PatientParams{}, g);
   const nb::BodyState s = body.solve(flatBed(g));

@@ -176,7 +176,7 @@ TEST(AirbagOnHardware, TheObserverIntegratesWhatTheDriverApplied) {
 }
 
 TEST(AirbagOnHardware, StepWithoutAHeightSensorSettlesNearTheFlowLimit) {
-  // Acceptance 2: 20 -> 100 mm under 15.6 N settles within +-2 mm in <= 2x the flow-limited time.
+  // Target: 20 -> 100 mm under 15.6 N settles within +-2 mm in <= 2x the flow-limited time.
   nb::AirbagCellParams p;
   auto rig = rigWithoutHeightSensor(p, 0.02, 15.6);
   nb::AirbagCell cell(p, rig, nb::AirbagObserverSetup{});
@@ -201,9 +201,9 @@ TEST(AirbagOnHardware, StepWithoutAHeightSensorSettlesNearTheFlowLimit) {
 
 // A heavy part of the patient (36 N) on a cell held at 91 mm, its valves 40 ms late (bus,
 // terminal and valve on a loaded machine). Corrections that ignored the gas still in flight
-// overshot by its worth, and the active damping, a quarter of the loaded plate's period late,
-// pumped its swing: on the bed such cells filled and vented at 5 Hz, the plate swinging +-6 mm,
-// and the observer lost 30 % of the gas in 140 s to that throughput (doc/real_bed.md).
+// would overshoot by its worth, and active damping a quarter of the loaded plate's period late
+// would pump its swing: the cell would fill and vent at several Hz, and a few % of flow-timing
+// error on that throughput drifts the observer's gas (doc/real_bed.md).
 TEST(AirbagOnHardware, AHeavyCellHoldsQuietlyBehindTheValvesDeadTime) {
   nb::AirbagCellParams p;
   nb::AirbagObserverSetup observer;

@@ -35,7 +35,7 @@ StepResult step(nb::AirbagCell& cell, double load, double from, double to, doubl
 }
 
 TEST(HeightController, StepFrom20To100mmUnder15NIsNearTheFlowLimit) {
-  // Acceptance: settles within +-1 mm in at most 1.5x the flow-limited minimum time,
+  // Target: settles within +-1 mm in at most 1.5x the flow-limited minimum time,
   // overshoot <= 2 mm (the benchmark reports the figures).
   nb::AirbagCell cell{nb::AirbagCellParams{}};
   const double t_min = nb::flowLimitedMinimumTime(cell.params().cell, 15.6, 0.02, 0.10);
@@ -386,9 +386,9 @@ TEST(HeightController, OnTheFeTableCellReachesAndHoldsItsTarget) {
 
 
 // A load taken off a lifted plate. Near the FE table's top the cell is stiff (one period of
-// inflow adds kPa), the plate chatters after the drop and a load estimate that learned only at
-// rest kept the old load for good: from 10.6 N to 0.6 N the cell hunted at 110-112 mm for a
-// 100 mm target (90 of 180 bed cells off 0.10 m). The force balance learns while it moves.
+// inflow adds kPa), the plate chatters after the drop, and a load estimate that learned only at
+// rest would keep the old load for good (from 10.6 N to 0.6 N the cell would hunt at 110-112 mm
+// for a 100 mm target). The force balance learns while it moves.
 TEST(HeightController, AfterALoadDropTheCellComesBackToItsTarget) {
   nb::AirbagCellParams fe;
   fe.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", fe.cell);

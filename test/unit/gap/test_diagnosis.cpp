@@ -1,5 +1,5 @@
 // The gap diagnosis: `gap diagnose` refusing bad command lines and bad datasets with a message
-// (and writing nothing), report.json / report.md formats (gap-report.md), and a small end-to-end
+// (and writing nothing), report.json / report.md formats (doc/formats/gap_report.md), and a small end-to-end
 // diagnosis of a planted leak and of a clean dataset.
 #include <gtest/gtest.h>
 

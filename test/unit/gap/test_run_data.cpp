@@ -1,4 +1,4 @@
-// Run CSV reader/writer and dataset directories (run-data.md): every error case with its
+// Run CSV reader/writer and dataset directories (doc/formats/run_data.md): every error case with its
 // message, round trips, dataset.yaml roles.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// The paper's experiments on our model (acceptance of the physics core).
+// The paper's experiments on our model (the physics core's targets, doc/paper_targets.md).
 #include <gtest/gtest.h>
 
 #include <cmath>

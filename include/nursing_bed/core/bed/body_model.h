@@ -24,7 +24,7 @@ struct PatientParams {
   double head_clearance_m = 0.05;        ///< top of the head to the bed's head edge [m]
   /// Winkler modulus of the soft tissue and the mattress cover in series: contact pressure per
   /// unit penetration [Pa/m]. 1.5e5 Pa/m: ~30-47 mm immersion at the bony prominences, the
-  /// sacrum/heel/occiput peaks of paper-targets.md with the underside radii of the segment table.
+  /// sacrum/heel/occiput peaks of doc/paper_targets.md with the underside radii of the segment table.
   double tissue_stiffness_pa_m = 1.5e5;
   double lateral_offset_m = 0.0;         ///< body midline across the bed, + to the patient's left [m]
   /// Spacing of the contact sub-points over each segment's footprint [m] (<= 1/4 of a cell, so

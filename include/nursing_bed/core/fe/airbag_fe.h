@@ -1,4 +1,4 @@
-// The FE airbag (issue #13): the membrane bag under the rigid loading plate (paper fig. 7),
+// The FE airbag (doc/fe_membrane.md): the membrane bag under the rigid loading plate (paper fig. 7),
 // its quasi-static states, and the gas-coupled inflation (control volume, paper eq. 11-17).
 #pragma once
 

@@ -1,5 +1,5 @@
 // Incompressible Yeoh film in plane stress on constant-strain triangles, with a relaxed
-// (tension-field) energy so that the film carries no compression (issue #13, paper eq. 7).
+// (tension-field) energy so that the film carries no compression (paper eq. 7).
 #pragma once
 
 #include <Eigen/Dense>
@@ -14,7 +14,7 @@ namespace fe {
 /// Film material: the fitted Yeoh constants (doc/material.md) and a density for the dynamics.
 struct FilmMaterial {
   YeohMaterial yeoh;                 ///< paper eq. 7, fitted constants by default
-  double density_kg_m3 = 1200.0;     ///< TPU 1.1-1.25 g/cm3 (paper-targets.md)
+  double density_kg_m3 = 1200.0;     ///< TPU 1.1-1.25 g/cm3 (doc/paper_targets.md)
 
   /// Empty when valid, else what is wrong (names the field).
   std::string validate() const;

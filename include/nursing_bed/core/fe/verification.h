@@ -1,4 +1,4 @@
-// Closed-form checks of the membrane solver (issue #13 point 4): a Yeoh spherical balloon and
+// Closed-form checks of the membrane solver: a Yeoh spherical balloon and
 // a long cylindrical tube (axial stretch 1) under pressure, traced through their limit points
 // under volume control.
 #pragma once

@@ -1,5 +1,5 @@
-// Calibration of the cell model's own uncertain parameters (gap-report.md, "First: is it the
-// model's parameters, or missing physics?"): a catalogue of the parameters a rig never matches
+// Calibration of the cell model's own uncertain parameters (doc/formats/gap_report.md, "First:
+// the model's parameters, or missing physics?"): a catalogue of the parameters a rig never matches
 // exactly (like the effects' catalogue: name, nominal from CellParams, prior range, how it maps
 // onto CellParams), their fit on the fit runs through the same machinery as the effects
 // (fit_model.h), standard errors from the Ceres covariance, and which moves are significant.
@@ -21,7 +21,7 @@ namespace nursing_bed {
 
 /// One calibratable cell parameter.
 struct CalibrationParamDef {
-  std::string name;         ///< canonical key (gap-report.md), SI unit suffix
+  std::string name;         ///< canonical key (doc/formats/gap_report.md), SI unit suffix
   std::string unit;         ///< for people
   std::string description;  ///< what it is and where it enters, one line
   /// The parameter in a CellParams: read and set (film_stiffness_scale scales the three Yeoh
@@ -74,7 +74,7 @@ struct CalibratedParam {
   bool moved = false;      ///< |fitted - nominal| > 2 SE and its move pays in BIC
 };
 
-/// What calibration found, for the report (gap-report.md's `calibration` block).
+/// What calibration found, for report.json's `calibration` block (doc/formats/gap_report.md).
 struct CalibrationSummary {
   bool done = false;                       ///< calibration ran
   std::vector<CalibratedParam> parameters;  ///< every parameter fitted

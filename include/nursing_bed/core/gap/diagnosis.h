@@ -1,5 +1,5 @@
-// The sim-to-real gap diagnosis (gap-report.md): where the nominal model and the recorded runs
-// part, which candidate effect (gap_effects.h) explains it, and how far the gap shrinks on runs
+// The sim-to-real gap diagnosis (doc/formats/gap_report.md): where the nominal model and the recorded runs
+// part, which candidate effect (gap/effects.h) explains it, and how far the gap shrinks on runs
 // withheld from fitting. ROS-free; `gap diagnose` is its command line and doc/gap_diagnosis.md
 // explains the method and its decisions.
 #pragma once
@@ -96,7 +96,7 @@ struct CandidateFit {
   bool joint = false;                     ///< refitted with the calibrated parameters free
   double chi2 = 0.0;                      ///< fit runs, sum of squared noise-scaled residuals
   double bic_delta = 0.0;                 ///< BIC minus the nominal model's (negative: better)
-  double fit_nrmse = 0.0;                 ///< on the fit runs (gap-report.md's nrmse)
+  double fit_nrmse = 0.0;                 ///< on the fit runs (the report's nrmse)
   double withheld_nrmse = 0.0;            ///< on the withheld runs (NaN when there are none)
   double withheld_chi2_per_sample = NAN;  ///< whitened, on the withheld runs (NaN: none)
   bool plausible = true;                  ///< every parameter within its (slackened) plausible range
@@ -191,7 +191,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
 DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
                               const std::string& dataset_name = "");
 
-/// report.json exactly as gap-report.md fixes it (plus nothing else).
+/// report.json exactly as doc/formats/gap_report.md describes it (plus nothing else).
 std::string reportJson(const DiagnosisReport& report);
 /// report.md: the three answers in words and tables, and the figures written beside it.
 std::string reportMarkdown(const DiagnosisReport& report);

@@ -34,7 +34,7 @@ struct EffectParamSpec {
 
 /// One effect of the catalogue.
 struct EffectSpec {
-  std::string name;         ///< canonical name (gap-report.md)
+  std::string name;         ///< canonical name (doc/formats/gap_report.md)
   bool candidate = true;    ///< false: only the data generator plants it (never fitted)
   std::string description;  ///< what it is, one line
   std::string signature;    ///< the signature it leaves in a run, one line

@@ -1,4 +1,4 @@
-// The paper's eq. 24 curve treated as measured data (x read as bar, paper-targets.md): a
+// The paper's eq. 24 curve treated as measured data (x read as bar, doc/paper_targets.md): a
 // quasi-static h(p) for the paper's 10.4 N load. Where our model departs from it, and what the
 // candidate effects of the gap diagnosis can say about it. `gap eq24` prints it;
 // doc/gap_diagnosis.md discusses it.

@@ -1,5 +1,5 @@
 // Replaying recorded runs through the cell model, and where model and data part (the first of
-// the gap diagnosis' three answers; gap-report.md). ROS-free.
+// the gap diagnosis' three answers; doc/formats/gap_report.md). ROS-free.
 #pragma once
 
 #include <string>
@@ -11,11 +11,11 @@
 namespace nursing_bed {
 
 /// Whether a run is driven through the model's own valves: no flow reading at all, but valve_cmd
-/// and p_supply_gauge_pa (run-data.md, "Runs without a flow meter"). replayRun() then opens the
+/// and p_supply_gauge_pa (doc/formats/run_data.md, "Three kinds of run"). replayRun() then opens the
 /// model's inlet (from the supply) by valve_cmd > 0 and its vent by -valve_cmd.
 bool runIsValveDriven(const RunData& run);
 
-/// Phase of a run at one sample (gap-report.md): bag unfolding, bag pressurising, inlet closed,
+/// Phase of a run at one sample (doc/formats/gap_report.md): bag unfolding, bag pressurising, inlet closed,
 /// venting; `landed` marks vent samples after the plate has come down on the bed, where a
 /// replay is ill-conditioned (a few mL of gas left) and which the diagnosis leaves out.
 enum class RunPhase { kDeploy, kPressurize, kHold, kVent, kLanded };
@@ -77,8 +77,8 @@ double estimateNoise(const std::vector<double>& signal);
 /// estimate of estimateNoise() over the samples i-w .. i+w (a meter's noise grows with its
 /// reading), from the samples where the valve held still (valve_cmd equal at i-1, i, i+1, when
 /// the run has it). A valve that the controller opens for a few ms at a time moves gas in
-/// pulses, and those are flow, not the meter's noise: on recordings of the bed they posed as a
-/// noise hundreds of times the meter's. Where fewer than 5 such samples are near, the estimate
+/// pulses, and those are flow, not the meter's noise (taken as noise they would pose as one
+/// hundreds of times the meter's). Where fewer than 5 such samples are near, the estimate
 /// over all of the run's; a run whose valve never held still, every sample.
 std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w);
 
@@ -108,7 +108,7 @@ struct RunResidual {
   int samples_h = 0;  ///< with a height reading too
 };
 RunResidual runResidual(const RunData& run, const Replay& replay);
-/// The same over several runs pooled (gap-report.md's nrmse "on the runs named"): RMS over all
+/// The same over several runs pooled (the report's nrmse "on the runs named"): RMS over all
 /// their samples, divided by the range of the measured signal over all of them.
 RunResidual pooledResidual(const std::vector<const RunData*>& runs, const std::vector<const Replay*>& replays);
 

@@ -1,5 +1,5 @@
 // Recorded runs (one experiment on one airbag) and datasets (a directory of runs), as the gap
-// diagnosis reads them. Format: /work/shared/specs/run-data.md, summarised in doc/gap_effects.md.
+// diagnosis reads them. Format: doc/formats/run_data.md.
 // ROS bags are read by the ROS wrappers (nursing_bed/ros/bag_runs.h) into the same structure.
 #pragma once
 
