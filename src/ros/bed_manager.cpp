@@ -10,6 +10,7 @@
 #include "nursing_bed/ros/ros_params.h"
 
 namespace nursing_bed {
+
 std::string BedManagerParams::validate() const {
   std::ostringstream err;
   if (!(joint_state_rate_hz > 0.0 && joint_state_rate_hz <= 200.0)) err << "~joint_state_rate_hz must lie in (0, 200]; ";
