@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nb = nursing_bed;
 using Clock = std::chrono::steady_clock;

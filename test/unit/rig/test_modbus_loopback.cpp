@@ -4,7 +4,6 @@
 // speed (speed: doc/benchmarks.md), except the bounds the link's fault reporting promises.
 #include <gtest/gtest.h>
 
-#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -15,7 +14,7 @@
 
 #include "../../test_helpers.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nb = nursing_bed;
 
@@ -52,7 +51,7 @@ bool waitFor(const std::function<bool()>& condition, double timeout_s) {
 class ModbusLoopback : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto dir = nb::test::freshTestDir("hardware", "loopback");
+    const auto dir = nb::test::freshTestDir("rig", "loopback");
     map_path_ = nb::test::writeFile(dir / "map.yaml", kMap);
     map_ = nb::loadRegisterMap(map_path_, 4);
     options_.cell.initial_height_m = 0.05;
@@ -349,12 +348,6 @@ TEST_F(ModbusLoopback, TheRigTakesEveryCellsLoadAtOnceAndIgnoresBadOnes) {
   EXPECT_EQ(emulator_->truth().size(), 4u);
   emulator_->setLoads({});
   EXPECT_DOUBLE_EQ(truth(0).load_n, 20.6) << "an empty vector changes nothing";
-}
-
-TEST(TransientModbusError, TimeoutsAndBadRepliesAreRetriedAClosedConnectionIsNot) {
-  for (int e : {ETIMEDOUT, EMBBADDATA, EMBBADEXC, EMBXSBUSY, EMBXGTAR}) EXPECT_TRUE(nb::transientModbusError(e)) << modbus_strerror(e);
-  for (int e : {ECONNRESET, ECONNREFUSED, EPIPE, EBADF, ENOTCONN, EMBXILADD, EMBXILFUN, EMBXSFAIL, 0})
-    EXPECT_FALSE(nb::transientModbusError(e)) << modbus_strerror(e);
 }
 
 namespace {
