@@ -84,7 +84,8 @@ std::vector<RunData> readDataset(const std::string& dir, std::vector<RunData> ex
 /**
  * The parameter file an airbag name refers to: empty -> config/airbag_tpu_double_100.yaml;
  * an existing file (as given, or relative to `dataset_dir`) -> that file; else
- * config/<name>, config/<name>.yaml, config/airbag_<name>.yaml in the package source tree.
+ * config/<name>, config/<name>.yaml, config/airbag_<name>.yaml in the package folder
+ * (findPackageDir, io/package_path.h).
  * Throws std::runtime_error listing the places tried.
  */
 std::string resolveAirbagParamsFile(const std::string& airbag, const std::string& dataset_dir = "");
