@@ -11,6 +11,7 @@
 namespace nursing_bed {
 
 /// One run. Signals in SI units, one entry per sample; NaN where a sample was not measured.
+// size: a plain record of one run: one field per CSV column and known metadata key
 struct RunData {
   std::string name;                         ///< file name ("a.csv"), or bag stem + topic
   std::string source;                       ///< file it was read from (empty when built in memory)
