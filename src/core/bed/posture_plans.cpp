@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cctype>
 #include <cstdlib>
-#include <regex>
+#include <charconv>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -48,6 +48,9 @@ class Args {
       return fallback;
     }
     double v = 0.0;
+    if (it->second.size() > kMaxNumberChars)
+      fail(key + " must be a number of at most " + std::to_string(kMaxNumberChars) + " characters, got " +
+           std::to_string(it->second.size()));
     if (!parseDecimal(it->second, &v)) {
       const std::string lower = lowered(it->second);
       if (lower.find("nan") != std::string::npos || lower.find("inf") != std::string::npos ||
@@ -255,11 +258,17 @@ class AlternatingPlan : public PosturePlan {
 }  // namespace
 
 bool parseDecimal(const std::string& text, double* value) {
-  // [sign] digits [. digits] [e [sign] digits], at least one digit in the mantissa.
-  static const std::regex decimal(R"(^[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?$)");
-  if (!std::regex_match(text, decimal)) return false;
-  const double v = std::strtod(text.c_str(), nullptr);
-  if (!std::isfinite(v)) return false;
+  // [sign] digits [. digits] [e [sign] digits]: std::from_chars over the whole text, without
+  // recursion; longer than any double needs is refused (a huge argument must not cost a stack).
+  if (text.empty() || text.size() > kMaxNumberChars) return false;
+  const char* first = text.data();
+  const char* last = text.data() + text.size();
+  if (*first == '+' || *first == '-') ++first;  // one sign; from_chars takes only '-'
+  if (first == last || !(std::isdigit(static_cast<unsigned char>(*first)) || *first == '.')) return false;
+  if (text[0] == '-') --first;
+  double v = 0.0;
+  const auto [end, error] = std::from_chars(first, last, v, std::chars_format::general);
+  if (error != std::errc() || end != last || !std::isfinite(v)) return false;
   *value = v;
   return true;
 }

@@ -168,6 +168,16 @@ TEST(PosturePlans, NumbersAreParsedStrictly) {
   expectRefused("flat", {{"height_m", "inf"}}, "finite");
 }
 
+TEST(PosturePlans, HugeAndDoublySignedNumbersAreRefusedWithoutHarm) {
+  const std::string huge(40000, '9');
+  for (const std::string& bad : {huge, "0." + huge, std::string("+-5"), std::string("-+5"), std::string("--5")}) {
+    double v = -1.0;
+    EXPECT_FALSE(nb::parseDecimal(bad, &v)) << bad.substr(0, 20);
+    EXPECT_EQ(v, -1.0);
+  }
+  expectRefused("flat", {{"height_m", huge}}, "at most 64 characters, got 40000");
+}
+
 TEST(PosturePlans, RollSlopeWeightsGiveTheLateralSlopeUnderTheBody) {
   const std::vector<double> w = nb::rollSlopeWeights(kGrid, kBody);
   ASSERT_EQ(w.size(), static_cast<std::size_t>(kGrid.cells()));

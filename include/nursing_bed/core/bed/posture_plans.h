@@ -3,6 +3,7 @@
 // inside the configured height limits. doc/bed_manager.md lists plans and parameters.
 #pragma once
 
+#include <cstddef>
 #include <map>
 #include <memory>
 #include <optional>
@@ -105,8 +106,10 @@ std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m);
 /// a slope over the whole width would understate the tilt under the body.
 std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body, double support_half_width_m = 0.25);
 
+/// Longest number text a plan argument may be (a double needs far fewer characters).
+constexpr std::size_t kMaxNumberChars = 64;
 /// Parses a plan argument strictly: a decimal number filling the whole text (no hex, no
-/// "inf"/"nan", no trailing characters). False when it is not one.
+/// "inf"/"nan", no trailing characters, at most kMaxNumberChars). False when it is not one.
 bool parseDecimal(const std::string& text, double* value);
 
 /// Keys of PlanConfig for YAML and the parameter server ("plans/..." in the bed manager).
