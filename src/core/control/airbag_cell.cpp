@@ -98,7 +98,7 @@ void AirbagCell::resetControl(double load_n) {
   controller_.setLoadEstimate(load_n);
   mode_ = AirbagMode::kIdle;
   faults_ = kFaultNone;
-  valves_ = ValveCommand{};
+  valves_ = ValveOpenings{};
   pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
   last_command_s_ = 0.0;
   last_pressure_pa_ = 0.0;
@@ -215,9 +215,9 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   return "";
 }
 
-ValveCommand AirbagCell::pressureValves(double gauge_pressure_pa) const {
+ValveOpenings AirbagCell::pressureValves(double gauge_pressure_pa) const {
   const double error = pressure_setpoint_pa_ - gauge_pressure_pa;
-  ValveCommand v;
+  ValveOpenings v;
   if (error > kPressureTolerancePa) v.inlet = std::min(1.0, error / kPressureBandPa);
   if (error < -kPressureTolerancePa) v.vent = std::min(1.0, -error / kPressureBandPa);
   return v;
@@ -289,7 +289,7 @@ void AirbagCell::stepReal(double now_s) {
     // still drove (its outputs hold until its watchdog) where the driver knows it, else with
     // the last command over the period it acted, then with the valves shut.
     observer_->predict(linkDownInputs(readings), period);
-    valves_ = ValveCommand{};
+    valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, period);  // nothing sent: nothing in flight once the link is back
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
     return;
@@ -309,7 +309,7 @@ ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
   return in;
 }
 
-ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
+ValveOpenings AirbagCell::checkingGas(double now_s, const ValveOpenings& wanted) {
   // Over a lost link the gas is unverified: the bed may have been emptied meanwhile (a restarted
   // terminal, a CPR dump). Pressure cannot tell: a sealed flat cell under 15.6 N floats its plate on its residual
   // gas at 487 Pa (a restarted emulator's cell after one inlet pulse), as a cell lifted under
@@ -334,11 +334,11 @@ ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
       gas_check_until_s_ = now_s + period + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
       observer_->expectFlat(gas_check_until_s_ - now_s);
     }
-    return ValveCommand{0.0, opening};
+    return ValveOpenings{0.0, opening};
   }
   if (gas_check_until_s_ < 0.0) return wanted;
   // Found flat (re-anchored), the controller takes over at once; else after the test's time.
-  if (now_s < gas_check_until_s_ && observer_->estimate().reanchors == gas_check_reanchors_) return ValveCommand{};
+  if (now_s < gas_check_until_s_ && observer_->estimate().reanchors == gas_check_reanchors_) return ValveOpenings{};
   gas_check_until_s_ = -1.0;
   return wanted;
 }
@@ -359,7 +359,7 @@ void AirbagCell::planAnchor(double target_m) {
   }
 }
 
-ValveCommand AirbagCell::findingGas(const ValveCommand& wanted) {
+ValveOpenings AirbagCell::findingGas(const ValveOpenings& wanted) {
   // Started flat over a cell that holds gas, the observer would count every fill from nothing:
   // commanded to 80 mm, such a cell filled to the bag's top at the supply pressure (140-150 mm,
   // 20 kPa, the estimate at 30 mm). Its pressure alone cannot give its gas (nor its height or
@@ -374,17 +374,17 @@ ValveCommand AirbagCell::findingGas(const ValveCommand& wanted) {
     if (!vented) return wanted;  // found flat before any command (a bed started flat)
     // Its integral ran on the flat start's error through the vent: restart it.
     if (controller_.hasTarget()) controller_.setTarget(controller_.target());
-    return ValveCommand{};
+    return ValveOpenings{};
   }
   if (gas_ == GasKnowledge::kUnverified) gas_ = GasKnowledge::kFinding;
   observer_->expectFlat(2.0 * params_.control_period_s);
-  return ValveCommand{0.0, 1.0};
+  return ValveOpenings{0.0, 1.0};
 }
 
 void AirbagCell::onDeviceReset() {
   controller_.clearTarget();
   pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-  valves_ = ValveCommand{};
+  valves_ = ValveOpenings{};
   mode_ = AirbagMode::kSafe;
   faults_ |= kFaultModel;
   last_pressure_pa_ = 0.0;
@@ -445,7 +445,7 @@ void AirbagCell::controlStep() {
   // out-of-range sample is what a plate lifting off a flat cell gives for a few ms (the gas
   // sucked below -50 kPa for up to 15 ms), and a fault there levelled the whole bed.
   if (!sensor_ok) {
-    valves_ = ValveCommand{};
+    valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, params_.control_period_s);
     if (++bad_readings_ >= s.sensor_fault_periods) {
       faults_ |= kFaultSensor;
@@ -464,20 +464,20 @@ void AirbagCell::controlStep() {
     mode_ = AirbagMode::kSafe;
   }
 
-  const ValveCommand wanted = controller_.update(params_.control_period_s, p, h);
+  const ValveOpenings wanted = controller_.update(params_.control_period_s, p, h);
   switch (mode_) {
     case AirbagMode::kHeight:
       valves_ = wanted;
       break;
     case AirbagMode::kVent:
-      valves_ = ValveCommand{0.0, 1.0};
+      valves_ = ValveOpenings{0.0, 1.0};
       break;
     case AirbagMode::kPressure:
       valves_ = pressureValves(p);
       break;
     case AirbagMode::kIdle:
     case AirbagMode::kSafe:
-      valves_ = ValveCommand{};
+      valves_ = ValveOpenings{};
       break;
   }
   if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = findingGas(checkingGas(now, valves_));

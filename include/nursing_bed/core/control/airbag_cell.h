@@ -142,7 +142,7 @@ class AirbagCell {
   /// faithfully at a lower rate).
   double inletOpeningSeconds() const { return inlet_opening_s_; }
   double ventOpeningSeconds() const { return vent_opening_s_; }
-  const ValveCommand& valves() const { return valves_; }
+  const ValveOpenings& valves() const { return valves_; }
   AirbagMode mode() const { return mode_; }
   std::uint32_t faults() const { return faults_; }
   double setpoint() const { return controller_.hasTarget() ? controller_.target() : std::numeric_limits<double>::quiet_NaN(); }
@@ -179,14 +179,14 @@ class AirbagCell {
   void onLink(const CellReadings& readings);
   /// The observer's inputs over a period with the link down.
   ObserverInputs linkDownInputs(const CellReadings& readings) const;
-  ValveCommand pressureValves(double gauge_pressure_pa) const;
+  ValveOpenings pressureValves(double gauge_pressure_pa) const;
   /// After a lost link: a short vent, then both valves shut while the observer's re-anchor
   /// test runs (observer resume_vent_s); otherwise `wanted`.
-  ValveCommand checkingGas(double now_s, const ValveCommand& wanted);
+  ValveOpenings checkingGas(double now_s, const ValveOpenings& wanted);
   /// Reset flat over a cell that held gas (a node restarted over an inflated bed), or lowered
   /// into the low band (planAnchor): a full vent until the observer re-anchors the flat cell;
   /// otherwise `wanted`.
-  ValveCommand findingGas(const ValveCommand& wanted);
+  ValveOpenings findingGas(const ValveOpenings& wanted);
   /// A new height target: lowered into the low band from above it, the cell is to pass through
   /// flat (kAnchoring); raised out of it before that, it need not.
   void planAnchor(double target_m);
@@ -216,7 +216,7 @@ class AirbagCell {
   double supply_pressure_pa_;
   AirbagMode mode_ = AirbagMode::kIdle;
   std::uint32_t faults_ = kFaultNone;
-  ValveCommand valves_;
+  ValveOpenings valves_;
   Measurement measurement_;
   double last_pressure_pa_ = 0.0;
   double last_command_s_ = 0.0;
