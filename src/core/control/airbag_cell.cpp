@@ -76,7 +76,8 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
     : params_(validated(params)),
       hardware_(std::move(hardware)),
       controller_(params.controller, CellCharacteristic::shared(params.cell)),
-      supply_pressure_pa_(params.cell.supply_pressure_pa) {
+      supply_pressure_pa_(params.cell.supply_pressure_pa),
+      gas_(observer.gas_check) {
   if (!hardware_) throw std::invalid_argument("airbag: no cell hardware");
   sim_ = dynamic_cast<SimulatedCellHardware*>(hardware_.get());
   capabilities_ = hardware_->capabilities();  // fixed for the hardware's lifetime
@@ -103,10 +104,7 @@ void AirbagCell::resetControl(double load_n) {
   last_command_s_ = 0.0;
   last_pressure_pa_ = 0.0;
   time_s_ = 0.0;
-  gas_check_pending_ = false;
-  gas_check_vent_left_s_ = 0.0;
-  gas_check_until_s_ = -1.0;
-  gas_ = GasKnowledge::kKnown;
+  gas_.reset(true);
 }
 
 void AirbagCell::reset(double load_n) {
@@ -118,10 +116,7 @@ void AirbagCell::reset(double load_n) {
   // observer's flat start holds once its re-anchor test finds the cell flat (half a second of
   // readings, not one: a flat cell reads an ADC step or two of noise, the plate alone lifted
   // 20-75 Pa). A height sensor measures the gas.
-  if (observer_ && !sim_ && use_estimate_) {
-    gas_ = GasKnowledge::kUnverified;
-    finding_reanchors_ = observer_->estimate().reanchors;
-  }
+  if (observer_ && !sim_ && use_estimate_) gas_.reset(false);
 }
 
 void AirbagCell::resetToHeight(double height_m, double load_n) {
@@ -162,7 +157,7 @@ const CellModel& AirbagCell::model() const { return sim_ ? sim_->model() : obser
 double AirbagCell::load() const { return sim_ ? load_n_ : observer_->estimate().load_n; }
 
 double AirbagCell::heightSd() const {
-  if (gas_ == GasKnowledge::kFinding) return std::numeric_limits<double>::infinity();  // its gas is unknown
+  if (gas_.findingGas()) return std::numeric_limits<double>::infinity();  // its gas is unknown
   return use_estimate_ ? observer_->estimate().height_sd_m : params_.height_noise_m;
 }
 
@@ -180,7 +175,7 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   const std::string error = checkHeight(height_m);
   if (!error.empty()) return error;
   controller_.setTarget(height_m);
-  planAnchor(height_m);
+  if (use_estimate_) gas_.heightRequested(height_m, measurement_.height_m);
   pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
   mode_ = AirbagMode::kHeight;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
@@ -207,7 +202,7 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   const std::string error = checkPressure(pressure_pa);
   if (!error.empty()) return error;
   controller_.clearTarget();
-  if (gas_ == GasKnowledge::kAnchoring) gas_ = GasKnowledge::kKnown;  // a pressure is held from where the cell is
+  gas_.pressureRequested();  // a pressure is held from where the cell is
   pressure_setpoint_pa_ = pressure_pa;
   mode_ = AirbagMode::kPressure;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
@@ -309,76 +304,15 @@ ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
   return in;
 }
 
-ValveOpenings AirbagCell::checkingGas(double now_s, const ValveOpenings& wanted) {
-  // Over a lost link the gas is unverified: the bed may have been emptied meanwhile (a restarted
-  // terminal, a CPR dump). Pressure cannot tell: a sealed flat cell under 15.6 N floats its plate on its residual
-  // gas at 487 Pa (a restarted emulator's cell after one inlet pulse), as a cell lifted under
-  // half the load reads; the observer kept its gas, lowered its load, and with the controller
-  // holding quietly on target nothing told them apart (a flat cell reported at 60 mm for 40 s).
-  // Venting does: the floating flat cell grounds and reads ambient within a few tens of ms, and
-  // the observer's re-anchor test takes it with the valves shut; a lifted cell keeps its load's
-  // pressure and loses 1-3 mm, which the controller restores after the check.
-  const CellObserverParams& op = observer_->params();
-  if (gas_check_pending_) {
-    gas_check_pending_ = false;
-    gas_check_vent_left_s_ = op.resume_vent_s;
-    gas_check_reanchors_ = observer_->estimate().reanchors;
-  }
+ValveOpenings AirbagCell::gasCheckValves(double now_s, double gauge_pressure_pa, const ValveOpenings& wanted) {
+  if (!observer_) return wanted;  // the gas is measured (no observer: nothing to check)
   const double period = params_.control_period_s;
-  if (gas_check_vent_left_s_ > 0.0) {
-    const bool grounded = measurement_.gauge_pressure_pa < observer_->flatPressure();
-    const double opening = grounded ? 0.0 : std::min(1.0, gas_check_vent_left_s_ / period);
-    gas_check_vent_left_s_ = grounded ? 0.0 : std::max(0.0, gas_check_vent_left_s_ - period);
-    // The test's mean pressure starts above the flat cell's: twice its time, after the dead time.
-    if (gas_check_vent_left_s_ <= 0.0) {
-      gas_check_until_s_ = now_s + period + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
-      observer_->expectFlat(gas_check_until_s_ - now_s);
-    }
-    return ValveOpenings{0.0, opening};
-  }
-  if (gas_check_until_s_ < 0.0) return wanted;
-  // Found flat (re-anchored), the controller takes over at once; else after the test's time.
-  if (now_s < gas_check_until_s_ && observer_->estimate().reanchors == gas_check_reanchors_) return ValveOpenings{};
-  gas_check_until_s_ = -1.0;
-  return wanted;
-}
-
-void AirbagCell::planAnchor(double target_m) {
-  // Near the bag's top 1 % of gas moves a light plate 8-10 mm, and pressure alone cannot tell
-  // a plate higher than counted from a heavier load on it: each move's count error (0.4-2 % on
-  // the bed) stays in the inventory until the cell is found flat. A cell lowered into the low
-  // band has little height to lose there, so it passes through flat on the way.
-  if (!use_estimate_) return;
-  const double band = observer_->params().reanchor_below_m;
-  const bool low = target_m <= band;
-  if (gas_ == GasKnowledge::kAnchoring && !low) {
-    gas_ = GasKnowledge::kKnown;  // raised again before it was found flat
-  } else if (gas_ == GasKnowledge::kKnown && low && band > 0.0 && measurement_.height_m > band) {
-    gas_ = GasKnowledge::kAnchoring;
-    finding_reanchors_ = observer_->estimate().reanchors;
-  }
-}
-
-ValveOpenings AirbagCell::findingGas(const ValveOpenings& wanted) {
-  // Started flat over a cell that holds gas, the observer would count every fill from nothing:
-  // commanded to 80 mm, such a cell filled to the bag's top at the supply pressure (140-150 mm,
-  // 20 kPa, the estimate at 30 mm). Its pressure alone cannot give its gas (nor its height or
-  // load); a flat cell's can. So it vents, the one safe direction, until the observer's
-  // re-anchor test finds it flat (below ambient counts: a heavy plate's vented cell settles
-  // there), and is then controlled to its kept setpoint. A cell anchoring (planAnchor) does the
-  // same with its height tracked meanwhile.
-  if (gas_ == GasKnowledge::kKnown) return wanted;
-  if (observer_->estimate().reanchors > finding_reanchors_) {
-    const bool vented = gas_ != GasKnowledge::kUnverified;
-    gas_ = GasKnowledge::kKnown;
-    if (!vented) return wanted;  // found flat before any command (a bed started flat)
-    // Its integral ran on the flat start's error through the vent: restart it.
-    if (controller_.hasTarget()) controller_.setTarget(controller_.target());
-    return ValveOpenings{};
-  }
-  if (gas_ == GasKnowledge::kUnverified) gas_ = GasKnowledge::kFinding;
-  observer_->expectFlat(2.0 * params_.control_period_s);
-  return ValveOpenings{0.0, 1.0};
+  const ValveOpenings checked = gas_.linkCheckValves(now_s, period, gauge_pressure_pa, observer_.get(), wanted);
+  bool found_after_vent = false;
+  const ValveOpenings valves = gas_.findingValves(period, observer_.get(), checked, &found_after_vent);
+  // Its integral ran on the flat start's error through the vent: restart it.
+  if (found_after_vent && controller_.hasTarget()) controller_.setTarget(controller_.target());
+  return valves;
 }
 
 void AirbagCell::onDeviceReset() {
@@ -406,7 +340,7 @@ void AirbagCell::onLink(const CellReadings& readings) {
     // on one reading below reanchor_pressure_pa instead, a light plate resting at 55-75 Pa
     // was taken for flat after a 50 ms bus timeout and filled to the bag's top at 30 kPa.
     mode_ = mode_before_link_loss_ == AirbagMode::kSafe ? resumedMode() : mode_before_link_loss_;
-    gas_check_pending_ = observer_->params().resume_vent_s > 0.0;
+    gas_.linkRestored();
   }
 }
 
@@ -429,7 +363,7 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   z.gauge_pressure_pa = readings.gauge_pressure_pa.value;
   if (!use_estimate_) z.height_m = readings.height_m.value;
   if (capabilities_.inflow && !sim_) z.inflow_kg_s = readings.inflow_kg_s.value;
-  observer_->step(in, z, dt_s);
+  gas_.note(observer_->step(in, z, dt_s));
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
 }
 
@@ -480,7 +414,7 @@ void AirbagCell::controlStep() {
       valves_ = ValveOpenings{};
       break;
   }
-  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = findingGas(checkingGas(now, valves_));
+  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = gasCheckValves(now, p, valves_);
   // Relief, whatever the mode: act before the next period's rise could cross it.
   const double rise = std::max(0.0, p - last_pressure_pa_);
   last_pressure_pa_ = p;

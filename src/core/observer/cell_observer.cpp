@@ -70,10 +70,7 @@ std::string CellObserverParams::validate() const {
   non_negative("valve_dead_time_s", valve_dead_time_s);
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
-  non_negative("resume_vent_s", resume_vent_s);
-  non_negative("reanchor_below_m", reanchor_below_m);
   non_negative("weight_bound_window_s", weight_bound_window_s);
-  if (resume_vent_s > 0.2) err << "resume_vent_s must be at most 0.2 (a check, not a vent), got " << resume_vent_s << "; ";
   return joinErrors(err);
 }
 
@@ -360,12 +357,13 @@ void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s
   load_var_n2_ = std::min(cap, (1.0 - w) * load_var_n2_ + w * from_height + noise);
 }
 
-void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
+ObserverEvents CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   const double p_new = readings.gauge_pressure_pa;
+  ObserverEvents events;
   if (!std::isfinite(p_new)) {
     predict(inputs, dt);
-    return;
+    return events;
   }
   takeInputs(inputs, dt);
   trackReadingNoise(p_new, dt);
@@ -390,7 +388,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
     lifted = invertVolume(p_new, dt);
   } else {
-    boundByPlateWeight(p_new, lifted, dt);
+    events.weight_bounded = boundByPlateWeight(p_new, lifted, dt);
   }
   keepPhysical();
   time_ += dt;
@@ -401,7 +399,8 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
                         : 0.0;
   if (std::isfinite(readings.height_m)) fuseHeight(readings.height_m);
   updateLoad(p_new, lifted, dt);
-  checkReanchor(readings);
+  events.reanchored = checkReanchor(readings);
+  return events;
 }
 
 void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
@@ -442,7 +441,7 @@ void CellObserver::keepPhysical() {
   x_[CellModel::kEnergy] = std::max(x_[CellModel::kEnergy], 1e-6);
 }
 
-void CellObserver::checkReanchor(const ObserverReadings& readings) {
+bool CellObserver::checkReanchor(const ObserverReadings& readings) {
   // A plate cannot rest lifted below the plate alone's pressure, so a mean below half of it for
   // reanchor_time_s with the inlet shut is a flat cell, vented or sealed (e.g. a terminal whose
   // cells were emptied while the link was down). Not while the inlet passes gas (a fill from
@@ -451,7 +450,7 @@ void CellObserver::checkReanchor(const ObserverReadings& readings) {
   const bool to_vacuum = applied_.vent_opening > 0.0 && applied_.vent_back_pressure_pa != 0.0;
   if (applied_.inlet_opening > 0.0 || to_vacuum || !std::isfinite(readings.gauge_pressure_pa)) {
     flat_since_s_ = -1.0;
-    return;
+    return false;
   }
   // The pressure averaged over a third of the re-anchor time: a lightly loaded plate's vent
   // holds a few tens of Pa (its weight over the effective area), the reading's noise and ADC
@@ -472,7 +471,9 @@ void CellObserver::checkReanchor(const ObserverReadings& readings) {
   if (time_ - flat_since_s_ + 1e-9 >= params_.reanchor_time_s && low) {
     anchorFlat(vent_pressure_mean_pa_);
     flat_since_s_ = time_;
+    return true;
   }
+  return false;
 }
 
 void CellObserver::tabulatePlateAlone() {
@@ -518,7 +519,7 @@ double CellObserver::plateAloneHeight(double gauge_pressure_pa) const {
   return plate_alone_h_m_.empty() ? std::numeric_limits<double>::infinity() : plate_alone_h_m_.front();
 }
 
-void CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s) {
+bool CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s) {
   // A patient presses on a plate and never lifts it, so its load is at least its own weight,
   // and the plate alone rests the higher the more pressure holds it: a settled plate's mean
   // pressure p bounds its height by h_W(p). The inventory integrates every valve pulse, and
@@ -526,19 +527,20 @@ void CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, dou
   // plate alone counts its ~30 Pa vent within 1-2 % for the readings' noise); where it has
   // drifted above the bound, the energy is measured at the bound.
   double mean = 0.0, se = 0.0;
-  if (!quietMean(gauge_pressure_pa, lifted, dt_s, &mean, &se)) return;
+  if (!quietMean(gauge_pressure_pa, lifted, dt_s, &mean, &se)) return false;
   // The bound at a pressure kBoundStandardErrors above the mean (the readings' noise must not
   // move a plate that is where the inventory says), and the estimate moved only as far as that.
   const double bound = plateAloneHeight(mean + kBoundStandardErrors * se);
-  if (!(x_[CellModel::kHeight] > bound)) return;
+  if (!(x_[CellModel::kHeight] > bound)) return false;
   const double sd = 0.5 * (plateAloneHeight(mean + (kBoundStandardErrors + 1.0) * se) -
                            plateAloneHeight(mean + (kBoundStandardErrors - 1.0) * se));
-  if (!std::isfinite(sd)) return;
+  if (!std::isfinite(sd)) return false;
   const double velocity = x_[CellModel::kVelocity];
   measureSettledHeight(bound, std::max(sd, 1e-4), mean);
   invertVolume(gauge_pressure_pa, dt_s);
   x_[CellModel::kVelocity] = velocity;  // a settled plate: the correction is no motion
   ++weight_bounds_;
+  return true;
 }
 
 bool CellObserver::quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa) {

@@ -23,8 +23,11 @@ TEST(ShapedMove, ALargeMoveLeadsHalfOpenRunsFullFlowAndEndsWithATail) {
     const auto opening = move.step(dt, remaining, half_period, rate);
     if (!opening) break;
     if (phases.empty() || phases.back() != move.phase()) phases.push_back(move.phase());
-    if (move.phase() == nb::MovePhase::kLead) EXPECT_EQ(*opening, 0.5);
-    if (move.phase() == nb::MovePhase::kFullFlow) EXPECT_EQ(*opening, 1.0);
+    if (move.phase() == nb::MovePhase::kLead) {
+      EXPECT_EQ(*opening, 0.5);
+    } else if (move.phase() == nb::MovePhase::kFullFlow) {
+      EXPECT_EQ(*opening, 1.0);
+    }
     EXPECT_GE(*opening, 0.0);
     EXPECT_LE(*opening, 1.0);
     remaining -= *opening * rate * dt;

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/control/gas_verifier.h"
 #include "nursing_bed/core/control/height_controller.h"
 #include "nursing_bed/core/hardware/simulated_cell_hardware.h"
 #include "nursing_bed/core/observer/cell_observer.h"
@@ -72,6 +73,7 @@ enum class HeightSource : std::uint8_t { kMeasured = 0, kEstimated = 1 };
 /// parameter set and the effects diagnosed for the bed, else the nominal cell).
 struct AirbagObserverSetup {
   CellObserverParams params;
+  GasVerifierParams gas_check;  ///< the cell's checks of the observer's gas (keys under observer/)
   CellParams model;
   std::vector<CellEffectPtr> effects;
   bool force = false;  ///< run it (and report its height) even when a height sensor is fitted
@@ -163,10 +165,12 @@ class AirbagCell {
   const CellObserver* observer() const { return observer_.get(); }
   /// Reset over hardware without a height sensor and commanded before the observer found the
   /// cell flat: its gas is unknown, and it vents flat before it is controlled.
-  bool findingGas() const { return gas_ == GasKnowledge::kFinding; }
-  /// Lowered into the low band (observer reanchor_below_m): venting flat so that the observer
+  bool findingGas() const { return gas_.findingGas(); }
+  /// Lowered into the low band (gas check reanchor_below_m): venting flat so that the observer
   /// re-anchors its gas, the target kept; its height is still tracked.
-  bool anchoringGas() const { return gas_ == GasKnowledge::kAnchoring; }
+  bool anchoringGas() const { return gas_.anchoringGas(); }
+  /// The checks of the observer's gas (with their parameters).
+  const GasVerifier& gasVerifier() const { return gas_; }
 
  private:
   void controlStep();
@@ -174,22 +178,16 @@ class AirbagCell {
   void stepSimulated();
   /// Real hardware: read, observe, control and write once at `now_s`.
   void stepReal(double now_s);
-  /// Turns readings into measurement_ (the observer's height where there is no sensor).
+  /// Turns readings into measurement_ (the observer's height where there is no sensor); the
+  /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
   /// The observer's inputs over a period with the link down.
   ObserverInputs linkDownInputs(const CellReadings& readings) const;
   ValveOpenings pressureValves(double gauge_pressure_pa) const;
-  /// After a lost link: a short vent, then both valves shut while the observer's re-anchor
-  /// test runs (observer resume_vent_s); otherwise `wanted`.
-  ValveOpenings checkingGas(double now_s, const ValveOpenings& wanted);
-  /// Reset flat over a cell that held gas (a node restarted over an inflated bed), or lowered
-  /// into the low band (planAnchor): a full vent until the observer re-anchors the flat cell;
-  /// otherwise `wanted`.
-  ValveOpenings findingGas(const ValveOpenings& wanted);
-  /// A new height target: lowered into the low band from above it, the cell is to pass through
-  /// flat (kAnchoring); raised out of it before that, it need not.
-  void planAnchor(double target_m);
+  /// The gas check's valve filters (GasVerifier) over the mode's valves, where an observer
+  /// gives the gas.
+  ValveOpenings gasCheckValves(double now_s, double gauge_pressure_pa, const ValveOpenings& wanted);
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
@@ -223,17 +221,7 @@ class AirbagCell {
   bool cpr_ = false;
   HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
   int bad_readings_ = 0;  ///< consecutive control periods with an out-of-range reading
-  bool gas_check_pending_ = false;    ///< the link came back: the gas is to be checked
-  double gas_check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
-  double gas_check_until_s_ = -1.0;   ///< valves kept shut until then for the re-anchor test [s]
-  int gas_check_reanchors_ = 0;       ///< the observer's re-anchors when the check began
-  /// What the observer's gas is worth: known (a simulated plant reset with it, a height given,
-  /// a height sensor, or the cell since found flat), unverified (reset flat over real hardware,
-  /// not yet found flat), being found (commanded meanwhile: venting, height unknown), or being
-  /// re-anchored (lowered into the low band: venting, height tracked).
-  enum class GasKnowledge { kKnown, kUnverified, kFinding, kAnchoring };
-  GasKnowledge gas_ = GasKnowledge::kKnown;
-  int finding_reanchors_ = 0;         ///< the observer's re-anchors at the reset (or the anchoring's start)
+  GasVerifier gas_;       ///< what the observer's gas is worth, and its checks
 };
 
 }  // namespace nursing_bed

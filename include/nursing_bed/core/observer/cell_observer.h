@@ -34,14 +34,6 @@ struct CellObserverParams {
   /// at which the plate alone rests lifted (the model's, found at construction).
   double reanchor_pressure_pa = 60.0;
   double reanchor_time_s = 0.5;            ///< inlet shut and that flat (mean pressure) this long: re-anchor [s]
-  /// After a lost link the cell vents at most this long (until its pressure reads flat), then
-  /// keeps both valves shut while the re-anchor test runs (AirbagCell); 0: no check [s].
-  double resume_vent_s = 0.05;
-  /// A height target at or below this, sent while the cell's height is above it, is reached
-  /// through a flat cell: the cell vents until the re-anchor test finds it flat, then fills to
-  /// the target (AirbagCell). The gas the moves before left uncounted is gone before the low
-  /// hold and the next rise; 0: never [m].
-  double reanchor_below_m = 0.035;
   /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
@@ -67,6 +59,13 @@ struct ObserverReadings {
   double gauge_pressure_pa = std::numeric_limits<double>::quiet_NaN();
   double height_m = std::numeric_limits<double>::quiet_NaN();
   double inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// What one step found, for the control side to act on (the counts in CellEstimate are for
+/// diagnostics).
+struct ObserverEvents {
+  bool reanchored = false;      ///< the gas was re-anchored on a flat cell
+  bool weight_bounded = false;  ///< the plate's weight bounded the height from above
 };
 
 /// The estimate with its standard deviations.
@@ -130,7 +129,8 @@ class CellObserver {
   /// One period: the gas over the period with `inputs`, then the readings at its end. `dt_s`
   /// > 0: the time since the last step when it differs from period_s (a real-time loop's
   /// jitter).
-  void step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
+  /// Returns what the step found (a re-anchor, a weight bound).
+  ObserverEvents step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
   /// A period without readings (a lost link): the gas integrated, the plate held.
   void predict(const ObserverInputs& inputs, double dt_s = 0.0);
 
@@ -147,8 +147,8 @@ class CellObserver {
   const ObserverInputs& appliedInputs() const { return applied_; }
   /// Mean pressure under which a cell with its inlet shut counts as flat [Pa].
   double flatPressure() const { return reanchor_pa_; }
-  /// The cell has vented and keeps its valves shut for `for_s` to test for a flat cell (after a
-  /// lost link): meanwhile a mean pressure below ambient counts as flat too.
+  /// The cell has vented and keeps its valves shut for `for_s` to test for a flat cell (the
+  /// control side's gas check): meanwhile a mean pressure below ambient counts as flat too.
   void expectFlat(double for_s);
 
  private:
@@ -176,7 +176,8 @@ class CellObserver {
   void fuseHeight(double height_m);
   void updateLoad(double gauge_pressure_pa, bool lifted, double dt_s);
   void keepPhysical();
-  void checkReanchor(const ObserverReadings& readings);
+  /// True when the cell was found flat and its gas re-anchored.
+  bool checkReanchor(const ObserverReadings& readings);
   /// The flat cell's gas at `gauge_pressure_pa` (the mean read).
   void anchorFlat(double gauge_pressure_pa);
   void refresh(const CellInputs& in);
@@ -186,8 +187,9 @@ class CellObserver {
   /// The highest height at which the plate alone rests at no more than `gauge_pressure_pa`:
   /// a settled plate at that mean pressure is not above it (+inf beyond the table's top).
   double plateAloneHeight(double gauge_pressure_pa) const;
-  /// The weight bound: the readings averaged over quiet windows (both valves shut, settled).
-  void boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
+  /// The weight bound: the readings averaged over quiet windows (both valves shut, settled);
+  /// true when it moved the estimate.
+  bool boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
   /// Accumulates the quiet readings; true (with their mean and standard error) at the end of
   /// each weight_bound_window_s after the first.
   bool quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa);
