@@ -7,23 +7,6 @@
 
 namespace nursing_bed {
 
-std::string AirbagSafetyParams::validate() const {
-  std::ostringstream err;
-  if (!(relief_pressure_pa > 0.0 && std::isfinite(relief_pressure_pa))) err << "relief_pressure_pa must be positive; ";
-  if (!(relief_margin_pa >= 0.0 && relief_margin_pa < relief_pressure_pa))
-    err << "relief_margin_pa must lie in [0, relief_pressure_pa); ";
-  if (!(command_timeout_s >= 0.0)) err << "command_timeout_s must be >= 0; ";
-  if (!(sensor_pressure_max_pa > sensor_pressure_min_pa)) err << "sensor pressure range is empty; ";
-  if (!(sensor_height_max_m > sensor_height_min_m)) err << "sensor height range is empty; ";
-  if (!(sensor_fault_periods >= 1 && sensor_fault_periods <= 100)) err << "sensor_fault_periods must lie in 1..100; ";
-  if (!(max_load_n > 0.0 && std::isfinite(max_load_n))) err << "max_load_n must be a positive finite load; ";
-  if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
-    err << "max_height_rate_m_s must be a positive finite rate; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
-}
-
 std::string AirbagCellParams::validate() const {
   std::ostringstream err;
   for (const std::string& e : {cell.validate(), controller.validate(), safety.validate()})
@@ -49,10 +32,6 @@ const AirbagCellParams& validated(const AirbagCellParams& p) {
 
 namespace {
 
-// Pressure mode: a valve opens fully at this error and stays shut within the tolerance.
-constexpr double kPressureBandPa = 1000.0;
-constexpr double kPressureTolerancePa = 50.0;
-
 CellHardwarePtr simulatedHardware(const AirbagCellParams& p, const std::vector<CellEffectPtr>& effects) {
   HardwareConfig c;
   c.control_period_s = p.control_period_s;
@@ -77,6 +56,7 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
       hardware_(std::move(hardware)),
       controller_(params.controller, CellCharacteristic::shared(params.cell)),
       supply_pressure_pa_(params.cell.supply_pressure_pa),
+      safety_(params_.safety),
       gas_(observer.gas_check) {
   if (!hardware_) throw std::invalid_argument("airbag: no cell hardware");
   sim_ = dynamic_cast<SimulatedCellHardware*>(hardware_.get());
@@ -100,9 +80,9 @@ void AirbagCell::resetControl(double load_n) {
   mode_ = AirbagMode::kIdle;
   faults_ = kFaultNone;
   valves_ = ValveOpenings{};
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-  last_command_s_ = 0.0;
-  last_pressure_pa_ = 0.0;
+  pressure_.clear();
+  safety_.noteCommand(0.0);
+  safety_.setLastPressure(0.0);
   time_s_ = 0.0;
   gas_.reset(true);
 }
@@ -126,15 +106,33 @@ void AirbagCell::resetToHeight(double height_m, double load_n) {
   controller_.setTarget(height_m);
   mode_ = AirbagMode::kHeight;
   if (sim_) observe(sim_->read(0.0));
-  last_pressure_pa_ = measurement_.gauge_pressure_pa;
+  safety_.setLastPressure(measurement_.gauge_pressure_pa);
 }
 
-std::string AirbagCell::checkLoad(double load_n) const {
-  if (std::isfinite(load_n) && load_n >= 0.0 && load_n <= params_.safety.max_load_n) return "";
-  std::ostringstream msg;
-  msg << "load " << load_n << " N refused: must be finite and within [0, " << params_.safety.max_load_n
-      << "] N (safety/max_load_n)";
-  return msg.str();
+std::string AirbagCell::checkLoad(double load_n) const { return safety_.checkLoad(load_n); }
+
+std::string AirbagCell::setCommandTimeout(double timeout_s) {
+  AirbagSafetyParams safety = safety_.params();
+  safety.command_timeout_s = timeout_s;
+  return setSafetyParams(safety);
+}
+
+std::string AirbagCell::setControllerParams(const HeightControllerParams& params) {
+  AirbagCellParams all = params_;
+  all.controller = params;
+  std::string error = all.validate();
+  if (error.empty()) error = controller_.setParams(params);
+  if (error.empty()) params_ = all;
+  return error;
+}
+
+std::string AirbagCell::setSafetyParams(const AirbagSafetyParams& params) {
+  AirbagCellParams all = params_;
+  all.safety = params;
+  std::string error = all.validate();
+  if (error.empty()) error = safety_.setParams(params);
+  if (error.empty()) params_ = all;
+  return error;
 }
 
 std::string AirbagCell::setLoad(double load_n) {
@@ -162,7 +160,7 @@ double AirbagCell::heightSd() const {
 }
 
 AirbagMode AirbagCell::resumedMode() const {
-  if (std::isfinite(pressure_setpoint_pa_)) return AirbagMode::kPressure;
+  if (pressure_.active()) return AirbagMode::kPressure;
   return controller_.hasTarget() ? AirbagMode::kHeight : AirbagMode::kIdle;
 }
 
@@ -176,10 +174,10 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   if (!error.empty()) return error;
   controller_.setTarget(height_m);
   if (use_estimate_) gas_.heightRequested(height_m, measurement_.height_m);
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
+  pressure_.clear();
   mode_ = AirbagMode::kHeight;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
   return "";
 }
 
@@ -203,32 +201,23 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   if (!error.empty()) return error;
   controller_.clearTarget();
   gas_.pressureRequested();  // a pressure is held from where the cell is
-  pressure_setpoint_pa_ = pressure_pa;
+  pressure_.setSetpoint(pressure_pa);
   mode_ = AirbagMode::kPressure;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
   return "";
-}
-
-ValveOpenings AirbagCell::pressureValves(double gauge_pressure_pa) const {
-  const double error = pressure_setpoint_pa_ - gauge_pressure_pa;
-  ValveOpenings v;
-  if (error > kPressureTolerancePa) v.inlet = std::min(1.0, error / kPressureBandPa);
-  if (error < -kPressureTolerancePa) v.vent = std::min(1.0, -error / kPressureBandPa);
-  return v;
 }
 
 void AirbagCell::requestVent(double now_s) {
   controller_.clearTarget();
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-
+  pressure_.clear();
   mode_ = AirbagMode::kVent;
   faults_ &= ~kFaultCommandTimeout;
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
 }
 
 void AirbagCell::heartbeat(double now_s) {
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
   if (faults_ & kFaultCommandTimeout) {
     faults_ &= ~kFaultCommandTimeout;
     if (mode_ == AirbagMode::kSafe && !(faults_ & (kFaultSensor | kFaultCommunication))) mode_ = resumedMode();
@@ -264,9 +253,7 @@ void AirbagCell::stepSimulated() {
     return;
   }
   // The valve holds over the period: its end flow stands for the period.
-  metered_inlet_mass_kg_ += readings.inflow_kg_s.value * period;
-  inlet_opening_s_ += valves_.inlet * period;
-  vent_opening_s_ += valves_.vent * period;
+  addTotals(period, readings.inflow_kg_s.value);
   time_s_ = sim_->time();
   observe(readings);
 }
@@ -292,9 +279,13 @@ void AirbagCell::stepReal(double now_s) {
   observe(readings, period);
   controlStep();
   hardware_->write(openings(), now_s);
-  if (readings.inflow_kg_s.present()) metered_inlet_mass_kg_ += readings.inflow_kg_s.value * period;
-  inlet_opening_s_ += valves_.inlet * period;
-  vent_opening_s_ += valves_.vent * period;
+  addTotals(period, readings.inflow_kg_s.present() ? readings.inflow_kg_s.value : 0.0);
+}
+
+void AirbagCell::addTotals(double period_s, double inflow_kg_s) {
+  totals_.metered_inlet_mass_kg += inflow_kg_s * period_s;
+  totals_.inlet_opening_s += valves_.inlet * period_s;
+  totals_.vent_opening_s += valves_.vent * period_s;
 }
 
 ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
@@ -317,11 +308,11 @@ ValveOpenings AirbagCell::gasCheckValves(double now_s, double gauge_pressure_pa,
 
 void AirbagCell::onDeviceReset() {
   controller_.clearTarget();
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
+  pressure_.clear();
   valves_ = ValveOpenings{};
   mode_ = AirbagMode::kSafe;
   faults_ |= kFaultModel;
-  last_pressure_pa_ = 0.0;
+  safety_.setLastPressure(0.0);
   // The cell is in its reset state (flat): the observer starts from there too.
   if (observer_) observer_->reset(sim_ ? load_n_ : observer_->estimate().load_n);
 }
@@ -370,62 +361,68 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
 void AirbagCell::controlStep() {
   const double now = time_s_;
   // The sensors were read at the end of the previous period (advanceTo), i.e. now.
-  const AirbagSafetyParams& s = params_.safety;
   const double p = measurement_.gauge_pressure_pa, h = measurement_.height_m;
-  const bool sensor_ok = std::isfinite(p) && std::isfinite(h) && p >= s.sensor_pressure_min_pa &&
-                         p <= s.sensor_pressure_max_pa && h >= s.sensor_height_min_m && h <= s.sensor_height_max_m;
+  if (!checkSensorsAndWatchdog(now, p, h)) return;
+  const ValveOpenings wanted = controller_.update(params_.control_period_s, p, h);
+  valves_ = modeValves(wanted, p);
+  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = gasCheckValves(now, p, valves_);
+  applyRelief(p);
+  controller_.noteWritten(valves_, params_.control_period_s);  // the gas in flight is what was sent
+}
+
+bool AirbagCell::checkSensorsAndWatchdog(double now_s, double gauge_pressure_pa, double height_m) {
   // A reading out of range holds the gas at once (both valves shut); it is a sensor fault once
-  // it persists for sensor_fault_periods, until the sensors read sane values again. A single
-  // out-of-range sample is what a plate lifting off a flat cell gives for a few ms (the gas
-  // sucked below -50 kPa for up to 15 ms), and a fault there levelled the whole bed.
-  if (!sensor_ok) {
+  // it persists, until the sensors read sane values again.
+  const SensorVerdict sensors = safety_.checkReadings(gauge_pressure_pa, height_m);
+  if (sensors != SensorVerdict::kOk) {
     valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, params_.control_period_s);
-    if (++bad_readings_ >= s.sensor_fault_periods) {
+    if (sensors == SensorVerdict::kFault) {
       faults_ |= kFaultSensor;
       mode_ = AirbagMode::kSafe;
     }
-    return;
+    return false;
   }
-  bad_readings_ = 0;
   if (faults_ & kFaultSensor) {
     faults_ &= ~kFaultSensor;
     mode_ = resumedMode();
   }
   // Command watchdog: hold the gas (like a controller's brake()) when commands stop.
-  if (s.command_timeout_s > 0.0 && mode_ != AirbagMode::kVent && now - last_command_s_ > s.command_timeout_s) {
+  if (mode_ != AirbagMode::kVent && safety_.commandTimedOut(now_s)) {
     faults_ |= kFaultCommandTimeout;
     mode_ = AirbagMode::kSafe;
   }
+  return true;
+}
 
-  const ValveOpenings wanted = controller_.update(params_.control_period_s, p, h);
+ValveOpenings AirbagCell::modeValves(const ValveOpenings& wanted, double gauge_pressure_pa) const {
   switch (mode_) {
     case AirbagMode::kHeight:
-      valves_ = wanted;
-      break;
+      return wanted;
     case AirbagMode::kVent:
-      valves_ = ValveOpenings{0.0, 1.0};
-      break;
+      return ValveOpenings{0.0, 1.0};
     case AirbagMode::kPressure:
-      valves_ = pressureValves(p);
-      break;
+      return pressure_.update(gauge_pressure_pa);
     case AirbagMode::kIdle:
     case AirbagMode::kSafe:
-      valves_ = ValveOpenings{};
       break;
   }
-  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = gasCheckValves(now, p, valves_);
-  // Relief, whatever the mode: act before the next period's rise could cross it.
-  const double rise = std::max(0.0, p - last_pressure_pa_);
-  last_pressure_pa_ = p;
-  if (p + rise + s.relief_margin_pa >= s.relief_pressure_pa) {
-    faults_ |= kFaultOverpressure;
-    valves_.inlet = 0.0;
-    valves_.vent = 1.0;
-  } else if (p < s.relief_pressure_pa - 2.0 * s.relief_margin_pa - rise) {
-    faults_ &= ~kFaultOverpressure;
+  return ValveOpenings{};
+}
+
+void AirbagCell::applyRelief(double gauge_pressure_pa) {
+  switch (safety_.relief(gauge_pressure_pa)) {
+    case ReliefVerdict::kVent:
+      faults_ |= kFaultOverpressure;
+      valves_.inlet = 0.0;
+      valves_.vent = 1.0;
+      break;
+    case ReliefVerdict::kClear:
+      faults_ &= ~kFaultOverpressure;
+      break;
+    case ReliefVerdict::kKeep:
+      break;
   }
-  controller_.noteWritten(valves_, params_.control_period_s);  // the gas in flight is what was sent
 }
 
 }  // namespace nursing_bed
