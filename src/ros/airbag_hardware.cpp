@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "nursing_bed/core/gap/synth.h"
-#include "nursing_bed/core/observer/observer_params_io.h"
+#include "nursing_bed/core/control/airbag_params_io.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/ros/ros_params.h"
 
@@ -39,6 +39,8 @@ std::string AirbagHardwareParams::validate() const {
     err << "hardware/register_map must name the register map YAML for nursing_bed/ModbusTcpHardware; ";
   const std::string observer_error = observer.validate();
   if (!observer_error.empty()) err << "observer/: " << observer_error << "; ";
+  const std::string gas_check_error = gas_check.validate();
+  if (!gas_check_error.empty()) err << "observer/: " << gas_check_error << "; ";
   try {
     effectsFromText(observer_effects, 1);
   } catch (const std::invalid_argument& e) {
@@ -59,7 +61,7 @@ AirbagHardwareParams AirbagHardwareParams::load(const ros::NodeHandle& pnh, cons
   for (const char* text_key : {"observer/cell_params", "observer/effects"}) values.erase(text_key);
   values.erase("observer/force");
   if (!pnh.getParam("observer/force", p.observer_force)) pnh.getParam(defaults_ns + "/observer/force", p.observer_force);
-  applyFlatParams(values, "parameters of " + pnh.getNamespace(), observerParamFields(), &p.observer, "observer/");
+  applyObserverParams(values, "parameters of " + pnh.getNamespace(), &p.observer, &p.gas_check, "observer/");
   return p;
 }
 
@@ -79,6 +81,7 @@ CellHardwarePtr loadCellHardware(const AirbagHardwareParams& params, const Hardw
 AirbagObserverSetup observerSetup(const AirbagHardwareParams& params, const CellParams& cell, std::uint32_t seed) {
   AirbagObserverSetup setup;
   setup.params = params.observer;
+  setup.gas_check = params.gas_check;
   setup.model = params.observer_cell_params.empty() ? cell : loadCellParamsYaml(params.observer_cell_params);
   setup.effects = effectsFromText(params.observer_effects, seed);
   setup.force = params.observer_force;

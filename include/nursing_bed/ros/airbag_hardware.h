@@ -17,6 +17,9 @@ struct AirbagHardwareParams {
   std::string plugin = "nursing_bed/SimulatedHardware";
   std::string register_map;          ///< hardware/register_map: YAML path (modbus_tcp)
   CellObserverParams observer;       ///< observer/<key>: tuning (observerParamFields)
+  /// observer/resume_vent_s, observer/reanchor_below_m: the cell's checks of the observer's gas
+  /// (gasVerifierParamFields).
+  GasVerifierParams gas_check;
   /// observer/cell_params: YAML of the observer's cell model (a calibrated set, e.g. from
   /// `gap calibrate`); empty: the cell's own parameters.
   std::string observer_cell_params;

@@ -87,7 +87,7 @@ class AirbagNode {
     Measurement measurement;
     double volume_m3 = 0.0, gas_mass_kg = 0.0, gas_temperature_k = 0.0, load_n = 0.0;
     double metered_kg = 0.0, inlet_s = 0.0, vent_s = 0.0;  ///< the flow and valve totalisers
-    ValveCommand valves;
+    ValveOpenings valves;
     double setpoint_m = std::numeric_limits<double>::quiet_NaN();
     double pressure_setpoint_pa = std::numeric_limits<double>::quiet_NaN();
     uint8_t height_source = 0;  ///< AirbagState::HEIGHT_* (measured or the observer's estimate)

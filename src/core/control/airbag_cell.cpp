@@ -7,23 +7,6 @@
 
 namespace nursing_bed {
 
-std::string AirbagSafetyParams::validate() const {
-  std::ostringstream err;
-  if (!(relief_pressure_pa > 0.0 && std::isfinite(relief_pressure_pa))) err << "relief_pressure_pa must be positive; ";
-  if (!(relief_margin_pa >= 0.0 && relief_margin_pa < relief_pressure_pa))
-    err << "relief_margin_pa must lie in [0, relief_pressure_pa); ";
-  if (!(command_timeout_s >= 0.0)) err << "command_timeout_s must be >= 0; ";
-  if (!(sensor_pressure_max_pa > sensor_pressure_min_pa)) err << "sensor pressure range is empty; ";
-  if (!(sensor_height_max_m > sensor_height_min_m)) err << "sensor height range is empty; ";
-  if (!(sensor_fault_periods >= 1 && sensor_fault_periods <= 100)) err << "sensor_fault_periods must lie in 1..100; ";
-  if (!(max_load_n > 0.0 && std::isfinite(max_load_n))) err << "max_load_n must be a positive finite load; ";
-  if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
-    err << "max_height_rate_m_s must be a positive finite rate; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
-}
-
 std::string AirbagCellParams::validate() const {
   std::ostringstream err;
   for (const std::string& e : {cell.validate(), controller.validate(), safety.validate()})
@@ -49,10 +32,6 @@ const AirbagCellParams& validated(const AirbagCellParams& p) {
 
 namespace {
 
-// Pressure mode: a valve opens fully at this error and stays shut within the tolerance.
-constexpr double kPressureBandPa = 1000.0;
-constexpr double kPressureTolerancePa = 50.0;
-
 CellHardwarePtr simulatedHardware(const AirbagCellParams& p, const std::vector<CellEffectPtr>& effects) {
   HardwareConfig c;
   c.control_period_s = p.control_period_s;
@@ -76,7 +55,9 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
     : params_(validated(params)),
       hardware_(std::move(hardware)),
       controller_(params.controller, CellCharacteristic::shared(params.cell)),
-      supply_pressure_pa_(params.cell.supply_pressure_pa) {
+      supply_pressure_pa_(params.cell.supply_pressure_pa),
+      safety_(params_.safety),
+      gas_(observer.gas_check) {
   if (!hardware_) throw std::invalid_argument("airbag: no cell hardware");
   sim_ = dynamic_cast<SimulatedCellHardware*>(hardware_.get());
   capabilities_ = hardware_->capabilities();  // fixed for the hardware's lifetime
@@ -98,15 +79,12 @@ void AirbagCell::resetControl(double load_n) {
   controller_.setLoadEstimate(load_n);
   mode_ = AirbagMode::kIdle;
   faults_ = kFaultNone;
-  valves_ = ValveCommand{};
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-  last_command_s_ = 0.0;
-  last_pressure_pa_ = 0.0;
+  valves_ = ValveOpenings{};
+  pressure_.clear();
+  safety_.noteCommand(0.0);
+  safety_.setLastPressure(0.0);
   time_s_ = 0.0;
-  gas_check_pending_ = false;
-  gas_check_vent_left_s_ = 0.0;
-  gas_check_until_s_ = -1.0;
-  gas_ = GasKnowledge::kKnown;
+  gas_.reset(true);
 }
 
 void AirbagCell::reset(double load_n) {
@@ -118,10 +96,7 @@ void AirbagCell::reset(double load_n) {
   // observer's flat start holds once its re-anchor test finds the cell flat (half a second of
   // readings, not one: a flat cell reads an ADC step or two of noise, the plate alone lifted
   // 20-75 Pa). A height sensor measures the gas.
-  if (observer_ && !sim_ && use_estimate_) {
-    gas_ = GasKnowledge::kUnverified;
-    finding_reanchors_ = observer_->estimate().reanchors;
-  }
+  if (observer_ && !sim_ && use_estimate_) gas_.reset(false);
 }
 
 void AirbagCell::resetToHeight(double height_m, double load_n) {
@@ -131,15 +106,33 @@ void AirbagCell::resetToHeight(double height_m, double load_n) {
   controller_.setTarget(height_m);
   mode_ = AirbagMode::kHeight;
   if (sim_) observe(sim_->read(0.0));
-  last_pressure_pa_ = measurement_.gauge_pressure_pa;
+  safety_.setLastPressure(measurement_.gauge_pressure_pa);
 }
 
-std::string AirbagCell::checkLoad(double load_n) const {
-  if (std::isfinite(load_n) && load_n >= 0.0 && load_n <= params_.safety.max_load_n) return "";
-  std::ostringstream msg;
-  msg << "load " << load_n << " N refused: must be finite and within [0, " << params_.safety.max_load_n
-      << "] N (safety/max_load_n)";
-  return msg.str();
+std::string AirbagCell::checkLoad(double load_n) const { return safety_.checkLoad(load_n); }
+
+std::string AirbagCell::setCommandTimeout(double timeout_s) {
+  AirbagSafetyParams safety = safety_.params();
+  safety.command_timeout_s = timeout_s;
+  return setSafetyParams(safety);
+}
+
+std::string AirbagCell::setControllerParams(const HeightControllerParams& params) {
+  AirbagCellParams all = params_;
+  all.controller = params;
+  std::string error = all.validate();
+  if (error.empty()) error = controller_.setParams(params);
+  if (error.empty()) params_ = all;
+  return error;
+}
+
+std::string AirbagCell::setSafetyParams(const AirbagSafetyParams& params) {
+  AirbagCellParams all = params_;
+  all.safety = params;
+  std::string error = all.validate();
+  if (error.empty()) error = safety_.setParams(params);
+  if (error.empty()) params_ = all;
+  return error;
 }
 
 std::string AirbagCell::setLoad(double load_n) {
@@ -162,12 +155,12 @@ const CellModel& AirbagCell::model() const { return sim_ ? sim_->model() : obser
 double AirbagCell::load() const { return sim_ ? load_n_ : observer_->estimate().load_n; }
 
 double AirbagCell::heightSd() const {
-  if (gas_ == GasKnowledge::kFinding) return std::numeric_limits<double>::infinity();  // its gas is unknown
+  if (gas_.findingGas()) return std::numeric_limits<double>::infinity();  // its gas is unknown
   return use_estimate_ ? observer_->estimate().height_sd_m : params_.height_noise_m;
 }
 
 AirbagMode AirbagCell::resumedMode() const {
-  if (std::isfinite(pressure_setpoint_pa_)) return AirbagMode::kPressure;
+  if (pressure_.active()) return AirbagMode::kPressure;
   return controller_.hasTarget() ? AirbagMode::kHeight : AirbagMode::kIdle;
 }
 
@@ -180,11 +173,11 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   const std::string error = checkHeight(height_m);
   if (!error.empty()) return error;
   controller_.setTarget(height_m);
-  planAnchor(height_m);
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
+  if (use_estimate_) gas_.heightRequested(height_m, measurement_.height_m);
+  pressure_.clear();
   mode_ = AirbagMode::kHeight;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
   return "";
 }
 
@@ -207,33 +200,24 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   const std::string error = checkPressure(pressure_pa);
   if (!error.empty()) return error;
   controller_.clearTarget();
-  if (gas_ == GasKnowledge::kAnchoring) gas_ = GasKnowledge::kKnown;  // a pressure is held from where the cell is
-  pressure_setpoint_pa_ = pressure_pa;
+  gas_.pressureRequested();  // a pressure is held from where the cell is
+  pressure_.setSetpoint(pressure_pa);
   mode_ = AirbagMode::kPressure;
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
   return "";
-}
-
-ValveCommand AirbagCell::pressureValves(double gauge_pressure_pa) const {
-  const double error = pressure_setpoint_pa_ - gauge_pressure_pa;
-  ValveCommand v;
-  if (error > kPressureTolerancePa) v.inlet = std::min(1.0, error / kPressureBandPa);
-  if (error < -kPressureTolerancePa) v.vent = std::min(1.0, -error / kPressureBandPa);
-  return v;
 }
 
 void AirbagCell::requestVent(double now_s) {
   controller_.clearTarget();
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-
+  pressure_.clear();
   mode_ = AirbagMode::kVent;
   faults_ &= ~kFaultCommandTimeout;
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
 }
 
 void AirbagCell::heartbeat(double now_s) {
-  last_command_s_ = now_s;
+  safety_.noteCommand(now_s);
   if (faults_ & kFaultCommandTimeout) {
     faults_ &= ~kFaultCommandTimeout;
     if (mode_ == AirbagMode::kSafe && !(faults_ & (kFaultSensor | kFaultCommunication))) mode_ = resumedMode();
@@ -269,9 +253,7 @@ void AirbagCell::stepSimulated() {
     return;
   }
   // The valve holds over the period: its end flow stands for the period.
-  metered_inlet_mass_kg_ += readings.inflow_kg_s.value * period;
-  inlet_opening_s_ += valves_.inlet * period;
-  vent_opening_s_ += valves_.vent * period;
+  addTotals(period, readings.inflow_kg_s.value);
   time_s_ = sim_->time();
   observe(readings);
 }
@@ -289,7 +271,7 @@ void AirbagCell::stepReal(double now_s) {
     // still drove (its outputs hold until its watchdog) where the driver knows it, else with
     // the last command over the period it acted, then with the valves shut.
     observer_->predict(linkDownInputs(readings), period);
-    valves_ = ValveCommand{};
+    valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, period);  // nothing sent: nothing in flight once the link is back
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
     return;
@@ -297,9 +279,13 @@ void AirbagCell::stepReal(double now_s) {
   observe(readings, period);
   controlStep();
   hardware_->write(openings(), now_s);
-  if (readings.inflow_kg_s.present()) metered_inlet_mass_kg_ += readings.inflow_kg_s.value * period;
-  inlet_opening_s_ += valves_.inlet * period;
-  vent_opening_s_ += valves_.vent * period;
+  addTotals(period, readings.inflow_kg_s.present() ? readings.inflow_kg_s.value : 0.0);
+}
+
+void AirbagCell::addTotals(double period_s, double inflow_kg_s) {
+  totals_.metered_inlet_mass_kg += inflow_kg_s * period_s;
+  totals_.inlet_opening_s += valves_.inlet * period_s;
+  totals_.vent_opening_s += valves_.vent * period_s;
 }
 
 ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
@@ -309,85 +295,24 @@ ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
   return in;
 }
 
-ValveCommand AirbagCell::checkingGas(double now_s, const ValveCommand& wanted) {
-  // Over a lost link the gas is unverified: the bed may have been emptied meanwhile (a restarted
-  // terminal, a CPR dump). Pressure cannot tell: a sealed flat cell under 15.6 N floats its plate on its residual
-  // gas at 487 Pa (a restarted emulator's cell after one inlet pulse), as a cell lifted under
-  // half the load reads; the observer kept its gas, lowered its load, and with the controller
-  // holding quietly on target nothing told them apart (a flat cell reported at 60 mm for 40 s).
-  // Venting does: the floating flat cell grounds and reads ambient within a few tens of ms, and
-  // the observer's re-anchor test takes it with the valves shut; a lifted cell keeps its load's
-  // pressure and loses 1-3 mm, which the controller restores after the check.
-  const CellObserverParams& op = observer_->params();
-  if (gas_check_pending_) {
-    gas_check_pending_ = false;
-    gas_check_vent_left_s_ = op.resume_vent_s;
-    gas_check_reanchors_ = observer_->estimate().reanchors;
-  }
+ValveOpenings AirbagCell::gasCheckValves(double now_s, double gauge_pressure_pa, const ValveOpenings& wanted) {
+  if (!observer_) return wanted;  // the gas is measured (no observer: nothing to check)
   const double period = params_.control_period_s;
-  if (gas_check_vent_left_s_ > 0.0) {
-    const bool grounded = measurement_.gauge_pressure_pa < observer_->flatPressure();
-    const double opening = grounded ? 0.0 : std::min(1.0, gas_check_vent_left_s_ / period);
-    gas_check_vent_left_s_ = grounded ? 0.0 : std::max(0.0, gas_check_vent_left_s_ - period);
-    // The test's mean pressure starts above the flat cell's: twice its time, after the dead time.
-    if (gas_check_vent_left_s_ <= 0.0) {
-      gas_check_until_s_ = now_s + period + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
-      observer_->expectFlat(gas_check_until_s_ - now_s);
-    }
-    return ValveCommand{0.0, opening};
-  }
-  if (gas_check_until_s_ < 0.0) return wanted;
-  // Found flat (re-anchored), the controller takes over at once; else after the test's time.
-  if (now_s < gas_check_until_s_ && observer_->estimate().reanchors == gas_check_reanchors_) return ValveCommand{};
-  gas_check_until_s_ = -1.0;
-  return wanted;
-}
-
-void AirbagCell::planAnchor(double target_m) {
-  // Near the bag's top 1 % of gas moves a light plate 8-10 mm, and pressure alone cannot tell
-  // a plate higher than counted from a heavier load on it: each move's count error (0.4-2 % on
-  // the bed) stays in the inventory until the cell is found flat. A cell lowered into the low
-  // band has little height to lose there, so it passes through flat on the way.
-  if (!use_estimate_) return;
-  const double band = observer_->params().reanchor_below_m;
-  const bool low = target_m <= band;
-  if (gas_ == GasKnowledge::kAnchoring && !low) {
-    gas_ = GasKnowledge::kKnown;  // raised again before it was found flat
-  } else if (gas_ == GasKnowledge::kKnown && low && band > 0.0 && measurement_.height_m > band) {
-    gas_ = GasKnowledge::kAnchoring;
-    finding_reanchors_ = observer_->estimate().reanchors;
-  }
-}
-
-ValveCommand AirbagCell::findingGas(const ValveCommand& wanted) {
-  // Started flat over a cell that holds gas, the observer would count every fill from nothing:
-  // commanded to 80 mm, such a cell filled to the bag's top at the supply pressure (140-150 mm,
-  // 20 kPa, the estimate at 30 mm). Its pressure alone cannot give its gas (nor its height or
-  // load); a flat cell's can. So it vents, the one safe direction, until the observer's
-  // re-anchor test finds it flat (below ambient counts: a heavy plate's vented cell settles
-  // there), and is then controlled to its kept setpoint. A cell anchoring (planAnchor) does the
-  // same with its height tracked meanwhile.
-  if (gas_ == GasKnowledge::kKnown) return wanted;
-  if (observer_->estimate().reanchors > finding_reanchors_) {
-    const bool vented = gas_ != GasKnowledge::kUnverified;
-    gas_ = GasKnowledge::kKnown;
-    if (!vented) return wanted;  // found flat before any command (a bed started flat)
-    // Its integral ran on the flat start's error through the vent: restart it.
-    if (controller_.hasTarget()) controller_.setTarget(controller_.target());
-    return ValveCommand{};
-  }
-  if (gas_ == GasKnowledge::kUnverified) gas_ = GasKnowledge::kFinding;
-  observer_->expectFlat(2.0 * params_.control_period_s);
-  return ValveCommand{0.0, 1.0};
+  const ValveOpenings checked = gas_.linkCheckValves(now_s, period, gauge_pressure_pa, observer_.get(), wanted);
+  bool found_after_vent = false;
+  const ValveOpenings valves = gas_.findingValves(period, observer_.get(), checked, &found_after_vent);
+  // Its integral ran on the flat start's error through the vent: restart it.
+  if (found_after_vent && controller_.hasTarget()) controller_.setTarget(controller_.target());
+  return valves;
 }
 
 void AirbagCell::onDeviceReset() {
   controller_.clearTarget();
-  pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-  valves_ = ValveCommand{};
+  pressure_.clear();
+  valves_ = ValveOpenings{};
   mode_ = AirbagMode::kSafe;
   faults_ |= kFaultModel;
-  last_pressure_pa_ = 0.0;
+  safety_.setLastPressure(0.0);
   // The cell is in its reset state (flat): the observer starts from there too.
   if (observer_) observer_->reset(sim_ ? load_n_ : observer_->estimate().load_n);
 }
@@ -406,7 +331,7 @@ void AirbagCell::onLink(const CellReadings& readings) {
     // on one reading below reanchor_pressure_pa instead, a light plate resting at 55-75 Pa
     // was taken for flat after a 50 ms bus timeout and filled to the bag's top at 30 kPa.
     mode_ = mode_before_link_loss_ == AirbagMode::kSafe ? resumedMode() : mode_before_link_loss_;
-    gas_check_pending_ = observer_->params().resume_vent_s > 0.0;
+    gas_.linkRestored();
   }
 }
 
@@ -429,69 +354,75 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   z.gauge_pressure_pa = readings.gauge_pressure_pa.value;
   if (!use_estimate_) z.height_m = readings.height_m.value;
   if (capabilities_.inflow && !sim_) z.inflow_kg_s = readings.inflow_kg_s.value;
-  observer_->step(in, z, dt_s);
+  gas_.note(observer_->step(in, z, dt_s));
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
 }
 
 void AirbagCell::controlStep() {
   const double now = time_s_;
   // The sensors were read at the end of the previous period (advanceTo), i.e. now.
-  const AirbagSafetyParams& s = params_.safety;
   const double p = measurement_.gauge_pressure_pa, h = measurement_.height_m;
-  const bool sensor_ok = std::isfinite(p) && std::isfinite(h) && p >= s.sensor_pressure_min_pa &&
-                         p <= s.sensor_pressure_max_pa && h >= s.sensor_height_min_m && h <= s.sensor_height_max_m;
+  if (!checkSensorsAndWatchdog(now, p, h)) return;
+  const ValveOpenings wanted = controller_.update(params_.control_period_s, p, h);
+  valves_ = modeValves(wanted, p);
+  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = gasCheckValves(now, p, valves_);
+  applyRelief(p);
+  controller_.noteWritten(valves_, params_.control_period_s);  // the gas in flight is what was sent
+}
+
+bool AirbagCell::checkSensorsAndWatchdog(double now_s, double gauge_pressure_pa, double height_m) {
   // A reading out of range holds the gas at once (both valves shut); it is a sensor fault once
-  // it persists for sensor_fault_periods, until the sensors read sane values again. A single
-  // out-of-range sample is what a plate lifting off a flat cell gives for a few ms (the gas
-  // sucked below -50 kPa for up to 15 ms), and a fault there levelled the whole bed.
-  if (!sensor_ok) {
-    valves_ = ValveCommand{};
+  // it persists, until the sensors read sane values again.
+  const SensorVerdict sensors = safety_.checkReadings(gauge_pressure_pa, height_m);
+  if (sensors != SensorVerdict::kOk) {
+    valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, params_.control_period_s);
-    if (++bad_readings_ >= s.sensor_fault_periods) {
+    if (sensors == SensorVerdict::kFault) {
       faults_ |= kFaultSensor;
       mode_ = AirbagMode::kSafe;
     }
-    return;
+    return false;
   }
-  bad_readings_ = 0;
   if (faults_ & kFaultSensor) {
     faults_ &= ~kFaultSensor;
     mode_ = resumedMode();
   }
   // Command watchdog: hold the gas (like a controller's brake()) when commands stop.
-  if (s.command_timeout_s > 0.0 && mode_ != AirbagMode::kVent && now - last_command_s_ > s.command_timeout_s) {
+  if (mode_ != AirbagMode::kVent && safety_.commandTimedOut(now_s)) {
     faults_ |= kFaultCommandTimeout;
     mode_ = AirbagMode::kSafe;
   }
+  return true;
+}
 
-  const ValveCommand wanted = controller_.update(params_.control_period_s, p, h);
+ValveOpenings AirbagCell::modeValves(const ValveOpenings& wanted, double gauge_pressure_pa) const {
   switch (mode_) {
     case AirbagMode::kHeight:
-      valves_ = wanted;
-      break;
+      return wanted;
     case AirbagMode::kVent:
-      valves_ = ValveCommand{0.0, 1.0};
-      break;
+      return ValveOpenings{0.0, 1.0};
     case AirbagMode::kPressure:
-      valves_ = pressureValves(p);
-      break;
+      return pressure_.update(gauge_pressure_pa);
     case AirbagMode::kIdle:
     case AirbagMode::kSafe:
-      valves_ = ValveCommand{};
       break;
   }
-  if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = findingGas(checkingGas(now, valves_));
-  // Relief, whatever the mode: act before the next period's rise could cross it.
-  const double rise = std::max(0.0, p - last_pressure_pa_);
-  last_pressure_pa_ = p;
-  if (p + rise + s.relief_margin_pa >= s.relief_pressure_pa) {
-    faults_ |= kFaultOverpressure;
-    valves_.inlet = 0.0;
-    valves_.vent = 1.0;
-  } else if (p < s.relief_pressure_pa - 2.0 * s.relief_margin_pa - rise) {
-    faults_ &= ~kFaultOverpressure;
+  return ValveOpenings{};
+}
+
+void AirbagCell::applyRelief(double gauge_pressure_pa) {
+  switch (safety_.relief(gauge_pressure_pa)) {
+    case ReliefVerdict::kVent:
+      faults_ |= kFaultOverpressure;
+      valves_.inlet = 0.0;
+      valves_.vent = 1.0;
+      break;
+    case ReliefVerdict::kClear:
+      faults_ &= ~kFaultOverpressure;
+      break;
+    case ReliefVerdict::kKeep:
+      break;
   }
-  controller_.noteWritten(valves_, params_.control_period_s);  // the gas in flight is what was sent
 }
 
 }  // namespace nursing_bed

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "nursing_bed/core/io/package_path.h"
+#include "nursing_bed/core/observer/observer_params_io.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 
 namespace nursing_bed {
@@ -54,7 +55,34 @@ ParamTable<P> makeFields() {
 }
 #undef NB_FIELD
 
+ParamTable<GasVerifierParams> makeGasCheckFields() {
+  using G = GasVerifierParams;
+  return {
+      realField<G>("resume_vent_s", "after a lost link: vent at most this long (until the pressure reads flat), then valves shut for the observer's re-anchor test; 0 = off [s]",
+                   [](G& p) -> double& { return p.resume_vent_s; }),
+      realField<G>("reanchor_below_m", "a height target at or below this, sent while the cell is above it, is reached through a flat cell (vented until re-anchored, then filled); 0 = never [m]",
+                   [](G& p) -> double& { return p.reanchor_below_m; }),
+  };
+}
+
 }  // namespace
+
+const ParamTable<GasVerifierParams>& gasVerifierParamFields() {
+  static const ParamTable<GasVerifierParams> fields = makeGasCheckFields();
+  return fields;
+}
+
+void applyObserverParams(const FlatParams& values, const std::string& source, CellObserverParams* observer,
+                         GasVerifierParams* gas_check, const std::string& prefix) {
+  FlatParams observer_values, gas_values;
+  for (const auto& [key, value] : values) {
+    bool gas_key = false;
+    for (const auto& f : gasVerifierParamFields()) gas_key = gas_key || key == prefix + f.key;
+    (gas_key ? gas_values : observer_values)[key] = value;
+  }
+  applyFlatParams(gas_values, source, gasVerifierParamFields(), gas_check, prefix);
+  applyFlatParams(observer_values, source, observerParamFields(), observer, prefix);
+}
 
 const ParamTable<AirbagCellParams>& airbagParamFields() {
   static const ParamTable<AirbagCellParams> fields = makeFields();

@@ -43,6 +43,14 @@ HeightController::HeightController(const HeightControllerParams& params,
   if (!characteristic_) throw std::invalid_argument("height controller: no characteristic");
 }
 
+std::string HeightController::setParams(const HeightControllerParams& params) {
+  const std::string error = params.validate();
+  if (!error.empty()) return error;
+  params_ = params;
+  load_.setFilterTime(params.load_filter_time_s);
+  return "";
+}
+
 std::string HeightController::checkSetpoint(double height_m) const {
   std::ostringstream msg;
   if (!std::isfinite(height_m)) {
@@ -95,159 +103,118 @@ double HeightController::fullFlowRestRate(int direction, double gauge_pressure_p
 }
 
 double HeightController::halfPeriod() const {
-  if (half_period_s_ < 0.0 || half_period_target_m_ != target_m_ ||
-      std::fabs(load_.load() - half_period_load_n_) > 0.05 * half_period_load_n_) {
+  HalfPeriodCache& c = half_period_;
+  if (c.half_period_s < 0.0 || c.target_m != target_m_ || std::fabs(load_.load() - c.load_n) > 0.05 * c.load_n) {
     const double mass = std::max(characteristic_->params().plate_mass_kg, load_.load() / kGravity);
     const double k = characteristic_->plateStiffness(target_m_, load_.load());
-    half_period_s_ = k > 0.0 ? kPi * std::sqrt(mass / k) : 0.05;
-    half_period_target_m_ = target_m_;
-    half_period_load_n_ = load_.load();
+    c.half_period_s = k > 0.0 ? kPi * std::sqrt(mass / k) : 0.05;
+    c.target_m = target_m_;
+    c.load_n = load_.load();
   }
-  return half_period_s_;
+  return c.half_period_s;
 }
 
-void HeightController::setDeadTime(double dead_time_s) {
-  if (!(dead_time_s >= 0.0 && dead_time_s <= 1.0))
-    throw std::invalid_argument("height controller: the valves' dead time must lie in [0, 1] s");
-  dead_time_s_ = dead_time_s;
-  in_flight_.clear();
-}
+void HeightController::setDeadTime(double dead_time_s) { in_flight_.setDeadTime(dead_time_s); }
 
-void HeightController::noteWritten(const ValveCommand& cmd, double dt_s) {
-  if (dead_time_s_ <= 0.0 || !(dt_s > 0.0)) return;
-  in_flight_.push_back({cmd, dt_s});
-  double held_s = 0.0;
-  for (const IssuedCommand& c : in_flight_) held_s += c.held_s;
-  // The oldest commands have begun to act: only the last dead time's are still in flight.
-  while (!in_flight_.empty() && held_s - in_flight_.front().held_s >= dead_time_s_) {
-    held_s -= in_flight_.front().held_s;
-    in_flight_.pop_front();
-  }
-  if (!in_flight_.empty() && held_s > dead_time_s_) in_flight_.front().held_s -= held_s - dead_time_s_;
-}
+void HeightController::noteWritten(const ValveOpenings& cmd, double dt_s) { in_flight_.note(cmd, dt_s); }
 
 double HeightController::inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const {
   double inlet_s = 0.0, vent_s = 0.0;  // full-opening seconds still to act
-  for (const IssuedCommand& c : in_flight_) {
-    inlet_s += c.valves.inlet * c.held_s;
-    vent_s += c.valves.vent * c.held_s;
-  }
+  in_flight_.openSeconds(&inlet_s, &vent_s);
   double shift = 0.0;
   if (inlet_s > 0.0) shift += inlet_s * fullFlowRestRate(1, gauge_pressure_pa, volume_m3, invariant);
   if (vent_s > 0.0) shift -= vent_s * fullFlowRestRate(-1, gauge_pressure_pa, volume_m3, invariant);
   return shift;
 }
 
-ValveCommand HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
-  ValveCommand cmd;
+ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, double height_m) {
+  Period s;
+  s.dt_s = dt_s;
+  s.gauge_pressure_pa = gauge_pressure_pa;
+  s.height_m = height_m;
+  predictRest(&s);
+  if (!has_target_) {
+    move_.stop();
+    return ValveOpenings{};
+  }
+
+  // Feedback: a resting height error is integrated into the height the predictor aims at.
+  s.error_m = target_m_ - height_m;
+  if (holding_ && !leavesHold(predictedError(), s.error_m, s.resting)) return ValveOpenings{};
+  holding_ = false;
+  if (s.resting && !move_.active() && std::fabs(s.error_m) > params_.height_tolerance_m * 0.5) {
+    integral_m_ += params_.integral_rate_per_s * s.error_m * dt_s;
+    integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
+  }
+  // Where the plate rests once the commands in flight have acted (a Smith predictor).
+  s.predicted_error_m = predictedError();
+  s.lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
+
+  // Shaped full-flow move.
+  if (!move_.active() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest)
+    move_.start(s.predicted_error_m);
+  if (move_.active()) {
+    const int direction = move_.direction();
+    const double half_period = halfPeriod();
+    const double rate = fullFlowRestRate(direction, gauge_pressure_pa, s.volume_m3, s.invariant);
+    if (const auto opening = move_.step(dt_s, direction * s.predicted_error_m, half_period, rate))
+      return command(s, direction, *opening);
+  }
+  return fineCorrection(s);
+}
+
+void HeightController::predictRest(Period* s) {
+  const double dt_s = s->dt_s, gauge_pressure_pa = s->gauge_pressure_pa, height_m = s->height_m;
   const double speed = has_last_ && dt_s > 0.0 ? std::fabs(height_m - last_height_m_) / dt_s : 0.0;
   last_height_m_ = height_m;
   has_last_ = true;
-  const bool resting = speed < params_.settled_speed_m_s;
+  s->resting = speed < params_.settled_speed_m_s;
 
   // Load estimate: the plate's force balance on the structure's force at (h, p), outside moves
   // (a move plans with the load it started with) and with the plate off the bed (on the bed the
   // pressure says nothing about the load).
   const bool weighable = height_m > 0.005 && gauge_pressure_pa > 0.0;
   load_.update(dt_s, height_m, weighable ? characteristic_->loadAt(height_m, gauge_pressure_pa) : 0.0,
-               weighable && move_direction_ == 0);
+               weighable && !move_.active());
 
   // Where the plate rests if the valves shut now (adiabatic invariant of the present gas; the
   // volume uses the film relaxed at the measured pressure, so the invariant holds while the
   // plate swings).
-  const double volume = characteristic_->relaxedVolume(height_m, gauge_pressure_pa, &stretch_guess_);
-  const double invariant = characteristic_->invariant(gauge_pressure_pa, volume);
-  resting_height_m_ = characteristic_->restingHeight(invariant, load_.load());
-  in_flight_shift_m_ = in_flight_.empty() ? 0.0 : inFlightRestShift(gauge_pressure_pa, volume, invariant);
-  if (!has_target_) {
-    move_direction_ = 0;
-    return cmd;
-  }
+  s->volume_m3 = characteristic_->relaxedVolume(height_m, gauge_pressure_pa, &stretch_guess_);
+  s->invariant = characteristic_->invariant(gauge_pressure_pa, s->volume_m3);
+  resting_height_m_ = characteristic_->restingHeight(s->invariant, load_.load());
+  in_flight_shift_m_ = in_flight_.empty() ? 0.0 : inFlightRestShift(gauge_pressure_pa, s->volume_m3, s->invariant);
+}
 
-  // Feedback: a resting height error is integrated into the height the predictor aims at.
-  const double error = target_m_ - height_m;
-  if (holding_ && !leavesHold(predictedError(), error, resting))
-    return cmd;
-  holding_ = false;
-  if (resting && move_direction_ == 0 && std::fabs(error) > params_.height_tolerance_m * 0.5) {
-    integral_m_ += params_.integral_rate_per_s * error * dt_s;
-    integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
+ValveOpenings HeightController::command(const Period& s, int direction, double opening) const {
+  ValveOpenings cmd;
+  if (direction > 0) {
+    cmd.inlet = s.gauge_pressure_pa < params_.max_pressure_pa ? opening : 0.0;
+  } else {
+    cmd.vent = s.lowest ? 1.0 : opening;  // lowest setpoint: empty as fast as the vent allows
   }
-  // Where the plate rests once the commands in flight have acted (a Smith predictor).
-  const double predicted_error = predictedError();
-  const bool lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
-  auto apply = [&](int direction, double opening) {
-    if (direction > 0) {
-      cmd.inlet = gauge_pressure_pa < params_.max_pressure_pa ? opening : 0.0;
-    } else {
-      cmd.vent = lowest ? 1.0 : opening;  // lowest setpoint: empty as fast as the vent allows
-    }
-  };
+  return cmd;
+}
 
-  // Shaped full-flow move.
-  if (move_direction_ == 0 && std::fabs(predicted_error) > params_.move_threshold_m && !lowest) {
-    move_direction_ = predicted_error > 0.0 ? 1 : -1;
-    move_phase_ = 1;
-    move_time_s_ = 0.0;
-    initial_remaining_m_ = std::fabs(predicted_error);
-  }
-  if (move_direction_ != 0) {
-    const double remaining = move_direction_ * predicted_error;
-    const double half_period = halfPeriod();
-    const double rate = fullFlowRestRate(move_direction_, gauge_pressure_pa, volume, invariant);
-    move_time_s_ += dt_s;
-    if (move_phase_ == 1) {  // half-open lead: T/2, or until half the move is done
-      if (move_time_s_ <= half_period + 0.5 * dt_s && remaining > 0.5 * initial_remaining_m_) {
-        apply(move_direction_, 0.5);
-        return cmd;
-      }
-      lead_duration_s_ = move_time_s_ - dt_s;
-      move_phase_ = 2;
-    }
-    if (move_phase_ == 2) {  // full flow until the tail can finish it; a small move pauses instead
-      const bool small = lead_duration_s_ < half_period;
-      const double tail_duration = small ? lead_duration_s_ : half_period;
-      const bool tail_due = small ? move_time_s_ >= half_period : remaining <= 0.5 * rate * tail_duration;
-      if (!tail_due) {
-        apply(move_direction_, small ? 0.0 : 1.0);
-        return cmd;
-      }
-      tail_start_s_ = move_time_s_ - dt_s;
-      move_phase_ = 3;
-    }
-    // Tail: spread the remaining gas over what is left of it (half flow when the prediction is
-    // exact; re-aimed every period so that h_rest lands on the target).
-    const double tail_duration = std::min(lead_duration_s_, half_period);
-    const double time_left = tail_start_s_ + tail_duration - (move_time_s_ - dt_s);
-    if (remaining > 0.0 && time_left > 0.5 * dt_s && rate > 0.0) {
-      apply(move_direction_, std::clamp(remaining / (rate * std::max(time_left, dt_s)), 0.0, 1.0));
-      return cmd;
-    }
-    move_direction_ = 0;  // move done; fine corrections from here
-    move_phase_ = 0;
-  }
-
-  if (lowest) {
-    apply(-1, 1.0);
-    return cmd;
-  }
-  const double swing = height_m - resting_height_m_;  // the swing about the gas's rest now
+ValveOpenings HeightController::fineCorrection(const Period& s) {
+  if (s.lowest) return command(s, -1, 1.0);
+  const double swing = s.height_m - resting_height_m_;  // the swing about the gas's rest now
   // Active damping lags the swing by the valves' dead time too: past an eighth of the plate's
   // period it hardly damps, at a quarter it pumps. The loop's delay exceeds the valves' dead
   // time (a bus cycle's wait, the readings' age), so beyond a sixteenth the cell holds on the
   // gas alone and the swing rings out on the plate's own damping (on the Modbus bed: every
   // cell; the simulated one, without dead time, damps).
-  const bool damp_swing = dead_time_s_ < 0.125 * halfPeriod();
+  const bool damp_swing = in_flight_.deadTime() < 0.125 * halfPeriod();
   const double tolerance = params_.height_tolerance_m;
-  const bool on_target = damp_swing ? std::fabs(error) < tolerance && std::fabs(swing) < tolerance
-                                    : !resting || std::fabs(error) < tolerance;
-  if (std::fabs(predicted_error) < tolerance && on_target) {
+  const bool on_target = damp_swing ? std::fabs(s.error_m) < tolerance && std::fabs(swing) < tolerance
+                                    : !s.resting || std::fabs(s.error_m) < tolerance;
+  if (std::fabs(s.predicted_error_m) < tolerance && on_target) {
     holding_ = true;  // the gas rests the plate on target (where the swing is damped: and it has rung out)
-    return cmd;
+    return ValveOpenings{};
   }
-  const double demand = predicted_error / params_.approach_band_m + (damp_swing ? swing / params_.damping_band_m : 0.0);
-  apply(demand > 0.0 ? 1 : -1, std::clamp(std::fabs(demand), 0.0, 1.0));
-  return cmd;
+  const double demand =
+      s.predicted_error_m / params_.approach_band_m + (damp_swing ? swing / params_.damping_band_m : 0.0);
+  return command(s, demand > 0.0 ? 1 : -1, std::clamp(std::fabs(demand), 0.0, 1.0));
 }
 
 bool HeightController::leavesHold(double predicted_error_m, double error_m, bool resting) const {

@@ -14,8 +14,6 @@ namespace {
 constexpr double kFlowCorrelationS = 1.0;
 // The velocity reported is the height's rate, filtered over this time [s].
 constexpr double kVelocityFilterS = 0.05;
-// Rests of the plate alone tabulated up to the bag's top (the weight bound, the flat test).
-constexpr int kPlateAloneRests = 80;
 // Within this many orifice linear bands of ambient the flows take the readings' mean as it is
 // and their noise bias is taken off; beyond, the square-root law's curvature biases them by
 // less than 0.05 % at the readings' noise, and the readings are smoothed within their noise.
@@ -70,10 +68,7 @@ std::string CellObserverParams::validate() const {
   non_negative("valve_dead_time_s", valve_dead_time_s);
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
-  non_negative("resume_vent_s", resume_vent_s);
-  non_negative("reanchor_below_m", reanchor_below_m);
   non_negative("weight_bound_window_s", weight_bound_window_s);
-  if (resume_vent_s > 0.2) err << "resume_vent_s must be at most 0.2 (a check, not a vent), got " << resume_vent_s << "; ";
   return joinErrors(err);
 }
 
@@ -82,12 +77,16 @@ CellObserver::CellObserver(const CellParams& model, const CellObserverParams& pa
     : params_(params),
       model_(validModel(model, params)),
       gamma_(model.gas.heat_capacity_ratio),
+      delay_(params.valve_dead_time_s),
+      reanchor_(params.reanchor_time_s, params.period_s, 0.0),
+      weight_bound_(params.weight_bound_window_s),
       reading_noise_(params.pressure_noise_pa, kNoisePriorReadings, kNoiseMemoryReadings) {
   for (const auto& e : effects) model_.addEffect(e);
   unstretched_top_m_ = model_.structure().heightLimit(model_.structure().restShape().data());
   // Flat means below half the lightest lifted plate's pressure (at most reanchor_pressure_pa).
-  tabulatePlateAlone();
-  reanchor_pa_ = std::min(params_.reanchor_pressure_pa, 0.5 * lowestLiftedPressure());
+  weight_bound_.tabulate(model_.structure(), model_.params().plate_mass_kg * kGravity, unstretched_top_m_);
+  reanchor_ = ReanchorDetector(params_.reanchor_time_s, params_.period_s,
+                               std::min(params_.reanchor_pressure_pa, 0.5 * weight_bound_.lowestLiftedPressure()));
   reset(0.6);
 }
 
@@ -101,15 +100,12 @@ void CellObserver::reset(double load_n) {
   load_n_ = load_n;
   load_var_n2_ = std::pow(params_.initial_load_sd_n, 2);
   time_ = 0.0;
-  pending_.clear();
-  pending_s_ = 0.0;
+  delay_.reset();
   applied_ = ObserverInputs{};
   last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
-  flat_since_s_ = -1.0;
-  sub_ambient_flat_until_s_ = -1.0;
-  quiet_s_ = quiet_sum_pa_ = 0.0;
-  quiet_count_ = 0;
+  reanchor_.reset();
+  weight_bound_.reset();
   still_s_ = 0.0;
   reading_noise_.interrupt();
   refresh(modelInputs(applied_, last_pressure_pa_));
@@ -135,38 +131,6 @@ CellInputs CellObserver::modelInputs(const ObserverInputs& in, double flow_gauge
   // The valves pass gas at the cell's measured pressure, not at a model's.
   c.flow_gauge_pressure_pa = flow_gauge_pressure_pa;
   return c;
-}
-
-ObserverInputs CellObserver::delayed(const ObserverInputs& in, double dt) {
-  // A delay line in time, not in periods: each command is kept with the time it was held, and
-  // the openings acting over this period are the mean of those held over the same span
-  // valve_dead_time_s earlier. Shifted by a count of periods, a late tick's long span was
-  // charged with the opening of a short one (or the reverse): on a loaded machine, with valves
-  // chattering, that drifted the gas inventory.
-  const double dead = params_.valve_dead_time_s;
-  if (dead <= 0.0) return in;
-  pending_.push_back({in, dt});
-  pending_s_ += dt;
-  // The queue covers [now - pending_s_, now]; the period acting now is [now - dead - dt, now - dead].
-  while (!pending_.empty() && pending_s_ - pending_.front().held_s >= dead + dt) {
-    pending_s_ -= pending_.front().held_s;
-    pending_.pop_front();
-  }
-  ObserverInputs out = in;
-  out.inlet_opening = out.vent_opening = 0.0;  // before the first command: shut
-  const double from = pending_s_ - dead - dt;  // the acting span's start, from the queue's start
-  double start = 0.0;
-  for (const HeldInputs& h : pending_) {
-    const double overlap = std::min(start + h.held_s, from + dt) - std::max(start, from);
-    if (overlap > 0.0) {
-      out.inlet_opening += h.inputs.inlet_opening * overlap / dt;
-      out.vent_opening += h.inputs.vent_opening * overlap / dt;
-      out.vent_back_pressure_pa = h.inputs.vent_back_pressure_pa;
-    }
-    start += h.held_s;
-    if (start >= from + dt) break;
-  }
-  return out;
 }
 
 void CellObserver::refresh(const CellInputs& in) {
@@ -360,12 +324,13 @@ void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s
   load_var_n2_ = std::min(cap, (1.0 - w) * load_var_n2_ + w * from_height + noise);
 }
 
-void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
+ObserverEvents CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   const double p_new = readings.gauge_pressure_pa;
+  ObserverEvents events;
   if (!std::isfinite(p_new)) {
     predict(inputs, dt);
-    return;
+    return events;
   }
   takeInputs(inputs, dt);
   trackReadingNoise(p_new, dt);
@@ -390,7 +355,7 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
     measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
     lifted = invertVolume(p_new, dt);
   } else {
-    boundByPlateWeight(p_new, lifted, dt);
+    events.weight_bounded = boundByPlateWeight(p_new, lifted, dt);
   }
   keepPhysical();
   time_ += dt;
@@ -401,7 +366,8 @@ void CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& re
                         : 0.0;
   if (std::isfinite(readings.height_m)) fuseHeight(readings.height_m);
   updateLoad(p_new, lifted, dt);
-  checkReanchor(readings);
+  events.reanchored = checkReanchor(readings);
+  return events;
 }
 
 void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
@@ -414,7 +380,7 @@ void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
 }
 
 void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
-  applied_ = delayed(inputs, dt);
+  applied_ = delay_.delayed(inputs, dt);
   if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
 }
 
@@ -434,7 +400,7 @@ void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   time_ += dt;
   last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   refresh(in);
-  flat_since_s_ = -1.0;
+  reanchor_.interrupt();
 }
 
 void CellObserver::keepPhysical() {
@@ -442,83 +408,16 @@ void CellObserver::keepPhysical() {
   x_[CellModel::kEnergy] = std::max(x_[CellModel::kEnergy], 1e-6);
 }
 
-void CellObserver::checkReanchor(const ObserverReadings& readings) {
-  // A plate cannot rest lifted below the plate alone's pressure, so a mean below half of it for
-  // reanchor_time_s with the inlet shut is a flat cell, vented or sealed (e.g. a terminal whose
-  // cells were emptied while the link was down). Not while the inlet passes gas (a fill from
-  // flat starts below that pressure: anchored there, the gas already in was lost, up to half a
-  // fill's), nor while venting into a vacuum.
-  const bool to_vacuum = applied_.vent_opening > 0.0 && applied_.vent_back_pressure_pa != 0.0;
-  if (applied_.inlet_opening > 0.0 || to_vacuum || !std::isfinite(readings.gauge_pressure_pa)) {
-    flat_since_s_ = -1.0;
-    return;
-  }
-  // The pressure averaged over a third of the re-anchor time: a lightly loaded plate's vent
-  // holds a few tens of Pa (its weight over the effective area), the reading's noise and ADC
-  // step are as large, so single readings cannot tell it from a flat cell.
-  const double dt = params_.period_s;
-  if (flat_since_s_ < 0.0) {
-    flat_since_s_ = time_;
-    vent_pressure_mean_pa_ = readings.gauge_pressure_pa;
-  }
-  const double tau = std::max(params_.reanchor_time_s / 3.0, dt);
-  vent_pressure_mean_pa_ += (readings.gauge_pressure_pa - vent_pressure_mean_pa_) * std::min(1.0, dt / tau);
-  // Below ambient only while the cell tests for a flat cell (expectFlat): a vented flat cell's
-  // plate may settle a little below it (-104 Pa under 36 N), while a lifted one keeps its
-  // load's pressure. Taken always, light cells on the bed were re-anchored lifted and filled to
-  // the bag's top (held 120 s: 5-11 mm RMS against 3.5-5.2).
-  const bool low = time_ < sub_ambient_flat_until_s_ ? vent_pressure_mean_pa_ < reanchor_pa_
-                                                      : std::fabs(vent_pressure_mean_pa_) < reanchor_pa_;
-  if (time_ - flat_since_s_ + 1e-9 >= params_.reanchor_time_s && low) {
-    anchorFlat(vent_pressure_mean_pa_);
-    flat_since_s_ = time_;
-  }
+bool CellObserver::checkReanchor(const ObserverReadings& readings) {
+  // A plate cannot rest lifted below the plate alone's pressure: a cell with its inlet shut
+  // found that low for reanchor_time_s is flat, and its gas is known again.
+  double mean_pa = 0.0;
+  if (!reanchor_.update(time_, applied_, readings.gauge_pressure_pa, &mean_pa)) return false;
+  anchorFlat(mean_pa);
+  return true;
 }
 
-void CellObserver::tabulatePlateAlone() {
-  // The plate alone (the least load there is) at rest at heights up to the structure's limit.
-  const double plate_weight_n = model_.params().plate_mass_kg * kGravity;
-  const CellStructure& structure = model_.structure();
-  const double top = 0.95 * unstretched_top_m_;
-  plate_alone_h_m_.clear();
-  plate_alone_p_pa_.clear();
-  for (int i = 1; i <= kPlateAloneRests; ++i) {
-    const double h = top * i / kPlateAloneRests;
-    const StructureEquilibrium e = structure.equilibriumAtHeight(h, plate_weight_n);
-    plate_alone_h_m_.push_back(h);
-    plate_alone_p_pa_.push_back(e.converged && e.gauge_pressure_pa > 0.0 ? e.gauge_pressure_pa
-                                                                          : std::numeric_limits<double>::quiet_NaN());
-  }
-}
-
-double CellObserver::lowestLiftedPressure() const {
-  // Below the least of the plate alone's rest pressures the plate cannot be lifted, whatever
-  // the patient does.
-  double lowest = std::numeric_limits<double>::infinity();
-  for (const double p : plate_alone_p_pa_)
-    if (std::isfinite(p)) lowest = std::min(lowest, p);
-  return lowest;
-}
-
-double CellObserver::plateAloneHeight(double gauge_pressure_pa) const {
-  // From the top down, the first rest the pressure can hold: above it every rest needs more
-  // (a rest not found counts as holdable, so it never tightens the bound). Interpolated in the
-  // pressure's logarithm between neighbouring rests (the rest pressure grows about
-  // exponentially towards the top: 76 Pa at 100 mm, 151 at 120, 1350 at 140 for the pillow).
-  const std::size_t n = plate_alone_p_pa_.size();
-  for (std::size_t k = n; k-- > 0;) {
-    const double p = plate_alone_p_pa_[k];
-    if (std::isfinite(p) && p > gauge_pressure_pa) continue;
-    if (k + 1 == n) return std::numeric_limits<double>::infinity();
-    if (!std::isfinite(p) || gauge_pressure_pa <= 0.0) return plate_alone_h_m_[k];
-    const double p_up = plate_alone_p_pa_[k + 1];
-    const double f = std::log(gauge_pressure_pa / p) / std::log(p_up / p);
-    return plate_alone_h_m_[k] + std::clamp(f, 0.0, 1.0) * (plate_alone_h_m_[k + 1] - plate_alone_h_m_[k]);
-  }
-  return plate_alone_h_m_.empty() ? std::numeric_limits<double>::infinity() : plate_alone_h_m_.front();
-}
-
-void CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s) {
+bool CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s) {
   // A patient presses on a plate and never lifts it, so its load is at least its own weight,
   // and the plate alone rests the higher the more pressure holds it: a settled plate's mean
   // pressure p bounds its height by h_W(p). The inventory integrates every valve pulse, and
@@ -526,38 +425,19 @@ void CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, dou
   // plate alone counts its ~30 Pa vent within 1-2 % for the readings' noise); where it has
   // drifted above the bound, the energy is measured at the bound.
   double mean = 0.0, se = 0.0;
-  if (!quietMean(gauge_pressure_pa, lifted, dt_s, &mean, &se)) return;
+  if (!weight_bound_.quietMean(gauge_pressure_pa, lifted, valvesShut(), dt_s, reading_noise_, &mean, &se)) return false;
   // The bound at a pressure kBoundStandardErrors above the mean (the readings' noise must not
   // move a plate that is where the inventory says), and the estimate moved only as far as that.
-  const double bound = plateAloneHeight(mean + kBoundStandardErrors * se);
-  if (!(x_[CellModel::kHeight] > bound)) return;
-  const double sd = 0.5 * (plateAloneHeight(mean + (kBoundStandardErrors + 1.0) * se) -
-                           plateAloneHeight(mean + (kBoundStandardErrors - 1.0) * se));
-  if (!std::isfinite(sd)) return;
+  const double bound = weight_bound_.plateAloneHeight(mean + kBoundStandardErrors * se);
+  if (!(x_[CellModel::kHeight] > bound)) return false;
+  const double sd = 0.5 * (weight_bound_.plateAloneHeight(mean + (kBoundStandardErrors + 1.0) * se) -
+                           weight_bound_.plateAloneHeight(mean + (kBoundStandardErrors - 1.0) * se));
+  if (!std::isfinite(sd)) return false;
   const double velocity = x_[CellModel::kVelocity];
   measureSettledHeight(bound, std::max(sd, 1e-4), mean);
   invertVolume(gauge_pressure_pa, dt_s);
   x_[CellModel::kVelocity] = velocity;  // a settled plate: the correction is no motion
   ++weight_bounds_;
-}
-
-bool CellObserver::quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa) {
-  // With both valves shut the plate first settles for one window, then the readings are
-  // averaged for as long as the valves stay shut; true at the end of each window.
-  const double window = params_.weight_bound_window_s;
-  if (window <= 0.0 || !valvesShut() || !lifted) {
-    quiet_s_ = quiet_sum_pa_ = 0.0;
-    quiet_count_ = 0;
-    return false;
-  }
-  quiet_s_ += dt_s;
-  if (quiet_s_ <= window) return false;
-  quiet_sum_pa_ += gauge_pressure_pa;
-  ++quiet_count_;
-  const double since_settled = quiet_s_ - window;
-  if (std::floor(since_settled / window) == std::floor((since_settled - dt_s) / window)) return false;
-  *mean_pa = quiet_sum_pa_ / static_cast<double>(quiet_count_);
-  *se_pa = reading_noise_.meanSd(static_cast<double>(quiet_count_));
   return true;
 }
 
@@ -571,7 +451,7 @@ void CellObserver::measureSettledHeight(double height_m, double sd_m, double gau
   measureEnergy(to_energy * volume, std::pow(to_energy * volume_slope_m2_ * sd_m, 2));
 }
 
-void CellObserver::expectFlat(double for_s) { sub_ambient_flat_until_s_ = time_ + for_s; }
+void CellObserver::expectFlat(double for_s) { reanchor_.expectFlatUntil(time_ + for_s); }
 
 void CellObserver::anchorFlat(double gauge_pressure_pa) {
   // The flat cell holds air at ambient temperature in its rest volume, at the pressure read

@@ -18,8 +18,6 @@ ParamTable<P> makeFields() {
       NB_FIELD("valve_dead_time_s", "a valve command acts this late [s]", p.valve_dead_time_s),
       NB_FIELD("reanchor_pressure_pa", "|mean gauge pressure| under which a cell with its inlet shut is flat [Pa]", p.reanchor_pressure_pa),
       NB_FIELD("reanchor_time_s", "inlet shut and that flat this long: re-anchor the gas mass [s]", p.reanchor_time_s),
-      NB_FIELD("resume_vent_s", "after a lost link: vent at most this long (until the pressure reads flat), then valves shut for the re-anchor test; 0 = off [s]", p.resume_vent_s),
-      NB_FIELD("reanchor_below_m", "a height target at or below this, sent while the cell is above it, is reached through a flat cell (vented until re-anchored, then filled); 0 = never [m]", p.reanchor_below_m),
       NB_FIELD("weight_bound_window_s", "valves shut this long (settling), then readings averaged as long: the plate alone's rest height at that mean bounds the height; 0 = off [s]", p.weight_bound_window_s),
   };
 }

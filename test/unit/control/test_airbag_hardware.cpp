@@ -287,7 +287,7 @@ TEST(AirbagOnHardware, ABriefLinkLossKeepsALightCellsGas) {
 /// |true height - 15 mm| over the last 5 s, `flat_pa` the emptied cell's pressure.
 double heightAfterALostLink(double load_n, bool emptied, double resume_vent_s, double* worst_m, double* flat_pa) {
   nb::AirbagObserverSetup observer;
-  observer.params.resume_vent_s = resume_vent_s;
+  observer.gas_check.resume_vent_s = resume_vent_s;
   observer.params.valve_dead_time_s = 0.015;  // a terminal's: the controller holds quietly on target
   CuttableCell rig(0.015, load_n, 0.015, observer);
   rig.runTo(1.0);
@@ -428,10 +428,10 @@ struct CycleResult {
 
 /// A light cell without a height sensor at 120 mm whose observer vents 3 % more gas than the
 /// valve passes (a miscalibrated vent area): lowered to `low_m` and held, then raised back to
-/// 120 mm and held, with the observer's reanchor_below_m `band_m`.
+/// 120 mm and held, with the gas check's reanchor_below_m `band_m`.
 CycleResult lowAndBack(double low_m, double band_m) {
   nb::AirbagObserverSetup setup;
-  setup.params.reanchor_below_m = band_m;
+  setup.gas_check.reanchor_below_m = band_m;
   setup.model.vent_area_m2 *= 1.03;
   CuttableCell rig(0.12, 0.6, 0.12, setup);
   CycleResult r;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/physics/basic_effects.h"
@@ -81,6 +83,43 @@ TEST(HeightController, EstimatesTheLoadItCarries) {
   cell.advanceTo(3.0);
   EXPECT_NEAR(cell.loadEstimate(), 20.6, 0.3);
   EXPECT_NEAR(cell.variables().height_m, 0.08, 1e-3);
+}
+
+TEST(HeightController, AMoveRunsItsPhasesInOrderAndEndsOnTarget) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  cell.resetToHeight(0.02, 15.6);
+  cell.requestHeight(0.10, 0.0);
+  std::vector<nb::MovePhase> phases;
+  for (double t = 0.005; t <= 3.0 + 1e-9; t += 0.005) {
+    cell.advanceTo(t);
+    const nb::MovePhase phase = cell.controller().movePhase();
+    if (phases.empty() || phases.back() != phase) phases.push_back(phase);
+  }
+  EXPECT_EQ(phases, (std::vector<nb::MovePhase>{nb::MovePhase::kLead, nb::MovePhase::kFullFlow, nb::MovePhase::kTail,
+                                                nb::MovePhase::kNone}));
+  EXPECT_NEAR(cell.variables().height_m, 0.10, 1e-3);
+}
+
+TEST(HeightController, NewParametersAreTakenOnlyWhenValid) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  nb::HeightController controller(nb::HeightControllerParams{}, nb::CellCharacteristic::shared(cell.params().cell));
+  controller.setTarget(0.08);
+  nb::HeightControllerParams bad;
+  bad.height_tolerance_m = -1.0;
+  bad.approach_band_m = 0.5;
+  const std::string error = controller.setParams(bad);
+  EXPECT_NE(error.find("height_tolerance_m"), std::string::npos) << error;
+  EXPECT_NE(error.find("approach_band_m"), std::string::npos) << error;
+  EXPECT_EQ(controller.params().height_tolerance_m, nb::HeightControllerParams{}.height_tolerance_m);
+  EXPECT_EQ(controller.params().approach_band_m, nb::HeightControllerParams{}.approach_band_m);
+  nb::HeightControllerParams good;
+  good.approach_band_m = 0.006;
+  good.integral_rate_per_s = 1.0;
+  EXPECT_EQ(controller.setParams(good), "");
+  EXPECT_EQ(controller.params().approach_band_m, 0.006);
+  EXPECT_EQ(controller.params().integral_rate_per_s, 1.0);
+  EXPECT_TRUE(controller.hasTarget()) << "the target is kept";
+  EXPECT_EQ(controller.target(), 0.08);
 }
 
 TEST(AirbagCell, BadSetpointsAreRefusedWithoutChange) {

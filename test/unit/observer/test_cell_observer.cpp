@@ -324,12 +324,10 @@ TEST(CellObserver, RefusesBadParametersNamingThem) {
       }
     }
   };
-  // The gas check after a lost link: a short vent, not an emptying.
-  expectRefused("resume_vent_s", &nb::CellObserverParams::resume_vent_s, {-0.01, 0.5, std::nan("")});
   p = nb::CellObserverParams{};
   p.weight_bound_window_s = -0.5;
   EXPECT_THROW(nb::CellObserver(nb::CellParams{}, p), std::invalid_argument);
-  expectRefused("reanchor_below_m", &nb::CellObserverParams::reanchor_below_m, {-0.01, std::nan("")});
+  expectRefused("reanchor_time_s", &nb::CellObserverParams::reanchor_time_s, {-0.1, std::nan("")});
 }
 
 namespace {

@@ -9,32 +9,14 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/control/gas_verifier.h"
 #include "nursing_bed/core/control/height_controller.h"
+#include "nursing_bed/core/control/pressure_mode_controller.h"
+#include "nursing_bed/core/control/safety_layer.h"
 #include "nursing_bed/core/hardware/simulated_cell_hardware.h"
 #include "nursing_bed/core/observer/cell_observer.h"
 
 namespace nursing_bed {
-
-struct AirbagSafetyParams {
-  double relief_pressure_pa = 35000.0;    ///< gauge pressure never exceeded: inlet shut, vent open [Pa]
-  double relief_margin_pa = 500.0;        ///< act this far below it, ahead of the next period's rise [Pa]
-  double command_timeout_s = 0.0;         ///< hold and flag when no command/heartbeat for this long; 0 = off [s]
-  double sensor_pressure_min_pa = -50000.0;  ///< readings outside [min, max] are a sensor fault [Pa]
-  double sensor_pressure_max_pa = 150000.0;
-  double sensor_height_min_m = -0.02;     ///< [m]
-  double sensor_height_max_m = 0.40;      ///< [m]
-  /// Consecutive control periods a reading must stay out of range to be a sensor fault [-]
-  /// (meanwhile the valves hold the gas).
-  int sensor_fault_periods = 10;
-  /// Largest external load a cell accepts [N]; larger, negative or non-finite loads are refused
-  /// (a 100 mm face at the relief pressure carries about 300 N; default 1000 N).
-  double max_load_n = 1000.0;
-  /// Fastest change of a cell's height target outside CPR: the bed manager limits every target
-  /// it sends with it, the airbag node ramps direct set_height calls with it [m/s] (the core
-  /// cell takes targets as given).
-  double max_height_rate_m_s = 0.02;
-  std::string validate() const;
-};
 
 struct AirbagCellParams {
   CellParams cell;
@@ -72,11 +54,16 @@ enum class HeightSource : std::uint8_t { kMeasured = 0, kEstimated = 1 };
 /// parameter set and the effects diagnosed for the bed, else the nominal cell).
 struct AirbagObserverSetup {
   CellObserverParams params;
+  GasVerifierParams gas_check;  ///< the cell's checks of the observer's gas (keys under observer/)
   CellParams model;
   std::vector<CellEffectPtr> effects;
   bool force = false;  ///< run it (and report its height) even when a height sensor is fitted
 };
 
+/// One cell's mode and the wiring of its parts: the height controller, the pressure mode, the
+/// safety layer, the gas check and the observer over the hardware.
+/// Size: the airbag node's and the bed's whole interface to a cell (commands and state
+/// queries, ~45 one-line methods) and the wiring's ~19 members; the logic lives in the parts.
 class AirbagCell {
  public:
   /// The simulated cell (plant and sensors, `effects` hidden in the plant) run in lockstep with
@@ -116,7 +103,16 @@ class AirbagCell {
   /// Keeps the command watchdog alive without changing the setpoint.
   void heartbeat(double now_s);
   /// Changes safety.command_timeout_s (0: off); the watchdog counts from the last command.
-  void setCommandTimeout(double timeout_s) { params_.safety.command_timeout_s = timeout_s; }
+  /// Returns why not (and changes nothing) when it is negative or not a number.
+  std::string setCommandTimeout(double timeout_s);
+  /// Replaces the height controller's gains, bands and limits (e.g. dynamic reconfigure) and
+  /// returns "", or returns why not and changes nothing (invalid, or max_pressure_pa not below
+  /// the relief pressure). The setpoint is kept.
+  std::string setControllerParams(const HeightControllerParams& params);
+  /// Replaces the safety thresholds (relief, sensor range, watchdog, load limit) and returns "",
+  /// or returns why not and changes nothing (invalid, or the relief not above the controller's
+  /// max_pressure_pa).
+  std::string setSafetyParams(const AirbagSafetyParams& params);
 
   void setSupplyPressure(double pressure_pa);
   /// Test hook: the sensors fail (read NaN) while set; read again at once.
@@ -136,18 +132,18 @@ class AirbagCell {
   /// Gas that the inlet's flow meter has counted since reset [kg] (a totaliser: its change over
   /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
   /// integrate without losing the mass of valve switches between samples).
-  double meteredInletMassKg() const { return metered_inlet_mass_kg_; }
+  double meteredInletMassKg() const { return totals_.metered_inlet_mass_kg; }
   /// Integrals of the valve openings over time since reset [s] (their change over an interval
   /// divided by it is the mean opening: a valve that switches every control period is recorded
   /// faithfully at a lower rate).
-  double inletOpeningSeconds() const { return inlet_opening_s_; }
-  double ventOpeningSeconds() const { return vent_opening_s_; }
-  const ValveCommand& valves() const { return valves_; }
+  double inletOpeningSeconds() const { return totals_.inlet_opening_s; }
+  double ventOpeningSeconds() const { return totals_.vent_opening_s; }
+  const ValveOpenings& valves() const { return valves_; }
   AirbagMode mode() const { return mode_; }
   std::uint32_t faults() const { return faults_; }
   double setpoint() const { return controller_.hasTarget() ? controller_.target() : std::numeric_limits<double>::quiet_NaN(); }
   /// Gauge pressure setpoint in pressure mode [Pa] (NaN otherwise).
-  double pressureSetpoint() const { return pressure_setpoint_pa_; }
+  double pressureSetpoint() const { return pressure_.setpoint(); }
   double loadEstimate() const { return controller_.loadEstimate(); }
   /// The simulated load; on real hardware the observer's estimate.
   double load() const;
@@ -163,33 +159,37 @@ class AirbagCell {
   const CellObserver* observer() const { return observer_.get(); }
   /// Reset over hardware without a height sensor and commanded before the observer found the
   /// cell flat: its gas is unknown, and it vents flat before it is controlled.
-  bool findingGas() const { return gas_ == GasKnowledge::kFinding; }
-  /// Lowered into the low band (observer reanchor_below_m): venting flat so that the observer
+  bool findingGas() const { return gas_.findingGas(); }
+  /// Lowered into the low band (gas check reanchor_below_m): venting flat so that the observer
   /// re-anchors its gas, the target kept; its height is still tracked.
-  bool anchoringGas() const { return gas_ == GasKnowledge::kAnchoring; }
+  bool anchoringGas() const { return gas_.anchoringGas(); }
+  /// The checks of the observer's gas (with their parameters).
+  const GasVerifier& gasVerifier() const { return gas_; }
 
  private:
   void controlStep();
+  /// The safety layer's sensor range check and watchdog on this period's readings: false when
+  /// the readings hold the gas (valves shut, the period done).
+  bool checkSensorsAndWatchdog(double now_s, double gauge_pressure_pa, double height_m);
+  /// The valves the mode wants (the controller's `wanted` in height mode).
+  ValveOpenings modeValves(const ValveOpenings& wanted, double gauge_pressure_pa) const;
+  /// The safety layer's relief over the valves about to be written.
+  void applyRelief(double gauge_pressure_pa);
+  /// Adds one period of the valves (and the metered inflow) to the totals.
+  void addTotals(double period_s, double inflow_kg_s);
   /// Simulated lockstep: one period of the plant with the valves just commanded.
   void stepSimulated();
   /// Real hardware: read, observe, control and write once at `now_s`.
   void stepReal(double now_s);
-  /// Turns readings into measurement_ (the observer's height where there is no sensor).
+  /// Turns readings into measurement_ (the observer's height where there is no sensor); the
+  /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
   /// The observer's inputs over a period with the link down.
   ObserverInputs linkDownInputs(const CellReadings& readings) const;
-  ValveCommand pressureValves(double gauge_pressure_pa) const;
-  /// After a lost link: a short vent, then both valves shut while the observer's re-anchor
-  /// test runs (observer resume_vent_s); otherwise `wanted`.
-  ValveCommand checkingGas(double now_s, const ValveCommand& wanted);
-  /// Reset flat over a cell that held gas (a node restarted over an inflated bed), or lowered
-  /// into the low band (planAnchor): a full vent until the observer re-anchors the flat cell;
-  /// otherwise `wanted`.
-  ValveCommand findingGas(const ValveCommand& wanted);
-  /// A new height target: lowered into the low band from above it, the cell is to pass through
-  /// flat (kAnchoring); raised out of it before that, it need not.
-  void planAnchor(double target_m);
+  /// The gas check's valve filters (GasVerifier) over the mode's valves, where an observer
+  /// gives the gas.
+  ValveOpenings gasCheckValves(double now_s, double gauge_pressure_pa, const ValveOpenings& wanted);
   ValveOpenings openings() const { return {valves_.inlet, valves_.vent, ventToVacuum()}; }
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
@@ -210,30 +210,22 @@ class AirbagCell {
   HeightController controller_;
   double time_s_ = 0.0;
   double load_n_ = 0.6;
-  double pressure_setpoint_pa_ = std::numeric_limits<double>::quiet_NaN();
-  double metered_inlet_mass_kg_ = 0.0;
-  double inlet_opening_s_ = 0.0, vent_opening_s_ = 0.0;
+  PressureModeController pressure_;  ///< the pressure setpoint mode's law and setpoint
+  /// Totals since construction (see meteredInletMassKg, inletOpeningSeconds).
+  struct Totals {
+    double metered_inlet_mass_kg = 0.0;
+    double inlet_opening_s = 0.0, vent_opening_s = 0.0;
+  };
+  Totals totals_;
   double supply_pressure_pa_;
   AirbagMode mode_ = AirbagMode::kIdle;
   std::uint32_t faults_ = kFaultNone;
-  ValveCommand valves_;
+  ValveOpenings valves_;
   Measurement measurement_;
-  double last_pressure_pa_ = 0.0;
-  double last_command_s_ = 0.0;
   bool cpr_ = false;
   HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
-  int bad_readings_ = 0;  ///< consecutive control periods with an out-of-range reading
-  bool gas_check_pending_ = false;    ///< the link came back: the gas is to be checked
-  double gas_check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
-  double gas_check_until_s_ = -1.0;   ///< valves kept shut until then for the re-anchor test [s]
-  int gas_check_reanchors_ = 0;       ///< the observer's re-anchors when the check began
-  /// What the observer's gas is worth: known (a simulated plant reset with it, a height given,
-  /// a height sensor, or the cell since found flat), unverified (reset flat over real hardware,
-  /// not yet found flat), being found (commanded meanwhile: venting, height unknown), or being
-  /// re-anchored (lowered into the low band: venting, height tracked).
-  enum class GasKnowledge { kKnown, kUnverified, kFinding, kAnchoring };
-  GasKnowledge gas_ = GasKnowledge::kKnown;
-  int finding_reanchors_ = 0;         ///< the observer's re-anchors at the reset (or the anchoring's start)
+  SafetyLayer safety_;    ///< sensor range, command watchdog, relief
+  GasVerifier gas_;       ///< what the observer's gas is worth, and its checks
 };
 
 }  // namespace nursing_bed

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/control/gas_verifier.h"
 #include "nursing_bed/core/io/param_table.h"
 
 namespace nursing_bed {
@@ -19,5 +20,15 @@ const ParamTable<AirbagCellParams>& airbagParamFields();
 /// too, a relative table path from the package's config/ folder.
 AirbagCellParams airbagParamsFrom(const FlatParams& values, const std::string& source,
                                   const AirbagCellParams& base = AirbagCellParams{});
+
+/// The gas check's keys (resume_vent_s, reanchor_below_m). They are set under "observer/"
+/// with the observer's own keys (observerParamFields), as the re-anchor test they drive is.
+const ParamTable<GasVerifierParams>& gasVerifierParamFields();
+
+/// Applies the values under `prefix` (e.g. "observer/") to the observer's tuning and to the gas
+/// check's (its keys routed to `gas_check`); throws std::runtime_error naming `source` and the
+/// key for an unknown key or a bad value.
+void applyObserverParams(const FlatParams& values, const std::string& source, CellObserverParams* observer,
+                         GasVerifierParams* gas_check, const std::string& prefix);
 
 }  // namespace nursing_bed

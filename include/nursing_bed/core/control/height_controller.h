@@ -3,12 +3,14 @@
 // closed on measured height and pressure.
 #pragma once
 
-#include <deque>
 #include <memory>
 #include <string>
 
+#include "nursing_bed/core/control/commands_in_flight.h"
 #include "nursing_bed/core/control/plate_load_estimator.h"
+#include "nursing_bed/core/control/shaped_move.h"
 #include "nursing_bed/core/physics/cell_characteristic.h"
+#include "nursing_bed/core/physics/valve_openings.h"
 
 namespace nursing_bed {
 
@@ -28,12 +30,6 @@ struct HeightControllerParams {
 
   /// Empty when valid, else every problem found.
   std::string validate() const;
-};
-
-/// Valve openings 0..1 (proportional valves; an on/off valve is PWM'd to the same mean).
-struct ValveCommand {
-  double inlet = 0.0;
-  double vent = 0.0;
 };
 
 /**
@@ -66,6 +62,8 @@ struct ValveCommand {
  * a resting error is integrated into the target the predictor aims at. The load is estimated
  * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
  */
+/// Size: ~26 methods and 16 members are one valve law's state (target, integral, load, hold,
+/// rest prediction); the move and the commands in flight are their own classes.
 class HeightController {
  public:
   HeightController(const HeightControllerParams& params, std::shared_ptr<const CellCharacteristic> characteristic);
@@ -79,7 +77,7 @@ class HeightController {
   double target() const { return target_m_; }
 
   /// One control period: measured gauge pressure [Pa], height [m], their time step [s].
-  ValveCommand update(double dt_s, double gauge_pressure_pa, double height_m);
+  ValveOpenings update(double dt_s, double gauge_pressure_pa, double height_m);
 
   /// The valves act this late after a command (bus, terminal, valve) [s]; default 0. The gas
   /// of the commands still in flight counts in the predicted rest height (a Smith predictor):
@@ -88,7 +86,7 @@ class HeightController {
   void setDeadTime(double dead_time_s);
   /// The valves written for the next `dt_s` (what the cell sent after its modes and safety,
   /// not what update() wanted): kept for the last dead time as the gas in flight.
-  void noteWritten(const ValveCommand& cmd, double dt_s);
+  void noteWritten(const ValveOpenings& cmd, double dt_s);
   /// Pressure of the supply behind the inlet valve, gauge [Pa] (default: the cell's setting).
   void setSupplyPressure(double pressure_pa) { supply_pressure_pa_ = pressure_pa; }
   /// Seeds the load estimate (e.g. from a load cell or the nominal load) [N].
@@ -103,8 +101,41 @@ class HeightController {
   /// True when the target needs more pressure than max_pressure_pa allows for this load.
   bool targetOutOfReach() const;
   const HeightControllerParams& params() const { return params_; }
+  /// Replaces the gains, bands and limits (e.g. from dynamic reconfigure) when `params` is
+  /// valid and returns ""; else returns why not and changes nothing. Target, integral
+  /// correction, load estimate and a move under way are kept.
+  std::string setParams(const HeightControllerParams& params);
+  /// The phase of the shaped move under way (kNone outside moves).
+  MovePhase movePhase() const { return move_.phase(); }
 
  private:
+  /// One period's readings and what follows from them, passed between update()'s parts.
+  struct Period {
+    double dt_s = 0.0, gauge_pressure_pa = 0.0, height_m = 0.0;
+    bool resting = false;             ///< the plate's speed is under settled_speed_m_s
+    double volume_m3 = 0.0;           ///< gas volume, film relaxed to the pressure
+    double invariant = 0.0;           ///< K = p V^gamma of the present gas
+    double error_m = 0.0;             ///< target - measured height
+    double predicted_error_m = 0.0;   ///< predictedError() after the integral's update
+    bool lowest = false;              ///< the target is the lowest setpoint: vent fully
+  };
+  /// The plate's speed, the load estimate, the rest height and the commands in flight's shift
+  /// of it, from the period's readings.
+  void predictRest(Period* s);
+  /// The valve of `direction` (+1 inlet, -1 vent) at `opening`, within max_pressure_pa; the
+  /// lowest setpoint vents fully.
+  ValveOpenings command(const Period& s, int direction, double opening) const;
+  /// Outside moves: the proportional approach with active damping, or the hold on target.
+  ValveOpenings fineCorrection(const Period& s);
+  /// The change of the rest height the commands in flight will still make [m].
+  double inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const;
+  /// Target + integral - where the gas rests the plate once the commands in flight have acted.
+  double predictedError() const { return target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_; }
+  /// Holding: whether an error has left hold_band_m (the measured one only counts at rest).
+  bool leavesHold(double predicted_error_m, double error_m, bool resting) const;
+  /// Rate at which h_rest moves with the valve of `direction` fully open [m/s].
+  double fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3, double invariant) const;
+
   HeightControllerParams params_;
   std::shared_ptr<const CellCharacteristic> characteristic_;
   bool has_target_ = false;
@@ -115,34 +146,16 @@ class HeightController {
   double last_height_m_ = 0.0;
   bool has_last_ = false;
   bool holding_ = false;  ///< on target: valves shut until an error leaves hold_band_m
-  double dead_time_s_ = 0.0;
-  struct IssuedCommand {
-    ValveCommand valves;
-    double held_s;
-  };
-  std::deque<IssuedCommand> in_flight_;  ///< commands of the last dead_time_s_, not yet acting
-  double in_flight_shift_m_ = 0.0;       ///< rest height they still add (this period's)
+  CommandsInFlight in_flight_;       ///< commands of the last dead time, not yet acting
+  double in_flight_shift_m_ = 0.0;   ///< rest height they still add (this period's)
   double stretch_guess_ = 1.0;
-  /// The change of the rest height the commands in flight will still make [m].
-  double inFlightRestShift(double gauge_pressure_pa, double volume_m3, double invariant) const;
-  /// Target + integral - where the gas rests the plate once the commands in flight have acted.
-  double predictedError() const { return target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_; }
-  /// Holding: whether an error has left hold_band_m (the measured one only counts at rest).
-  bool leavesHold(double predicted_error_m, double error_m, bool resting) const;
-  /// Rate at which h_rest moves with the valve of `direction` fully open [m/s].
-  double fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3, double invariant) const;
-
-  // Shaped move (zero-vibration shaper on a full-flow pulse): direction (+1 fill, -1 vent,
-  // 0 none), phase (1 half-open lead, 2 full flow or pause, 3 half-open tail), timers.
-  int move_direction_ = 0;
-  int move_phase_ = 0;
-  double move_time_s_ = 0.0;
-  double lead_duration_s_ = 0.0;
-  double tail_start_s_ = 0.0;
-  double initial_remaining_m_ = 0.0;
+  ShapedMove move_;                  ///< the shaped full-flow move under way, if any
   double supply_pressure_pa_ = 0.0;
-  // Half period cached for (target, load) because it costs a few solves.
-  mutable double half_period_s_ = -1.0, half_period_target_m_ = -1.0, half_period_load_n_ = -1.0;
+  /// Half period cached for (target, load) because it costs a few solves.
+  struct HalfPeriodCache {
+    double half_period_s = -1.0, target_m = -1.0, load_n = -1.0;
+  };
+  mutable HalfPeriodCache half_period_;
 };
 
 /**

@@ -28,6 +28,8 @@ class PlateLoadEstimator {
   /// `learn` false (plate on the bed, the valves in a move) keeps the estimate, not the filters.
   void update(double dt_s, double height_m, double structure_force_n, bool learn);
   double load() const { return load_n_; }
+  /// Changes the filter time constant [s] (positive); the filters keep their state.
+  void setFilterTime(double filter_time_s) { filter_time_s_ = filter_time_s; }
 
  private:
   double filter_time_s_, plate_mass_kg_, plate_damping_n_s_m_;

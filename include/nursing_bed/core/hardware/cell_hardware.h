@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/valve_openings.h"
 
 namespace nursing_bed {
 
@@ -51,14 +52,6 @@ struct CellReadings {
   /// rest, valves shut). A real driver may set it too (a terminal that rebooted, a cell found
   /// emptied). The control side answers with a fault (kFaultModel) and mode SAFE.
   bool device_reset = false;
-};
-
-/// Valve command for one control period. Openings 0..1: a proportional valve takes it as its
-/// opening, an on/off valve as its duty over the period (PWM).
-struct ValveOpenings {
-  double inlet = 0.0;
-  double vent = 0.0;
-  bool vent_to_vacuum = false;  ///< CPR: the vent line is switched to the vacuum source
 };
 
 /// Which readings the hardware has (fixed for its lifetime).

@@ -8,12 +8,15 @@
 #pragma once
 
 #include <Eigen/Dense>
-#include <deque>
 #include <limits>
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/observer/observer_inputs.h"
 #include "nursing_bed/core/observer/reading_noise.h"
+#include "nursing_bed/core/observer/reanchor_detector.h"
+#include "nursing_bed/core/observer/valve_delay_line.h"
+#include "nursing_bed/core/observer/weight_bound.h"
 #include "nursing_bed/core/physics/cell_model.h"
 
 namespace nursing_bed {
@@ -34,14 +37,6 @@ struct CellObserverParams {
   /// at which the plate alone rests lifted (the model's, found at construction).
   double reanchor_pressure_pa = 60.0;
   double reanchor_time_s = 0.5;            ///< inlet shut and that flat (mean pressure) this long: re-anchor [s]
-  /// After a lost link the cell vents at most this long (until its pressure reads flat), then
-  /// keeps both valves shut while the re-anchor test runs (AirbagCell); 0: no check [s].
-  double resume_vent_s = 0.05;
-  /// A height target at or below this, sent while the cell's height is above it, is reached
-  /// through a flat cell: the cell vents until the re-anchor test finds it flat, then fills to
-  /// the target (AirbagCell). The gas the moves before left uncounted is gone before the low
-  /// hold and the next rise; 0: never [m].
-  double reanchor_below_m = 0.035;
   /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
@@ -50,23 +45,11 @@ struct CellObserverParams {
   std::string validate() const;
 };
 
-/// Inputs over one period (what was commanded, not what was measured).
-struct ObserverInputs {
-  double inlet_opening = 0.0;              ///< inlet valve opening 0..1 (mean over the period)
-  double vent_opening = 0.0;               ///< vent valve opening 0..1
-  double vent_back_pressure_pa = 0.0;      ///< gauge pressure at the vent outlet (CPR vacuum < 0)
-  /// Regulator setting, gauge; NaN: the cell parameters' setting.
-  double supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
-  /// The regulator outlet's gauge pressure where the hardware measures it (NaN: not measured;
-  /// the observer's regulator then follows the setting, from the setting at reset).
-  double measured_supply_pa = std::numeric_limits<double>::quiet_NaN();
-};
-
-/// Readings at the end of the period; NaN where the hardware has none (or it failed).
-struct ObserverReadings {
-  double gauge_pressure_pa = std::numeric_limits<double>::quiet_NaN();
-  double height_m = std::numeric_limits<double>::quiet_NaN();
-  double inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
+/// What one step found, for the control side to act on (the counts in CellEstimate are for
+/// diagnostics).
+struct ObserverEvents {
+  bool reanchored = false;      ///< the gas was re-anchored on a flat cell
+  bool weight_bounded = false;  ///< the plate's weight bounded the height from above
 };
 
 /// The estimate with its standard deviations.
@@ -113,6 +96,9 @@ struct CellEstimate {
  *    higher the more pressure holds it, so a settled plate's mean pressure bounds its height
  *    from above (p A_eff(h) >= m_plate g). An inventory drifted past it is measured back to it.
  */
+/// Size: the filter's state, covariance and steps (propagation, isentropic work, volume
+/// inversion, measurements, load) are one computation; the delay line, the flat test and the
+/// weight bound are their own classes.
 class CellObserver {
  public:
   using Vector = CellModel::StateVector;
@@ -130,7 +116,8 @@ class CellObserver {
   /// One period: the gas over the period with `inputs`, then the readings at its end. `dt_s`
   /// > 0: the time since the last step when it differs from period_s (a real-time loop's
   /// jitter).
-  void step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
+  /// Returns what the step found (a re-anchor, a weight bound).
+  ObserverEvents step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
   /// A period without readings (a lost link): the gas integrated, the plate held.
   void predict(const ObserverInputs& inputs, double dt_s = 0.0);
 
@@ -146,9 +133,9 @@ class CellObserver {
   /// The valve openings acting over the last period (the commands after the dead time).
   const ObserverInputs& appliedInputs() const { return applied_; }
   /// Mean pressure under which a cell with its inlet shut counts as flat [Pa].
-  double flatPressure() const { return reanchor_pa_; }
-  /// The cell has vented and keeps its valves shut for `for_s` to test for a flat cell (after a
-  /// lost link): meanwhile a mean pressure below ambient counts as flat too.
+  double flatPressure() const { return reanchor_.flatPressure(); }
+  /// The cell has vented and keeps its valves shut for `for_s` to test for a flat cell (the
+  /// control side's gas check): meanwhile a mean pressure below ambient counts as flat too.
   void expectFlat(double for_s);
 
  private:
@@ -176,21 +163,14 @@ class CellObserver {
   void fuseHeight(double height_m);
   void updateLoad(double gauge_pressure_pa, bool lifted, double dt_s);
   void keepPhysical();
-  void checkReanchor(const ObserverReadings& readings);
+  /// True when the cell was found flat and its gas re-anchored.
+  bool checkReanchor(const ObserverReadings& readings);
   /// The flat cell's gas at `gauge_pressure_pa` (the mean read).
   void anchorFlat(double gauge_pressure_pa);
   void refresh(const CellInputs& in);
-  /// The plate alone's rest pressure over the structure's heights (plate_alone_h_m_/_p_pa_).
-  void tabulatePlateAlone();
-  double lowestLiftedPressure() const;
-  /// The highest height at which the plate alone rests at no more than `gauge_pressure_pa`:
-  /// a settled plate at that mean pressure is not above it (+inf beyond the table's top).
-  double plateAloneHeight(double gauge_pressure_pa) const;
-  /// The weight bound: the readings averaged over quiet windows (both valves shut, settled).
-  void boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
-  /// Accumulates the quiet readings; true (with their mean and standard error) at the end of
-  /// each weight_bound_window_s after the first.
-  bool quietMean(double gauge_pressure_pa, bool lifted, double dt_s, double* mean_pa, double* se_pa);
+  /// The weight bound: the readings averaged over quiet windows (both valves shut, settled);
+  /// true when it moved the estimate.
+  bool boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
   /// Scalar measurement of U: the plate at rest at `height_m` (sd `sd_m`) under the pressure.
   void measureSettledHeight(double height_m, double sd_m, double gauge_pressure_pa);
   /// Feeds the readings taken while the gas is still (both valves shut a settling time) to
@@ -201,8 +181,6 @@ class CellObserver {
   bool valvesShut() const { return applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0; }
   /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
   void takeInputs(const ObserverInputs& inputs, double dt);
-  /// The inputs acting over the next `dt`: the valve openings held valve_dead_time_s earlier.
-  ObserverInputs delayed(const ObserverInputs& in, double dt);
 
   CellObserverParams params_;
   CellModel model_;          ///< the cell's physics (flows, effects, structure); resets
@@ -214,25 +192,14 @@ class CellObserver {
   double height_sd_m_ = 0.0;
   double volume_slope_m2_ = 0.01;  ///< dV/dh with the film relaxed, at the estimate
   CellVariables vars_;       ///< variables at the current estimate
-  struct HeldInputs {
-    ObserverInputs inputs;
-    double held_s;
-  };
-  std::deque<HeldInputs> pending_;  ///< commands with the time they were held, not yet acting (dead time)
-  double pending_s_ = 0.0;          ///< time the queue covers [s]
+  ValveDelayLine delay_;     ///< the commands until they act (valve_dead_time_s)
   ObserverInputs applied_;   ///< the inputs acting over the last period
   double last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< the last reading
   double flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< see flowPressure
-  double flat_since_s_ = -1.0;
-  double vent_pressure_mean_pa_ = 0.0;  ///< the measured pressure averaged while venting
-  double reanchor_pa_ = 0.0;            ///< flat below this mean pressure [Pa]
-  double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlat
+  ReanchorDetector reanchor_;  ///< the flat-cell test
   int reanchors_ = 0;
   double unstretched_top_m_ = 0.0;  ///< the structure's height limit with the film at rest
-  std::vector<double> plate_alone_h_m_, plate_alone_p_pa_;  ///< rests of the plate alone (NaN: none found)
-  double quiet_s_ = 0.0;        ///< both valves shut this long [s]
-  double quiet_sum_pa_ = 0.0;   ///< readings summed over the current window
-  long quiet_count_ = 0;
+  WeightBound weight_bound_;    ///< the plate alone's rests and the quiet windows
   int weight_bounds_ = 0;
   ReadingNoise reading_noise_;  ///< kept over resets: the sensor's, not the gas's
   double still_s_ = 0.0;        ///< both valves shut this long, for the noise [s]

@@ -1,0 +1,85 @@
+// What the control side knows of a cell's gas where the height comes from the observer
+// (ROS-free): whether the observer's gas inventory can be trusted, and the valve filters that
+// make it trustworthy again (vent until the observer finds the cell flat; after a lost link, a
+// short vent and a re-anchor test). AirbagCell applies them after its mode's valves.
+#pragma once
+
+#include <string>
+
+#include "nursing_bed/core/observer/cell_observer.h"
+#include "nursing_bed/core/physics/valve_openings.h"
+
+namespace nursing_bed {
+
+/// The gas check's knobs. Their parameter keys stay under observer/ (config/observer.yaml),
+/// where users set them with the observer's re-anchor test they drive.
+struct GasVerifierParams {
+  /// After a lost link the cell vents at most this long (until its pressure reads flat), then
+  /// keeps both valves shut while the observer's re-anchor test runs; 0: no check [s].
+  double resume_vent_s = 0.05;
+  /// A height target at or below this, sent while the cell's height is above it, is reached
+  /// through a flat cell: the cell vents until the re-anchor test finds it flat, then fills to
+  /// the target. The gas the moves before left uncounted is gone before the low hold and the
+  /// next rise; 0: never [m].
+  double reanchor_below_m = 0.035;
+
+  /// Empty when valid, else every problem found, separated by "; ".
+  std::string validate() const;
+};
+
+/// What the observer's gas is worth: known (a simulated plant reset with it, a height given, a
+/// height sensor, or the cell since found flat), unverified (reset flat over real hardware, not
+/// yet found flat), being found (commanded meanwhile: venting, height unknown), or being
+/// re-anchored (lowered into the low band: venting, height tracked).
+enum class GasKnowledge : std::uint8_t { kKnown, kUnverified, kFinding, kAnchoring };
+
+class GasVerifier {
+ public:
+  /// Throws std::invalid_argument naming what is wrong in `params`.
+  explicit GasVerifier(const GasVerifierParams& params);
+  const GasVerifierParams& params() const { return params_; }
+
+  /// A reset: the gas is known, or (`verified` false: reset flat over real hardware without a
+  /// height sensor, which keeps its gas through a node restart) to be found flat before it is
+  /// trusted. Any check under way is dropped.
+  void reset(bool verified);
+  /// Takes the observer's findings of one step (a re-anchor ends a search for the flat cell).
+  void note(const ObserverEvents& events);
+  /// The link is back: the gas is checked before the controller acts again (resume_vent_s).
+  void linkRestored() { check_pending_ = params_.resume_vent_s > 0.0; }
+  /// A new height target `target_m` while the (tracked) height is `height_m`: lowered into the
+  /// low band from above it, the cell is to pass through flat; raised out of it before that, it
+  /// need not.
+  void heightRequested(double target_m, double height_m);
+  /// A pressure setpoint is held from where the cell is: no re-anchoring on the way.
+  void pressureRequested();
+
+  GasKnowledge knowledge() const { return gas_; }
+  /// Commanded before the observer found the cell flat after a reset: its gas (and height) is
+  /// unknown, and it vents flat before it is controlled.
+  bool findingGas() const { return gas_ == GasKnowledge::kFinding; }
+  /// Lowered into the low band: venting flat so that the observer re-anchors its gas, the target
+  /// kept; its height is still tracked.
+  bool anchoringGas() const { return gas_ == GasKnowledge::kAnchoring; }
+
+  /// Valve filter after a lost link: a short vent, then both valves shut while the observer's
+  /// re-anchor test runs; otherwise `wanted`. `gauge_pressure_pa` is the last reading.
+  ValveOpenings linkCheckValves(double now_s, double period_s, double gauge_pressure_pa, CellObserver* observer,
+                                const ValveOpenings& wanted);
+  /// Valve filter while the gas is not known: a full vent until the observer re-anchors the
+  /// flat cell; otherwise `wanted`. `*found_after_vent` is set when the cell was just found
+  /// flat after venting for it (the controller's integral ran on the vent: restart it).
+  ValveOpenings findingValves(double period_s, CellObserver* observer, const ValveOpenings& wanted,
+                              bool* found_after_vent);
+
+ private:
+  GasVerifierParams params_;
+  GasKnowledge gas_ = GasKnowledge::kKnown;
+  bool found_flat_ = false;         ///< re-anchored since the search (or the anchoring) began
+  bool check_pending_ = false;      ///< the link came back: the gas is to be checked
+  double check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
+  double check_until_s_ = -1.0;     ///< valves kept shut until then for the re-anchor test [s]
+  bool check_reanchored_ = false;   ///< re-anchored since the check's test began
+};
+
+}  // namespace nursing_bed

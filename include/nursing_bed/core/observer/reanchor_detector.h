@@ -1,0 +1,40 @@
+// The observer's flat-cell test (ROS-free): a cell with its inlet shut whose mean pressure stays
+// that low for reanchor_time_s is flat, and its gas can be re-anchored.
+#pragma once
+
+#include "nursing_bed/core/observer/observer_inputs.h"
+
+namespace nursing_bed {
+
+/**
+ * A plate cannot rest lifted below the plate alone's pressure, so a mean below half of it for
+ * reanchor_time_s with the inlet shut is a flat cell, vented or sealed. Not while the inlet
+ * passes gas (a fill from flat starts below that pressure), nor while venting into a vacuum.
+ * The pressure is averaged over a third of the re-anchor time: a lightly loaded plate's vent
+ * holds a few tens of Pa, as large as the reading's noise and ADC step.
+ */
+class ReanchorDetector {
+ public:
+  /// `flat_pressure_pa`: |mean gauge pressure| under which the cell is flat; `period_s`: the
+  /// observer's step.
+  ReanchorDetector(double reanchor_time_s, double period_s, double flat_pressure_pa);
+  double flatPressure() const { return flat_pressure_pa_; }
+  /// Forgets the test under way and any expectFlat.
+  void reset();
+  /// A period without a reading: the test starts again.
+  void interrupt() { flat_since_s_ = -1.0; }
+  /// Until `until_s` a mean below ambient counts as flat too (the cell has vented and keeps
+  /// its valves shut to be tested).
+  void expectFlatUntil(double until_s) { sub_ambient_flat_until_s_ = until_s; }
+  /// One reading at `now_s` under the inputs acting: true when the cell is found flat, with the
+  /// mean pressure to anchor it at.
+  bool update(double now_s, const ObserverInputs& applied, double gauge_pressure_pa, double* mean_pa);
+
+ private:
+  double reanchor_time_s_, period_s_, flat_pressure_pa_;
+  double flat_since_s_ = -1.0;              ///< the test's start (-1: none under way)
+  double mean_pa_ = 0.0;                    ///< the measured pressure averaged while it runs
+  double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlatUntil
+};
+
+}  // namespace nursing_bed

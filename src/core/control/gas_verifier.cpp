@@ -1,0 +1,120 @@
+#include "nursing_bed/core/control/gas_verifier.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace nursing_bed {
+
+std::string GasVerifierParams::validate() const {
+  std::ostringstream err;
+  if (!(resume_vent_s >= 0.0 && resume_vent_s <= 0.2))
+    err << "resume_vent_s must lie in [0, 0.2] s (a check, not a vent), got " << resume_vent_s << "; ";
+  if (!(reanchor_below_m >= 0.0 && std::isfinite(reanchor_below_m)))
+    err << "reanchor_below_m must be >= 0, got " << reanchor_below_m << "; ";
+  std::string s = err.str();
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+namespace {
+const GasVerifierParams& validated(const GasVerifierParams& p) {
+  const std::string error = p.validate();
+  if (!error.empty()) throw std::invalid_argument("gas check parameters: " + error);
+  return p;
+}
+}  // namespace
+
+GasVerifier::GasVerifier(const GasVerifierParams& params) : params_(validated(params)) {}
+
+void GasVerifier::reset(bool verified) {
+  gas_ = verified ? GasKnowledge::kKnown : GasKnowledge::kUnverified;
+  found_flat_ = false;
+  check_pending_ = false;
+  check_vent_left_s_ = 0.0;
+  check_until_s_ = -1.0;
+  check_reanchored_ = false;
+}
+
+void GasVerifier::note(const ObserverEvents& events) {
+  if (!events.reanchored) return;
+  found_flat_ = true;
+  check_reanchored_ = true;
+}
+
+void GasVerifier::heightRequested(double target_m, double height_m) {
+  // Near the bag's top 1 % of gas moves a light plate 8-10 mm, and pressure alone cannot tell
+  // a plate higher than counted from a heavier load on it: each move's count error stays in the
+  // inventory until the cell is found flat. A cell lowered into the low band has little height
+  // to lose there, so it passes through flat on the way.
+  const double band = params_.reanchor_below_m;
+  const bool low = target_m <= band;
+  if (gas_ == GasKnowledge::kAnchoring && !low) {
+    gas_ = GasKnowledge::kKnown;  // raised again before it was found flat
+  } else if (gas_ == GasKnowledge::kKnown && low && band > 0.0 && height_m > band) {
+    gas_ = GasKnowledge::kAnchoring;
+    found_flat_ = false;
+  }
+}
+
+void GasVerifier::pressureRequested() {
+  if (gas_ == GasKnowledge::kAnchoring) gas_ = GasKnowledge::kKnown;
+}
+
+ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double gauge_pressure_pa,
+                                           CellObserver* observer, const ValveOpenings& wanted) {
+  // Over a lost link the gas is unverified: the bed may have been emptied meanwhile (a restarted
+  // terminal, a CPR dump). Pressure cannot tell: a sealed flat cell under a load floats its
+  // plate on its residual gas at the pressure a cell lifted under a fraction of the load reads,
+  // and with the controller holding quietly on target nothing tells them apart. Venting does:
+  // the floating flat cell grounds and reads ambient within a few tens of ms, and the observer's
+  // re-anchor test takes it with the valves shut; a lifted cell keeps its load's pressure and
+  // loses 1-3 mm, which the controller restores after the check.
+  const CellObserverParams& op = observer->params();
+  if (check_pending_) {
+    check_pending_ = false;
+    check_vent_left_s_ = params_.resume_vent_s;
+    check_reanchored_ = false;
+  }
+  if (check_vent_left_s_ > 0.0) {
+    const bool grounded = gauge_pressure_pa < observer->flatPressure();
+    const double opening = grounded ? 0.0 : std::min(1.0, check_vent_left_s_ / period_s);
+    check_vent_left_s_ = grounded ? 0.0 : std::max(0.0, check_vent_left_s_ - period_s);
+    // The test's mean pressure starts above the flat cell's: twice its time, after the dead time.
+    if (check_vent_left_s_ <= 0.0) {
+      check_until_s_ = now_s + period_s + op.valve_dead_time_s + 2.0 * op.reanchor_time_s;
+      observer->expectFlat(check_until_s_ - now_s);
+    }
+    return ValveOpenings{0.0, opening};
+  }
+  if (check_until_s_ < 0.0) return wanted;
+  // Found flat (re-anchored), the controller takes over at once; else after the test's time.
+  if (now_s < check_until_s_ && !check_reanchored_) return ValveOpenings{};
+  check_until_s_ = -1.0;
+  return wanted;
+}
+
+ValveOpenings GasVerifier::findingValves(double period_s, CellObserver* observer, const ValveOpenings& wanted,
+                                         bool* found_after_vent) {
+  // Started flat over a cell that holds gas, the observer would count every fill from nothing
+  // and fill the cell to the bag's top. Its pressure alone cannot give its gas (nor its height
+  // or load); a flat cell's can. So it vents, the one safe direction, until the observer's
+  // re-anchor test finds it flat (below ambient counts: a heavy plate's vented cell settles
+  // there), and is then controlled to its kept setpoint. A cell anchoring does the same with
+  // its height tracked meanwhile.
+  *found_after_vent = false;
+  if (gas_ == GasKnowledge::kKnown) return wanted;
+  if (found_flat_) {
+    const bool vented = gas_ != GasKnowledge::kUnverified;
+    gas_ = GasKnowledge::kKnown;
+    if (!vented) return wanted;  // found flat before any command (a bed started flat)
+    *found_after_vent = true;
+    return ValveOpenings{};
+  }
+  if (gas_ == GasKnowledge::kUnverified) gas_ = GasKnowledge::kFinding;
+  observer->expectFlat(2.0 * period_s);
+  return ValveOpenings{0.0, 1.0};
+}
+
+}  // namespace nursing_bed

@@ -1,0 +1,143 @@
+// The cell's checks of the observer's gas (GasVerifier), driven by hand: its states, its valve
+// filters and the observer events that end them.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "nursing_bed/core/control/gas_verifier.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+constexpr double kPeriod = 0.01;
+
+nb::ObserverEvents reanchored() {
+  nb::ObserverEvents e;
+  e.reanchored = true;
+  return e;
+}
+
+const nb::ValveOpenings kWanted{0.7, 0.0, false};
+
+}  // namespace
+
+TEST(GasVerifierParams, RefusesBadValuesNamingThem) {
+  auto expectRefused = [](const char* key, double nb::GasVerifierParams::*field, std::initializer_list<double> values) {
+    for (const double v : values) {
+      nb::GasVerifierParams p;
+      p.*field = v;
+      EXPECT_NE(p.validate().find(key), std::string::npos) << key << " " << v;
+      EXPECT_THROW(nb::GasVerifier{p}, std::invalid_argument) << key << " " << v;
+    }
+  };
+  // The gas check after a lost link: a short vent, not an emptying.
+  expectRefused("resume_vent_s", &nb::GasVerifierParams::resume_vent_s, {-0.01, 0.5, std::nan("")});
+  expectRefused("reanchor_below_m", &nb::GasVerifierParams::reanchor_below_m, {-0.01, std::nan("")});
+  EXPECT_EQ(nb::GasVerifierParams{}.validate(), "");
+}
+
+TEST(GasVerifier, AnUnverifiedGasIsVentedUntilTheObserverFindsTheCellFlat) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.reset(false);
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kUnverified);
+  bool found = true;
+  for (int i = 0; i < 3; ++i) {
+    const nb::ValveOpenings v = gas.findingValves(kPeriod, &observer, kWanted, &found);
+    EXPECT_EQ(v.inlet, 0.0);
+    EXPECT_EQ(v.vent, 1.0);
+    EXPECT_FALSE(found);
+    EXPECT_TRUE(gas.findingGas());
+  }
+  gas.note(reanchored());
+  const nb::ValveOpenings v = gas.findingValves(kPeriod, &observer, kWanted, &found);
+  EXPECT_TRUE(found) << "found after venting: the controller restarts its integral";
+  EXPECT_EQ(v.inlet, 0.0);
+  EXPECT_EQ(v.vent, 0.0);
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).inlet, kWanted.inlet);
+}
+
+TEST(GasVerifier, ACellFoundFlatBeforeAnyCommandIsControlledAtOnce) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.reset(false);
+  gas.note(nb::ObserverEvents{});  // no event: still unverified
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kUnverified);
+  gas.note(reanchored());
+  bool found = true;
+  const nb::ValveOpenings v = gas.findingValves(kPeriod, &observer, kWanted, &found);
+  EXPECT_FALSE(found);
+  EXPECT_EQ(v.inlet, kWanted.inlet);
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
+}
+
+TEST(GasVerifier, OnlyACellLoweredIntoTheLowBandFromAboveItAnchors) {
+  nb::GasVerifierParams p;
+  p.reanchor_below_m = 0.035;
+  nb::GasVerifier gas(p);
+  gas.heightRequested(0.03, 0.02);  // already in the band
+  EXPECT_FALSE(gas.anchoringGas());
+  gas.heightRequested(0.05, 0.10);  // above the band
+  EXPECT_FALSE(gas.anchoringGas());
+  gas.note(reanchored());           // an earlier re-anchor does not end the next anchoring
+  gas.heightRequested(0.03, 0.10);
+  EXPECT_TRUE(gas.anchoringGas());
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  bool found = true;
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).vent, 1.0);
+  gas.heightRequested(0.08, 0.05);  // raised out of the band before it was found flat
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
+  gas.heightRequested(0.03, 0.10);
+  gas.pressureRequested();          // a pressure is held from where the cell is
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
+  p.reanchor_below_m = 0.0;         // never
+  nb::GasVerifier never(p);
+  never.heightRequested(0.0, 0.10);
+  EXPECT_FALSE(never.anchoringGas());
+}
+
+TEST(GasVerifier, AfterALostLinkItVentsBrieflyThenHoldsForTheReanchorTest) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifierParams p;
+  p.resume_vent_s = 0.025;
+  nb::GasVerifier gas(p);
+  EXPECT_EQ(gas.linkCheckValves(0.0, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet) << "no check pending";
+  gas.linkRestored();
+  const double openings[] = {1.0, 1.0, 0.5};  // 25 ms of full vent at 10 ms periods
+  double t = 0.0;
+  for (const double opening : openings) {
+    const nb::ValveOpenings v = gas.linkCheckValves(t, kPeriod, 500.0, &observer, kWanted);
+    EXPECT_EQ(v.inlet, 0.0);
+    EXPECT_NEAR(v.vent, opening, 1e-12);
+    t += kPeriod;
+  }
+  // Both valves shut for the test: from the vent's last period, one period, the dead time and
+  // twice the re-anchor time.
+  const double until = 2 * kPeriod + kPeriod + observer.params().valve_dead_time_s + 2.0 * observer.params().reanchor_time_s;
+  for (; t < until - 1e-9; t += kPeriod) {
+    const nb::ValveOpenings v = gas.linkCheckValves(t, kPeriod, 500.0, &observer, kWanted);
+    EXPECT_EQ(v.inlet + v.vent, 0.0) << "at " << t;
+  }
+  EXPECT_EQ(gas.linkCheckValves(until + 1e-9, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet);
+}
+
+TEST(GasVerifier, ALinkCheckEndsAtTheReanchorAndAtAGroundedReading) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.linkRestored();
+  // A reading already below the flat pressure: no vent at all, straight to the test.
+  const nb::ValveOpenings first = gas.linkCheckValves(0.0, kPeriod, 0.0, &observer, kWanted);
+  EXPECT_EQ(first.vent, 0.0);
+  EXPECT_EQ(gas.linkCheckValves(kPeriod, kPeriod, 0.0, &observer, kWanted).inlet, 0.0);
+  gas.note(reanchored());
+  EXPECT_EQ(gas.linkCheckValves(2 * kPeriod, kPeriod, 0.0, &observer, kWanted).inlet, kWanted.inlet);
+  nb::GasVerifierParams off;
+  off.resume_vent_s = 0.0;
+  nb::GasVerifier none(off);
+  none.linkRestored();
+  EXPECT_EQ(none.linkCheckValves(0.0, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet);
+}
