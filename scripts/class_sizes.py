@@ -29,7 +29,7 @@ import sys
 
 KEYWORD_SKIP = {"using", "typedef", "friend", "static_assert", "enum"}
 EXEMPT_NAME = re.compile(r"(Params|Options|Config)$")
-SIZE_REASON = re.compile(r"^\s*//+\s*size:\s*\S")
+SIZE_REASON = re.compile(r"^\s*//+\s*size:\s*\S", re.IGNORECASE)
 TOKEN = re.compile(r"::|->|[A-Za-z_][A-Za-z0-9_]*|[0-9][0-9A-Za-z_.']*|\S")
 
 

@@ -22,6 +22,8 @@ struct _modbus_mapping_t;
 namespace nursing_bed {
 
 /// One terminal's Modbus TCP server (several clients at once) over a register image.
+/// Size: 17 members are one server's socket, clients, register image, coil timing and thread;
+/// splitting them would share the one lock the replies are made under across classes.
 class RigTerminalServer {
  public:
   /// Throws std::runtime_error when the host is not a loopback address or the port is taken.
