@@ -393,17 +393,11 @@ class LogImporter {
       run.t_s = slice(table_.t_s);
       run.h_m.assign(run.t_s.size(), kNaN);
       run.mdot_in_kg_s.assign(run.t_s.size(), kNaN);
-      std::map<std::string, std::vector<double>> extra;
-      for (const auto& [column, values] : columns) {
-        std::vector<double>* target = runColumn(&run, column);
-        if (target) *target = slice(values);
-        else extra[column] = slice(values);
-      }
+      for (const auto& [column, values] : columns) *runColumn(&run, column) = slice(values);
       if (!m_.roles.pattern.empty()) run.role = m_.roles.pattern[r % m_.roles.pattern.size()];
       const auto role = m_.roles.by_run.find(run.name);
       if (role != m_.roles.by_run.end()) run.role = role->second;
       out_.runs.push_back(std::move(run));
-      out_.extra_columns.push_back(std::move(extra));
     }
   }
 
@@ -412,9 +406,9 @@ class LogImporter {
         {"p_gauge_pa", &run->p_gauge_pa},   {"mdot_in_kg_s", &run->mdot_in_kg_s},
         {"h_m", &run->h_m},                 {"load_n", &run->load_n_series},
         {"valve_cmd", &run->valve_cmd},     {"p_supply_gauge_pa", &run->p_supply_gauge_pa},
-        {"t_gas_k", &run->t_gas_k}};
-    const auto it = known.find(column);
-    return it == known.end() ? nullptr : it->second;
+        {"t_gas_k", &run->t_gas_k},         {"mdot_uncorrected_kg_s", &run->mdot_uncorrected_kg_s},
+        {"p_setpoint_gauge_pa", &run->p_setpoint_gauge_pa}};
+    return known.at(column);  // the mapping reader admits only importRunColumns()
   }
 
   const ImportMapping& m_;

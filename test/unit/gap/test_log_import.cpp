@@ -157,8 +157,8 @@ TEST(LogImport, ConvertsScaleOffsetSignAndVolumeToMassFlow) {
   // -(2 * 6 + 1) L/min at 1.2 kg/m^3
   EXPECT_NEAR(log.runs[0].mdot_in_kg_s[10], -13.0e-3 / 60.0 * 1.2, 1e-15);
   EXPECT_TRUE(std::isnan(log.runs[0].h_m[0]));
-  ASSERT_TRUE(log.extra_columns[0].count("p_setpoint_gauge_pa"));
-  EXPECT_NEAR(log.extra_columns[0].at("p_setpoint_gauge_pa").front(), 5.0 * kCmH2O, 1e-9);
+  ASSERT_EQ(log.runs[0].p_setpoint_gauge_pa.size(), log.runs[0].size());
+  EXPECT_NEAR(log.runs[0].p_setpoint_gauge_pa.front(), 5.0 * kCmH2O, 1e-9);
   // A meter that assumed another density: Q sqrt(rho_meter rho).
   map = replaced(kMapping, "sign: -1}", "sign: -1, meter_density_kg_m3: 1.225}");
   const nb::ImportedLog metered = nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "b.csv", syntheticLog(false)));
@@ -234,6 +234,7 @@ TEST(LogImport, WritesADatasetTheDiagnosisReads) {
   EXPECT_EQ(runs[1].role, "withheld");
   EXPECT_EQ(runs[2].role, "fit");
   EXPECT_EQ(runs[1].p_gauge_pa, logs[0].runs[1].p_gauge_pa);
+  EXPECT_EQ(runs[1].p_setpoint_gauge_pa, logs[0].runs[1].p_setpoint_gauge_pa);  // the optional column
   EXPECT_EQ(runs[1].meta.at("import_source"), "a.csv");
   EXPECT_EQ(runs[1].meta.at("import_cycles"), "2-2 of 3");
   expectError([&] {
@@ -300,10 +301,9 @@ TEST(RespiraWorksImport, ResolvesUnitsCyclesAndRolesOfEveryRecording) {
       EXPECT_NE(run.airbag.find("lung_quicklung_c"), std::string::npos);
       for (std::size_t i = 0; i + 1 < run.size(); ++i)
         if (run.t_s[i] >= run.t_s.back() - 0.3) before_breath.push_back(run.p_gauge_pa[i]);
-      const auto& extra = log.extra_columns[r];
-      ASSERT_TRUE(extra.count("p_setpoint_gauge_pa"));
-      EXPECT_NEAR(*std::min_element(extra.at("p_setpoint_gauge_pa").begin(), extra.at("p_setpoint_gauge_pa").end()),
-                  rec.peep_cmh2o * kCmH2O, 1e-6);
+      const auto& sp = run.p_setpoint_gauge_pa;
+      ASSERT_EQ(sp.size(), run.size());
+      EXPECT_NEAR(*std::min_element(sp.begin(), sp.end()), rec.peep_cmh2o * kCmH2O, 1e-6);
     }
     // PEEP as measured within 12 % of the setting (the obstruction trace undershoots it most).
     EXPECT_NEAR(medianOf(before_breath) / kCmH2O, rec.peep_cmh2o, 0.12 * rec.peep_cmh2o);
@@ -316,7 +316,7 @@ TEST(RespiraWorksImport, TidalVolumeOverPressureSwingIsRoughlyTheCompliance) {
     const nb::ImportMapping m = nb::loadImportMapping(mappingPath(rec.mapping));
     const nb::ImportedLog log = nb::importLog(m, recordingPath(rec.file));
     const nb::RunData& run = log.runs.front();  // its first breath is a normal one in every file
-    const auto& sp = log.extra_columns.front().at("p_setpoint_gauge_pa");
+    const auto& sp = run.p_setpoint_gauge_pa;
     const double swing = *std::max_element(sp.begin(), sp.end()) - *std::min_element(sp.begin(), sp.end());
     double volume = 0.0, tidal = 0.0;
     for (std::size_t i = 1; i < run.size() && run.t_s[i] < run.t_s[0] + 2.0; ++i) {
@@ -336,7 +336,7 @@ TEST(RespiraWorksImport, ObstructionTraceKeepsBothFlows) {
   const nb::RunData& run = log.runs[0];
   EXPECT_NEAR(run.t_s.front(), 2.75, 0.02);
   EXPECT_NEAR(run.t_s.back(), 23.82, 0.02);
-  const auto& raw = log.extra_columns[0].at("mdot_uncorrected_kg_s");
+  const auto& raw = run.mdot_uncorrected_kg_s;
   ASSERT_EQ(raw.size(), run.size());
   // The correction is constant within a breath: the raw flow minus the corrected one is a
   // meter offset of a few to a few tens of mL/s.
@@ -350,4 +350,12 @@ TEST(RespiraWorksImport, ObstructionTraceKeepsBothFlows) {
   EXPECT_NEAR(run.p_gauge_pa[0], 4.834 * kCmH2O, 1e-9);
   EXPECT_NEAR(run.mdot_in_kg_s[0] * to_ml_s, -6.232, 1e-9);
   EXPECT_NEAR(raw[0] * to_ml_s, 19.846, 1e-9);
+  // Written and read back as the run format's optional column.
+  const std::string out = tmpDir("obstruction") + "/out";
+  nb::importLogsToDataset(m, {recordingPath("2020-06-18-obstruction.dat")}, out);
+  const std::vector<nb::RunData> back = nb::readDataset(out);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].name, "ob_2020-06-18-obstruction_01.csv");
+  EXPECT_EQ(back[0].mdot_uncorrected_kg_s, raw);
+  EXPECT_EQ(back[0].role, "");
 }

@@ -117,8 +117,6 @@ struct ImportedLog {
   std::vector<RunData> runs;        ///< with names, roles and metadata set
   std::vector<std::string> notes;   ///< one line per decision ("pressure: unit kPa (...)")
   std::size_t cycles = 0;           ///< whole cycles found (0: not cut)
-  /// Columns the run format does not hold yet, per run (same order as runs): name -> values.
-  std::vector<std::map<std::string, std::vector<double>>> extra_columns;
 };
 
 /**
