@@ -1,24 +1,47 @@
 # The ROS-free core is split by domain, one library each. A domain may include only itself and
-# the domains below it; no core file may include a ROS header. nursing_bed_check_core_layering()
+# the domains its NURSING_BED_CORE_ALLOWED_<domain> lists (all below it); no core file may
+# include a ROS header. nursing_bed_check_core_layering()
 # fails (FATAL_ERROR naming the file and the include) if a file breaks either rule. It runs at
 # configure time from CMakeLists.txt, and in script mode (cmake -DROOT=... -P
 # cmake/check_core_layering.cmake) from the unit test that feeds it a bad include.
 
-# Domains, lowest first, and what each may include (besides itself).
-set(NURSING_BED_CORE_DOMAINS io physics control bed gap fe observer hardware)
+# Domains, lowest first (README "What is where"), and what each one's files include besides
+# itself: exactly that, since CMakeLists.txt links each domain's library to these and nothing
+# else (a tool or test linking a domain gets only what that domain uses).
+set(NURSING_BED_CORE_DOMAINS io physics observer hardware control bed gap fe rig)
+# Parameter tables, YAML and the package folder's lookup.
 set(NURSING_BED_CORE_ALLOWED_io "")
+# The cell model: gas, orifices, membrane, structure, effects.
 set(NURSING_BED_CORE_ALLOWED_physics io)
-# control runs the observer and reads and writes cells through the hardware boundary.
-set(NURSING_BED_CORE_ALLOWED_control io physics observer hardware)
-set(NURSING_BED_CORE_ALLOWED_bed io physics control observer hardware)
-set(NURSING_BED_CORE_ALLOWED_gap io physics)
-set(NURSING_BED_CORE_ALLOWED_fe io physics)
+# The cell observer (what a cell's readings say about its gas and load).
 set(NURSING_BED_CORE_ALLOWED_observer io physics)
-# The cell hardware boundary and its drivers (simulated, Modbus TCP) and the rig emulator: below
-# the control side, which reads and writes cells through it.
-set(NURSING_BED_CORE_ALLOWED_hardware io physics)
+# The cell hardware boundary and its drivers (simulated, Modbus TCP).
+set(NURSING_BED_CORE_ALLOWED_hardware physics)
+# The airbag controller runs the observer and reads and writes cells through the hardware.
+set(NURSING_BED_CORE_ALLOWED_control io physics observer hardware)
+# The bed: cell grid, body model, posture plans and the manager's policy (rate limits).
+set(NURSING_BED_CORE_ALLOWED_bed io physics control)
+# The sim-to-real gap diagnosis.
+set(NURSING_BED_CORE_ALLOWED_gap io physics)
+# The FE membrane model of one airbag.
+set(NURSING_BED_CORE_ALLOWED_fe physics)
+# The rig emulator: Modbus TCP servers over simulated cells, a test rig and bench tool (not the
+# bed's driver, so neither the hardware nor the control side links it).
+set(NURSING_BED_CORE_ALLOWED_rig hardware)
 
 function(nursing_bed_check_core_layering root)
+  # The lists themselves: a domain may only use domains listed before it (no cycles).
+  set(below "")
+  foreach(domain ${NURSING_BED_CORE_DOMAINS})
+    foreach(used ${NURSING_BED_CORE_ALLOWED_${domain}})
+      list(FIND below "${used}" found)
+      if(found EQUAL -1)
+        message(FATAL_ERROR "core layering: NURSING_BED_CORE_ALLOWED_${domain} lists '${used}', which is not "
+                            "before '${domain}' in NURSING_BED_CORE_DOMAINS (${NURSING_BED_CORE_DOMAINS})")
+      endif()
+    endforeach()
+    list(APPEND below ${domain})
+  endforeach()
   foreach(domain ${NURSING_BED_CORE_DOMAINS})
     set(allowed ${domain} ${NURSING_BED_CORE_ALLOWED_${domain}})
     file(GLOB_RECURSE files ${root}/include/nursing_bed/core/${domain}/*
@@ -39,7 +62,8 @@ function(nursing_bed_check_core_layering root)
         list(FIND allowed "${target_domain}" found)
         if(found EQUAL -1)
           message(FATAL_ERROR "core layering: ${f} (domain '${domain}') includes domain "
-                              "'${target_domain}', which is not below it: ${line}")
+                              "'${target_domain}', which it does not list (NURSING_BED_CORE_ALLOWED_${domain}: "
+                              "${NURSING_BED_CORE_ALLOWED_${domain}}): ${line}")
         endif()
       endforeach()
     endforeach()

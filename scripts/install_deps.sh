@@ -19,6 +19,10 @@ PACKAGES=(
   python3-diagnostic-msgs python3-visualization-msgs
   # numerics, config, tests, benchmarks
   libceres-dev libeigen3-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
+  # the tools' command lines and JSON, runtime-tunable parameters
+  libcli11-dev nlohmann-json3-dev libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
+  # the formatting check (scripts/check_format.sh, .clang-format)
+  clang-format
   # the Modbus TCP valve terminals of a real bed (modbus_tcp hardware, rig_emulator)
   libmodbus-dev
   # plotting for the reproduction figures

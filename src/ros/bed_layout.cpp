@@ -81,9 +81,8 @@ double pitchFromBedBox(const urdf::ModelInterface& model) {
   fail("a 1 x 1 grid has no neighbours to give the pitch, and bed_link has no visual box to give it");
 }
 
-}  // namespace
-
-BedLayout BedLayout::fromUrdf(const std::string& urdf_xml) {
+/// The parsed model; fails when the XML is not URDF or has no bed_link.
+urdf::ModelInterfaceSharedPtr parseBedUrdf(const std::string& urdf_xml) {
   urdf::ModelInterfaceSharedPtr model;
   {
     ConsoleCapture capture;
@@ -92,70 +91,84 @@ BedLayout BedLayout::fromUrdf(const std::string& urdf_xml) {
       fail("the XML does not parse as URDF" + (capture.text().empty() ? std::string() : ": " + capture.text()));
     }
   }
-  if (!model->getLink(kBedLink)) {
-    fail("there is no link '" + std::string(kBedLink) + "' (the bed frame) in robot '" + model->getName() + "'");
+  if (!model->getLink(BedLayout::kBedLink)) {
+    fail("there is no link '" + std::string(BedLayout::kBedLink) + "' (the bed frame) in robot '" +
+         model->getName() + "'");
   }
+  return model;
+}
 
+/// The cell at row, col that `joint` (named `name`) moves; fails unless the joint is a
+/// prismatic joint on bed_link along +z with a travel.
+CellLayout cellOfJoint(const std::string& name, const urdf::Joint& joint, int row, int col) {
+  if (joint.type != urdf::Joint::PRISMATIC) {
+    fail("cell joint " + name + " is " + jointTypeName(joint.type) + ", expected prismatic");
+  }
+  if (!joint.limits) {
+    fail("cell joint " + name + " has no limits");
+  }
+  if (!(std::isfinite(joint.limits->lower) && std::isfinite(joint.limits->upper) &&
+        joint.limits->upper > joint.limits->lower)) {
+    fail("cell joint " + name + " has no travel: limits lower " + formatM(joint.limits->lower) + " m, upper " +
+         formatM(joint.limits->upper) + " m");
+  }
+  if (joint.parent_link_name != BedLayout::kBedLink) {
+    fail("cell joint " + name + " has parent " + joint.parent_link_name + ", expected " + BedLayout::kBedLink);
+  }
+  // Heights are along the bed's z: the axis as seen from bed_link must be +z.
+  const urdf::Vector3 axis = joint.parent_to_joint_origin_transform.rotation * joint.axis;
+  if (std::abs(axis.x) > kAxisTolerance || std::abs(axis.y) > kAxisTolerance ||
+      std::abs(axis.z - 1.0) > kAxisTolerance) {
+    fail("cell joint " + name + " moves along (" + formatM(axis.x) + ", " + formatM(axis.y) + ", " +
+         formatM(axis.z) + ") in bed_link, expected +z (0 0 1)");
+  }
+  CellLayout cell;
+  cell.row = row;
+  cell.col = col;
+  cell.joint_name = name;
+  cell.link_name = joint.child_link_name;
+  cell.x_m = joint.parent_to_joint_origin_transform.position.x;
+  cell.y_m = joint.parent_to_joint_origin_transform.position.y;
+  cell.min_height_m = joint.limits->lower;
+  cell.max_height_m = joint.limits->upper;
+  return cell;
+}
+
+using CellMap = std::map<std::pair<int, int>, CellLayout>;
+
+/// Every airbag_<row>_<col>_joint's cell by (row, col); fails when there is none.
+CellMap cellsOf(const urdf::ModelInterface& model) {
   // Canonical decimal indices only, so that a cell has exactly one possible joint name.
   static const std::regex kCellJoint("airbag_(0|[1-9][0-9]{0,5})_(0|[1-9][0-9]{0,5})_joint");
-  std::map<std::pair<int, int>, CellLayout> found;
-  int rows = 0;
-  int cols = 0;
-  for (const auto& entry : model->joints_) {
+  CellMap found;
+  for (const auto& entry : model.joints_) {
     std::smatch match;
     if (!std::regex_match(entry.first, match, kCellJoint)) {
       continue;
     }
-    const urdf::Joint& joint = *entry.second;
-    const std::string& name = entry.first;
-    if (joint.type != urdf::Joint::PRISMATIC) {
-      fail("cell joint " + name + " is " + jointTypeName(joint.type) + ", expected prismatic");
-    }
-    if (!joint.limits) {
-      fail("cell joint " + name + " has no limits");
-    }
-    if (!(std::isfinite(joint.limits->lower) && std::isfinite(joint.limits->upper) &&
-          joint.limits->upper > joint.limits->lower)) {
-      fail("cell joint " + name + " has no travel: limits lower " + formatM(joint.limits->lower) +
-           " m, upper " + formatM(joint.limits->upper) + " m");
-    }
-    if (joint.parent_link_name != kBedLink) {
-      fail("cell joint " + name + " has parent " + joint.parent_link_name + ", expected " + kBedLink);
-    }
-    // Heights are along the bed's z: the axis as seen from bed_link must be +z.
-    const urdf::Vector3 axis = joint.parent_to_joint_origin_transform.rotation * joint.axis;
-    if (std::abs(axis.x) > kAxisTolerance || std::abs(axis.y) > kAxisTolerance ||
-        std::abs(axis.z - 1.0) > kAxisTolerance) {
-      fail("cell joint " + name + " moves along (" + formatM(axis.x) + ", " + formatM(axis.y) + ", " +
-           formatM(axis.z) + ") in bed_link, expected +z (0 0 1)");
-    }
-    CellLayout cell;
-    cell.row = std::stoi(match[1].str());
-    cell.col = std::stoi(match[2].str());
-    cell.joint_name = name;
-    cell.link_name = joint.child_link_name;
-    cell.x_m = joint.parent_to_joint_origin_transform.position.x;
-    cell.y_m = joint.parent_to_joint_origin_transform.position.y;
-    cell.min_height_m = joint.limits->lower;
-    cell.max_height_m = joint.limits->upper;
-    rows = std::max(rows, cell.row + 1);
-    cols = std::max(cols, cell.col + 1);
+    CellLayout cell = cellOfJoint(entry.first, *entry.second, std::stoi(match[1].str()), std::stoi(match[2].str()));
     found.emplace(std::make_pair(cell.row, cell.col), std::move(cell));
   }
   if (found.empty()) {
     fail("there are no airbag_<row>_<col>_joint joints");
   }
+  return found;
+}
+
+/// Fails unless the cells fill the rows x cols grid.
+void checkFullGrid(const CellMap& found, int rows, int cols) {
   for (int r = 0; r < rows; ++r) {
     for (int c = 0; c < cols; ++c) {
       if (found.find({r, c}) == found.end()) {
-        fail("cells do not form a full " + std::to_string(rows) + " x " + std::to_string(cols) +
-             " grid: cell row " + std::to_string(r) + " col " + std::to_string(c) + " (" +
-             cellJointName(r, c) + ") is missing");
+        fail("cells do not form a full " + std::to_string(rows) + " x " + std::to_string(cols) + " grid: cell row " +
+             std::to_string(r) + " col " + std::to_string(c) + " (" + cellJointName(r, c) + ") is missing");
       }
     }
   }
+}
 
-  // Pitch from the first neighbours; rows must step towards -x (head first), cols towards +y.
+/// Pitch from the first neighbours; rows must step towards -x (head first), cols towards +y.
+double gridPitch(const CellMap& found, int rows, int cols, const urdf::ModelInterface& model) {
   const CellLayout& origin = found.at({0, 0});
   double pitch_m = 0.0;
   if (rows > 1) {
@@ -163,24 +176,46 @@ BedLayout BedLayout::fromUrdf(const std::string& urdf_xml) {
   } else if (cols > 1) {
     pitch_m = found.at({0, 1}).y_m - origin.y_m;
   } else {
-    pitch_m = pitchFromBedBox(*model);
+    pitch_m = pitchFromBedBox(model);
   }
   if (!(pitch_m > kPositionTolerance_m)) {
     fail("pitch is not positive (" + formatM(pitch_m) + " m between " + origin.joint_name + " and " +
          (rows > 1 ? cellJointName(1, 0) : cellJointName(0, 1)) +
          "): row 0 must be at the head (+x) and col 0 on the right (-y)");
   }
+  return pitch_m;
+}
+
+/// Fails unless every cell sits where `pitch_m` from cell (0, 0) puts it.
+void checkUniformPitch(const CellMap& found, double pitch_m) {
+  const CellLayout& origin = found.at({0, 0});
   for (const auto& entry : found) {
     const CellLayout& cell = entry.second;
     const double expected_x_m = origin.x_m - cell.row * pitch_m;
     const double expected_y_m = origin.y_m + cell.col * pitch_m;
     if (std::abs(cell.x_m - expected_x_m) > kPositionTolerance_m ||
         std::abs(cell.y_m - expected_y_m) > kPositionTolerance_m) {
-      fail("pitch is not uniform: " + cell.joint_name + " is at (" + formatM(cell.x_m) + ", " +
-           formatM(cell.y_m) + ") m, but a pitch of " + formatM(pitch_m) + " m from " + origin.joint_name +
-           " puts it at (" + formatM(expected_x_m) + ", " + formatM(expected_y_m) + ") m");
+      fail("pitch is not uniform: " + cell.joint_name + " is at (" + formatM(cell.x_m) + ", " + formatM(cell.y_m) +
+           ") m, but a pitch of " + formatM(pitch_m) + " m from " + origin.joint_name + " puts it at (" +
+           formatM(expected_x_m) + ", " + formatM(expected_y_m) + ") m");
     }
   }
+}
+
+}  // namespace
+
+BedLayout BedLayout::fromUrdf(const std::string& urdf_xml) {
+  const urdf::ModelInterfaceSharedPtr model = parseBedUrdf(urdf_xml);
+  CellMap found = cellsOf(*model);
+  int rows = 0;
+  int cols = 0;
+  for (const auto& entry : found) {
+    rows = std::max(rows, entry.first.first + 1);
+    cols = std::max(cols, entry.first.second + 1);
+  }
+  checkFullGrid(found, rows, cols);
+  const double pitch_m = gridPitch(found, rows, cols, *model);
+  checkUniformPitch(found, pitch_m);
 
   BedLayout layout;
   layout.rows_ = rows;

@@ -70,6 +70,130 @@ tf2::Transform segmentFrame(const SegmentPose& s) {
   return tf2::Transform(q, tf2::Vector3(s.x_c_m, s.y_c_m - half * std::sin(s.roll_rad), s.z_m + half * std::cos(s.roll_rad)));
 }
 
+
+/// A marker of the bed's markers array: stamped in bed_link, added, expiring soon after the
+/// simulator stops.
+visualization_msgs::Marker baseMarker(const std::string& ns, int id, int type, const ros::Time& now) {
+  visualization_msgs::Marker m;
+  m.header.stamp = now;
+  m.header.frame_id = BedLayout::kBedLink;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose.orientation.w = 1.0;
+  m.lifetime = ros::Duration(2.0);  // gone soon after the simulator stops
+  return m;
+}
+
+/// The body's colour: translucent, so that the pressure under it shows.
+std_msgs::ColorRGBA skinColour() { return rgba(0.95, 0.78, 0.66, 0.55); }
+
+/// Turns a cylinder's axis (z) along the body (x).
+tf2::Quaternion cylinderAlongBody() {
+  tf2::Quaternion along_x;
+  along_x.setRPY(0.0, kPi / 2.0, 0.0);
+  return along_x;
+}
+
+/// Plates coloured by the highest point pressure over each cell's face, drawn just above the
+/// URDF's plates (top 1 mm above the cell height) so that they win the depth test.
+visualization_msgs::Marker plateMarker(const BedLayout& layout, const BodyState& s, const std::vector<double>& heights,
+                                       const ros::Time& now) {
+  const double pitch = layout.pitchM();
+  visualization_msgs::Marker plates = baseMarker("plates", 0, visualization_msgs::Marker::CUBE_LIST, now);
+  plates.scale.x = plates.scale.y = 0.96 * pitch;
+  plates.scale.z = 0.006;
+  for (const CellLayout& c : layout.cells()) {
+    geometry_msgs::Point p;
+    p.x = c.x_m;
+    p.y = c.y_m;
+    p.z = heights[c.id] + 0.001 - 0.5 * plates.scale.z;
+    plates.points.push_back(p);
+    plates.colors.push_back(pressureColour(paToMmHg(s.cell_peak_pressure_pa[c.id])));
+  }
+  return plates;
+}
+
+/// Body segments: limbs and trunk as cylinders along the body, head as an ellipsoid, feet as
+/// boxes standing up from the heel.
+void addSegmentMarkers(const BodyState& s, const ros::Time& now, std::vector<visualization_msgs::Marker>* out) {
+  const tf2::Quaternion along_x = cylinderAlongBody();
+  for (std::size_t i = 0; i < s.segments.size(); ++i) {
+    const SegmentPose& seg = s.segments[i];
+    const bool head = seg.name == "head_neck";
+    const bool foot = seg.name.size() > 5 && seg.name.compare(seg.name.size() - 5, 5, "_foot") == 0;
+    visualization_msgs::Marker m =
+        baseMarker("body", static_cast<int>(i),
+                   head ? visualization_msgs::Marker::SPHERE
+                        : (foot ? visualization_msgs::Marker::CUBE : visualization_msgs::Marker::CYLINDER),
+                   now);
+    const tf2::Transform frame = segmentFrame(seg);
+    m.pose.position.x = frame.getOrigin().x();
+    m.pose.position.y = frame.getOrigin().y();
+    m.pose.position.z = frame.getOrigin().z();
+    if (head || foot) {
+      m.pose.orientation = toMsg(frame.getRotation());
+      m.scale.x = seg.footprint_length_m;
+      m.scale.y = seg.width_m;
+      m.scale.z = seg.depth_m;
+    } else {
+      m.pose.orientation = toMsg(frame.getRotation() * along_x);
+      m.scale.x = seg.depth_m;  // along the rolled normal
+      m.scale.y = seg.width_m;
+      m.scale.z = seg.footprint_length_m;
+    }
+    m.color = skinColour();
+    out->push_back(m);
+  }
+}
+
+/// The neck, between the head and the thorax (touches nothing, drawn for the picture).
+void addNeckMarker(const BodyState& s, const ros::Time& now, std::vector<visualization_msgs::Marker>* out) {
+  const int head_i = BodyModel::segmentIndex("head_neck"), thorax_i = BodyModel::segmentIndex("thorax");
+  if (head_i < 0 || thorax_i < 0) return;
+  const SegmentPose& h = s.segments[head_i];
+  const SegmentPose& t = s.segments[thorax_i];
+  const tf2::Transform fh = segmentFrame(h), ft = segmentFrame(t);
+  const double x0 = h.x_c_m - 0.5 * h.footprint_length_m, x1 = t.x_c_m + 0.5 * t.footprint_length_m;
+  visualization_msgs::Marker neck =
+      baseMarker("body", static_cast<int>(s.segments.size()), visualization_msgs::Marker::CYLINDER, now);
+  neck.pose.position.x = 0.5 * (x0 + x1) + 0.01;
+  neck.pose.position.y = 0.5 * (fh.getOrigin().y() + ft.getOrigin().y());
+  neck.pose.position.z = 0.5 * (fh.getOrigin().z() + ft.getOrigin().z());
+  neck.pose.orientation = toMsg(ft.getRotation() * cylinderAlongBody());
+  neck.scale.x = neck.scale.y = 0.6 * h.width_m;
+  neck.scale.z = std::max(0.02, x0 - x1 + 0.04);
+  neck.color = skinColour();
+  out->push_back(neck);
+}
+
+/// Peak labels over the head, the pelvis and the heels.
+void addPeakLabels(const BodyState& s, const ros::Time& now, std::vector<visualization_msgs::Marker>* out) {
+  auto label = [&](int id, const std::string& text, double x, double y, double z) {
+    visualization_msgs::Marker m = baseMarker("labels", id, visualization_msgs::Marker::TEXT_VIEW_FACING, now);
+    m.pose.position.x = x;
+    m.pose.position.y = y;
+    m.pose.position.z = z;
+    m.scale.z = 0.05;
+    m.color = rgba(1.0, 1.0, 1.0, 0.95);
+    m.text = text;
+    out->push_back(m);
+  };
+  auto mmhg = [](double pa) {
+    std::ostringstream o;
+    o.precision(0);
+    o << std::fixed << paToMmHg(pa) << " mmHg";
+    return o.str();
+  };
+  const SegmentPose& pelvis = s.segments[BodyModel::segmentIndex("pelvis")];
+  const SegmentPose& head = s.segments[BodyModel::segmentIndex("head_neck")];
+  const SegmentPose& foot = s.segments[BodyModel::segmentIndex("left_foot")];
+  label(0, "occiput " + mmhg(s.peak_pressure_pa.occiput), head.x_c_m, head.y_c_m, head.z_m + head.depth_m + 0.06);
+  label(1, "sacrum " + mmhg(s.peak_pressure_pa.sacrum), pelvis.x_c_m, pelvis.y_c_m, pelvis.z_m + pelvis.depth_m + 0.06);
+  label(2, "heels " + mmhg(s.peak_pressure_pa.heels), foot.x_c_m, 0.0, foot.z_m + foot.depth_m + 0.06);
+}
+
 }  // namespace
 
 std_msgs::ColorRGBA pressureColour(double mmhg) {
@@ -251,45 +375,37 @@ void Simulator::clockLoop() {
   }
 }
 
-void Simulator::step(const ros::Time& now) {
-  std::lock_guard<std::mutex> step_lock(step_mutex_);
-  const ros::WallTime wall_start = ros::WallTime::now();
-  const std::size_t n = heights_m_.size();
-  std::vector<double> heights, reported;
-  int unseen = 0, stale = 0;
-  {
-    std::lock_guard<std::mutex> lock(state_mutex_);
-    heights = heights_m_;
-    reported = reported_load_n_;
-    const ros::Time ros_now = ros::Time::now();
-    for (const ros::Time& seen : last_seen_) {
-      if (seen.isZero()) ++unseen;
-      else if ((ros_now - seen).toSec() > params_.cell_timeout_s) ++stale;
-    }
+Simulator::CellSnapshot Simulator::snapshotCells() {
+  CellSnapshot snap;
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  snap.heights = heights_m_;
+  snap.reported = reported_load_n_;
+  const ros::Time ros_now = ros::Time::now();
+  for (const ros::Time& seen : last_seen_) {
+    if (seen.isZero()) ++snap.unseen;
+    else if ((ros_now - seen).toSec() > params_.cell_timeout_s) ++snap.stale;
   }
+  return snap;
+}
+
+bool Simulator::coupled(const ros::Time& now, const CellSnapshot& cells) {
   if (!started_) {
     if (start_.isZero()) start_ = now;
-    if (unseen > 0 && (now - start_).toSec() < params_.startup_wait_s) return;  // wait for the cells' first states
-    if (unseen > 0)
-      ROS_WARN("simulator: %d of %zu cells never reported; the body rests on them at %.3f m", unseen, n,
-               body_->grid().min_height_m);
+    if (cells.unseen > 0 && (now - start_).toSec() < params_.startup_wait_s) return false;  // wait for first states
+    if (cells.unseen > 0)
+      ROS_WARN("simulator: %d of %zu cells never reported; the body rests on them at %.3f m", cells.unseen,
+               cells.heights.size(), body_->grid().min_height_m);
     ROS_INFO("simulator: coupling the body to the cells (loads through %s)", names::kCellLoads);
     started_ = true;
   }
-  if (stale > 0)
-    ROS_WARN_THROTTLE(10.0, "simulator: %d cells silent for more than %g s; the body rests on their last heights", stale,
-                      params_.cell_timeout_s);
+  if (cells.stale > 0)
+    ROS_WARN_THROTTLE(10.0, "simulator: %d cells silent for more than %g s; the body rests on their last heights",
+                      cells.stale, params_.cell_timeout_s);
+  return true;
+}
 
-  BodyState state;
-  try {
-    state = body_->solve(heights);
-  } catch (const std::exception& e) {
-    ROS_ERROR_THROTTLE(5.0, "simulator: %s", e.what());
-    return;
-  }
-  if (!state.converged)
-    ROS_WARN_THROTTLE(10.0, "simulator: the body's equilibrium did not converge (%d iterations)", state.iterations);
-
+void Simulator::publishLoads(const BodyState& state, const std::vector<double>& reported, const ros::Time& now) {
+  const std::size_t n = reported.size();
   // Loads under-relaxed by a first-order filter (the loop gain per step stays below 1; see
   // doc/simulator.md, "Coupling"). It starts from what the cells carry now, so the handover
   // from the launch's uniform load is smooth.
@@ -313,7 +429,9 @@ void Simulator::step(const ros::Time& now) {
     loads->data[i] = filtered_load_n_[i];
   }
   loads_pub_.publish(loads);
+}
 
+void Simulator::publishViews(const BodyState& state, const std::vector<double>& heights, const ros::Time& now) {
   const boost::shared_ptr<std_msgs::Float64> roll = boost::make_shared<std_msgs::Float64>();
   roll->data = state.roll_rad;
   roll_pub_.publish(roll);
@@ -324,17 +442,38 @@ void Simulator::step(const ros::Time& now) {
     publishTf(state, now);
     last_markers_ = now;
   }
+}
 
-  const double took = (ros::WallTime::now() - wall_start).toSec();
-  step_time_sum_s_ += took;
-  step_time_max_s_ = std::max(step_time_max_s_, took);
+void Simulator::recordStepTime(double took_s, int iterations) {
+  step_time_sum_s_ += took_s;
+  step_time_max_s_ = std::max(step_time_max_s_, took_s);
   if (++steps_ % static_cast<long>(std::max(1.0, 30.0 * params_.rate_hz)) == 0) {
     ROS_DEBUG("simulator: step %.3f ms mean, %.3f ms max over %ld steps (%d Newton iterations now)",
-              1e3 * step_time_sum_s_ / steps_, 1e3 * step_time_max_s_, steps_, state.iterations);
+              1e3 * step_time_sum_s_ / steps_, 1e3 * step_time_max_s_, steps_, iterations);
   }
-  if (took > 1.0 / params_.rate_hz)
-    ROS_WARN_THROTTLE(10.0, "simulator: a step took %.1f ms, longer than the %.1f ms period (~rate_hz %g)", 1e3 * took,
-                      1e3 / params_.rate_hz, params_.rate_hz);
+  if (took_s > 1.0 / params_.rate_hz)
+    ROS_WARN_THROTTLE(10.0, "simulator: a step took %.1f ms, longer than the %.1f ms period (~rate_hz %g)",
+                      1e3 * took_s, 1e3 / params_.rate_hz, params_.rate_hz);
+}
+
+void Simulator::step(const ros::Time& now) {
+  std::lock_guard<std::mutex> step_lock(step_mutex_);
+  const ros::WallTime wall_start = ros::WallTime::now();
+  const CellSnapshot cells = snapshotCells();
+  if (!coupled(now, cells)) return;
+
+  BodyState state;
+  try {
+    state = body_->solve(cells.heights);
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE(5.0, "simulator: %s", e.what());
+    return;
+  }
+  if (!state.converged)
+    ROS_WARN_THROTTLE(10.0, "simulator: the body's equilibrium did not converge (%d iterations)", state.iterations);
+  publishLoads(state, cells.reported, now);
+  publishViews(state, cells.heights, now);
+  recordStepTime((ros::WallTime::now() - wall_start).toSec(), state.iterations);
 }
 
 void Simulator::publishPressure(const BodyState& s, const ros::Time& now) {
@@ -372,104 +511,10 @@ void Simulator::publishPressure(const BodyState& s, const ros::Time& now) {
 
 void Simulator::publishMarkers(const BodyState& s, const std::vector<double>& heights, const ros::Time& now) {
   const boost::shared_ptr<visualization_msgs::MarkerArray> out = boost::make_shared<visualization_msgs::MarkerArray>();
-  auto base = [&](const std::string& ns, int id, int type) {
-    visualization_msgs::Marker m;
-    m.header.stamp = now;
-    m.header.frame_id = BedLayout::kBedLink;
-    m.ns = ns;
-    m.id = id;
-    m.type = type;
-    m.action = visualization_msgs::Marker::ADD;
-    m.pose.orientation.w = 1.0;
-    m.lifetime = ros::Duration(2.0);  // gone soon after the simulator stops
-    return m;
-  };
-  // Plates coloured by the highest point pressure over each cell's face, drawn just above the
-  // URDF's plates (top 1 mm above the cell height) so that they win the depth test.
-  const double pitch = layout_.pitchM();
-  visualization_msgs::Marker plates = base("plates", 0, visualization_msgs::Marker::CUBE_LIST);
-  plates.scale.x = plates.scale.y = 0.96 * pitch;
-  plates.scale.z = 0.006;
-  for (const CellLayout& c : layout_.cells()) {
-    geometry_msgs::Point p;
-    p.x = c.x_m;
-    p.y = c.y_m;
-    p.z = heights[c.id] + 0.001 - 0.5 * plates.scale.z;
-    plates.points.push_back(p);
-    plates.colors.push_back(pressureColour(paToMmHg(s.cell_peak_pressure_pa[c.id])));
-  }
-  out->markers.push_back(plates);
-
-  // Body segments: limbs and trunk as cylinders along the body, head as an ellipsoid, feet as
-  // boxes standing up from the heel; translucent so the pressure under them shows.
-  const std_msgs::ColorRGBA skin = rgba(0.95, 0.78, 0.66, 0.55);
-  tf2::Quaternion along_x;
-  along_x.setRPY(0.0, kPi / 2.0, 0.0);  // a cylinder's axis (z) along the body (x)
-  for (std::size_t i = 0; i < s.segments.size(); ++i) {
-    const SegmentPose& seg = s.segments[i];
-    const bool head = seg.name == "head_neck";
-    const bool foot = seg.name.size() > 5 && seg.name.compare(seg.name.size() - 5, 5, "_foot") == 0;
-    visualization_msgs::Marker m = base("body", static_cast<int>(i),
-                                        head ? visualization_msgs::Marker::SPHERE
-                                             : (foot ? visualization_msgs::Marker::CUBE : visualization_msgs::Marker::CYLINDER));
-    const tf2::Transform frame = segmentFrame(seg);
-    m.pose.position.x = frame.getOrigin().x();
-    m.pose.position.y = frame.getOrigin().y();
-    m.pose.position.z = frame.getOrigin().z();
-    if (head || foot) {
-      m.pose.orientation = toMsg(frame.getRotation());
-      m.scale.x = seg.footprint_length_m;
-      m.scale.y = seg.width_m;
-      m.scale.z = seg.depth_m;
-    } else {
-      m.pose.orientation = toMsg(frame.getRotation() * along_x);
-      m.scale.x = seg.depth_m;  // along the rolled normal
-      m.scale.y = seg.width_m;
-      m.scale.z = seg.footprint_length_m;
-    }
-    m.color = skin;
-    out->markers.push_back(m);
-  }
-  // The neck, between the head and the thorax (touches nothing, drawn for the picture).
-  const int head_i = BodyModel::segmentIndex("head_neck"), thorax_i = BodyModel::segmentIndex("thorax");
-  if (head_i >= 0 && thorax_i >= 0) {
-    const SegmentPose& h = s.segments[head_i];
-    const SegmentPose& t = s.segments[thorax_i];
-    const tf2::Transform fh = segmentFrame(h), ft = segmentFrame(t);
-    const double x0 = h.x_c_m - 0.5 * h.footprint_length_m, x1 = t.x_c_m + 0.5 * t.footprint_length_m;
-    visualization_msgs::Marker neck = base("body", static_cast<int>(s.segments.size()), visualization_msgs::Marker::CYLINDER);
-    neck.pose.position.x = 0.5 * (x0 + x1) + 0.01;
-    neck.pose.position.y = 0.5 * (fh.getOrigin().y() + ft.getOrigin().y());
-    neck.pose.position.z = 0.5 * (fh.getOrigin().z() + ft.getOrigin().z());
-    neck.pose.orientation = toMsg(ft.getRotation() * along_x);
-    neck.scale.x = neck.scale.y = 0.6 * h.width_m;
-    neck.scale.z = std::max(0.02, x0 - x1 + 0.04);
-    neck.color = skin;
-    out->markers.push_back(neck);
-  }
-  // Peak labels over the head, the pelvis and the heels.
-  auto label = [&](int id, const std::string& text, double x, double y, double z) {
-    visualization_msgs::Marker m = base("labels", id, visualization_msgs::Marker::TEXT_VIEW_FACING);
-    m.pose.position.x = x;
-    m.pose.position.y = y;
-    m.pose.position.z = z;
-    m.scale.z = 0.05;
-    m.color = rgba(1.0, 1.0, 1.0, 0.95);
-    m.text = text;
-    out->markers.push_back(m);
-  };
-  auto mmhg = [](double pa) {
-    std::ostringstream o;
-    o.precision(0);
-    o << std::fixed << paToMmHg(pa) << " mmHg";
-    return o.str();
-  };
-  const SegmentPose& pelvis = s.segments[BodyModel::segmentIndex("pelvis")];
-  const SegmentPose& head = s.segments[head_i];
-  const SegmentPose& foot = s.segments[BodyModel::segmentIndex("left_foot")];
-  label(0, "occiput " + mmhg(s.peak_pressure_pa.occiput), head.x_c_m, head.y_c_m, head.z_m + head.depth_m + 0.06);
-  label(1, "sacrum " + mmhg(s.peak_pressure_pa.sacrum), pelvis.x_c_m, pelvis.y_c_m, pelvis.z_m + pelvis.depth_m + 0.06);
-  label(2, "heels " + mmhg(s.peak_pressure_pa.heels), foot.x_c_m, 0.0, foot.z_m + foot.depth_m + 0.06);
+  out->markers.push_back(plateMarker(layout_, s, heights, now));
+  addSegmentMarkers(s, now, &out->markers);
+  addNeckMarker(s, now, &out->markers);
+  addPeakLabels(s, now, &out->markers);
   markers_pub_.publish(out);
 }
 

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/material_fit.h"
 #include "nursing_bed/core/physics/units.h"
 
@@ -28,7 +29,7 @@ constexpr int kExitBadInput = 2;
 constexpr int kExitInvalidMaterial = 3;
 
 const char* const kPython = "/usr/bin/python3";
-const char* const kPlotScript = NURSING_BED_SOURCE_DIR "/scripts/plot_material_fit.py";
+const char* const kPlotScript = "scripts/plot_material_fit.py";  ///< in the package folder (package_path.h)
 
 void printUsage(std::ostream& out) {
   out << "Usage: fit_material INPUT.csv [--out DIR] [--no-plot] [--unweighted]\n"
@@ -102,7 +103,14 @@ void writeYaml(const std::string& path, const nursing_bed::YeohFit& fit,
 
 /// Runs the plot script without a shell; true on exit status 0.
 bool runPlot(const std::string& csv, const std::string& png, const std::string& title) {
-  std::vector<std::string> args = {kPython, kPlotScript, csv, png, title};
+  std::string script;
+  try {
+    script = nursing_bed::findPackageFile(kPlotScript);
+  } catch (const std::exception& e) {
+    std::cerr << "fit_material: " << e.what() << "\n";
+    return false;
+  }
+  std::vector<std::string> args = {kPython, script, csv, png, title};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);

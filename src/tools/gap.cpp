@@ -20,6 +20,7 @@
 
 #include <glog/logging.h>
 
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
@@ -329,7 +330,7 @@ int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const c
   nb::writeReportFiles(c.out_dir, report);
   std::cout << "wrote " << c.out_dir << "/report.json, report.md, " << report.calibration.file << ", traces/\n";
   if (c.plots) {
-    const std::string script = std::string(NURSING_BED_SOURCE_DIR) + "/scripts/plot_gap_report.py";
+    const std::string script = nb::findPackageFile("scripts/plot_gap_report.py");
     const std::string command = "/usr/bin/python3 '" + script + "' '" + c.out_dir + "'";
     if (std::system(command.c_str()) != 0)
       std::cerr << "gap " << name << ": the plots failed (" << command << "); the report itself is complete\n";

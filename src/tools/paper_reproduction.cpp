@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
 
@@ -34,7 +35,7 @@ constexpr const char* kUsage =
 
 struct Options {
   std::string out_dir;
-  std::string params_file = std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100.yaml";
+  std::string params_file;  ///< empty: the package's config/airbag_tpu_double_100.yaml
   std::vector<double> valve_pa{20.0e3, 22.0e3, 25.0e3, 28.0e3};
   bool paper_curve = false;
   bool plot = true;
@@ -90,6 +91,7 @@ bool parseArgs(int argc, char** argv, Options* o) {
     }
   }
   if (o->out_dir.empty()) throw std::invalid_argument("--out DIR is required");
+  if (o->params_file.empty()) o->params_file = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
   return true;
 }
 
@@ -221,8 +223,8 @@ int main(int argc, char** argv) {
   std::printf("eq. 24 RMS over 10-28 kPa, loaded runs pooled: %.2f mm\n", pooled);
 
   if (opt.plot) {
-    const std::string cmd = "/usr/bin/python3 '" + std::string(NURSING_BED_SOURCE_DIR) +
-                            "/scripts/plot_reproduction.py' '" + out.string() + "'";
+    const std::string cmd = "/usr/bin/python3 '" + nb::findPackageFile("scripts/plot_reproduction.py") + "' '" +
+                            out.string() + "'";
     if (std::system(cmd.c_str()) != 0) {
       std::cerr << "paper_reproduction: plotting failed (" << cmd << ")\n";
       return 1;

@@ -1,8 +1,12 @@
 // Cost of one simulated cell-second at the default step (doc/benchmarks.md).
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+#include <vector>
+
 #include "nursing_bed/core/physics/basic_effects.h"
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/paper_experiment.h"
 
 namespace nb = nursing_bed;
 
@@ -52,6 +56,28 @@ void BM_HoldWithEffectsPerCellSecond(benchmark::State& state) {
   runHold(state, {std::make_shared<nb::HeatTransferEffect>(10.0), std::make_shared<nb::LeakEffect>(2e-9)});
 }
 BENCHMARK(BM_HoldWithEffectsPerCellSecond)->Unit(benchmark::kMicrosecond);
+
+// One 75.5 s run replayed with prescribed inflow at 100 Hz samples: what the gap diagnosis
+// repeats for each run and candidate (it was a unit test's time bound before; speed is a figure).
+void BM_ReplayOfAStandardRun(benchmark::State& state) {
+  const nb::TimeSeries inflow = nb::paperShapedInflow(3.4e-3, 1.0, 5.5, 0.01);
+  std::vector<double> t, q;
+  for (int i = 0; i <= 7550; ++i) {
+    t.push_back(i * 0.01);
+    q.push_back(inflow.at(i * 0.01) + (i > 6550 ? -5e-4 * std::exp(-(i - 6550) * 0.01) : 0.0));
+  }
+  const nb::TimeSeries replay(t, q);
+  nb::CellModel model{nb::CellParams{}};
+  nb::CellInputs in;
+  in.load_n = 15.6;
+  in.prescribed_inflow = &replay;
+  for (auto _ : state) {
+    model.reset(15.6);
+    for (int i = 1; i <= 7550; ++i) model.advance(i * 0.01 - model.time(), in);
+    benchmark::DoNotOptimize(model.variables().height_m);
+  }
+}
+BENCHMARK(BM_ReplayOfAStandardRun)->Unit(benchmark::kMillisecond);
 
 // One right-hand-side evaluation: the unit of cost of the integrator.
 void BM_RateEvaluation(benchmark::State& state) {

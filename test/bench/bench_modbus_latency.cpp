@@ -1,6 +1,7 @@
 // Command-to-valve latency over Modbus TCP (doc/benchmarks.md): a cell's write() until the
 // rig emulator's valve acts on it (emulator dead time 0), for on/off (coil, PWM) and
-// proportional (holding register) valves, 60 cells per terminal. Prints median and worst.
+// proportional (holding register) valves, 60 cells per terminal. Prints median and worst, and
+// whether the emulator's simulation kept the wall clock's pace meanwhile.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -8,7 +9,7 @@
 #include <vector>
 
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nb = nursing_bed;
 using Clock = std::chrono::steady_clock;
@@ -54,6 +55,8 @@ void measure(nb::ValveOutput::Kind kind, int port) {
   std::printf("%-9s command to valve: median %.1f ms, worst %.1f ms (%zu commands); %.2f read and %.2f write requests per cycle\n",
               map.terminals[0].name.c_str(), latencies_ms[latencies_ms.size() / 2], latencies_ms.back(), latencies_ms.size(),
               static_cast<double>(s.read_requests) / s.cycles, static_cast<double>(s.write_requests) / s.cycles);
+  std::printf("%-9s rig simulation: %.2f periods per wake-up (1: it kept the wall clock's pace), at most %ld\n",
+              map.terminals[0].name.c_str(), rig.periodsPerWake(), rig.mostPeriodsPerWake());
 }
 
 }  // namespace

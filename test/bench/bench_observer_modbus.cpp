@@ -49,7 +49,7 @@
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 #include "nursing_bed/core/physics/basic_effects.h"
 
 namespace nb = nursing_bed;

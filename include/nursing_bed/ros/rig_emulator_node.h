@@ -11,7 +11,7 @@
 #include <string>
 
 #include "nursing_bed/RigTruth.h"
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nursing_bed {
 

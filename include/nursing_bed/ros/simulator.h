@@ -70,6 +70,22 @@ class Simulator {
   void clockLoop();
   /// One step at time `now`: solve, filter, publish.
   void step(const ros::Time& now);
+  // The steps of step(), in its order.
+  /// The cells' last heights and reported loads, and how many never reported or went silent.
+  struct CellSnapshot {
+    std::vector<double> heights, reported;  // by cell id
+    int unseen = 0, stale = 0;
+  };
+  CellSnapshot snapshotCells();
+  /// False while waiting for every cell's first state (up to ~startup_wait_s); warns of
+  /// silent cells.
+  bool coupled(const ros::Time& now, const CellSnapshot& cells);
+  /// The body's cell loads through the first-order filter on /airbag_loads.
+  void publishLoads(const BodyState& state, const std::vector<double>& reported, const ros::Time& now);
+  /// Roll, interface pressure and, at ~marker_rate_hz, markers and tf.
+  void publishViews(const BodyState& state, const std::vector<double>& heights, const ros::Time& now);
+  /// Step timing for the debug log and the overrun warning.
+  void recordStepTime(double took_s, int iterations);
   void publishPressure(const BodyState& state, const ros::Time& now);
   void publishMarkers(const BodyState& state, const std::vector<double>& heights, const ros::Time& now);
   void publishTf(const BodyState& state, const ros::Time& now);

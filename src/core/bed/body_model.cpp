@@ -305,7 +305,7 @@ int BodyModel::solveSegment(Segment* seg, const std::vector<double>& surface, bo
   return it;
 }
 
-BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
+void BodyModel::checkHeights(const std::vector<double>& cell_heights_m) const {
   const std::size_t n = static_cast<std::size_t>(grid_.cells());
   if (cell_heights_m.size() != n) {
     std::ostringstream m;
@@ -316,27 +316,96 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
   for (std::size_t i = 0; i < n; ++i)
     if (!std::isfinite(cell_heights_m[i]))
       throw std::invalid_argument("body model: cell " + std::to_string(i) + " height is not finite");
+}
 
+SegmentPose BodyModel::segmentPose(const Segment& seg) const {
+  SegmentPose pose;
+  pose.name = seg.spec.name;
+  pose.x_c_m = seg.x_c;
+  pose.y_c_m = seg.y_c;
+  pose.mass_kg = seg.mass_kg;
+  pose.length_m = seg.spec.length_fraction * params_.height_m;
+  pose.width_m = seg.y1 - seg.y0;
+  pose.footprint_length_m = seg.x1 - seg.x0;
+  pose.depth_m = seg.spec.depth_fraction * params_.height_m;
+  pose.on_bed = seg.on_bed;
+  return pose;
+}
+
+void BodyModel::surfaceUnder(const Segment& seg, const std::vector<double>& cell_heights_m,
+                             std::vector<double>* surface) const {
+  surface->resize(seg.points.size());
+  for (std::size_t i = 0; i < seg.points.size(); ++i) {
+    const SubPoint& sp = seg.points[i];
+    (*surface)[i] = sp.weight[0] * cell_heights_m[sp.cell[0]] + sp.weight[1] * cell_heights_m[sp.cell[1]] +
+                    sp.weight[2] * cell_heights_m[sp.cell[2]] + sp.weight[3] * cell_heights_m[sp.cell[3]];
+  }
+}
+
+void BodyModel::restOnCells(const Segment& seg, const std::vector<double>& surface, std::vector<double>* loads,
+                            SegmentPose* pose, BodyState* state) const {
+  const std::size_t n = state->cell_load_n.size();
+  const double k = params_.tissue_stiffness_pa_m;
+  // Forces at the sub-points, shared among the cells that make the surface there.
+  loads->assign(n, 0.0);
+  double force = 0.0, moment = 0.0, peak = 0.0;
+  for (std::size_t i = 0; i < seg.points.size(); ++i) {
+    const SubPoint& sp = seg.points[i];
+    const double d = surface[i] - seg.z - seg.t * sp.u - sp.q;
+    if (d <= 0.0) continue;
+    const double f = k * sp.area * d;
+    force += f;
+    moment += f * sp.u;
+    for (int j = 0; j < 4; ++j)
+      if (sp.weight[j] > 0.0) (*loads)[sp.cell[j]] += f * sp.weight[j];
+    const double pressure = k * d;
+    peak = std::max(peak, pressure);
+    double& cell_peak = state->cell_peak_pressure_pa[sp.face_cell];
+    cell_peak = std::max(cell_peak, pressure);
+  }
+  pose->z_m = seg.z;
+  pose->roll_rad = std::atan(seg.t);
+  pose->support_n = force;
+  pose->moment_residual_nm = moment;
+  pose->peak_pressure_pa = peak;
+  pose->at_roll_limit = std::abs(seg.t) >= std::tan(params_.max_roll_rad) * (1.0 - 1e-12);
+  for (std::size_t c = 0; c < n; ++c) {
+    if ((*loads)[c] == 0.0) continue;
+    pose->cell_loads_n.emplace_back(static_cast<std::uint32_t>(c), (*loads)[c]);
+    state->cell_load_n[c] += (*loads)[c];
+  }
+}
+
+void BodyModel::cellPressures(BodyState* state) const {
+  const double area = grid_.cellAreaM2();
+  for (std::size_t c = 0; c < state->cell_load_n.size(); ++c) {
+    state->cell_pressure_pa[c] = state->cell_load_n[c] / area;
+    state->total_load_n += state->cell_load_n[c];
+  }
+  // Regional peaks: point peaks of the region's segments; cell peaks over the cells they load.
+  auto region = [state](std::initializer_list<int> segs, double* point_peak, double* cell_peak) {
+    for (int s : segs) {
+      *point_peak = std::max(*point_peak, state->segments[s].peak_pressure_pa);
+      for (const auto& cl : state->segments[s].cell_loads_n)
+        *cell_peak = std::max(*cell_peak, state->cell_pressure_pa[cl.first]);
+    }
+  };
+  region({kPelvis}, &state->peak_pressure_pa.sacrum, &state->peak_cell_pressure_pa.sacrum);
+  region({kRightFoot, kLeftFoot}, &state->peak_pressure_pa.heels, &state->peak_cell_pressure_pa.heels);
+  region({kHeadNeck}, &state->peak_pressure_pa.occiput, &state->peak_cell_pressure_pa.occiput);
+}
+
+BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
+  checkHeights(cell_heights_m);
+  const std::size_t n = cell_heights_m.size();
   BodyState state;
   state.cell_load_n.assign(n, 0.0);
   state.cell_pressure_pa.assign(n, 0.0);
   state.cell_peak_pressure_pa.assign(n, 0.0);
-  const double k = params_.tissue_stiffness_pa_m;
-  std::vector<double> surface;
-  std::vector<std::vector<double>> seg_cell_load(segments_.size());
+  std::vector<double> surface, loads;
   double trunk_roll = 0.0, trunk_mass = 0.0;
-  for (std::size_t s = 0; s < segments_.size(); ++s) {
-    Segment& seg = segments_[s];
-    SegmentPose pose;
-    pose.name = seg.spec.name;
-    pose.x_c_m = seg.x_c;
-    pose.y_c_m = seg.y_c;
-    pose.mass_kg = seg.mass_kg;
-    pose.length_m = seg.spec.length_fraction * params_.height_m;
-    pose.width_m = seg.y1 - seg.y0;
-    pose.footprint_length_m = seg.x1 - seg.x0;
-    pose.depth_m = seg.spec.depth_fraction * params_.height_m;
-    pose.on_bed = seg.on_bed;
+  for (Segment& seg : segments_) {
+    SegmentPose pose = segmentPose(seg);
     if (!seg.on_bed) {
       // Hanging off the bed: drawn level with its parent, carried by it.
       const Segment& parent = segments_[seg.spec.parent];
@@ -345,43 +414,11 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
       state.segments.push_back(pose);
       continue;
     }
-    surface.resize(seg.points.size());
-    for (std::size_t i = 0; i < seg.points.size(); ++i) {
-      const SubPoint& sp = seg.points[i];
-      surface[i] = sp.weight[0] * cell_heights_m[sp.cell[0]] + sp.weight[1] * cell_heights_m[sp.cell[1]] +
-                   sp.weight[2] * cell_heights_m[sp.cell[2]] + sp.weight[3] * cell_heights_m[sp.cell[3]];
-    }
+    surfaceUnder(seg, cell_heights_m, &surface);
     bool ok = false;
     state.iterations += solveSegment(&seg, surface, &ok);
     state.converged = state.converged && ok;
-    // Forces at the sub-points, shared among the cells that make the surface there.
-    std::vector<double>& loads = seg_cell_load[s];
-    loads.assign(n, 0.0);
-    double force = 0.0, moment = 0.0, peak = 0.0;
-    for (std::size_t i = 0; i < seg.points.size(); ++i) {
-      const SubPoint& sp = seg.points[i];
-      const double d = surface[i] - seg.z - seg.t * sp.u - sp.q;
-      if (d <= 0.0) continue;
-      const double f = k * sp.area * d;
-      force += f;
-      moment += f * sp.u;
-      for (int j = 0; j < 4; ++j)
-        if (sp.weight[j] > 0.0) loads[sp.cell[j]] += f * sp.weight[j];
-      const double pressure = k * d;
-      peak = std::max(peak, pressure);
-      state.cell_peak_pressure_pa[sp.face_cell] = std::max(state.cell_peak_pressure_pa[sp.face_cell], pressure);
-    }
-    pose.z_m = seg.z;
-    pose.roll_rad = std::atan(seg.t);
-    pose.support_n = force;
-    pose.moment_residual_nm = moment;
-    pose.peak_pressure_pa = peak;
-    pose.at_roll_limit = std::abs(seg.t) >= std::tan(params_.max_roll_rad) * (1.0 - 1e-12);
-    for (std::size_t c = 0; c < n; ++c) {
-      if (loads[c] == 0.0) continue;
-      pose.cell_loads_n.emplace_back(static_cast<std::uint32_t>(c), loads[c]);
-      state.cell_load_n[c] += loads[c];
-    }
+    restOnCells(seg, surface, &loads, &pose, &state);
     if (seg.spec.trunk) {
       trunk_roll += seg.mass_kg * pose.roll_rad;
       trunk_mass += seg.mass_kg;
@@ -389,22 +426,7 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
     state.segments.push_back(std::move(pose));
   }
   state.roll_rad = trunk_mass > 0.0 ? trunk_roll / trunk_mass : 0.0;
-  const double area = grid_.cellAreaM2();
-  for (std::size_t c = 0; c < n; ++c) {
-    state.cell_pressure_pa[c] = state.cell_load_n[c] / area;
-    state.total_load_n += state.cell_load_n[c];
-  }
-  // Regional peaks: point peaks of the region's segments; cell peaks over the cells they load.
-  auto region = [&](std::initializer_list<int> segs, double* point_peak, double* cell_peak) {
-    for (int s : segs) {
-      *point_peak = std::max(*point_peak, state.segments[s].peak_pressure_pa);
-      for (const auto& cl : state.segments[s].cell_loads_n)
-        *cell_peak = std::max(*cell_peak, state.cell_pressure_pa[cl.first]);
-    }
-  };
-  region({kPelvis}, &state.peak_pressure_pa.sacrum, &state.peak_cell_pressure_pa.sacrum);
-  region({kRightFoot, kLeftFoot}, &state.peak_pressure_pa.heels, &state.peak_cell_pressure_pa.heels);
-  region({kHeadNeck}, &state.peak_pressure_pa.occiput, &state.peak_cell_pressure_pa.occiput);
+  cellPressures(&state);
   return state;
 }
 

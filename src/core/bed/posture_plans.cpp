@@ -107,9 +107,9 @@ std::string fmt(double v) {
 
 class UniformPlan : public PosturePlan {
  public:
-  UniformPlan(std::string name, const BedGrid& grid, double height_m, double timeout_s)
-      : name_(std::move(name)), cells_(grid.cells()), height_m_(height_m), timeout_s_(timeout_s) {}
-  std::string name() const override { return name_; }
+  UniformPlan(PlanKind kind, const BedGrid& grid, double height_m, double timeout_s)
+      : kind_(kind), cells_(grid.cells()), height_m_(height_m), timeout_s_(timeout_s) {}
+  PlanKind kind() const override { return kind_; }
   PlanTargets targets(double elapsed_s) const override {
     PlanTargets t;
     t.heights_m.assign(cells_, height_m_);
@@ -122,14 +122,14 @@ class UniformPlan : public PosturePlan {
   }
 
  private:
-  std::string name_;
+  PlanKind kind_;
   int cells_;
   double height_m_, timeout_s_;
 };
 
 class CprPlan : public PosturePlan {
  public:
-  std::string name() const override { return "cpr"; }
+  PlanKind kind() const override { return PlanKind::kCpr; }
   PlanTargets targets(double) const override {
     PlanTargets t;
     t.vent_all = true;
@@ -142,7 +142,7 @@ class CprPlan : public PosturePlan {
 class CustomPlan : public PosturePlan {
  public:
   explicit CustomPlan(std::vector<double> heights) : heights_(std::move(heights)) {}
-  std::string name() const override { return "custom"; }
+  PlanKind kind() const override { return PlanKind::kCustom; }
   PlanTargets targets(double) const override {
     PlanTargets t;
     t.heights_m = heights_;
@@ -163,7 +163,7 @@ class LateralTurnPlan : public PosturePlan {
                   double ramp_s, double dwell_s, bool back)
       : config_(c), grid_(g), body_(b), direction_(direction), angle_deg_(angle_deg), ramp_s_(ramp_s),
         dwell_s_(dwell_s), back_(back) {}
-  std::string name() const override { return "lateral_turn"; }
+  PlanKind kind() const override { return PlanKind::kLateralTurn; }
   PlanTargets targets(double t) const override {
     PlanTargets out;
     double a = angle_deg_;
@@ -219,7 +219,7 @@ class AlternatingPlan : public PosturePlan {
                   int head_rows)
       : config_(c), grid_(g), groups_(groups), period_s_(period_s), low_m_(low_m), high_m_(high_m),
         head_rows_(head_rows) {}
-  std::string name() const override { return "alternating"; }
+  PlanKind kind() const override { return PlanKind::kAlternating; }
   PlanTargets targets(double t) const override {
     PlanTargets out;
     const double slot = period_s_ / groups_;
@@ -281,7 +281,7 @@ std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& b
 }
 
 std::unique_ptr<PosturePlan> makeSafeLevelPlan(const BedGrid& grid, double height_m) {
-  return std::make_unique<UniformPlan>("safe_level", grid, height_m, 0.0);
+  return std::make_unique<UniformPlan>(PlanKind::kSafeLevel, grid, height_m, 0.0);
 }
 
 std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m) {
@@ -315,79 +315,128 @@ const ParamTable<PlanConfig>& planConfigFields() {
 
 const std::map<std::string, std::string>& planHelp() {
   static const std::map<std::string, std::string> help = {
-      {"flat", "[height_m=H]"},
-      {"lateral_turn", "side=left|right angle_deg=A [ramp_s=S] [dwell_s=S] [return=yes|no]"},
-      {"alternating", "pattern=1in2|1in3 [period_s=S] [low_m=H] [high_m=H] [static_head_rows=N]"},
-      {"max_inflate", "[timeout_s=S]"},
-      {"cpr", "(no arguments)"},
-      {"custom", "heights_m = one height per cell, by cell id"},
+      {planKindName(PlanKind::kFlat), "[height_m=H]"},
+      {planKindName(PlanKind::kLateralTurn), "side=left|right angle_deg=A [ramp_s=S] [dwell_s=S] [return=yes|no]"},
+      {planKindName(PlanKind::kAlternating),
+       "pattern=1in2|1in3 [period_s=S] [low_m=H] [high_m=H] [static_head_rows=N]"},
+      {planKindName(PlanKind::kMaxInflate), "[timeout_s=S]"},
+      {planKindName(PlanKind::kCpr), "(no arguments)"},
+      {planKindName(PlanKind::kCustom), "heights_m = one height per cell, by cell id"},
   };
   return help;
+}
+
+namespace {
+
+std::unique_ptr<PosturePlan> makeCustom(const PlanRequest& req, const PlanConfig& config, const BedGrid& grid,
+                                        Args& args) {
+  const double lo = config.min_height_m, hi = config.max_height_m;
+  if (static_cast<int>(req.heights_m.size()) != grid.cells())
+    args.fail("needs " + std::to_string(grid.cells()) + " heights (one per cell), got " +
+              std::to_string(req.heights_m.size()));
+  for (std::size_t i = 0; i < req.heights_m.size(); ++i) {
+    const double h = req.heights_m[i];
+    if (!std::isfinite(h) || h < lo || h > hi) {
+      std::ostringstream m;
+      m << "height " << h << " m of cell " << i << " is outside [" << lo << ", " << hi << "] m or not finite";
+      args.fail(m.str());
+    }
+  }
+  return std::make_unique<CustomPlan>(req.heights_m);
+}
+
+std::unique_ptr<PosturePlan> makeLateralTurn(const PlanConfig& config, const BedGrid& grid, const BodyFootprint& body,
+                                             Args& args) {
+  const std::string side = args.word("side", {"left", "right"}, "", true);
+  const double angle = args.number("angle_deg", 0.0, 0.0, kHardMaxTiltDeg, true);
+  if (angle > config.max_tilt_deg) {
+    std::ostringstream m;
+    m << "angle_deg = " << angle << " exceeds the configured maximum " << config.max_tilt_deg << " deg";
+    args.fail(m.str());
+  }
+  if (!(angle > 0.0)) args.fail("angle_deg must be positive");
+  const double min_ramp = angle / config.max_tilt_rate_deg_s;
+  const double ramp = args.number("ramp_s", std::max(config.turn_ramp_s, min_ramp), 0.0, 3600.0);
+  if (ramp < min_ramp) {
+    std::ostringstream m;
+    m << "ramp_s = " << ramp << " turns faster than " << config.max_tilt_rate_deg_s << " deg/s (at least "
+      << min_ramp << " s for " << angle << " deg)";
+    args.fail(m.str());
+  }
+  const double dwell = args.number("dwell_s", config.turn_dwell_s, 0.0, 7200.0);
+  const bool back = args.word("return", {"yes", "no"}, "yes") == "yes";
+  return std::make_unique<LateralTurnPlan>(config, grid, body, side == "left" ? 1.0 : -1.0, angle, ramp, dwell, back);
+}
+
+std::unique_ptr<PosturePlan> makeAlternating(const PlanConfig& config, const BedGrid& grid, Args& args) {
+  const double lo = config.min_height_m, hi = config.max_height_m;
+  const std::string pattern = args.word("pattern", {"1in2", "1in3"}, "", true);
+  const int groups = pattern == "1in2" ? 2 : 3;
+  const double period =
+      args.number("period_s", config.alternating_period_s, 2.0 * groups * config.alternating_transition_s, 7200.0);
+  const double low = args.number("low_m", config.alternating_low_m, lo, hi);
+  const double high = args.number("high_m", config.alternating_high_m, lo, hi);
+  if (!(low < high)) args.fail("low_m must be below high_m");
+  const double head = args.number("static_head_rows", config.static_head_rows, 0.0, grid.rows - groups);
+  if (head != std::floor(head)) args.fail("static_head_rows must be a whole number");
+  return std::make_unique<AlternatingPlan>(config, grid, groups, period, low, high, static_cast<int>(head));
+}
+
+// The kind a request names, when it is one makePlan builds (safe_level is the manager's own).
+PlanKind requestedKind(const std::string& name) {
+  const std::optional<PlanKind> kind = planKindFromName(name);
+  if (!kind || *kind == PlanKind::kSafeLevel) {
+    std::string known;
+    for (const auto& p : planHelp()) known += (known.empty() ? "" : ", ") + p.first;
+    throw std::invalid_argument("unknown plan '" + name + "' (known: " + known + ")");
+  }
+  return *kind;
+}
+
+}  // namespace
+
+std::string planKindName(PlanKind kind) {
+  switch (kind) {
+    case PlanKind::kFlat: return "flat";
+    case PlanKind::kLateralTurn: return "lateral_turn";
+    case PlanKind::kAlternating: return "alternating";
+    case PlanKind::kMaxInflate: return "max_inflate";
+    case PlanKind::kCpr: return "cpr";
+    case PlanKind::kCustom: return "custom";
+    case PlanKind::kSafeLevel: return "safe_level";
+  }
+  return "";
+}
+
+std::optional<PlanKind> planKindFromName(const std::string& name) {
+  for (PlanKind k : {PlanKind::kFlat, PlanKind::kLateralTurn, PlanKind::kAlternating, PlanKind::kMaxInflate,
+                     PlanKind::kCpr, PlanKind::kCustom, PlanKind::kSafeLevel})
+    if (planKindName(k) == name) return k;
+  return std::nullopt;
 }
 
 std::unique_ptr<PosturePlan> makePlan(const PlanRequest& req, const PlanConfig& config, const BedGrid& grid,
                                       const BodyFootprint& body, std::string* error) {
   try {
-    if (!planHelp().count(req.plan)) {
-      std::string known;
-      for (const auto& p : planHelp()) known += (known.empty() ? "" : ", ") + p.first;
-      throw std::invalid_argument("unknown plan '" + req.plan + "' (known: " + known + ")");
-    }
-    if (req.plan != "custom" && !req.heights_m.empty())
+    const PlanKind kind = requestedKind(req.plan);
+    if (kind != PlanKind::kCustom && !req.heights_m.empty())
       throw std::invalid_argument(req.plan + ": does not take per-cell heights");
     Args args(req.args, req.plan);
     std::unique_ptr<PosturePlan> plan;
-    const double lo = config.min_height_m, hi = config.max_height_m;
-    if (req.plan == "flat") {
-      plan = std::make_unique<UniformPlan>("flat", grid, args.number("height_m", config.nominal_height_m, lo, hi), 0.0);
-    } else if (req.plan == "max_inflate") {
-      plan = std::make_unique<UniformPlan>("max_inflate", grid, hi,
-                                           args.number("timeout_s", config.max_inflate_timeout_s, 1.0, 7200.0));
-    } else if (req.plan == "cpr") {
-      plan = std::make_unique<CprPlan>();
-    } else if (req.plan == "custom") {
-      if (static_cast<int>(req.heights_m.size()) != grid.cells())
-        args.fail("needs " + std::to_string(grid.cells()) + " heights (one per cell), got " +
-                  std::to_string(req.heights_m.size()));
-      for (std::size_t i = 0; i < req.heights_m.size(); ++i) {
-        const double h = req.heights_m[i];
-        if (!std::isfinite(h) || h < lo || h > hi) {
-          std::ostringstream m;
-          m << "height " << h << " m of cell " << i << " is outside [" << lo << ", " << hi << "] m or not finite";
-          args.fail(m.str());
-        }
-      }
-      plan = std::make_unique<CustomPlan>(req.heights_m);
-    } else if (req.plan == "lateral_turn") {
-      const std::string side = args.word("side", {"left", "right"}, "", true);
-      const double angle = args.number("angle_deg", 0.0, 0.0, kHardMaxTiltDeg, true);
-      if (angle > config.max_tilt_deg) {
-        std::ostringstream m;
-        m << "angle_deg = " << angle << " exceeds the configured maximum " << config.max_tilt_deg << " deg";
-        args.fail(m.str());
-      }
-      if (!(angle > 0.0)) args.fail("angle_deg must be positive");
-      const double min_ramp = angle / config.max_tilt_rate_deg_s;
-      const double ramp = args.number("ramp_s", std::max(config.turn_ramp_s, min_ramp), 0.0, 3600.0);
-      if (ramp < min_ramp) {
-        std::ostringstream m;
-        m << "ramp_s = " << ramp << " turns faster than " << config.max_tilt_rate_deg_s << " deg/s (at least "
-          << min_ramp << " s for " << angle << " deg)";
-        args.fail(m.str());
-      }
-      const double dwell = args.number("dwell_s", config.turn_dwell_s, 0.0, 7200.0);
-      const bool back = args.word("return", {"yes", "no"}, "yes") == "yes";
-      plan = std::make_unique<LateralTurnPlan>(config, grid, body, side == "left" ? 1.0 : -1.0, angle, ramp, dwell, back);
-    } else if (req.plan == "alternating") {
-      const std::string pattern = args.word("pattern", {"1in2", "1in3"}, "", true);
-      const int groups = pattern == "1in2" ? 2 : 3;
-      const double period = args.number("period_s", config.alternating_period_s, 2.0 * groups * config.alternating_transition_s, 7200.0);
-      const double low = args.number("low_m", config.alternating_low_m, lo, hi);
-      const double high = args.number("high_m", config.alternating_high_m, lo, hi);
-      if (!(low < high)) args.fail("low_m must be below high_m");
-      const double head = args.number("static_head_rows", config.static_head_rows, 0.0, grid.rows - groups);
-      if (head != std::floor(head)) args.fail("static_head_rows must be a whole number");
-      plan = std::make_unique<AlternatingPlan>(config, grid, groups, period, low, high, static_cast<int>(head));
+    switch (kind) {
+      case PlanKind::kFlat:
+        plan = std::make_unique<UniformPlan>(
+            kind, grid, args.number("height_m", config.nominal_height_m, config.min_height_m, config.max_height_m), 0.0);
+        break;
+      case PlanKind::kMaxInflate:
+        plan = std::make_unique<UniformPlan>(kind, grid, config.max_height_m,
+                                             args.number("timeout_s", config.max_inflate_timeout_s, 1.0, 7200.0));
+        break;
+      case PlanKind::kCpr: plan = std::make_unique<CprPlan>(); break;
+      case PlanKind::kCustom: plan = makeCustom(req, config, grid, args); break;
+      case PlanKind::kLateralTurn: plan = makeLateralTurn(config, grid, body, args); break;
+      case PlanKind::kAlternating: plan = makeAlternating(config, grid, args); break;
+      case PlanKind::kSafeLevel: break;  // refused by requestedKind
     }
     args.finish();
     return plan;

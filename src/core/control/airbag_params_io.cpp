@@ -1,7 +1,9 @@
 #include "nursing_bed/core/control/airbag_params_io.h"
 
+#include <filesystem>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 
 namespace nursing_bed {
@@ -63,9 +65,12 @@ AirbagCellParams airbagParamsFrom(const FlatParams& values, const std::string& s
   AirbagCellParams params = base;
   // The structure's text keys (cell/structure/type, cell/structure/table_file) first. Parameters
   // from the server carry no file location: a relative table path is taken from the package's
-  // config/ folder, where the shipped cell files live (an absolute path is taken as it is).
+  // config/ folder, where the shipped cell files live (an absolute path is taken as it is); the
+  // package is looked up only then.
   FlatParams numeric = values;
-  applyStructureSelection(&numeric, std::string(NURSING_BED_SOURCE_DIR) + "/config", &params.cell, "cell/");
+  const auto table = numeric.find("cell/structure/table_file");
+  const bool relative_table = table != numeric.end() && std::filesystem::path(table->second.text).is_relative();
+  applyStructureSelection(&numeric, relative_table ? findPackageFile("config") : "", &params.cell, "cell/");
   applyFlatParams(numeric, source, airbagParamFields(), &params);
   const std::string error = params.validate();
   if (!error.empty()) throw std::runtime_error(source + ": invalid airbag parameters: " + error);

@@ -11,6 +11,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/package_path.h"
+
 namespace nursing_bed {
 namespace {
 
@@ -383,7 +385,7 @@ std::vector<RunData> readDataset(const std::string& dir, std::vector<RunData> ex
 }
 
 std::string resolveAirbagParamsFile(const std::string& airbag, const std::string& dataset_dir) {
-  const fs::path config = fs::path(NURSING_BED_SOURCE_DIR) / "config";
+  const fs::path config = findPackageFile("config");
   if (airbag.empty()) return (config / "airbag_tpu_double_100.yaml").string();
   std::vector<fs::path> tried;
   tried.push_back(fs::path(airbag));

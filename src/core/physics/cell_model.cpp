@@ -155,121 +155,176 @@ void CellModel::resetToEquilibrium(double height_m, double load_n, double gas_te
   refreshVariables(last_inputs_);
 }
 
-CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, const CellInputs& in,
-                                       CellVariables* vars_out) const {
-  const GasProperties& gas = params_.gas;
-  const double cp = gas.cp();
-  CellVariables local;
-  CellVariables& v = vars_out ? *vars_out : local;
+namespace {
 
+using StateVector = CellModel::StateVector;
+
+// The steps of CellModel::rate, in the order it calls them. Each writes the variables it owns
+// into the CellVariables (read by the later steps and by the effects); none allocates.
+
+/// The variables the state gives directly: gas, plate, regulator, film shape and structure.
+inline void stateVariables(const CellParams& params, const CellStructure& structure, int shape_dofs,
+                           double time_s, const StateVector& x, const CellInputs& in, CellVariables* out) {
+  const GasProperties& gas = params.gas;
+  CellVariables& v = *out;
   v.time_s = time_s;
-  v.mass_kg = std::max(x[kMass], 1e-12);
-  v.internal_energy_j = std::max(x[kEnergy], 1e-9);
-  v.height_m = x[kHeight];
-  v.velocity_m_s = x[kVelocity];
-  v.regulator_pressure_pa = params_.regulator_time_constant_s > 0.0 ? x[kRegulator]
-                                                                    : (std::isnan(in.supply_pressure_pa)
-                                                                           ? params_.supply_pressure_pa
-                                                                           : in.supply_pressure_pa);
-  for (int i = 0; i < shape_dofs_; ++i) v.shape[i] = x[kShape + i];
-  v.structure = structure_->evaluate(v.height_m, v.shape.data());
-  const StructureEval& s = v.structure;
-  v.pressure_pa = pressureFromEnergy(gas, v.internal_energy_j, s.volume_m3);
-  v.gauge_pressure_pa = v.pressure_pa - params_.ambient_pressure_pa;
+  v.mass_kg = std::max(x[CellModel::kMass], 1e-12);
+  v.internal_energy_j = std::max(x[CellModel::kEnergy], 1e-9);
+  v.height_m = x[CellModel::kHeight];
+  v.velocity_m_s = x[CellModel::kVelocity];
+  v.regulator_pressure_pa = params.regulator_time_constant_s > 0.0 ? x[CellModel::kRegulator]
+                                                                   : (std::isnan(in.supply_pressure_pa)
+                                                                          ? params.supply_pressure_pa
+                                                                          : in.supply_pressure_pa);
+  for (int i = 0; i < shape_dofs; ++i) v.shape[i] = x[CellModel::kShape + i];
+  v.structure = structure.evaluate(v.height_m, v.shape.data());
+  v.pressure_pa = pressureFromEnergy(gas, v.internal_energy_j, v.structure.volume_m3);
+  v.gauge_pressure_pa = v.pressure_pa - params.ambient_pressure_pa;
   v.temperature_k = temperatureFromEnergy(gas, v.internal_energy_j, v.mass_kg);
   v.load_n = in.load_n;
-  v.moving_mass_kg = std::max(params_.plate_mass_kg, in.load_n / kGravity);
+  v.moving_mass_kg = std::max(params.plate_mass_kg, in.load_n / kGravity);
+}
 
-  // The cell pressure the orifices see: the model's, or one given (an observer's measurement).
-  const double flow_pressure_pa = std::isfinite(in.flow_gauge_pressure_pa)
-                                      ? params_.ambient_pressure_pa + in.flow_gauge_pressure_pa
-                                      : v.pressure_pa;
-  // Inlet: a prescribed (metered) series, or the regulator through the inlet valve.
-  double inflow_enthalpy_w = 0.0;
+/// The cell pressure the orifices see: the model's, or one given (an observer's measurement).
+inline double flowPressure(const CellParams& params, const CellInputs& in, const CellVariables& v) {
+  return std::isfinite(in.flow_gauge_pressure_pa) ? params.ambient_pressure_pa + in.flow_gauge_pressure_pa
+                                                  : v.pressure_pa;
+}
+
+/// Inlet: a prescribed (metered) series, or the regulator through the inlet valve. Sets the
+/// inflow variables; returns the enthalpy flow the inflow brings [W].
+inline double inletFlow(const CellParams& params, const CellInputs& in, double flow_pressure_pa, CellVariables* out) {
+  const double cp = params.gas.cp();
+  CellVariables& v = *out;
   if (in.prescribed_inflow || std::isfinite(in.prescribed_inflow_kg_s)) {
     v.inflow_prescribed = 1.0;
     v.inlet_closed = in.inlet_closed ? 1.0 : 0.0;
-    v.metered_inflow_kg_s = in.prescribed_inflow ? in.prescribed_inflow->at(time_s) : in.prescribed_inflow_kg_s;
+    v.metered_inflow_kg_s = in.prescribed_inflow ? in.prescribed_inflow->at(v.time_s) : in.prescribed_inflow_kg_s;
     v.inflow_kg_s = v.metered_inflow_kg_s;
-    const double t_in = v.inflow_kg_s >= 0.0 ? params_.supply_temperature_k : v.temperature_k;
-    inflow_enthalpy_w = v.inflow_kg_s * cp * t_in;
-  } else {
-    v.inflow_prescribed = 0.0;
-    const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
-    const OrificeFlow f = orificeFlow(gas, opening * params_.inlet_area_m2,
-                                      params_.ambient_pressure_pa + v.regulator_pressure_pa,
-                                      params_.supply_temperature_k, flow_pressure_pa, v.temperature_k,
-                                      params_.orifice_linear_band_pa);
-    v.inflow_kg_s = f.mass_flow_kg_s;
-    v.metered_inflow_kg_s = v.inflow_kg_s;
-    inflow_enthalpy_w = v.inflow_kg_s * cp * f.upstream_temperature_k;
+    const double t_in = v.inflow_kg_s >= 0.0 ? params.supply_temperature_k : v.temperature_k;
+    return v.inflow_kg_s * cp * t_in;
   }
-  // Vent valve and leakage to ambient (eq. 17-23 with the choked branch).
-  auto outflow = [&](double area) {
-    const OrificeFlow f = orificeFlow(gas, area, flow_pressure_pa, v.temperature_k,
-                                      params_.ambient_pressure_pa, params_.ambient_temperature_k,
-                                      params_.orifice_linear_band_pa);
-    return f;
-  };
-  const OrificeFlow vent =
-      orificeFlow(gas, std::clamp(in.vent_opening, 0.0, 1.0) * params_.vent_area_m2, flow_pressure_pa, v.temperature_k,
-                  params_.ambient_pressure_pa + in.vent_back_pressure_pa, params_.ambient_temperature_k,
-                  params_.orifice_linear_band_pa);
-  const OrificeFlow leak = outflow(params_.leak_area_m2);
-  const double relief_opening = params_.reliefOpening(flow_pressure_pa - params_.ambient_pressure_pa);
-  const double relief_kg_s =
-      relief_opening > 0.0 ? relief_opening * iso6358MassFlow(params_.relief_sonic_conductance_m3_s_pa,
-                                                              params_.relief_critical_ratio, flow_pressure_pa,
-                                                              v.temperature_k, params_.ambient_pressure_pa)
-                           : 0.0;
-  v.vent_flow_kg_s = vent.mass_flow_kg_s;
-  v.leak_flow_kg_s = leak.mass_flow_kg_s;
+  v.inflow_prescribed = 0.0;
+  const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
+  const OrificeFlow f = orificeFlow(params.gas, opening * params.inlet_area_m2,
+                                    params.ambient_pressure_pa + v.regulator_pressure_pa, params.supply_temperature_k,
+                                    flow_pressure_pa, v.temperature_k, params.orifice_linear_band_pa);
+  v.inflow_kg_s = f.mass_flow_kg_s;
+  v.metered_inflow_kg_s = v.inflow_kg_s;
+  return v.inflow_kg_s * cp * f.upstream_temperature_k;
+}
 
-  StateVector dx = StateVector::Zero(x.size());
+/// What leaves the cell to ambient besides the effects' flows.
+struct Outflows {
+  OrificeFlow vent;
+  OrificeFlow leak;
+  double relief_kg_s = 0.0;
+};
+
+/// Vent valve and leakage (eq. 17-23 with the choked branch) and the relief valve (ISO 6358).
+/// Sets the vent and leak flow variables.
+inline Outflows outflows(const CellParams& params, const CellInputs& in, double flow_pressure_pa,
+                         CellVariables* out) {
+  CellVariables& v = *out;
+  Outflows o;
+  o.vent = orificeFlow(params.gas, std::clamp(in.vent_opening, 0.0, 1.0) * params.vent_area_m2, flow_pressure_pa,
+                       v.temperature_k, params.ambient_pressure_pa + in.vent_back_pressure_pa,
+                       params.ambient_temperature_k, params.orifice_linear_band_pa);
+  o.leak = orificeFlow(params.gas, params.leak_area_m2, flow_pressure_pa, v.temperature_k, params.ambient_pressure_pa,
+                       params.ambient_temperature_k, params.orifice_linear_band_pa);
+  const double relief_opening = params.reliefOpening(flow_pressure_pa - params.ambient_pressure_pa);
+  o.relief_kg_s = relief_opening > 0.0
+                      ? relief_opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa,
+                                                         params.relief_critical_ratio, flow_pressure_pa,
+                                                         v.temperature_k, params.ambient_pressure_pa)
+                      : 0.0;
+  v.vent_flow_kg_s = o.vent.mass_flow_kg_s;
+  v.leak_flow_kg_s = o.leak.mass_flow_kg_s;
+  return o;
+}
+
+/// The effects' terms, summed; each effect writes its own states' rates into dx.
+inline EffectTerms effectTerms(const std::vector<CellEffectPtr>& effects, const std::vector<int>& offsets,
+                               int shape_dofs, const CellParams& params, const CellVariables& v, const StateVector& x,
+                               StateVector* dx) {
   EffectTerms terms;
-  for (std::size_t i = 0; i < effects_.size(); ++i) {
+  for (std::size_t i = 0; i < effects.size(); ++i) {
     EffectTerms t;
-    const int off = effect_offsets_[i];
-    effects_[i]->contribute(params_, v, x.data() + off, &t, dx.data() + off);
+    const int off = offsets[i];
+    effects[i]->contribute(params, v, x.data() + off, &t, dx->data() + off);
     terms.mass_flow_kg_s += t.mass_flow_kg_s;
     terms.enthalpy_flow_w += t.enthalpy_flow_w;
     terms.heat_flow_w += t.heat_flow_w;
     terms.plate_force_n += t.plate_force_n;
-    for (int k = 0; k < shape_dofs_; ++k) terms.shape_force[k] += t.shape_force[k];
+    for (int k = 0; k < shape_dofs; ++k) terms.shape_force[k] += t.shape_force[k];
   }
+  return terms;
+}
 
-  // Mass (eq. 17) and energy: dU/dt = sum mdot h + Q - p dV/dt (eq. 12-16 generalised to flow).
-  const double outflow_enthalpy_w = vent.mass_flow_kg_s * cp * vent.upstream_temperature_k +
-                                    leak.mass_flow_kg_s * cp * leak.upstream_temperature_k +
-                                    relief_kg_s * cp * v.temperature_k;
-  dx[kMass] = v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - relief_kg_s + terms.mass_flow_kg_s;
-  // Film shape relaxes towards dW/dq = p_gauge dV/dq.
+/// Mass (eq. 17), film shape and energy: dU/dt = sum mdot h + Q - p dV/dt (eq. 12-16
+/// generalised to flow). The film shape relaxes towards dW/dq = p_gauge dV/dq. Sets dV/dt.
+inline void gasRates(const CellParams& params, int shape_dofs, double inflow_enthalpy_w, const Outflows& o,
+                     const EffectTerms& terms, CellVariables* out, StateVector* rates) {
+  const double cp = params.gas.cp();
+  CellVariables& v = *out;
+  StateVector& dx = *rates;
+  const StructureEval& s = v.structure;
+  const double outflow_enthalpy_w = o.vent.mass_flow_kg_s * cp * o.vent.upstream_temperature_k +
+                                    o.leak.mass_flow_kg_s * cp * o.leak.upstream_temperature_k +
+                                    o.relief_kg_s * cp * v.temperature_k;
+  dx[CellModel::kMass] =
+      v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - o.relief_kg_s + terms.mass_flow_kg_s;
   double volume_rate = s.effective_area_m2 * v.velocity_m_s;
-  for (int i = 0; i < shape_dofs_; ++i) {
+  for (int i = 0; i < shape_dofs; ++i) {
     const double imbalance = s.elastic_force[i] + terms.shape_force[i] - v.gauge_pressure_pa * s.dvolume_dshape[i];
-    dx[kShape + i] = -imbalance / s.shape_damping[i];
-    volume_rate += s.dvolume_dshape[i] * dx[kShape + i];
+    dx[CellModel::kShape + i] = -imbalance / s.shape_damping[i];
+    volume_rate += s.dvolume_dshape[i] * dx[CellModel::kShape + i];
   }
   v.volume_rate_m3_s = volume_rate;
-  dx[kEnergy] = inflow_enthalpy_w - outflow_enthalpy_w + terms.enthalpy_flow_w + terms.heat_flow_w -
-                v.pressure_pa * volume_rate;
+  dx[CellModel::kEnergy] = inflow_enthalpy_w - outflow_enthalpy_w + terms.enthalpy_flow_w + terms.heat_flow_w -
+                           v.pressure_pa * volume_rate;
+}
 
-  // Plate: gas force on the effective area against load, guide damping and the bed.
+/// Plate: gas force on the effective area against load, guide damping and the bed. Sets the
+/// bed contact force.
+inline void plateRates(const CellParams& params, const CellInputs& in, const EffectTerms& terms, CellVariables* out,
+                       StateVector* rates) {
+  CellVariables& v = *out;
   v.bed_contact_force_n = 0.0;
   if (v.height_m < 0.0) {
-    v.bed_contact_force_n = std::max(0.0, -params_.bed_contact_stiffness_n_m * v.height_m -
-                                              params_.bed_contact_damping_n_s_m * v.velocity_m_s);
+    v.bed_contact_force_n = std::max(0.0, -params.bed_contact_stiffness_n_m * v.height_m -
+                                              params.bed_contact_damping_n_s_m * v.velocity_m_s);
   }
-  const double net_force = v.gauge_pressure_pa * s.effective_area_m2 - in.load_n -
-                           params_.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n +
-                           terms.plate_force_n + s.plate_force_n;
-  dx[kHeight] = v.velocity_m_s;
-  dx[kVelocity] = net_force / v.moving_mass_kg;
+  const double net_force = v.gauge_pressure_pa * v.structure.effective_area_m2 - in.load_n -
+                           params.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n +
+                           terms.plate_force_n + v.structure.plate_force_n;
+  (*rates)[CellModel::kHeight] = v.velocity_m_s;
+  (*rates)[CellModel::kVelocity] = net_force / v.moving_mass_kg;
+}
 
-  if (params_.regulator_time_constant_s > 0.0) {
-    const double setting = std::isnan(in.supply_pressure_pa) ? params_.supply_pressure_pa : in.supply_pressure_pa;
-    dx[kRegulator] = (setting - x[kRegulator]) / params_.regulator_time_constant_s;
+/// The pressure-reducing valve's outlet follows its setting with a first-order lag.
+inline void regulatorRate(const CellParams& params, const CellInputs& in, const StateVector& x, StateVector* rates) {
+  if (params.regulator_time_constant_s > 0.0) {
+    const double setting = std::isnan(in.supply_pressure_pa) ? params.supply_pressure_pa : in.supply_pressure_pa;
+    (*rates)[CellModel::kRegulator] = (setting - x[CellModel::kRegulator]) / params.regulator_time_constant_s;
   }
+}
+
+}  // namespace
+
+CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, const CellInputs& in,
+                                       CellVariables* vars_out) const {
+  CellVariables local;
+  CellVariables* v = vars_out ? vars_out : &local;
+  stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, v);
+  const double flow_pressure_pa = flowPressure(params_, in, *v);
+  const double inflow_enthalpy_w = inletFlow(params_, in, flow_pressure_pa, v);
+  const Outflows out = outflows(params_, in, flow_pressure_pa, v);
+  StateVector dx = StateVector::Zero(x.size());
+  const EffectTerms terms = effectTerms(effects_, effect_offsets_, shape_dofs_, params_, *v, x, &dx);
+  gasRates(params_, shape_dofs_, inflow_enthalpy_w, out, terms, v, &dx);
+  plateRates(params_, in, terms, v, &dx);
+  regulatorRate(params_, in, x, &dx);
   return dx;
 }
 

@@ -151,16 +151,14 @@ TensileData readTensileCsv(const std::string& path) {
   return data;
 }
 
-YeohFit fitYeoh(const TensileData& data, const YeohFitOptions& options) {
-  const std::size_t n = data.stretch.size();
-  if (data.stress_pa.size() != n)
-    throw std::invalid_argument("fitYeoh: stretch and stress_pa differ in length");
-  if (n < 4)
-    throw std::invalid_argument("fitYeoh: need at least 4 points, got " + std::to_string(n));
+namespace {
 
-  // Design matrix of the uniaxial nominal stress (eq. 8-10), one column per constant.
-  Eigen::MatrixXd a_mat(n, 3);
-  Eigen::VectorXd b(n);
+/// Design matrix of the uniaxial nominal stress (eq. 8-10), one column per constant, and the
+/// measured stresses.
+void yeohDesign(const TensileData& data, Eigen::MatrixXd* a_mat, Eigen::VectorXd* b) {
+  const std::size_t n = data.stretch.size();
+  a_mat->resize(static_cast<Eigen::Index>(n), 3);
+  b->resize(static_cast<Eigen::Index>(n));
   for (std::size_t i = 0; i < n; ++i) {
     const double l = data.stretch[i];
     const double s = data.stress_pa[i];
@@ -170,20 +168,71 @@ YeohFit fitYeoh(const TensileData& data, const YeohFitOptions& options) {
     const double x = l * l + 2.0 / l - 3.0;     // I1 - 3
     const double a = 2.0 * (l - 1.0 / (l * l));  // dI1/dl
     const auto r = static_cast<Eigen::Index>(i);
-    a_mat(r, 0) = a;
-    a_mat(r, 1) = 2.0 * a * x;
-    a_mat(r, 2) = 3.0 * a * x * x;
-    b(r) = s;
+    (*a_mat)(r, 0) = a;
+    (*a_mat)(r, 1) = 2.0 * a * x;
+    (*a_mat)(r, 2) = 3.0 * a * x * x;
+    (*b)(r) = s;
   }
+}
 
-  // Row weights: residuals relative to the measured stress, or plain Pa.
+/// Row weights that make residuals relative to the measured stress (floored at
+/// relative_floor times the largest stress).
+Eigen::VectorXd relativeWeights(const Eigen::VectorXd& b, const YeohFitOptions& options) {
   if (!(options.relative_floor > 0.0) || !std::isfinite(options.relative_floor))
     throw std::invalid_argument("fitYeoh: relative_floor must be positive");
   const double floor_pa = options.relative_floor * b.cwiseAbs().maxCoeff();
-  Eigen::VectorXd w_rel = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(n));
+  Eigen::VectorXd w_rel = Eigen::VectorXd::Ones(b.size());
   if (floor_pa > 0.0)
     for (Eigen::Index i = 0; i < w_rel.size(); ++i)
       w_rel(i) = 1.0 / std::max(std::abs(b(i)), floor_pa);
+  return w_rel;
+}
+
+/// Residual figures of the fitted constants `c` on the unweighted data.
+void residualStatistics(const TensileData& data, const Eigen::MatrixXd& a_mat, const Eigen::VectorXd& b,
+                        const Eigen::VectorXd& w_rel, const Eigen::Vector3d& c, YeohFit* fit) {
+  const std::size_t n = data.stretch.size();
+  const Eigen::VectorXd residual = b - a_mat * c;
+  const double ssr = residual.squaredNorm();
+  const double sst = (b.array() - b.mean()).square().sum();
+  fit->r_squared = sst > 0.0 ? 1.0 - ssr / sst : std::numeric_limits<double>::quiet_NaN();
+  fit->rms_residual_pa = std::sqrt(ssr / static_cast<double>(n));
+  fit->max_abs_residual_pa = residual.cwiseAbs().maxCoeff();
+  fit->rms_relative_residual = std::sqrt(residual.cwiseProduct(w_rel).squaredNorm() / static_cast<double>(n));
+  fit->min_stretch = *std::min_element(data.stretch.begin(), data.stretch.end());
+  fit->max_stretch = *std::max_element(data.stretch.begin(), data.stretch.end());
+}
+
+/// Standard errors of the constants from the covariance s^2 (A_w^T A_w)^-1; with A_s P = Q R:
+/// (A_s^T A_s)^-1 = P R^-1 R^-T P^T, A_w = A_s D (D = diag(scale)).
+void standardErrors(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qr, const Eigen::Vector3d& scale,
+                    const Eigen::MatrixXd& a_w, const Eigen::VectorXd& b_w, const Eigen::Vector3d& c, YeohFit* fit) {
+  const auto n = static_cast<double>(a_w.rows());
+  const Eigen::Matrix3d r_mat = qr.matrixR().topLeftCorner(3, 3).triangularView<Eigen::Upper>();
+  const Eigen::Matrix3d r_inv = r_mat.triangularView<Eigen::Upper>().solve(Eigen::Matrix3d::Identity());
+  const Eigen::Matrix3d perm = qr.colsPermutation();
+  Eigen::Matrix3d cov = perm * r_inv * r_inv.transpose() * perm.transpose();
+  cov = scale.cwiseInverse().asDiagonal() * cov * scale.cwiseInverse().asDiagonal();
+  cov *= (b_w - a_w * c).squaredNorm() / (n - 3.0);
+  fit->c10_stderr_pa = std::sqrt(cov(0, 0));
+  fit->c20_stderr_pa = std::sqrt(cov(1, 1));
+  fit->c30_stderr_pa = std::sqrt(cov(2, 2));
+}
+
+}  // namespace
+
+YeohFit fitYeoh(const TensileData& data, const YeohFitOptions& options) {
+  const std::size_t n = data.stretch.size();
+  if (data.stress_pa.size() != n)
+    throw std::invalid_argument("fitYeoh: stretch and stress_pa differ in length");
+  if (n < 4)
+    throw std::invalid_argument("fitYeoh: need at least 4 points, got " + std::to_string(n));
+
+  Eigen::MatrixXd a_mat;
+  Eigen::VectorXd b;
+  yeohDesign(data, &a_mat, &b);
+  // Row weights: residuals relative to the measured stress, or plain Pa.
+  const Eigen::VectorXd w_rel = relativeWeights(b, options);
   const Eigen::VectorXd w = options.weighting == FitWeighting::kRelative
                                 ? w_rel
                                 : Eigen::VectorXd::Ones(static_cast<Eigen::Index>(n));
@@ -208,32 +257,8 @@ YeohFit fitYeoh(const TensileData& data, const YeohFitOptions& options) {
   fit.material.c30_pa = c(2);
   fit.num_points = n;
   fit.weighting = options.weighting;
-
-  const Eigen::VectorXd residual = b - a_mat * c;
-  const double ssr = residual.squaredNorm();
-  const double sst = (b.array() - b.mean()).square().sum();
-  fit.r_squared = sst > 0.0 ? 1.0 - ssr / sst : std::numeric_limits<double>::quiet_NaN();
-  fit.rms_residual_pa = std::sqrt(ssr / static_cast<double>(n));
-  fit.max_abs_residual_pa = residual.cwiseAbs().maxCoeff();
-  fit.rms_relative_residual =
-      std::sqrt(residual.cwiseProduct(w_rel).squaredNorm() / static_cast<double>(n));
-  fit.min_stretch = *std::min_element(data.stretch.begin(), data.stretch.end());
-  fit.max_stretch = *std::max_element(data.stretch.begin(), data.stretch.end());
-
-  // Covariance s^2 (A_w^T A_w)^-1; with A_s P = Q R: (A_s^T A_s)^-1 = P R^-1 R^-T P^T,
-  // A_w = A_s D.
-  const Eigen::Matrix3d r_mat =
-      qr.matrixR().topLeftCorner(3, 3).triangularView<Eigen::Upper>();
-  const Eigen::Matrix3d r_inv =
-      r_mat.triangularView<Eigen::Upper>().solve(Eigen::Matrix3d::Identity());
-  const Eigen::Matrix3d perm = qr.colsPermutation();
-  Eigen::Matrix3d cov = perm * r_inv * r_inv.transpose() * perm.transpose();
-  cov = scale.cwiseInverse().asDiagonal() * cov * scale.cwiseInverse().asDiagonal();
-  cov *= (b_w - a_w * c).squaredNorm() / static_cast<double>(n - 3);
-  fit.c10_stderr_pa = std::sqrt(cov(0, 0));
-  fit.c20_stderr_pa = std::sqrt(cov(1, 1));
-  fit.c30_stderr_pa = std::sqrt(cov(2, 2));
-
+  residualStatistics(data, a_mat, b, w_rel, c, &fit);
+  standardErrors(qr, scale, a_w, b_w, c, &fit);
   fit.validation = fit.material.validate();
   return fit;
 }

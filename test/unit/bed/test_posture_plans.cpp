@@ -121,6 +121,26 @@ TEST(PosturePlans, AlternatingNeverLowersTwoAdjacentRows) {
   }
 }
 
+TEST(PosturePlans, PlanKindsKeepTheirRequestNames) {
+  const std::vector<std::pair<nb::PlanKind, std::string>> names = {
+      {nb::PlanKind::kFlat, "flat"},           {nb::PlanKind::kLateralTurn, "lateral_turn"},
+      {nb::PlanKind::kAlternating, "alternating"}, {nb::PlanKind::kMaxInflate, "max_inflate"},
+      {nb::PlanKind::kCpr, "cpr"},             {nb::PlanKind::kCustom, "custom"},
+      {nb::PlanKind::kSafeLevel, "safe_level"}};
+  for (const auto& [kind, name] : names) {
+    EXPECT_EQ(nb::planKindName(kind), name);
+    EXPECT_EQ(nb::planKindFromName(name), kind) << name;
+  }
+  EXPECT_FALSE(nb::planKindFromName("Flat"));
+  EXPECT_FALSE(nb::planKindFromName(""));
+  // Every plan knows its kind; safe_level is the manager's own, not a request.
+  EXPECT_EQ(make("flat", {})->kind(), nb::PlanKind::kFlat);
+  EXPECT_EQ(make("max_inflate", {})->kind(), nb::PlanKind::kMaxInflate);
+  EXPECT_EQ(make("alternating", {{"pattern", "1in2"}})->name(), "alternating");
+  EXPECT_EQ(nb::makeSafeLevelPlan(kGrid, 0.1)->kind(), nb::PlanKind::kSafeLevel);
+  expectRefused("safe_level", {}, "unknown plan 'safe_level'", {0.1});
+}
+
 TEST(PosturePlans, ConfigValidation) {
   nb::PlanConfig c;
   EXPECT_TRUE(c.validate().empty());

@@ -2,7 +2,6 @@
 // short run of the run-data protocol, the catalogue and the factory's refusals.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <random>
 #include <set>
@@ -435,29 +434,6 @@ TEST(GapEffects, FlowReadingsComposeInCatalogueOrder) {
   }
   EXPECT_GT(q_max, 5e-4);   // it did inflate...
   EXPECT_LT(q_min, -1e-4);  // ...and vent
-}
-
-TEST(GapEffects, ReplayOfAStandardRunIsFast) {
-  // The diagnosis replays each run many times: one 75.5 s run with prescribed inflow.
-  nb::CellParams params;
-  nb::CellModel model(params);
-  const nb::TimeSeries inflow = nb::paperShapedInflow(3.4e-3, 1.0, 5.5, 0.01);
-  std::vector<double> t, q;
-  for (int i = 0; i <= 7550; ++i) {
-    t.push_back(i * 0.01);
-    q.push_back(inflow.at(i * 0.01) + (i > 6550 ? -5e-4 * std::exp(-(i - 6550) * 0.01) : 0.0));
-  }
-  const nb::TimeSeries replay(t, q);
-  const auto start = std::chrono::steady_clock::now();
-  model.reset(15.6);
-  nb::CellInputs in;
-  in.load_n = 15.6;
-  in.prescribed_inflow = &replay;
-  for (int i = 1; i <= 7550; ++i) model.advance(i * 0.01 - model.time(), in);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  RecordProperty("replay_75s_ms", std::to_string(seconds * 1e3));
-  std::cout << "[ timing   ] one 75.5 s replay (prescribed inflow, 100 Hz samples): " << seconds * 1e3 << " ms\n";
-  EXPECT_LT(seconds, 2.0);
 }
 
 }  // namespace

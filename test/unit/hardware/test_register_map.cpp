@@ -155,7 +155,9 @@ TEST(PwmChannel, MeanOpeningEqualsTheDutyOverFramesOneFrameLate) {
     int on = 0;
     const int steps = 4, frames = 250;
     for (int i = 0; i < steps * frames; ++i) on += pwm.next(duty, i % steps, steps) ? 1 : 0;
-    if (duty > 0.0) EXPECT_GT(on, 0) << duty;
+    if (duty > 0.0) {
+      EXPECT_GT(on, 0) << duty;
+    }
     // The last frame's demand is still to come: at most one frame short.
     EXPECT_NEAR(static_cast<double>(on) / (steps * frames), duty, 1.0 / frames + 1e-12) << duty;
     EXPECT_LE(static_cast<double>(on) / (steps * frames), duty + 1.0 / (steps * frames)) << duty;

@@ -62,6 +62,7 @@ struct SegmentSpec {
 const std::vector<SegmentSpec>& segmentTable();
 
 /// Where a segment rests and what carries it.
+// size: a plain record of one segment's pose, size and support for the simulator's outputs
 struct SegmentPose {
   std::string name;
   double x_c_m = 0.0;         ///< apex of the underside (footprint centre) along the bed [m]
@@ -160,6 +161,7 @@ class BodyModel {
     double weight[4] = {0.0, 0.0, 0.0, 0.0};
     std::uint32_t face_cell = 0;           // the cell under this point
   };
+  // size: a plain record of one segment's footprint, sub-points and warm-started pose
   struct Segment {
     SegmentSpec spec;
     double x_c = 0.0, y_c = 0.0, x0 = 0.0, x1 = 0.0, y0 = 0.0, y1 = 0.0;
@@ -179,6 +181,19 @@ class BodyModel {
   /// Newton on the segment's potential; returns iterations, sets *converged.
   int solveSegment(Segment* seg, const std::vector<double>& surface, bool* converged) const;
   std::vector<int> rowsOf(const std::vector<int>& segment_indices) const;
+  // The steps of solve(), in its order.
+  /// Throws std::invalid_argument when the heights do not fit the grid or one is not finite.
+  void checkHeights(const std::vector<double>& cell_heights_m) const;
+  /// The pose's fixed part: name, size, mass, where the footprint is.
+  SegmentPose segmentPose(const Segment& seg) const;
+  /// The cell surface at each of the segment's sub-points, interpolated from the cell heights.
+  void surfaceUnder(const Segment& seg, const std::vector<double>& cell_heights_m, std::vector<double>* surface) const;
+  /// The solved segment's contact: its pose's support and peaks, its loads on the cells
+  /// (`loads`: scratch, by cell id) added to the state's cell loads and peak pressures.
+  void restOnCells(const Segment& seg, const std::vector<double>& surface, std::vector<double>* loads,
+                   SegmentPose* pose, BodyState* state) const;
+  /// Cell pressures, total load and regional peaks from the cell loads and the segments.
+  void cellPressures(BodyState* state) const;
 
   PatientParams params_;
   BedGrid grid_;

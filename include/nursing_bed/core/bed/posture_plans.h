@@ -5,6 +5,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,16 @@ struct BodyFootprint {
   double center_y_m = 0.0;  ///< the body's midline across the bed [m]
 };
 
+/// The kinds of plan. Requests and the saved resume record name them by planKindName(); inside
+/// the core they are compared as this type only.
+enum class PlanKind { kFlat, kLateralTurn, kAlternating, kMaxInflate, kCpr, kCustom, kSafeLevel };
+
+/// The name a plan kind has in requests, ~state and the resume record ("flat", "lateral_turn",
+/// "alternating", "max_inflate", "cpr", "custom", "safe_level").
+std::string planKindName(PlanKind kind);
+/// The kind named `name`; nullopt when no kind has that name.
+std::optional<PlanKind> planKindFromName(const std::string& name);
+
 /// What a plan wants at one instant.
 struct PlanTargets {
   std::vector<double> heights_m;  ///< per cell id; empty when venting
@@ -55,8 +66,8 @@ struct PlanTargets {
   bool finished = false;          ///< the plan has run its course (max_inflate: revert now)
 };
 
-/// A request as it arrives (service or command line): plan name, key=value arguments, and the
-/// per-cell heights of a `custom` plan.
+/// A request as it arrives (service or command line): plan name (parsed by makePlan),
+/// key=value arguments, and the per-cell heights of a `custom` plan.
 struct PlanRequest {
   std::string plan;
   std::map<std::string, std::string> args;
@@ -66,7 +77,9 @@ struct PlanRequest {
 class PosturePlan {
  public:
   virtual ~PosturePlan() = default;
-  virtual std::string name() const = 0;
+  virtual PlanKind kind() const = 0;
+  /// planKindName(kind()).
+  std::string name() const { return planKindName(kind()); }
   /// Targets `elapsed_s` after the plan started.
   virtual PlanTargets targets(double elapsed_s) const = 0;
   /// The plan's parameters after defaults, as "key=value ...".

@@ -54,6 +54,7 @@ struct ForceSummary {
   double max_stretch = 1.0;
 };
 
+// size: the explicit FE state: film, gas, bed, plate and self-contact forces share the node arrays
 class MembraneModel {
  public:
   /// Throws std::invalid_argument naming the field when the mesh, material or options are bad.

@@ -123,6 +123,7 @@ struct RunTrace {
   std::vector<RunPhase> phases;
 };
 
+// size: a plain record of every figure and table the diagnosis reports
 struct DiagnosisReport {
   std::string dataset;
   DiagnosisOptions options;  ///< the thresholds the decision used

@@ -11,6 +11,7 @@
 
 namespace nursing_bed {
 
+// size: a plain record of the eq. 24 study's figures, one field per reported number
 struct PaperCurveStudy {
   double load_n = 0.0;
   double inflow_kg_s = 0.0;              ///< the slow constant inflow of the quasi-static runs

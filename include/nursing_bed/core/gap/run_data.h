@@ -11,6 +11,7 @@
 namespace nursing_bed {
 
 /// One run. Signals in SI units, one entry per sample; NaN where a sample was not measured.
+// size: a plain record of one run: one field per CSV column and known metadata key
 struct RunData {
   std::string name;                         ///< file name ("a.csv"), or bag stem + topic
   std::string source;                       ///< file it was read from (empty when built in memory)
@@ -89,7 +90,8 @@ std::vector<RunData> readDataset(const std::string& dir, std::vector<RunData> ex
 /**
  * The parameter file an airbag name refers to: empty -> config/airbag_tpu_double_100.yaml;
  * an existing file (as given, or relative to `dataset_dir`) -> that file; else
- * config/<name>, config/<name>.yaml, config/airbag_<name>.yaml in the package source tree.
+ * config/<name>, config/<name>.yaml, config/airbag_<name>.yaml in the package folder
+ * (findPackageDir, io/package_path.h).
  * Throws std::runtime_error listing the places tried.
  */
 std::string resolveAirbagParamsFile(const std::string& airbag, const std::string& dataset_dir = "");

@@ -69,6 +69,7 @@ struct TerminalStats {
   long failed_exchanges = 0;   ///< cycles cut short by a transient failure and retried
 };
 
+// size: one bus thread owns the link, the register image and the valves' on-time record
 class ModbusTerminal {
  public:
   /// Starts the bus thread, which connects in the background.

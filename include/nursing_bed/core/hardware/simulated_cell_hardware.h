@@ -18,6 +18,7 @@ struct RigImperfections {
   bool height_sensor = true;         ///< the simulated cell reports its height
 };
 
+// size: the hardware boundary plus the simulated plant's own inputs, views and fault reset
 class SimulatedCellHardware : public CellHardware {
  public:
   explicit SimulatedCellHardware(const RigImperfections& rig = RigImperfections{}) : rig_(rig) {}

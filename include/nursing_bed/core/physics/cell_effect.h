@@ -17,6 +17,7 @@ struct CellParams;
 
 /// Everything known about the cell at one instant (SI units). Built by CellModel, read by
 /// effects, controllers and publishers.
+// size: a plain record of the cell at one instant, one field per physical quantity
 struct CellVariables {
   double time_s = 0.0;
   double mass_kg = 0.0;                 ///< gas mass

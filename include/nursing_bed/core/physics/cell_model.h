@@ -19,6 +19,7 @@ namespace nursing_bed {
 
 /// Parameters of one cell with its valves. SI units; defaults and their sources are in
 /// config/airbag_tpu_double_100.yaml and doc/cell_model.md.
+// size: one knob per physical constant of the cell and its valves, and the integrator's
 struct CellParams {
   GasProperties gas;
   double ambient_pressure_pa = kAtmosphericPressurePa;
@@ -88,6 +89,11 @@ struct CellInputs {
   double flow_gauge_pressure_pa = std::numeric_limits<double>::quiet_NaN();
 };
 
+/// The structure `params` select: the pillow model of params.structure, or the table of
+/// params.structure_table_file (structure_type "table"). Throws std::invalid_argument /
+/// std::runtime_error for a table that cannot be read.
+std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params);
+
 /**
  * State x = [m, U, h, v, p_reg, q_1..q_k, effect states]:
  *  - gas mass m and internal energy U (ideal gas, constant heat capacities, adiabatic unless
@@ -102,11 +108,7 @@ struct CellInputs {
  * split into sub-steps when the local error estimate (ROS2 against its embedded first-order
  * solution) exceeds the tolerance, as it does while the bag lifts off a bottomed plate.
  */
-/// The structure `params` select: the pillow model of params.structure, or the table of
-/// params.structure_table_file (structure_type "table"). Throws std::invalid_argument /
-/// std::runtime_error for a table that cannot be read.
-std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params);
-
+// size: the model and its ROS2 integrator's step control, kept together on the hot path
 class CellModel {
  public:
   static constexpr int kMaxStates = 24;

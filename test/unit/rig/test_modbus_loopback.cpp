@@ -1,11 +1,11 @@
 // The modbus_tcp hardware against the rig emulator on 127.0.0.1: readings, batched requests,
 // PWM'd and proportional valves, link loss and recovery, late and missing replies (the rig's
 // fault injection). Waits poll a condition with a generous bound; they assert behaviour, not
-// speed (speed: doc/benchmarks.md), except the bounds the link's fault reporting promises.
+// speed (speed: doc/benchmarks.md): when the link went down is counted in retried exchanges.
 #include <gtest/gtest.h>
 
-#include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <functional>
 #include <limits>
@@ -15,7 +15,7 @@
 
 #include "../../test_helpers.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nb = nursing_bed;
 
@@ -52,7 +52,7 @@ bool waitFor(const std::function<bool()>& condition, double timeout_s) {
 class ModbusLoopback : public ::testing::Test {
  protected:
   void SetUp() override {
-    const auto dir = nb::test::freshTestDir("hardware", "loopback");
+    const auto dir = nb::test::freshTestDir("rig", "loopback");
     map_path_ = nb::test::writeFile(dir / "map.yaml", kMap);
     map_ = nb::loadRegisterMap(map_path_, 4);
     options_.cell.initial_height_m = 0.05;
@@ -213,11 +213,13 @@ TEST_F(ModbusLoopback, TheOpeningsReportedAsDrivenAreTheTerminalsCoilOnTime) {
 
 TEST_F(ModbusLoopback, ALostTerminalIsReportedAndReconnectedByItself) {
   cells_[3]->write({0.0, 0.0, false}, 0.0);
+  const long failed_before = terminalA()->stats().failed_exchanges;
   emulator_.reset();
-  const auto lost = std::chrono::steady_clock::now();
   ASSERT_TRUE(waitFor([this] { return allDown(); }, 2.0));
-  // A closed connection is not waited out (link_loss_after_s is for silence).
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - lost).count(), map_.terminals[0].link_loss_after_s);
+  // A closed connection is not waited out (link_loss_after_s is for silence): the link goes
+  // down at the first failed request (one request may have been in flight), where silence
+  // retries each timeout until link_loss_after_s has passed.
+  EXPECT_LE(terminalA()->stats().failed_exchanges - failed_before, 1);
   const nb::CellReadings down = cells_[0]->read(0.0);
   EXPECT_FALSE(down.gauge_pressure_pa.present());
   nb::test::expectContains(down.link_error, {"a (127.0.0.1:15610"});
@@ -242,14 +244,18 @@ TEST_F(ModbusLoopback, ALateReplyIsFlushedAndTheLinkStaysUp) {
 }
 
 TEST_F(ModbusLoopback, ASilentTerminalGoesDownAfterLinkLossAfterSAndComesBack) {
-  const double link_loss_after_s = map_.terminals[0].link_loss_after_s;
+  const nb::TerminalMap& a = map_.terminals[0];
+  const long failed_before = terminalA()->stats().failed_exchanges;
   serverA().leaveUnanswered(std::numeric_limits<long>::max());  // connected, never answers
-  const auto silent = std::chrono::steady_clock::now();
   ASSERT_TRUE(waitFor([this] { return cellsRead(nb::LinkState::kDown, 0, 2); }, 2.0));
-  const double down_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - silent).count();
-  std::printf("[          ] the silent terminal was reported down after %.3f s\n", down_s);
-  EXPECT_GE(down_s, link_loss_after_s - 0.03) << "not at the first timeout";
-  EXPECT_LT(down_s, 0.5) << "cells report a communication fault within 0.5 s";
+  // Counted in requests, not timed: each unanswered request is retried until link_loss_after_s
+  // has passed (the register map's check keeps that within the 0.5 s fault report), and each
+  // retry waited out its response timeout, so no more fit in link_loss_after_s.
+  const long retried = terminalA()->stats().failed_exchanges - failed_before;
+  std::printf("[          ] the silent terminal went down after %ld retried requests\n", retried);
+  EXPECT_GE(retried, 1) << "not at the first timeout";
+  EXPECT_LE(retried, static_cast<long>(std::ceil(a.link_loss_after_s / a.response_timeout_s)))
+      << "at the first timeout past link_loss_after_s";
   nb::test::expectContains(cells_[0]->read(0.0).link_error, {"a (127.0.0.1:15610"});
   EXPECT_TRUE(cellsRead(nb::LinkState::kOk, 2, 4)) << "terminal b is not affected";
   EXPECT_GE(terminalA()->stats().link_losses, 1);
@@ -322,7 +328,7 @@ TEST_F(ModbusLoopback, OverALostLinkTheOutputsHeldUntilTheTerminalsWatchdogAreRe
 
 TEST_F(ModbusLoopback, TheRigsSimulationRunsAtTheRealtimePriorityAskedFor) {
   // Left on the normal scheduler (the fixture's default) it says so; asked for SCHED_FIFO it
-  // runs there or names the refusal, and it keeps the pace either way.
+  // runs there or names the refusal, and it runs either way.
   EXPECT_EQ(emulator_->scheduling().text, "normal");
   emulator_.reset();
   options_.realtime_priority = 15;
@@ -332,9 +338,8 @@ TEST_F(ModbusLoopback, TheRigsSimulationRunsAtTheRealtimePriorityAskedFor) {
     EXPECT_EQ(s.text.rfind("normal (SCHED_FIFO 15 refused: ", 0), 0u) << s.text;
   else
     EXPECT_EQ(s.text, "SCHED_FIFO 15");
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_GE(emulator_->mostPeriodsPerWake(), 1);
-  EXPECT_LT(emulator_->periodsPerWake(), 1.5) << "the simulation keeps the wall clock's pace";
+  // Whether it keeps the wall clock's pace is a benchmark's figure (bench_modbus_latency).
+  EXPECT_TRUE(waitFor([this] { return emulator_->mostPeriodsPerWake() >= 1; }, 2.0)) << "the simulation runs";
 }
 
 TEST_F(ModbusLoopback, TheRigTakesEveryCellsLoadAtOnceAndIgnoresBadOnes) {
@@ -349,12 +354,6 @@ TEST_F(ModbusLoopback, TheRigTakesEveryCellsLoadAtOnceAndIgnoresBadOnes) {
   EXPECT_EQ(emulator_->truth().size(), 4u);
   emulator_->setLoads({});
   EXPECT_DOUBLE_EQ(truth(0).load_n, 20.6) << "an empty vector changes nothing";
-}
-
-TEST(TransientModbusError, TimeoutsAndBadRepliesAreRetriedAClosedConnectionIsNot) {
-  for (int e : {ETIMEDOUT, EMBBADDATA, EMBBADEXC, EMBXSBUSY, EMBXGTAR}) EXPECT_TRUE(nb::transientModbusError(e)) << modbus_strerror(e);
-  for (int e : {ECONNRESET, ECONNREFUSED, EPIPE, EBADF, ENOTCONN, EMBXILADD, EMBXILFUN, EMBXSFAIL, 0})
-    EXPECT_FALSE(nb::transientModbusError(e)) << modbus_strerror(e);
 }
 
 namespace {

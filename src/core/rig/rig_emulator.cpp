@@ -1,4 +1,4 @@
-#include "nursing_bed/core/hardware/rig_emulator.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 #include <modbus/modbus.h>
 #include <netinet/in.h>
