@@ -120,7 +120,9 @@ class LogReader {
       const auto n = std::count(table_.header.begin(), table_.header.end(), name);
       std::string list;
       for (const auto& h : table_.header) list += (list.empty() ? "" : ", ") + h;
-      if (n == 0) throw fail(line_no_, "column '" + name + "' (named by " + mapping_.source + ") not in the header (" + list + ")");
+      if (n == 0)
+        throw fail(line_no_,
+                   "column '" + name + "' (named by " + mapping_.source + ") not in the header (" + list + ")");
       if (n > 1) throw fail(line_no_, "column '" + name + "' appears " + std::to_string(n) + " times in the header");
     }
     for (std::size_t c = 0; c < table_.header.size(); ++c) {
@@ -247,7 +249,8 @@ class LogImporter {
     starts_ = cycleStarts(v);
     if (starts_.size() < 2)
       throw fail("column '" + spec.column + "': " + std::to_string(starts_.size()) +
-                 " cycle start(s) (rising edges of signal '" + spec.name + "'), at least 2 are needed for a whole cycle");
+                 " cycle start(s) (rising edges of signal '" + spec.name +
+                 "'), at least 2 are needed for a whole cycle");
     out_.cycles = starts_.size() - 1;
     out_.notes.push_back(fileName(path_) + ": " + std::to_string(out_.cycles) + " whole cycles between " +
                          fmt(table_.t_s[starts_.front()]) + " s and " + fmt(table_.t_s[starts_.back()]) +
@@ -287,7 +290,8 @@ class LogImporter {
       if (ratio >= d.ratio_min && ratio <= d.ratio_max) fits.push_back(name);
     }
     const std::string rule = "median " + (d.at == "all" ? std::string("over the log") : "before the cycle starts") +
-                             " / " + d.reference + ": " + tried + "; plausible " + fmt(d.ratio_min) + "-" + fmt(d.ratio_max);
+                             " / " + d.reference + ": " + tried + "; plausible " + fmt(d.ratio_min) + "-" +
+                             fmt(d.ratio_max);
     if (fits.size() != 1)
       throw fail(where + "cannot tell its unit (" + rule + (fits.empty() ? "; none fits)" : "; several fit)"));
     columnSignal(s, *findLogUnit(fits[0]));
@@ -334,7 +338,8 @@ class LogImporter {
     std::string units;
     for (const auto& s : m_.signals) {
       if (s.venturi) continue;
-      units += (units.empty() ? "" : ", ") + s.column + "=" + signals_.at(s.name).unit + (s.detect ? " (detected)" : "");
+      units +=
+          (units.empty() ? "" : ", ") + s.column + "=" + signals_.at(s.name).unit + (s.detect ? " (detected)" : "");
     }
     meta["import_units"] = units;
     return meta;
@@ -346,7 +351,8 @@ class LogImporter {
     const auto load = meta.find("load_n");
     if (load != meta.end()) {
       if (!parseNumber(load->second, &run->load_n) || !std::isfinite(run->load_n))
-        throw fail("metadata load_n (from " + m_.source + "): expected a number of newtons, got '" + load->second + "'");
+        throw fail("metadata load_n (from " + m_.source + "): expected a number of newtons, got '" + load->second +
+                   "'");
     } else if (!m_.outputs.count("load_n")) {
       throw fail("no load: give 'load_n' under metadata (or files) in " + m_.source + ", or map a load_n column");
     }
@@ -388,8 +394,9 @@ class LogImporter {
       run.source = path_;
       applyMetadata(meta, &run);
       if (m_.cycles)
-        run.meta["import_cycles"] = std::to_string(r * per + 1) + "-" + std::to_string(std::min((r + 1) * per, out_.cycles)) +
-                                    " of " + std::to_string(out_.cycles);
+        run.meta["import_cycles"] = std::to_string(r * per + 1) + "-" +
+                                    std::to_string(std::min((r + 1) * per, out_.cycles)) + " of " +
+                                    std::to_string(out_.cycles);
       run.t_s = slice(table_.t_s);
       run.h_m.assign(run.t_s.size(), kNaN);
       run.mdot_in_kg_s.assign(run.t_s.size(), kNaN);
@@ -402,12 +409,15 @@ class LogImporter {
   }
 
   static std::vector<double>* runColumn(RunData* run, const std::string& column) {
-    const std::map<std::string, std::vector<double>*> known = {
-        {"p_gauge_pa", &run->p_gauge_pa},   {"mdot_in_kg_s", &run->mdot_in_kg_s},
-        {"h_m", &run->h_m},                 {"load_n", &run->load_n_series},
-        {"valve_cmd", &run->valve_cmd},     {"p_supply_gauge_pa", &run->p_supply_gauge_pa},
-        {"t_gas_k", &run->t_gas_k},         {"mdot_uncorrected_kg_s", &run->mdot_uncorrected_kg_s},
-        {"p_setpoint_gauge_pa", &run->p_setpoint_gauge_pa}};
+    const std::map<std::string, std::vector<double>*> known = {{"p_gauge_pa", &run->p_gauge_pa},
+                                                               {"mdot_in_kg_s", &run->mdot_in_kg_s},
+                                                               {"h_m", &run->h_m},
+                                                               {"load_n", &run->load_n_series},
+                                                               {"valve_cmd", &run->valve_cmd},
+                                                               {"p_supply_gauge_pa", &run->p_supply_gauge_pa},
+                                                               {"t_gas_k", &run->t_gas_k},
+                                                               {"mdot_uncorrected_kg_s", &run->mdot_uncorrected_kg_s},
+                                                               {"p_setpoint_gauge_pa", &run->p_setpoint_gauge_pa}};
     return known.at(column);  // the mapping reader admits only importRunColumns()
   }
 

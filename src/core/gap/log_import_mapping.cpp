@@ -20,22 +20,34 @@ constexpr double kPaPerCmH2O = 98.0665;
 
 const std::vector<LogUnit>& unitTable() {
   static const std::vector<LogUnit> units = {
-      {"s", Quantity::kTime, 1.0},          {"ms", Quantity::kTime, 1e-3},
-      {"Pa", Quantity::kPressure, 1.0},     {"hPa", Quantity::kPressure, 100.0},
-      {"kPa", Quantity::kPressure, 1e3},    {"mbar", Quantity::kPressure, 100.0},
-      {"bar", Quantity::kPressure, 1e5},    {"cmH2O", Quantity::kPressure, kPaPerCmH2O},
-      {"mmHg", Quantity::kPressure, kPaPerMmHg}, {"psi", Quantity::kPressure, 6894.757293168},
-      {"m3/s", Quantity::kVolumeFlow, 1.0}, {"L/s", Quantity::kVolumeFlow, 1e-3},
-      {"mL/s", Quantity::kVolumeFlow, 1e-6}, {"L/min", Quantity::kVolumeFlow, 1e-3 / 60.0},
+      {"s", Quantity::kTime, 1.0},
+      {"ms", Quantity::kTime, 1e-3},
+      {"Pa", Quantity::kPressure, 1.0},
+      {"hPa", Quantity::kPressure, 100.0},
+      {"kPa", Quantity::kPressure, 1e3},
+      {"mbar", Quantity::kPressure, 100.0},
+      {"bar", Quantity::kPressure, 1e5},
+      {"cmH2O", Quantity::kPressure, kPaPerCmH2O},
+      {"mmHg", Quantity::kPressure, kPaPerMmHg},
+      {"psi", Quantity::kPressure, 6894.757293168},
+      {"m3/s", Quantity::kVolumeFlow, 1.0},
+      {"L/s", Quantity::kVolumeFlow, 1e-3},
+      {"mL/s", Quantity::kVolumeFlow, 1e-6},
+      {"L/min", Quantity::kVolumeFlow, 1e-3 / 60.0},
       {"mL/min", Quantity::kVolumeFlow, 1e-6 / 60.0},
-      {"kg/s", Quantity::kMassFlow, 1.0},   {"g/s", Quantity::kMassFlow, 1e-3},
-      {"m3", Quantity::kVolume, 1.0},       {"L", Quantity::kVolume, 1e-3},
+      {"kg/s", Quantity::kMassFlow, 1.0},
+      {"g/s", Quantity::kMassFlow, 1e-3},
+      {"m3", Quantity::kVolume, 1.0},
+      {"L", Quantity::kVolume, 1e-3},
       {"mL", Quantity::kVolume, 1e-6},
-      {"m", Quantity::kLength, 1.0},        {"cm", Quantity::kLength, 1e-2},
+      {"m", Quantity::kLength, 1.0},
+      {"cm", Quantity::kLength, 1e-2},
       {"mm", Quantity::kLength, 1e-3},
       {"N", Quantity::kForce, 1.0},
-      {"K", Quantity::kTemperature, 1.0},   {"degC", Quantity::kTemperature, 1.0, 273.15},
-      {"1", Quantity::kRatio, 1.0},         {"%", Quantity::kRatio, 1e-2},
+      {"K", Quantity::kTemperature, 1.0},
+      {"degC", Quantity::kTemperature, 1.0, 273.15},
+      {"1", Quantity::kRatio, 1.0},
+      {"%", Quantity::kRatio, 1e-2},
   };
   return units;
 }
@@ -68,8 +80,9 @@ class MappingParser {
       throw std::runtime_error(m_.source + ": " + e.what());
     }
     if (!root.IsMap()) throw fail(root, "expected a map with the keys import_mapping, log, time, signals, run");
-    checkKeys(root, "", {"import_mapping", "log", "time", "signals", "gas", "run", "cycles", "roles", "run_prefix",
-                         "metadata", "files"},
+    checkKeys(root, "",
+              {"import_mapping", "log", "time", "signals", "gas", "run", "cycles", "roles", "run_prefix", "metadata",
+               "files"},
               {"import_mapping", "time", "signals", "run"});
     const int version = scalar<int>(root["import_mapping"], "import_mapping");
     if (version != kMappingVersion)
@@ -223,7 +236,8 @@ class MappingParser {
       if (s->sign != 1.0 && s->sign != -1.0) throw fail(v["sign"], where + "/sign: expected 1 or -1");
     }
     if (v["meter_density_kg_m3"]) {
-      if (q != Quantity::kVolumeFlow) throw fail(v["meter_density_kg_m3"], where + ": meter_density_kg_m3 is for volume flows");
+      if (q != Quantity::kVolumeFlow)
+        throw fail(v["meter_density_kg_m3"], where + ": meter_density_kg_m3 is for volume flows");
       s->meter_density_kg_m3 = positive(v["meter_density_kg_m3"], where + "/meter_density_kg_m3");
     }
   }
@@ -347,7 +361,8 @@ class MappingParser {
     const SignalSpec* s = signal(name);
     const std::string at = m_.source + ":" + std::to_string(line) + ": ";
     if (!s) throw std::runtime_error(at + key + ": no signal named '" + name + "'");
-    if (s->venturi) throw std::runtime_error(at + key + ": '" + name + "' is derived; name a signal read from a column");
+    if (s->venturi)
+      throw std::runtime_error(at + key + ": '" + name + "' is derived; name a signal read from a column");
     if (fixed && s->units.size() != 1)
       throw std::runtime_error(at + key + ": '" + name + "' has candidate units; name a signal with one unit");
     return *s;
@@ -384,13 +399,14 @@ class MappingParser {
       if (q == Quantity::kVolumeFlow) q = Quantity::kMassFlow;  // converted with the gas density
       const Quantity want = importRunColumns().at(column);
       if (q != want)
-        throw fail(key, "run/" + column + ": '" + name + "' is a " + quantityName(quantityOf(*s)) + ", the column takes a " +
-                            quantityName(want));
+        throw fail(key, "run/" + column + ": '" + name + "' is a " + quantityName(quantityOf(*s)) +
+                            ", the column takes a " + quantityName(want));
     }
     if (m_.cycles && !signal(m_.cycles->signal))
       throw fail(cycles_node_["signal"], "cycles/signal: no signal named '" + m_.cycles->signal + "'");
     if (m_.cycles && signal(m_.cycles->signal)->venturi)
-      throw fail(cycles_node_["signal"], "cycles/signal: '" + m_.cycles->signal + "' is derived; name a setpoint column");
+      throw fail(cycles_node_["signal"],
+                 "cycles/signal: '" + m_.cycles->signal + "' is derived; name a setpoint column");
   }
 
   const std::string text_;
@@ -414,12 +430,15 @@ std::string logUnitNames() {
 }
 
 const std::map<std::string, Quantity>& importRunColumns() {
-  static const std::map<std::string, Quantity> columns = {
-      {"p_gauge_pa", Quantity::kPressure},         {"mdot_in_kg_s", Quantity::kMassFlow},
-      {"mdot_uncorrected_kg_s", Quantity::kMassFlow}, {"p_setpoint_gauge_pa", Quantity::kPressure},
-      {"h_m", Quantity::kLength},                  {"load_n", Quantity::kForce},
-      {"valve_cmd", Quantity::kRatio},             {"p_supply_gauge_pa", Quantity::kPressure},
-      {"t_gas_k", Quantity::kTemperature}};
+  static const std::map<std::string, Quantity> columns = {{"p_gauge_pa", Quantity::kPressure},
+                                                          {"mdot_in_kg_s", Quantity::kMassFlow},
+                                                          {"mdot_uncorrected_kg_s", Quantity::kMassFlow},
+                                                          {"p_setpoint_gauge_pa", Quantity::kPressure},
+                                                          {"h_m", Quantity::kLength},
+                                                          {"load_n", Quantity::kForce},
+                                                          {"valve_cmd", Quantity::kRatio},
+                                                          {"p_supply_gauge_pa", Quantity::kPressure},
+                                                          {"t_gas_k", Quantity::kTemperature}};
   return columns;
 }
 

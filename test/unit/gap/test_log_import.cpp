@@ -117,8 +117,9 @@ TEST(LogImportMapping, RejectsBadUnitsAndReferences) {
               {"m.yaml:9:", "run/mdot_in_kg_s", "pressure"});
   expectError([] { nb::parseImportMapping(replaced(kMapping, "reference: sp", "reference: nope"), "m.yaml"); },
               {"m.yaml:5:", "no signal named 'nope'"});
-  expectError([] { nb::parseImportMapping(replaced(kMapping, ", detect: {reference: sp, ratio: [0.7, 1.4]}", ""), "m.yaml"); },
-              {"m.yaml:5:", "need a 'detect' rule"});
+  expectError(
+      [] { nb::parseImportMapping(replaced(kMapping, ", detect: {reference: sp, ratio: [0.7, 1.4]}", ""), "m.yaml"); },
+      {"m.yaml:5:", "need a 'detect' rule"});
   expectError([] { nb::parseImportMapping(replaced(kMapping, "p_setpoint_gauge_pa", "setpoint_pa"), "m.yaml"); },
               {"m.yaml:9:", "unknown run column 'setpoint_pa'"});
   expectError([] { nb::parseImportMapping(replaced(kMapping, "roles: alternate", "roles: every_other"), "m.yaml"); },
@@ -139,7 +140,8 @@ TEST(LogImport, DetectsKpaAndCutsWholeCycles) {
     EXPECT_DOUBLE_EQ(r.t_s.front(), 0.5);  // the first sample of the rise
     EXPECT_DOUBLE_EQ(r.t_s.back(), 2.5);   // the next cycle's start
     EXPECT_NEAR(r.p_gauge_pa.front(), 5.0 * kCmH2O, 1e-9);
-    EXPECT_EQ(r.meta.at("import_units").find(kpa ? "p=kPa (detected)" : "p=cmH2O (detected)") != std::string::npos, true)
+    EXPECT_EQ(r.meta.at("import_units").find(kpa ? "p=kPa (detected)" : "p=cmH2O (detected)") != std::string::npos,
+              true)
         << r.meta.at("import_units");
     EXPECT_NE(log.notes.back().find(kpa ? "p in kPa" : "p in cmH2O"), std::string::npos) << log.notes.back();
     EXPECT_EQ(r.role, "fit");
@@ -153,7 +155,8 @@ TEST(LogImport, DetectsKpaAndCutsWholeCycles) {
 TEST(LogImport, ConvertsScaleOffsetSignAndVolumeToMassFlow) {
   const std::string dir = tmpDir("convert");
   std::string map = replaced(kMapping, "sign: -1}", "sign: -1, scale: 2, offset: 1}");
-  const nb::ImportedLog log = nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "a.csv", syntheticLog(false)));
+  const nb::ImportedLog log =
+      nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "a.csv", syntheticLog(false)));
   // -(2 * 6 + 1) L/min at 1.2 kg/m^3
   EXPECT_NEAR(log.runs[0].mdot_in_kg_s[10], -13.0e-3 / 60.0 * 1.2, 1e-15);
   EXPECT_TRUE(std::isnan(log.runs[0].h_m[0]));
@@ -161,7 +164,8 @@ TEST(LogImport, ConvertsScaleOffsetSignAndVolumeToMassFlow) {
   EXPECT_NEAR(log.runs[0].p_setpoint_gauge_pa.front(), 5.0 * kCmH2O, 1e-9);
   // A meter that assumed another density: Q sqrt(rho_meter rho).
   map = replaced(kMapping, "sign: -1}", "sign: -1, meter_density_kg_m3: 1.225}");
-  const nb::ImportedLog metered = nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "b.csv", syntheticLog(false)));
+  const nb::ImportedLog metered =
+      nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "b.csv", syntheticLog(false)));
   EXPECT_NEAR(metered.runs[0].mdot_in_kg_s[10], -6.0e-3 / 60.0 * std::sqrt(1.225 * 1.2), 1e-15);
 }
 
@@ -171,7 +175,8 @@ TEST(LogImport, VenturiGivesTheMassFlowOfItsFormula) {
                                    "  dpi: {column: q, unit: Pa}\n  dpe: {column: sp, unit: Pa}\n"
                                    "  q: {venturi: {forward: dpi, reverse: dpe, discharge_coefficient: 0.97,"
                                    " inlet_diameter_m: 0.01505, throat_diameter_m: 0.0055}}\n");
-  const nb::ImportedLog log = nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "a.csv", syntheticLog(false)));
+  const nb::ImportedLog log =
+      nb::importLog(nb::parseImportMapping(map, "m.yaml"), writeFile(dir, "a.csv", syntheticLog(false)));
   const double a1 = M_PI / 4 * 0.01505 * 0.01505, a2 = M_PI / 4 * 0.0055 * 0.0055;
   const double k = 0.97 * a1 * a2 / std::sqrt(a1 * a1 - a2 * a2);
   // at the run's start: dp_inhale 6 Pa, dp_exhale 5 Pa (the setpoint column read as Pa)
@@ -192,7 +197,8 @@ TEST(LogImport, RefusesMalformedLogsNamingFileLineAndColumn) {
               {"text.csv:14:", "column 'p' (3)", "non-numeric field 'five'"});
   expectError(import("back.csv", replaced(good, "\n100,5,5,6\n", "\n80,5,5,6\n")),
               {"back.csv:14:", "column 't' (1)", "time not strictly increasing"});
-  expectError(import("width.csv", replaced(good, "\n100,5,5,6\n", "\n100,5,5\n")), {"width.csv:14:", "expected 4 fields"});
+  expectError(import("width.csv", replaced(good, "\n100,5,5,6\n", "\n100,5,5\n")),
+              {"width.csv:14:", "expected 4 fields"});
   expectError(import("empty.csv", "# only a comment\n"), {"empty.csv:1:", "no header"});
   // A pressure in neither unit: ten times the setpoint.
   std::string tenfold = "t,sp,p,q\n";
@@ -237,10 +243,12 @@ TEST(LogImport, WritesADatasetTheDiagnosisReads) {
   EXPECT_EQ(runs[1].p_setpoint_gauge_pa, logs[0].runs[1].p_setpoint_gauge_pa);  // the optional column
   EXPECT_EQ(runs[1].meta.at("import_source"), "a.csv");
   EXPECT_EQ(runs[1].meta.at("import_cycles"), "2-2 of 3");
-  expectError([&] {
-    nb::importLogsToDataset(nb::parseImportMapping(replaced(map, "a_03", "a_09"), "m.yaml"),
-                            {writeFile(dir, "a.csv", syntheticLog(true))}, (fs::path(dir) / "out2").string());
-  }, {"m.yaml", "'a_09.csv' is not a run"});
+  expectError(
+      [&] {
+        nb::importLogsToDataset(nb::parseImportMapping(replaced(map, "a_03", "a_09"), "m.yaml"),
+                                {writeFile(dir, "a.csv", syntheticLog(true))}, (fs::path(dir) / "out2").string());
+      },
+      {"m.yaml", "'a_09.csv' is not a run"});
   EXPECT_FALSE(fs::exists(fs::path(dir) / "out2"));
 }
 
@@ -295,7 +303,8 @@ TEST(RespiraWorksImport, ResolvesUnitsCyclesAndRolesOfEveryRecording) {
     for (std::size_t r = 0; r < log.runs.size(); ++r) {
       const nb::RunData& run = log.runs[r];
       EXPECT_NE(run.meta.at("import_units").find(std::string("pressure=") + rec.pressure_unit + " (detected)"),
-                std::string::npos) << run.meta.at("import_units");
+                std::string::npos)
+          << run.meta.at("import_units");
       EXPECT_EQ(run.role, whole ? "" : (r % 2 == 0 ? "fit" : "withheld"));
       EXPECT_DOUBLE_EQ(run.load_n, 0.0);
       EXPECT_NE(run.airbag.find("lung_quicklung_c"), std::string::npos);

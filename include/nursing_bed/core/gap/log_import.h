@@ -35,7 +35,7 @@ std::string logUnitNames();
 /// before each cycle start (the end of expiration on a ventilator), has a median ratio to the
 /// reference signal's median within [ratio_min, ratio_max]. Exactly one candidate must fit.
 struct UnitDetection {
-  std::string reference;  ///< a signal with one unit, of the same quantity
+  std::string reference;         ///< a signal with one unit, of the same quantity
   std::string at = "cycle_end";  ///< "cycle_end" (needs cycles) or "all" (whole log)
   double window_s = 0.3;         ///< cycle_end: samples this long before each cycle start
   double ratio_min = 0.7;
@@ -84,18 +84,18 @@ struct RoleSpec {
 
 /// A parsed mapping file (doc/formats/import_mapping.md).
 struct ImportMapping {
-  std::string source;             ///< the mapping file
-  std::string comment = "#";      ///< a line starting with it (after blanks) is a comment
-  char delimiter = 0;             ///< 0: runs of blanks; else ',', ';' or '\t'
+  std::string source;         ///< the mapping file
+  std::string comment = "#";  ///< a line starting with it (after blanks) is a comment
+  char delimiter = 0;         ///< 0: runs of blanks; else ',', ';' or '\t'
   std::string time_column;
-  double time_to_s = 1.0;         ///< the time column's unit (s or ms)
+  double time_to_s = 1.0;  ///< the time column's unit (s or ms)
   std::vector<SignalSpec> signals;
   std::map<std::string, std::string> outputs;  ///< run column -> signal
-  double density_kg_m3 = 1.204;   ///< gas density turning volumetric flows into mass flows
+  double density_kg_m3 = 1.204;                ///< gas density turning volumetric flows into mass flows
   std::optional<CycleSpec> cycles;
   RoleSpec roles;
-  std::string run_prefix;                                    ///< prepended to every run name
-  std::map<std::string, std::string> metadata;               ///< written into every run
+  std::string run_prefix;                                                   ///< prepended to every run name
+  std::map<std::string, std::string> metadata;                              ///< written into every run
   std::map<std::string, std::map<std::string, std::string>> file_metadata;  ///< per log file name
 };
 
@@ -114,9 +114,9 @@ ImportMapping parseImportMapping(const std::string& yaml_text, const std::string
 /// What the import made of one log: its runs and what it decided (units chosen, cycles found).
 struct ImportedLog {
   std::string path;
-  std::vector<RunData> runs;        ///< with names, roles and metadata set
-  std::vector<std::string> notes;   ///< one line per decision ("pressure: unit kPa (...)")
-  std::size_t cycles = 0;           ///< whole cycles found (0: not cut)
+  std::vector<RunData> runs;       ///< with names, roles and metadata set
+  std::vector<std::string> notes;  ///< one line per decision ("pressure: unit kPa (...)")
+  std::size_t cycles = 0;          ///< whole cycles found (0: not cut)
 };
 
 /**

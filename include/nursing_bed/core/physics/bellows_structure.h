@@ -11,10 +11,10 @@ namespace nursing_bed {
 
 /// Geometry and spring of a bellows. Defaults: a test lung of 20 mL/cmH2O.
 struct BellowsParams {
-  double area_m2 = 0.0154;                 ///< plate area A (dV/dh) [m^2]
-  double compliance_m3_pa = 2.0394e-7;     ///< C = A^2 / k: volume per gauge pressure, unloaded [m^3/Pa]
-  double dead_volume_m3 = 1.0e-3;          ///< gas volume at h = 0 (chamber, ports, tubing) [m^3]
-  double stroke_m = 0.1;                   ///< largest plate travel [m]
+  double area_m2 = 0.0154;              ///< plate area A (dV/dh) [m^2]
+  double compliance_m3_pa = 2.0394e-7;  ///< C = A^2 / k: volume per gauge pressure, unloaded [m^3/Pa]
+  double dead_volume_m3 = 1.0e-3;       ///< gas volume at h = 0 (chamber, ports, tubing) [m^3]
+  double stroke_m = 0.1;                ///< largest plate travel [m]
 
   /// Spring rate k = A^2 / C [N/m].
   double springRate() const { return area_m2 * area_m2 / compliance_m3_pa; }
