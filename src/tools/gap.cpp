@@ -1,7 +1,8 @@
 // gap SUBCOMMAND ...: the sim-to-real gap tools. Subcommands are entries of kSubcommands; each
 // parses its own options and returns the exit code (0 ok, 1 failure while running, 2 bad
 // command line). `gap synth` writes a synthetic dataset (doc/gap_effects.md); `gap diagnose`
-// diagnoses a dataset (doc/gap_diagnosis.md).
+// diagnoses a dataset (doc/gap_diagnosis.md); `gap import` turns logs of other formats into a
+// dataset (doc/gap_import.md).
 #include <algorithm>
 #include <charconv>
 #include <cstdlib>
@@ -25,6 +26,7 @@
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/gap/log_import.h"
 #include "nursing_bed/core/gap/paper_study.h"
 #include "nursing_bed/core/gap/run_data.h"
 #include "nursing_bed/core/gap/synth.h"
@@ -425,11 +427,58 @@ int runEq24(const std::vector<std::string>& args) {
   return 0;
 }
 
+constexpr const char* kImportUsage =
+    "usage: gap import MAPPING LOG... --out DIR\n"
+    "Reads logs of another format with a column-mapping file (doc/formats/import_mapping.md):\n"
+    "units (detected where the mapping gives candidates), derived flows, runs of whole cycles,\n"
+    "fit/withheld roles; writes DIR/<run>.csv and DIR/dataset.yaml. Everything is checked first:\n"
+    "a malformed log is named with its line and column, and nothing is written.\n"
+    "  MAPPING  the mapping file (e.g. config/import/respiraworks_net_flow.yaml)\n"
+    "  LOG      one or more log files\n"
+    "  --out    output directory (created; must not exist or be empty)\n";
+
+int runImport(const std::vector<std::string>& args) {
+  std::string mapping_path, out;
+  std::vector<std::string> logs;
+  ArgWalker walk(args);
+  while (walk.next()) {
+    const std::string& a = walk.flag();
+    if (a == "--help" || a == "-h") {
+      std::cout << kImportUsage;
+      return 0;
+    } else if (a == "--out") {
+      out = walk.value();
+    } else if (!a.empty() && a[0] == '-') {
+      throw UsageError("unknown option '" + a + "'");
+    } else if (mapping_path.empty()) {
+      mapping_path = a;
+    } else {
+      logs.push_back(a);
+    }
+  }
+  if (mapping_path.empty()) throw UsageError("MAPPING (a column-mapping file) is required");
+  if (logs.empty()) throw UsageError("at least one LOG is required");
+  if (out.empty()) throw UsageError("--out DIR is required");
+  const nb::ImportMapping mapping = nb::loadImportMapping(mapping_path);
+  const std::vector<nb::ImportedLog> imported = nb::importLogsToDataset(mapping, logs, out);
+  std::size_t runs = 0;
+  for (const auto& log : imported) {
+    for (const auto& note : log.notes) std::cout << note << "\n";
+    for (const auto& r : log.runs)
+      std::cout << "  " << r.name << "  " << r.size() << " samples, " << r.t_s.front() << "-" << r.t_s.back() << " s"
+                << (r.role.empty() ? "" : ", " + r.role) << "\n";
+    runs += log.runs.size();
+  }
+  std::cout << "wrote " << runs << " runs from " << imported.size() << " logs to " << out << "\n";
+  return 0;
+}
+
 const Subcommand kSubcommands[] = {
     {"synth", "write a synthetic dataset with planted effects", kSynthUsage, runSynth},
     {"calibrate", "calibrate the model's own parameters on a dataset", kCalibrateUsage, runCalibrate},
     {"diagnose", "diagnose the gap between a dataset of runs and the model", kDiagnoseUsage, runDiagnose},
     {"eq24", "the paper's eq. 24 curve as data: where the model departs", kEq24Usage, runEq24},
+    {"import", "turn logs of another format into a dataset with a mapping file", kImportUsage, runImport},
 };
 
 void printUsage(std::ostream& out) {

@@ -11,6 +11,38 @@ namespace nursing_bed {
 namespace {
 /// Over kInitialRestS a plate at rest moves less than this (sensor noise ~0.3 mm averages out).
 constexpr double kMovingPlateM = 0.001;
+/// Over kInitialRestS a steady pressure's two half means differ by less than this (20 Pa noise
+/// averages out); a run starting on a rising setpoint ramp differs by far more.
+constexpr double kMovingPressurePa = 50.0;
+/// A run without height readings starts at rest at its first pressure when that is above this
+/// (a ventilated lung at PEEP); a flat cell's pressure is noise around 0 (5 sd of 30 Pa).
+constexpr double kRestingPressureMinPa = 150.0;
+
+/// The pressure a run starts from: the mean over the first kInitialRestS while steady, else the
+/// first reading; NaN when none is measured there.
+double initialPressure(const RunData& run) {
+  std::vector<double> p;
+  for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i)
+    if (std::isfinite(run.p_gauge_pa[i])) p.push_back(run.p_gauge_pa[i]);
+  if (p.empty()) return NAN;
+  const std::size_t half = p.size() / 2;
+  if (half == 0) return p[0];
+  const double first_half = std::accumulate(p.begin(), p.begin() + half, 0.0) / half;
+  const double second_half = std::accumulate(p.begin() + half, p.end(), 0.0) / (p.size() - half);
+  if (std::fabs(second_half - first_half) > kMovingPressurePa) return p[0];
+  return std::accumulate(p.begin(), p.end(), 0.0) / p.size();
+}
+
+/// The height to start a replay at rest from: the measured one, or without height readings the
+/// structure's equilibrium at the first pressure (NaN: start flat).
+double startHeight(const RunData& run, const CellStructure& structure, double load_n) {
+  const InitialHeight h0 = initialHeight(run);
+  if (h0.samples > 0) return h0.h_m;
+  const double p0 = initialPressure(run);
+  if (!(p0 > kRestingPressureMinPa)) return NAN;
+  const StructureEquilibrium eq = structure.equilibriumAtPressure(p0, load_n);
+  return eq.converged ? eq.height_m : NAN;
+}
 }  // namespace
 
 const char* phaseName(RunPhase phase) {
@@ -153,10 +185,11 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
     CellModel model(params);
     for (const auto& e : effects) model.addEffect(e);
     const double load0 = run.loadAt(0);
-    // At rest at the first measured height, with the measured gas temperature if there is one.
+    // At rest at the first measured height (or, without height readings, at the first measured
+    // pressure), with the measured gas temperature if there is one.
     const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
-    const InitialHeight h0 = initialHeight(run);
-    if (h0.samples > 0 && h0.h_m > kLandedHeightM) model.resetToEquilibrium(h0.h_m, load0, t_gas0);
+    const double h_start = startHeight(run, model.structure(), load0);
+    if (h_start > kLandedHeightM) model.resetToEquilibrium(h_start, load0, t_gas0);
     else model.reset(load0);
     // Model time starts at the run's first sample.
     model.setState(run.t_s[0], model.state());

@@ -182,7 +182,9 @@ class RunCsvReader {
                                                                {"load_n", &run_.load_n_series},
                                                                {"valve_cmd", &run_.valve_cmd},
                                                                {"p_supply_gauge_pa", &run_.p_supply_gauge_pa},
-                                                               {"t_gas_k", &run_.t_gas_k}};
+                                                               {"t_gas_k", &run_.t_gas_k},
+                                                               {"mdot_uncorrected_kg_s", &run_.mdot_uncorrected_kg_s},
+                                                               {"p_setpoint_gauge_pa", &run_.p_setpoint_gauge_pa}};
     for (std::size_t c = 0; c < header_.size(); ++c) {
       const std::string& name = header_[c];
       if (name.empty()) throw fail(line_no_, "column " + std::to_string(c + 1) + " has no name");
@@ -273,7 +275,9 @@ void writeRunCsv(const std::string& path, const RunData& run) {
   const std::vector<Column> optional = {{"load_n", &run.load_n_series},
                                         {"valve_cmd", &run.valve_cmd},
                                         {"p_supply_gauge_pa", &run.p_supply_gauge_pa},
-                                        {"t_gas_k", &run.t_gas_k}};
+                                        {"t_gas_k", &run.t_gas_k},
+                                        {"mdot_uncorrected_kg_s", &run.mdot_uncorrected_kg_s},
+                                        {"p_setpoint_gauge_pa", &run.p_setpoint_gauge_pa}};
   for (const Column& c : optional) {
     if (c.values->empty()) continue;
     if (c.values->size() != n)

@@ -35,10 +35,12 @@ std::string CellParams::validate() const {
   positive("supply_temperature_k", supply_temperature_k);
   const std::string structure_error = structure.validate();
   if (!structure_error.empty()) err << structure_error << "; ";
-  if (structure_type != "pillow" && structure_type != "table") {
-    err << "structure_type must be 'pillow' or 'table', got '" << structure_type << "'; ";
+  if (structure_type != "pillow" && structure_type != "table" && structure_type != "bellows") {
+    err << "structure_type must be 'pillow', 'table' or 'bellows', got '" << structure_type << "'; ";
   } else if (structure_type == "table" && structure_table_file.empty()) {
     err << "structure_table_file must be set when structure_type is 'table'; ";
+  } else if (structure_type == "bellows" && !bellows.validate().empty()) {
+    err << bellows.validate() << "; ";
   }
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
@@ -77,6 +79,7 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
                                                 params.structure.dead_volume_m3);
+  if (params.structure_type == "bellows") return std::make_shared<BellowsStructure>(params.bellows);
   return std::make_shared<PillowStructure>(params.structure);
 }
 
@@ -294,7 +297,7 @@ inline void plateRates(const CellParams& params, const CellInputs& in, const Eff
   }
   const double net_force = v.gauge_pressure_pa * v.structure.effective_area_m2 - in.load_n -
                            params.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n +
-                           terms.plate_force_n;
+                           terms.plate_force_n + v.structure.plate_force_n;
   (*rates)[CellModel::kHeight] = v.velocity_m_s;
   (*rates)[CellModel::kVelocity] = net_force / v.moving_mass_kg;
 }

@@ -50,7 +50,8 @@ StructureEquilibrium CellStructure::equilibriumAtPressure(double gauge_pressure_
   out.gauge_pressure_pa = gauge_pressure_pa;
   auto excess_force = [&](double h, std::array<double, kMaxShapeDofs>* q) {
     *q = relaxedShape(h, gauge_pressure_pa, q->data());
-    return gauge_pressure_pa * evaluate(h, q->data()).effective_area_m2 - load_n;
+    const StructureEval e = evaluate(h, q->data());
+    return gauge_pressure_pa * e.effective_area_m2 + e.plate_force_n - load_n;
   };
   std::array<double, kMaxShapeDofs> q_lo = restShape();
   if (!(gauge_pressure_pa > 0.0) || excess_force(0.0, &q_lo) <= 0.0) {
@@ -84,7 +85,8 @@ StructureEquilibrium CellStructure::equilibriumAtPressure(double gauge_pressure_
   out.shape = relaxedShape(out.height_m, gauge_pressure_pa, q_lo.data());
   out.eval = evaluate(out.height_m, out.shape.data());
   out.converged = withinLimits(out.height_m, out.shape.data()) &&
-                  std::fabs(gauge_pressure_pa * out.eval.effective_area_m2 - load_n) <= 1e-6 * (1.0 + load_n);
+                  std::fabs(gauge_pressure_pa * out.eval.effective_area_m2 + out.eval.plate_force_n - load_n) <=
+                      1e-6 * (1.0 + load_n);
   return out;
 }
 
@@ -94,7 +96,8 @@ StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double 
   std::array<double, kMaxShapeDofs> q = restShape();
   auto excess_force = [&](double p) {
     q = relaxedShape(height_m, p, q.data());
-    return p * evaluate(height_m, q.data()).effective_area_m2 - load_n;
+    const StructureEval e = evaluate(height_m, q.data());
+    return p * e.effective_area_m2 + e.plate_force_n - load_n;
   };
   double p_lo = 0.0;
   double p_hi = 100.0;
@@ -105,7 +108,7 @@ StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double 
     if (p_hi > 1e7 || !withinLimits(height_m, q.data())) return out;
   }
   // Illinois regula falsi on the bracket: superlinear, and never leaves the bracket.
-  double f_lo = -load_n, f_hi = excess_force(p_hi);
+  double f_lo = evaluate(height_m, q.data()).plate_force_n - load_n, f_hi = excess_force(p_hi);
   int side = 0;
   double p_new = p_hi;
   for (int iter = 0; iter < 100 && p_hi - p_lo > 1e-10 * p_hi; ++iter) {

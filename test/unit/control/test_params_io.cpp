@@ -114,7 +114,7 @@ TEST(AirbagParamsIo, StructureSelectionFromTheParameterServerResolvesAgainstConf
     nb::airbagParamsFrom(nb::flattenYamlText("cell:\n  structure:\n    type: balloon\n", "node.yaml"), "node.yaml");
     FAIL() << "an unknown structure type was accepted";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("structure_type must be 'pillow' or 'table', got 'balloon'"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("structure_type must be 'pillow', 'table' or 'bellows', got 'balloon'"), std::string::npos)
         << e.what();
   }
 }

@@ -213,3 +213,50 @@ TEST(GapReplay, HiddenEffectsFromTextAreCheckedAndNamed) {
     }
   }
 }
+
+namespace {
+
+/// A bellows at rest under a constant pressure, no height sensor, no flow: a lung held at PEEP.
+nb::RunData restingRun(double p_gauge_pa) {
+  nb::RunData run;
+  run.name = "peep.csv";
+  run.load_n = 0.0;
+  for (int i = 0; i <= 100; ++i) {
+    run.t_s.push_back(0.01 * i);
+    run.p_gauge_pa.push_back(p_gauge_pa + (i % 2 ? 5.0 : -5.0));
+    run.h_m.push_back(NAN);
+    run.mdot_in_kg_s.push_back(0.0);
+  }
+  return run;
+}
+
+nb::CellParams bellowsParams() {
+  nb::CellParams p;
+  p.structure_type = "bellows";
+  p.plate_mass_kg = 0.1;
+  p.plate_damping_n_s_m = 100.0;
+  return p;
+}
+
+}  // namespace
+
+TEST(GapReplay, ARunWithoutHeightStartsAtRestAtItsFirstPressure) {
+  const nb::Replay r = nb::replayRun(restingRun(490.0), bellowsParams(), {});
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_NEAR(r.p_gauge_pa.front(), 490.0, 1.0);
+  EXPECT_NEAR(r.p_gauge_pa.back(), 490.0, 1.0);  // and stays there without flow
+  const double h_peep = 490.0 * bellowsParams().bellows.area_m2 / bellowsParams().bellows.springRate();
+  EXPECT_NEAR(r.h_m.front(), h_peep, 0.005 * h_peep);  // the mean of the first 0.2 s, noise in it
+}
+
+TEST(GapReplay, ARunWithoutHeightAtNoisePressureStartsFlat) {
+  const nb::Replay r = nb::replayRun(restingRun(20.0), bellowsParams(), {});
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_NEAR(r.p_gauge_pa.front(), 0.0, 1e-9);
+  // A height-less synthetic airbag run starts flat as before.
+  nb::RunData airbag = synthRun({}, 1.0);
+  for (double& h : airbag.h_m) h = NAN;
+  const nb::Replay a = nb::replayRun(airbag, nb::CellParams{}, {});
+  ASSERT_TRUE(a.ok) << a.message;
+  EXPECT_NEAR(a.p_gauge_pa.front(), 0.0, 1e-9);
+}

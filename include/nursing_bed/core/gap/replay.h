@@ -60,8 +60,10 @@ enum class IntervalShape { kSpread, kPulseAtStart, kPulseAtEnd };
 /**
  * Replays `run` through a cell with `params` and `effects`: the measured inflow is the input
  * (the paper's way), the load follows the run's load (column or constant), and the cell starts
- * flat at ambient (or at rest at initialHeight() if that is above 3 mm, at the first measured
- * gas temperature if the run has one). Samples after the plate has landed in the
+ * flat at ambient, or at rest at initialHeight() if that is above 3 mm; a run without height
+ * readings starts at rest at its first measured pressure (mean over kInitialRestS while steady)
+ * when that is above 150 Pa (a ventilated lung at PEEP; a flat cell reads noise around 0); at
+ * the first measured gas temperature if the run has one. Samples after the plate has landed in the
  * vent (kLanded) are not simulated: NaN. `max_substeps` bounds the integration's cost (0: 50
  * sub-steps per default step on average): a replay that needs more accepted sub-steps fails
  * ("too stiff"), as a fit may wander into parameters that make the model needlessly stiff.

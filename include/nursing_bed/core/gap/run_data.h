@@ -29,6 +29,10 @@ struct RunData {
   std::vector<double> valve_cmd;          ///< -1 vent ... +1 inflate
   std::vector<double> p_supply_gauge_pa;  ///< supply pressure, gauge [Pa]
   std::vector<double> t_gas_k;            ///< gas temperature [K]
+  /// The meter's raw flow beside a corrected mdot_in_kg_s (a recorder's offset correction
+  /// undone) [kg/s]
+  std::vector<double> mdot_uncorrected_kg_s;
+  std::vector<double> p_setpoint_gauge_pa;  ///< the pressure controller's target, gauge [Pa]
   std::string role;                       ///< "fit", "withheld" or "" (not assigned)
   /// true: mdot_in_kg_s[i] is the mean flow over the interval that ends at sample i, as a
   /// bed's AirbagState reports it (metadata "mdot_sampling: interval_mean"); a valve that
@@ -53,7 +57,8 @@ constexpr const char* kFlowSamplingKey = "mdot_sampling";
  * Reads a run CSV (version 1). Metadata lines "# key: value" before the header; the version
  * key nursing_bed_run must be 1; load_n is required unless a load_n column exists. Required
  * columns t_s, mdot_in_kg_s, p_gauge_pa, h_m, in any order; optional load_n, valve_cmd,
- * p_supply_gauge_pa, t_gas_k; other columns are ignored. An empty field (or "nan") is NaN;
+ * p_supply_gauge_pa, t_gas_k, mdot_uncorrected_kg_s, p_setpoint_gauge_pa; other columns are
+ * ignored. An empty field (or "nan") is NaN;
  * t_s must be present on every row. Throws std::runtime_error naming the file, line and
  * column for: unreadable file, missing or unsupported version, missing or non-numeric load_n,
  * missing header or required column, duplicate column, a row with the wrong number of fields,

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/physics/bellows_structure.h"
 #include "nursing_bed/core/physics/cell_effect.h"
 #include "nursing_bed/core/physics/cell_structure.h"
 #include "nursing_bed/core/physics/gas.h"
@@ -26,10 +27,11 @@ struct CellParams {
   double supply_temperature_k = kRoomTemperatureK;   ///< temperature of the supplied air
 
   PillowParams structure;                             ///< geometry and film
-  /// Structure model: "pillow" (PillowStructure from `structure`) or "table" (a
+  /// Structure model: "pillow" (PillowStructure from `structure`), "table" (a
   /// TabulatedStructure read from structure_table_file, e.g. written by fe_airbag; the film
-  /// shape then relaxes in structure.film_relaxation_time_s).
+  /// shape then relaxes in structure.film_relaxation_time_s) or "bellows" (from `bellows`).
   std::string structure_type = "pillow";
+  BellowsParams bellows;                              ///< used when structure_type is "bellows"
   std::string structure_table_file;                   ///< table path (YAML keys structure/type, structure/table_file)
 
   double plate_mass_kg = 0.6 / kGravity;              ///< loading plate (0.6 N, paper section 2.2)

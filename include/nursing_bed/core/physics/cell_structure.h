@@ -27,6 +27,8 @@ struct StructureEval {
   double surface_area_m2 = 0.0;         ///< wetted inner film area (heat exchange)
   double film_stretch = 1.0;            ///< representative film stretch [-]
   double film_tension_n_m = 0.0;        ///< film tension per unit current length [N/m]
+  /// The structure's own force on the plate besides the gas's, + upward (a bellows' spring) [N]
+  double plate_force_n = 0.0;
 };
 
 /// Quasi-static equilibrium of the structure: film shape relaxed, plate force balancing a load.
@@ -59,11 +61,13 @@ class CellStructure {
   /// Film shape that balances gauge pressure p at fixed plate height h (dW/dq = p dV/dq).
   std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
                                                  const double* initial_shape = nullptr) const;
-  /// Height and shape at which pressure p carries the load (plate at rest): the cell's
+  /// Height and shape at which pressure p and the structure's own plate force carry the load
+  /// (plate at rest): the cell's
   /// h(p, load) characteristic (the paper's section 5 relation, from our model). Not converged
   /// when the film would have to leave its limits.
   StructureEquilibrium equilibriumAtPressure(double gauge_pressure_pa, double load_n) const;
-  /// Pressure and shape that hold the plate at height h under the load.
+  /// Pressure and shape that hold the plate at height h under the load (with the structure's
+  /// own plate force).
   StructureEquilibrium equilibriumAtHeight(double height_m, double load_n) const;
 };
 
