@@ -61,7 +61,7 @@ void writeStructureTable(const std::string& path, const StructureTable& t) {
   }
   e << YAML::EndMap;
   std::ofstream f = openOrThrow(path);
-  f << "# FE-derived airbag structure (fe_airbag --mode table; doc/fe_membrane.md).\n"
+  f << "# FE-derived airbag structure (fe_airbag table; doc/fe_membrane.md).\n"
     << "# Rows: plate heights; columns: gauge pressures. volume_m3 = gas volume (paper eq. 11),\n"
     << "# plate_force_n = upward force of the film on the plate held at that height.\n"
     << e.c_str() << "\n";
