@@ -8,6 +8,7 @@
 
 #include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/ros/ros_params.h"
 
@@ -32,23 +33,19 @@ pluginlib::ClassLoader<CellHardware>& hardwareLoader() {
 
 }  // namespace
 
-std::string AirbagHardwareParams::validate() const {
-  std::ostringstream err;
-  if (plugin.empty()) err << "hardware/plugin is empty; ";
-  if (!simulated() && plugin == "nursing_bed/ModbusTcpHardware" && register_map.empty())
-    err << "hardware/register_map must name the register map YAML for nursing_bed/ModbusTcpHardware; ";
-  const std::string observer_error = observer.validate();
-  if (!observer_error.empty()) err << "observer/: " << observer_error << "; ";
-  const std::string gas_check_error = gas_check.validate();
-  if (!gas_check_error.empty()) err << "observer/: " << gas_check_error << "; ";
+Status AirbagHardwareParams::validate() const {
+  ErrorList errors;
+  errors.addIf(plugin.empty(), "hardware/plugin is empty");
+  errors.addIf(!simulated() && plugin == "nursing_bed/ModbusTcpHardware" && register_map.empty(),
+               "hardware/register_map must name the register map YAML for nursing_bed/ModbusTcpHardware");
+  errors.addNested(observer.validate(), "observer/: ");
+  errors.addNested(gas_check.validate(), "observer/: ");
   try {
     effectsFromText(observer_effects, 1);
   } catch (const std::invalid_argument& e) {
-    err << "observer/effects: " << e.what() << "; ";
+    errors.add("observer/effects: ", e.what());
   }
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  return errors.status();
 }
 
 AirbagHardwareParams AirbagHardwareParams::load(const ros::NodeHandle& pnh, const std::string& defaults_ns) {

@@ -10,6 +10,7 @@
 #include "nursing_bed/core/control/airbag_params_io.h"
 #include "nursing_bed/core/control/rate_limiter.h"
 #include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/ros/bed_topics.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
@@ -17,28 +18,24 @@
 
 namespace nursing_bed {
 
-std::string AirbagNodeParams::validate() const {
-  std::ostringstream err;
-  if (row < 0 || col < 0) err << "~row and ~col must be set to the cell's place in the bed (>= 0); ";
-  if (!(update_rate_hz > 0.0 && update_rate_hz <= 1000.0)) err << "~update_rate_hz must lie in (0, 1000]; ";
-  if (!(publish_rate_hz > 0.0 && publish_rate_hz <= update_rate_hz))
-    err << "~publish_rate_hz must lie in (0, update_rate_hz]; ";
-  if (!(load_n >= 0.0 && std::isfinite(load_n))) err << "~load_n must be >= 0 N; ";
-  if (!(initial_height_m >= 0.0 && initial_height_m <= airbag.controller.max_height_m))
-    err << "~initial_height_m must lie in [0, controller/max_height_m]; ";
-  if (!std::isfinite(supply_pressure_pa)) err << "~supply_pressure_pa must be finite; ";
+Status AirbagNodeParams::validate() const {
+  ErrorList errors;
+  errors.addIf(row < 0 || col < 0, "~row and ~col must be set to the cell's place in the bed (>= 0)");
+  errors.addIf(!(update_rate_hz > 0.0 && update_rate_hz <= 1000.0), "~update_rate_hz must lie in (0, 1000]");
+  errors.addIf(!(publish_rate_hz > 0.0 && publish_rate_hz <= update_rate_hz),
+               "~publish_rate_hz must lie in (0, update_rate_hz]");
+  errors.addIf(!(load_n >= 0.0 && std::isfinite(load_n)), "~load_n must be >= 0 N");
+  errors.addIf(!(initial_height_m >= 0.0 && initial_height_m <= airbag.controller.max_height_m),
+               "~initial_height_m must lie in [0, controller/max_height_m]");
+  errors.addIf(!std::isfinite(supply_pressure_pa), "~supply_pressure_pa must be finite");
   try {
     effectsFromText(effects, static_cast<std::uint32_t>(airbag.noise_seed));
   } catch (const std::invalid_argument& e) {
-    err << "~effects: " << e.what() << "; ";
+    errors.add("~effects: ", e.what());
   }
-  const std::string airbag_error = airbag.validate();
-  if (!airbag_error.empty()) err << airbag_error << "; ";
-  const std::string hardware_error = hardware.validate();
-  if (!hardware_error.empty()) err << hardware_error << "; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  errors.addNested(airbag.validate());
+  errors.addNested(hardware.validate());
+  return errors.status();
 }
 
 AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
@@ -80,8 +77,9 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   params_.airbag.controller.max_height_m = std::min(params_.airbag.controller.max_height_m, layout_.max_height_m);
   params_.airbag.controller.min_height_m = std::max(params_.airbag.controller.min_height_m, layout_.min_height_m);
   params_.airbag.noise_seed += layout_.id;
-  const std::string error = params_.validate();
-  if (!error.empty()) throw std::runtime_error("airbag " + names::airbagName(params_.row, params_.col) + ": " + error);
+  const Status valid = params_.validate();
+  if (!valid)
+    throw std::runtime_error("airbag " + names::airbagName(params_.row, params_.col) + ": " + valid.message());
 
   cell_ = makeCell();
   if (!params_.effects.empty()) ROS_INFO("airbag %s: simulated with hidden effects: %s",
@@ -314,8 +312,8 @@ bool AirbagNode::ownedByManager(const ros::Time& now) const {
   return !manager_setpoint_at_.isZero() && (now - manager_setpoint_at_).toSec() < kManagerOwnsForS;
 }
 
-std::string AirbagNode::request(double height_m, const ros::Time& now) {
-  return cell_->requestHeight(height_m, elapsed(now));
+Status AirbagNode::request(double height_m, const ros::Time& now) {
+  return Status::fromMessage(cell_->requestHeight(height_m, elapsed(now)));
 }
 
 bool AirbagNode::setHeight(SetHeight::Request& req, SetHeight::Response& res) {
@@ -372,9 +370,10 @@ bool AirbagNode::setPressure(SetPressure::Request& req, SetPressure::Response& r
 void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   const ros::Time now = ros::Time::now();
-  const std::string error = request(msg->data, now);
-  if (!error.empty()) {
-    ROS_WARN_THROTTLE(1.0, "%s: setpoint %g refused: %s", layout_.link_name.c_str(), msg->data, error.c_str());
+  const Status accepted = request(msg->data, now);
+  if (!accepted) {
+    ROS_WARN_THROTTLE(1.0, "%s: setpoint %g refused: %s", layout_.link_name.c_str(), msg->data,
+                      accepted.message().c_str());
     return;
   }
   direct_target_m_ = std::numeric_limits<double>::quiet_NaN();  // the manager owns the cell now

@@ -8,32 +8,31 @@
 #include "nursing_bed/core/control/airbag_params_io.h"
 #include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/hardware/thread_priority.h"
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/ros/names.h"
 #include "nursing_bed/ros/ros_params.h"
 
 namespace nursing_bed {
 
-std::string RigEmulatorNodeParams::validate() const {
-  std::ostringstream err;
-  if (register_map.empty()) err << "~register_map must name the register map YAML; ";
-  if (bed_cells < 0) err << "~bed_cells must be >= 0; ";
-  if (!(period_s > 0.0 && period_s <= 0.02)) err << "~period_s must lie in (0, 0.02] s; ";
-  if (!(adc_step_pa >= 0.0)) err << "~adc_step_pa must be >= 0; ";
-  if (!(valve_dead_time_s >= 0.0 && valve_dead_time_s <= 1.0)) err << "~valve_dead_time_s must lie in [0, 1] s; ";
-  if (!(pressure_noise_pa >= 0.0)) err << "~pressure_noise_pa must be >= 0; ";
-  if (!(load_n >= 0.0 && std::isfinite(load_n))) err << "~load_n must be >= 0; ";
-  if (!(initial_height_m >= 0.0 && initial_height_m <= 0.2)) err << "~initial_height_m must lie in [0, 0.2] m; ";
-  if (!(truth_rate_hz > 0.0 && truth_rate_hz <= 1000.0)) err << "~truth_rate_hz must lie in (0, 1000]; ";
-  const std::string priority = realtimePriorityProblem(simulation_realtime_priority);
-  if (!priority.empty()) err << "~simulation_realtime_priority " << simulation_realtime_priority << " " << priority << "; ";
+Status RigEmulatorNodeParams::validate() const {
+  ErrorList errors;
+  errors.addIf(register_map.empty(), "~register_map must name the register map YAML");
+  errors.addIf(bed_cells < 0, "~bed_cells must be >= 0");
+  errors.addIf(!(period_s > 0.0 && period_s <= 0.02), "~period_s must lie in (0, 0.02] s");
+  errors.addIf(!(adc_step_pa >= 0.0), "~adc_step_pa must be >= 0");
+  errors.addIf(!(valve_dead_time_s >= 0.0 && valve_dead_time_s <= 1.0), "~valve_dead_time_s must lie in [0, 1] s");
+  errors.addIf(!(pressure_noise_pa >= 0.0), "~pressure_noise_pa must be >= 0");
+  errors.addIf(!(load_n >= 0.0 && std::isfinite(load_n)), "~load_n must be >= 0");
+  errors.addIf(!(initial_height_m >= 0.0 && initial_height_m <= 0.2), "~initial_height_m must lie in [0, 0.2] m");
+  errors.addIf(!(truth_rate_hz > 0.0 && truth_rate_hz <= 1000.0), "~truth_rate_hz must lie in (0, 1000]");
+  const Status priority = checkRealtimePriority(simulation_realtime_priority);
+  if (!priority) errors.add("~simulation_realtime_priority ", simulation_realtime_priority, " ", priority.message());
   try {
     effectsFromText(effects, noise_seed);
   } catch (const std::invalid_argument& e) {
-    err << "~effects: " << e.what() << "; ";
+    errors.add("~effects: ", e.what());
   }
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  return errors.status();
 }
 
 RigEmulatorNodeParams RigEmulatorNode::loadParams(const ros::NodeHandle& pnh) {
@@ -57,8 +56,8 @@ RigEmulatorNodeParams RigEmulatorNode::loadParams(const ros::NodeHandle& pnh) {
 }
 
 RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : params_(loadParams(private_nh)) {
-  const std::string error = params_.validate();
-  if (!error.empty()) throw std::runtime_error("rig_emulator: " + error);
+  const Status valid = params_.validate();
+  if (!valid) throw std::runtime_error("rig_emulator: " + valid.message());
   const FlatParams values = layeredRosParams(private_nh, params_.defaults_ns, {"cell"});
   const AirbagCellParams airbag = airbagParamsFrom(values, "rig_emulator cell parameters");
   RigEmulatorOptions options;

@@ -17,10 +17,13 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/core/bed/posture_plans.h"
 #include "nursing_bed/core/physics/units.h"
+#include "tool_cli.h"
 
 namespace nb = nursing_bed;
 
@@ -122,103 +125,75 @@ class Bed {
 
 double mmhg(double pa) { return nb::paToMmHg(pa); }
 
-std::string json(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
+namespace tools = nursing_bed::tools;
+using Json = nlohmann::ordered_json;
+
+/// A number for bed_study.json: null where it is not finite (JSON has no NaN).
+Json number(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
+
+Json regions(double sacrum, double heels, double occiput) {
+  return {{"sacrum", number(sacrum)}, {"heels", number(heels)}, {"occiput", number(occiput)}};
 }
 
-}  // namespace
+/// 1. Flat bed: peaks after settling.
+Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
+  Bed bed(grid, config, supply_pa);
+  bed.start({"flat", {}, {}});
+  bed.run(15.0);
+  const nb::BodyState& s = bed.body();
+  std::printf("flat bed (%.2f m): peak point pressure sacrum %.1f, heels %.1f, occiput %.1f mmHg; "
+              "cell-averaged %.1f, %.1f, %.1f mmHg\n", config.nominal_height_m,
+              mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels), mmhg(s.peak_pressure_pa.occiput),
+              mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
+              mmhg(s.peak_cell_pressure_pa.occiput));
+  return {{"peak_mmhg", regions(mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels),
+                                mmhg(s.peak_pressure_pa.occiput))},
+          {"cell_peak_mmhg", regions(mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
+                                     mmhg(s.peak_cell_pressure_pa.occiput))}};
+}
 
-int main(int argc, char** argv) {
-  std::string out_dir;
-  double period_s = 600.0, supply_pa = 30000.0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--out" && i + 1 < argc) out_dir = argv[++i];
-    else if (a == "--period" && i + 1 < argc) period_s = std::stod(argv[++i]);
-    else {
-      std::cerr << "usage: bed_study --out DIR [--period S]\n"
-                   "Simulates the default patient on the 20 x 9 bed under every plan (several minutes).\n";
-      return 2;
+/// 2. Share of time above 32 mmHg per region under `plan` ("flat", "1in2", "1in3"), at the
+/// tissue over each loaded cell: a region's share is the mean, over the cells of its rows that
+/// carry it, of the time the highest point pressure over that cell exceeds 32 mmHg (a location
+/// relieved while its cell is low counts as relieved even when the region's other cells carry
+/// more). The flat bed is the reference.
+Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa, double period_s,
+                  const std::string& plan) {
+  Bed bed(grid, config, supply_pa);
+  bed.start({"flat", {{"height_m", "0.12"}}, {}});
+  bed.run(15.0);
+  if (plan != "flat") bed.start({"alternating", {{"pattern", plan}, {"period_s", std::to_string(period_s)}}, {}});
+  const std::vector<int> rows[3] = {bed.model().pelvisRows(), bed.model().heelRows(), bed.model().headRows()};
+  std::vector<double> above(grid.cells(), 0.0), loaded(grid.cells(), 0.0);
+  int samples = 0;
+  bed.run(plan == "flat" ? 60.0 : period_s, [&](double) {
+    const std::vector<double>& peak = bed.body().cell_peak_pressure_pa;
+    for (int i = 0; i < grid.cells(); ++i) {
+      above[i] += peak[i] > kCapillaryClosingPa;
+      loaded[i] += peak[i] > 0.0;
     }
+    ++samples;
+  });
+  double share[3] = {0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    int cells = 0;
+    for (int r : rows[k])
+      for (int c = 0; c < grid.cols; ++c)
+        if (loaded[grid.id(r, c)] > 0.5 * samples) {  // the region rests on this cell
+          share[k] += above[grid.id(r, c)] / samples;
+          ++cells;
+        }
+    share[k] = cells ? share[k] / cells : NAN;
   }
-  if (out_dir.empty()) {
-    std::cerr << "bed_study: --out DIR is required\n";
-    return 2;
-  }
-  std::filesystem::create_directories(out_dir);
-  const nb::BedGrid grid;
-  const nb::PlanConfig config;
-  std::ostringstream js;
-  js << "{\n";
+  std::printf("%s: share of time above 32 mmHg at the loaded tissue: sacrum %.0f %%, heels %.0f %%, occiput %.0f %%\n",
+              plan == "flat" ? "flat bed (0.12 m)" : ("alternating " + plan + ", period " + std::to_string(static_cast<int>(period_s)) + " s").c_str(),
+              100 * share[0], 100 * share[1], 100 * share[2]);
+  return regions(share[0], share[1], share[2]);
+}
 
-  // 1. Flat bed: peaks after settling.
-  {
-    Bed bed(grid, config, supply_pa);
-    bed.start({"flat", {}, {}});
-    bed.run(15.0);
-    const nb::BodyState& s = bed.body();
-    std::printf("flat bed (%.2f m): peak point pressure sacrum %.1f, heels %.1f, occiput %.1f mmHg; "
-                "cell-averaged %.1f, %.1f, %.1f mmHg\n", config.nominal_height_m,
-                mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels), mmhg(s.peak_pressure_pa.occiput),
-                mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
-                mmhg(s.peak_cell_pressure_pa.occiput));
-    js << "  \"flat\": {\"peak_mmhg\": {\"sacrum\": " << json(mmhg(s.peak_pressure_pa.sacrum)) << ", \"heels\": "
-       << json(mmhg(s.peak_pressure_pa.heels)) << ", \"occiput\": " << json(mmhg(s.peak_pressure_pa.occiput))
-       << "}, \"cell_peak_mmhg\": {\"sacrum\": " << json(mmhg(s.peak_cell_pressure_pa.sacrum)) << ", \"heels\": "
-       << json(mmhg(s.peak_cell_pressure_pa.heels)) << ", \"occiput\": " << json(mmhg(s.peak_cell_pressure_pa.occiput))
-       << "}},\n";
-  }
-
-  // 2. Share of time above 32 mmHg per region, at the tissue over each loaded cell: a region's
-  // share is the mean, over the cells of its rows that carry it, of the time the highest point
-  // pressure over that cell exceeds 32 mmHg (a location relieved while its cell is low counts as
-  // relieved even when the region's other cells carry more). The flat bed is the reference.
-  js << "  \"share_above_32mmhg\": {";
-  const char* region_names[3] = {"sacrum", "heels", "occiput"};
-  bool first_plan = true;
-  for (const std::string plan : {"flat", "1in2", "1in3"}) {
-    Bed bed(grid, config, supply_pa);
-    bed.start({"flat", {{"height_m", "0.12"}}, {}});
-    bed.run(15.0);
-    if (plan != "flat") bed.start({"alternating", {{"pattern", plan}, {"period_s", std::to_string(period_s)}}, {}});
-    const std::vector<int> rows[3] = {bed.model().pelvisRows(), bed.model().heelRows(), bed.model().headRows()};
-    std::vector<double> above(grid.cells(), 0.0), loaded(grid.cells(), 0.0);
-    int samples = 0;
-    bed.run(plan == "flat" ? 60.0 : period_s, [&](double) {
-      const std::vector<double>& peak = bed.body().cell_peak_pressure_pa;
-      for (int i = 0; i < grid.cells(); ++i) {
-        above[i] += peak[i] > kCapillaryClosingPa;
-        loaded[i] += peak[i] > 0.0;
-      }
-      ++samples;
-    });
-    double share[3] = {0, 0, 0};
-    for (int k = 0; k < 3; ++k) {
-      int cells = 0;
-      for (int r : rows[k])
-        for (int c = 0; c < grid.cols; ++c)
-          if (loaded[grid.id(r, c)] > 0.5 * samples) {  // the region rests on this cell
-            share[k] += above[grid.id(r, c)] / samples;
-            ++cells;
-          }
-      share[k] = cells ? share[k] / cells : NAN;
-    }
-    std::printf("%s: share of time above 32 mmHg at the loaded tissue: sacrum %.0f %%, heels %.0f %%, occiput %.0f %%\n",
-                plan == "flat" ? "flat bed (0.12 m)" : ("alternating " + plan + ", period " + std::to_string(static_cast<int>(period_s)) + " s").c_str(),
-                100 * share[0], 100 * share[1], 100 * share[2]);
-    js << (first_plan ? "" : ", ") << "\"" << plan << "\": {";
-    for (int k = 0; k < 3; ++k) js << (k ? ", " : "") << "\"" << region_names[k] << "\": " << json(share[k]);
-    js << "}";
-    first_plan = false;
-  }
-  js << "},\n";
-
-  // 3. Lateral turn: body roll at the end of the ramp (+ 10 s) per requested angle.
-  js << "  \"lateral_turn\": [";
+/// 3. Lateral turn: body roll at the end of the ramp (+ 10 s) per requested angle.
+Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
+  Json turns = Json::array();
   for (int angle = 5; angle <= 30; angle += 5) {
     Bed bed(grid, config, supply_pa);
     bed.start({"flat", {}, {}});
@@ -228,19 +203,20 @@ int main(int argc, char** argv) {
     bed.run(ramp + 10.0);
     const double roll_deg = bed.body().roll_rad * 180.0 / nb::kPi;
     std::printf("lateral turn left %2d deg: body roll %.1f deg (after the %.0f s ramp + 10 s)\n", angle, roll_deg, ramp);
-    js << (angle == 5 ? "" : ", ") << "{\"requested_deg\": " << angle << ", \"body_roll_deg\": " << json(roll_deg) << "}";
+    turns.push_back({{"requested_deg", angle}, {"body_roll_deg", number(roll_deg)}});
   }
-  js << "],\n";
+  return turns;
+}
 
-  // 4. CPR from every plan: time until every cell is below 10 mm.
-  js << "  \"cpr_seconds\": {";
+/// 4. CPR from every plan: time until every cell is below 10 mm.
+Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
   const std::vector<std::pair<std::string, nb::PlanRequest>> from = {
       {"flat", {"flat", {}, {}}},
       {"max_inflate", {"max_inflate", {}, {}}},
       {"alternating_1in2", {"alternating", {{"pattern", "1in2"}}, {}}},
       {"lateral_turn_30", {"lateral_turn", {{"side", "right"}, {"angle_deg", "30"}}, {}}},
   };
-  bool first = true;
+  Json seconds_from = Json::object();
   for (const auto& [label, request] : from) {
     Bed bed(grid, config, supply_pa);
     bed.start(request);
@@ -252,11 +228,41 @@ int main(int argc, char** argv) {
     });
     const double seconds = below_at - (bed.time() - 20.0);
     std::printf("CPR from %s: every cell below 10 mm after %.2f s\n", label.c_str(), seconds);
-    js << (first ? "" : ", ") << "\"" << label << "\": " << json(seconds);
-    first = false;
+    seconds_from[label] = number(seconds);
   }
-  js << "}\n}\n";
-  std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << js.str();
+  return seconds_from;
+}
+
+constexpr const char* kSynopsis =
+    "usage: bed_study --out DIR [--period S]\n"
+    "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
+    "DIR/bed_study.json.";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out_dir;
+  double period_s = 600.0;
+  const double supply_pa = 30000.0;
+  CLI::App app(kSynopsis, "bed_study");
+  tools::configureApp(app);
+  app.add_option("--out", out_dir, "output directory (created)")->type_name("DIR")->required();
+  app.add_option("--period", period_s, "period of the alternating plans [s]")
+      ->type_name("S")
+      ->check(tools::positiveNumber());
+  const int parsed = tools::parseCommandLine(app, argc, argv);
+  if (parsed != tools::kRun) return parsed;
+
+  std::filesystem::create_directories(out_dir);
+  const nb::BedGrid grid;
+  const nb::PlanConfig config;
+  Json study;
+  study["flat"] = flatBed(grid, config, supply_pa);
+  Json& share = study["share_above_32mmhg"];
+  for (const std::string plan : {"flat", "1in2", "1in3"}) share[plan] = shareAbove32(grid, config, supply_pa, period_s, plan);
+  study["lateral_turn"] = lateralTurns(grid, config, supply_pa);
+  study["cpr_seconds"] = cprTimes(grid, config, supply_pa);
+  std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << study.dump(2) << "\n";
   std::cout << "wrote " << out_dir << "/bed_study.json\n";
   return 0;
 }

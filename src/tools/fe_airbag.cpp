@@ -33,6 +33,7 @@
 #include "nursing_bed/core/physics/pillow_structure.h"
 #include "nursing_bed/core/physics/tabulated_structure.h"
 #include "nursing_bed/core/physics/units.h"
+#include "tool_cli.h"
 
 namespace nb = nursing_bed;
 namespace fe = nursing_bed::fe;
@@ -52,6 +53,8 @@ struct Args {
   int h_count = 13;
 };
 
+namespace tools = nursing_bed::tools;
+
 std::vector<double> numbers(const std::string& s) {
   std::vector<double> v;
   std::stringstream ss(s);
@@ -60,38 +63,99 @@ std::vector<double> numbers(const std::string& s) {
   return v;
 }
 
-Args parse(int argc, char** argv) {
-  Args a;
-  if (argc < 2) throw std::invalid_argument("usage: fe_airbag verify|hp|transient|table [options]");
-  a.mode = argv[1];
-  for (int i = 2; i + 1 < argc; i += 2) {
-    const std::string k = argv[i], v = argv[i + 1];
-    if (k == "--geometry") a.geometry = v;
-    else if (k == "--out") a.out = v;
-    else if (k == "--table") a.table = v;
-    else if (k == "--branch") a.branch = v;
-    else if (k == "--elements") a.elements = std::stoi(v);
-    else if (k == "--threads") a.threads = std::stoi(v);
-    else if (k == "--loads") a.loads = numbers(v);
-    else if (k == "--load") a.load = std::stod(v);
-    else if (k == "--tolerance") a.tolerance = std::stod(v);
-    else if (k == "--vtk-all") a.vtk_all = v == "1";
-    else if (k == "--gusset-mm") a.gusset_mm = std::stod(v);
-    else if (k == "--damping") a.damping = std::stod(v);
-    else if (k == "--inflow-mass-kg") a.inflow_mass_kg = std::stod(v);
-    else if (k == "--pressures-kpa") {
-      const auto p = numbers(v);
-      if (p.size() != 3) throw std::invalid_argument("--pressures-kpa needs LO,HI,COUNT");
-      a.p_lo_kpa = p[0], a.p_hi_kpa = p[1], a.p_count = static_cast<int>(p[2]);
-    } else if (k == "--heights-mm") {
-      const auto h = numbers(v);
-      if (h.size() != 3) throw std::invalid_argument("--heights-mm needs LO,HI,COUNT");
-      a.h_lo_mm = h[0], a.h_hi_mm = h[1], a.h_count = static_cast<int>(h[2]);
-    } else throw std::invalid_argument("unknown option " + k);
+/// "a,b,c" given to `option` as finite numbers, `count` of them (0: any number); a
+/// tools::UsageError naming the option and saying `shape` otherwise.
+std::vector<double> numberList(const std::string& option, const std::string& text, std::size_t count,
+                               const char* shape) {
+  const tools::UsageError error(option + ": expected " + shape + ", got '" + text + "'");
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    std::size_t used = 0;
+    double x = NAN;
+    try {
+      x = std::stod(item, &used);
+    } catch (const std::exception&) {
+      throw error;
+    }
+    if (used != item.size() || !std::isfinite(x)) throw error;
+    v.push_back(x);
   }
-  if (a.geometry != "pillows" && a.geometry != "gusseted") throw std::invalid_argument("--geometry: pillows or gusseted");
-  if (a.branch != "inflation" && a.branch != "flat" && a.branch != "equilibria")
-    throw std::invalid_argument("--branch: inflation, flat or equilibria");
+  if (v.empty() || (count > 0 && v.size() != count)) throw error;
+  return v;
+}
+
+/// The options as CLI11 takes them: lists and the VTK switch stay text until checkedArgs.
+struct RawArgs {
+  Args a;
+  std::string loads, pressures_kpa, heights_mm, vtk_all;
+};
+
+constexpr const char* kSynopsis =
+    "usage: fe_airbag MODE [options]   (the FE membrane model of one airbag, doc/fe_membrane.md)\n"
+    "Writes CSV, VTK (ParaView) and YAML into --out; prints progress, wall time and memory.";
+
+void defineModes(CLI::App& app, Args* a) {
+  const std::pair<const char*, const char*> modes[] = {
+      {"verify", "sphere and tube against closed forms"},
+      {"hp", "h(p) per load (--loads, --pressures-kpa, --vtk-all 1)"},
+      {"transient", "one inflation (--load, --inflow-mass-kg)"},
+      {"table", "the structure table (--table, --heights-mm, --pressures-kpa, --branch)"},
+      {"reduced", "today's reduced model on the same axes (--inflow-mass-kg, --load)"},
+      {"check", "the cell on --table FILE against the FE h(p) CSVs of the same geometry and mesh"},
+  };
+  for (const auto& [name, what] : modes) {
+    CLI::App* mode = app.add_subcommand(name, what);
+    mode->fallthrough();  // the options are the tool's: `fe_airbag hp --loads 10.6`
+    mode->callback([a, mode_name = std::string(name)] { a->mode = mode_name; });
+  }
+  app.require_subcommand(1);
+}
+
+void defineOptions(CLI::App& app, RawArgs* r) {
+  tools::configureApp(app);
+  Args& a = r->a;
+  defineModes(app, &a);
+  app.add_option("--geometry", a.geometry, "pillows (two flat square pillows joined in the middle) or gusseted")
+      ->check(CLI::IsMember({"pillows", "gusseted"}));
+  app.add_option("--gusset-mm", a.gusset_mm, "gusset height [mm] (default: the geometry's 79 mm)")
+      ->type_name("H")
+      ->default_str("");
+  app.add_option("--elements", a.elements, "elements per side")->type_name("N");
+  app.add_option("--threads", a.threads, "OpenMP threads (2 on an idle two-core machine)")
+      ->type_name("T")
+      ->check(tools::positiveNumber());
+  app.add_option("--out", a.out, "output directory (created)")->type_name("DIR");
+  app.add_option("--table", a.table, "structure table YAML (table: written; check: read)")->type_name("FILE");
+  app.add_option("--branch", a.branch, "the table's branch")
+      ->check(CLI::IsMember({"inflation", "flat", "equilibria"}));
+  app.add_option("--loads", r->loads, "plate loads [N] (default 0.6,10.6,15.6,20.6)")->type_name("L1,L2,...");
+  app.add_option("--load", a.load, "plate load of transient and reduced [N]")->type_name("L");
+  app.add_option("--pressures-kpa", r->pressures_kpa, "gauge pressures (default 1,30,24)")->type_name("LO,HI,COUNT");
+  app.add_option("--heights-mm", r->heights_mm, "table heights (default 10,130,13)")->type_name("LO,HI,COUNT");
+  app.add_option("--vtk-all", r->vtk_all, "1: a VTK file at every pressure (else the middle and last)")
+      ->type_name("1");
+  app.add_option("--inflow-mass-kg", a.inflow_mass_kg, "paper-shaped inflow carrying this mass (0: the valve)")
+      ->type_name("M");
+  app.add_option("--tolerance", a.tolerance, "relaxation tolerance");
+  app.add_option("--damping", a.damping, "relaxation damping [1/s]");
+}
+
+/// The text options as values; a tools::UsageError naming the option when one is malformed.
+Args checkedArgs(const RawArgs& r) {
+  Args a = r.a;
+  if (!r.loads.empty()) a.loads = numberList("--loads", r.loads, 0, "numbers separated by commas");
+  if (!r.pressures_kpa.empty()) {
+    const auto p = numberList("--pressures-kpa", r.pressures_kpa, 3, "LO,HI,COUNT");
+    a.p_lo_kpa = p[0], a.p_hi_kpa = p[1], a.p_count = static_cast<int>(p[2]);
+  }
+  if (!r.heights_mm.empty()) {
+    const auto h = numberList("--heights-mm", r.heights_mm, 3, "LO,HI,COUNT");
+    a.h_lo_mm = h[0], a.h_hi_mm = h[1], a.h_count = static_cast<int>(h[2]);
+  }
+  a.vtk_all = r.vtk_all == "1";
+  if (a.mode == "check" && a.table.empty()) throw tools::UsageError("check needs --table FILE");
   return a;
 }
 
@@ -452,8 +516,18 @@ void table(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  RawArgs raw;
+  CLI::App app(kSynopsis, "fe_airbag");
+  defineOptions(app, &raw);
+  const int parsed = tools::parseCommandLine(app, argc, argv);
+  if (parsed != tools::kRun) return parsed;
+  Args a;
   try {
-    const Args a = parse(argc, argv);
+    a = checkedArgs(raw);
+  } catch (const tools::UsageError& e) {
+    return tools::reportMistake(app, "fe_airbag", e.what());
+  }
+  try {
     std::filesystem::create_directories(a.out);
     if (a.mode == "verify") verify(a);
     else if (a.mode == "hp") heightVsPressure(a);
@@ -461,7 +535,6 @@ int main(int argc, char** argv) {
     else if (a.mode == "table") table(a);
     else if (a.mode == "check") check(a);
     else if (a.mode == "reduced") reduced(a);
-    else throw std::invalid_argument("unknown mode " + a.mode);
   } catch (const std::exception& e) {
     std::cerr << "fe_airbag: " << e.what() << "\n";
     return 1;

@@ -1,28 +1,26 @@
-// gap SUBCOMMAND ...: the sim-to-real gap tools. Subcommands are entries of kSubcommands; each
-// parses its own options and returns the exit code (0 ok, 1 failure while running, 2 bad
-// command line). `gap synth` writes a synthetic dataset (doc/gap_effects.md); `gap diagnose`
-// diagnoses a dataset (doc/gap_diagnosis.md); `gap import` turns logs of other formats into a
-// dataset (doc/gap_import.md).
+// gap SUBCOMMAND ...: the sim-to-real gap tools. Each subcommand's options are defined once with
+// CLI11 (its --help is generated from them) and its run returns the exit code (0 ok, 1 failure
+// while running, 2 bad command line). `gap synth` writes a synthetic dataset
+// (doc/gap_effects.md); `gap diagnose` diagnoses a dataset (doc/gap_diagnosis.md); `gap import`
+// turns logs of other formats into a dataset (doc/gap_import.md).
 #include <algorithm>
 #include <charconv>
-#include <cstdlib>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
 #include <iostream>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
-#include <filesystem>
-#include <functional>
-#include <fstream>
-#include <set>
-
 #include <glog/logging.h>
 
 #include "nursing_bed/core/io/package_path.h"
-#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/effects.h"
@@ -30,44 +28,16 @@
 #include "nursing_bed/core/gap/paper_study.h"
 #include "nursing_bed/core/gap/run_data.h"
 #include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/ros/bag_runs.h"
+#include "tool_cli.h"
 
 namespace nb = nursing_bed;
 
 namespace {
 
-/// A command-line mistake: printed with the usage, exit code 2.
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-struct Subcommand {
-  const char* name;
-  const char* summary;
-  const char* usage;
-  int (*run)(const std::vector<std::string>& args);
-};
-
-constexpr const char* kSynthUsage =
-    "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--seed N]\n"
-    "                 [--noise-scale S] [--protocol standard|small] [--airbag-param NAME=VALUE]...\n"
-    "                 [--no-flow-meter] [--no-height]\n"
-    "Simulates the run-data protocol (paper-shaped inflow, 60 s hold with the inlet closed,\n"
-    "10 s vent through the inlet) on the cell model with the given 'truth' effects and\n"
-    "realistic sensors, and writes DIR/<run>.csv, DIR/dataset.yaml and DIR/truth.json.\n"
-    "  --out          output directory (created)\n"
-    "  --effect       a truth effect, repeatable; parameters not given are drawn from the seed\n"
-    "                 within their plausible range (e.g. --effect leak:leak_area_m2=1e-8)\n"
-    "  --seed         random seed for drawn parameters and noise (default 1)\n"
-    "  --noise-scale  multiplies every sensor noise and quantisation step (default 1; 0: exact)\n"
-    "  --protocol     standard: 4 loads x 2 flows, 75.5 s at 100 Hz (default);\n"
-    "                 small: 2 loads x 2 flows, 30 s hold, 50 Hz (for CI)\n"
-    "  --airbag-param the rig's airbag differs from the model's file: a calibration parameter\n"
-    "                 (gap calibrate --help) or a key of the file, e.g. film_stiffness_scale=1.15,\n"
-    "                 structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)\n"
-    "  --no-flow-meter runs driven through the valves: valve_cmd and p_supply_gauge_pa, no\n"
-    "                 mdot_in_kg_s (doc/formats/run_data.md)\n"
-    "  --no-height    no height sensor: h_m left out\n";
+namespace tools = nursing_bed::tools;
+using tools::UsageError;
 
 std::string calibrationParamText() {
   std::string s;
@@ -95,70 +65,80 @@ double parseNumber(const std::string& option, const std::string& text) {
   return v;
 }
 
-/// Walks a subcommand's arguments: `while (args.next()) { ... args.flag() ... args.value() }`.
-class ArgWalker {
- public:
-  explicit ArgWalker(const std::vector<std::string>& args) : args_(args) {}
-  bool next() { return ++i_ < args_.size(); }
-  const std::string& flag() const { return args_[i_]; }
-  /// The value after the current option; a UsageError naming the option when there is none.
-  std::string value() {
-    if (i_ + 1 >= args_.size()) throw UsageError(flag() + " needs a value");
-    return args_[++i_];
-  }
-
- private:
-  const std::vector<std::string>& args_;
-  std::size_t i_ = static_cast<std::size_t>(-1);
+/// `gap synth`'s options as given; checked by synthOptions.
+struct SynthArgs {
+  std::string out_dir, seed = "1", noise_scale = "1", protocol = "standard";
+  std::vector<std::string> effects, airbag_params;
+  bool no_flow_meter = false, no_height = false;
 };
 
-int runSynth(const std::vector<std::string>& args) {
+constexpr const char* kSynthSynopsis =
+    "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--seed N]\n"
+    "                 [--noise-scale S] [--protocol standard|small] [--airbag-param NAME=VALUE]...\n"
+    "                 [--no-flow-meter] [--no-height]\n"
+    "Simulates the run-data protocol (paper-shaped inflow, 60 s hold with the inlet closed,\n"
+    "10 s vent through the inlet) on the cell model with the given 'truth' effects and\n"
+    "realistic sensors, and writes DIR/<run>.csv, DIR/dataset.yaml and DIR/truth.json.";
+
+void defineSynth(CLI::App& sub, SynthArgs* a) {
+  sub.add_option("--out", a->out_dir, "output directory (created)")->type_name("DIR");
+  tools::takeAll(sub.add_option("--effect", a->effects,
+                                "a truth effect, repeatable; parameters not given are drawn from the seed within "
+                                "their plausible range (e.g. --effect leak:leak_area_m2=1e-8)"))
+      ->type_name("NAME[:param=value,...]");
+  sub.add_option("--seed", a->seed, "random seed for drawn parameters and noise")->type_name("N");
+  sub.add_option("--noise-scale", a->noise_scale, "multiplies every sensor noise and quantisation step (0: exact)")
+      ->type_name("S");
+  sub.add_option("--protocol", a->protocol,
+                 "standard: 4 loads x 2 flows, 75.5 s at 100 Hz; small: 2 loads x 2 flows, 30 s hold, 50 Hz "
+                 "(for CI)")
+      ->type_name("standard|small");
+  tools::takeAll(sub.add_option("--airbag-param", a->airbag_params,
+                                "the rig's airbag differs from the model's file: a calibration parameter (gap "
+                                "calibrate --help) or a key of the file, e.g. film_stiffness_scale=1.15, "
+                                "structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)"))
+      ->type_name("NAME=VALUE");
+  sub.add_flag("--no-flow-meter", a->no_flow_meter,
+               "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (run-data.md)");
+  sub.add_flag("--no-height", a->no_height, "no height sensor: h_m left out");
+  sub.footer("effects and their parameters:\n" + effectList());
+}
+
+/// The synthesis options from the command line; a UsageError naming the option when a value is
+/// bad, an effect or airbag parameter unknown or out of range (before anything is written).
+nb::SynthOptions synthOptions(const SynthArgs& a) {
   nb::SynthOptions o;
   o.progress = &std::cout;
-  ArgWalker walk(args);
-  while (walk.next()) {
-    const std::string& a = walk.flag();
-    auto value = [&]() { return walk.value(); };
-    if (a == "--help" || a == "-h") {
-      std::cout << kSynthUsage << "effects and their parameters:\n" << effectList();
-      return 0;
-    } else if (a == "--out") {
-      o.out_dir = value();
-    } else if (a == "--effect") {
-      const std::string v = value();
-      try {
-        o.effects.push_back(nb::parseEffectRequest(v));
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(std::string("--effect ") + v + ": " + e.what());
-      }
-    } else if (a == "--seed") {
-      const std::string v = value();
-      const double s = parseNumber(a, v);
-      if (s < 0.0 || s > 4294967295.0 || s != std::floor(s))
-        throw UsageError("--seed: expected a whole number 0..4294967295, got '" + v + "'");
-      o.seed = static_cast<std::uint32_t>(s);
-    } else if (a == "--noise-scale") {
-      const std::string v = value();
-      o.noise_scale = parseNumber(a, v);
-      if (o.noise_scale < 0.0) throw UsageError("--noise-scale: expected a number >= 0, got '" + v + "'");
-    } else if (a == "--airbag-param") {
-      const std::string v = value();
-      const auto eq = v.find('=');
-      if (eq == std::string::npos || eq == 0) throw UsageError("--airbag-param: expected NAME=VALUE, got '" + v + "'");
-      o.airbag_params[v.substr(0, eq)] = parseNumber("--airbag-param " + v.substr(0, eq), v.substr(eq + 1));
-    } else if (a == "--no-flow-meter") {
-      o.flow_meter = false;
-    } else if (a == "--no-height") {
-      o.height_sensor = false;
-    } else if (a == "--protocol") {
-      o.protocol = value();
-      if (o.protocol != "standard" && o.protocol != "small")
-        throw UsageError("--protocol: expected standard or small, got '" + o.protocol + "'");
-    } else {
-      throw UsageError("unknown option '" + a + "'");
+  if (a.out_dir.empty()) throw UsageError("--out DIR is required");
+  o.out_dir = a.out_dir;
+  for (const std::string& v : a.effects) {
+    try {
+      o.effects.push_back(nb::parseEffectRequest(v));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--effect ") + v + ": " + e.what());
     }
   }
-  if (o.out_dir.empty()) throw UsageError("--out DIR is required");
+  const double seed = parseNumber("--seed", a.seed);
+  if (seed < 0.0 || seed > 4294967295.0 || seed != std::floor(seed))
+    throw UsageError("--seed: expected a whole number 0..4294967295, got '" + a.seed + "'");
+  o.seed = static_cast<std::uint32_t>(seed);
+  o.noise_scale = parseNumber("--noise-scale", a.noise_scale);
+  if (o.noise_scale < 0.0) throw UsageError("--noise-scale: expected a number >= 0, got '" + a.noise_scale + "'");
+  for (const std::string& v : a.airbag_params) {
+    const auto eq = v.find('=');
+    if (eq == std::string::npos || eq == 0) throw UsageError("--airbag-param: expected NAME=VALUE, got '" + v + "'");
+    o.airbag_params[v.substr(0, eq)] = parseNumber("--airbag-param " + v.substr(0, eq), v.substr(eq + 1));
+  }
+  o.flow_meter = !a.no_flow_meter;
+  o.height_sensor = !a.no_height;
+  o.protocol = a.protocol;
+  if (o.protocol != "standard" && o.protocol != "small")
+    throw UsageError("--protocol: expected standard or small, got '" + o.protocol + "'");
+  return o;
+}
+
+int runSynth(const SynthArgs& args) {
+  const nb::SynthOptions o = synthOptions(args);
   try {
     nb::rigAirbag(o.params, o.airbag_params);
   } catch (const std::invalid_argument& e) {
@@ -180,24 +160,14 @@ int runSynth(const std::vector<std::string>& args) {
   return 0;
 }
 
-
-constexpr const char* kDiagnoseUsage =
+constexpr const char* kDiagnoseSynopsis =
     "usage: gap diagnose DATASET --out DIR [--topic TOPIC] [--effects NAME,NAME...] [--threads N]\n"
     "                    [--params NAME,...] [--no-calibration] [--airbag FILE] [--no-plots]\n"
     "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
     "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
     "on the fit runs, names the effect that explains the gap (or says none / unexplained) and\n"
     "checks it on the withheld runs. Writes DIR/report.json, DIR/report.md, DIR/traces/*.csv and\n"
-    "the plots DIR/traces.png, residual_by_phase.png, hp_loops.png.\n"
-    "  --out       output directory (created)\n"
-    "  --topic     diagnose only the bag runs of this AirbagState topic (one cell of a bed bag);\n"
-    "              CSV runs are left out then\n"
-    "  --effects   candidates to try, comma-separated (default: all seven)\n"
-    "  --threads   candidate fits in parallel (default 2)\n"
-    "  --params    model parameters to calibrate first (gap calibrate --help; default: those the\n"
-    "              runs can tell); --no-calibration: effects on top of the nominal model only\n"
-    "  --airbag    the nominal parameter file (default: the one the dataset names)\n"
-    "  --no-plots  skip the PNG plots (they need /usr/bin/python3 with matplotlib)\n";
+    "the plots DIR/traces.png, residual_by_phase.png, hp_loops.png.";
 
 /// Runs of a dataset directory: CSVs, bags and dataset.yaml.
 std::vector<nb::RunData> readDatasetWithBags(const std::string& dir) {
@@ -282,37 +252,54 @@ std::vector<nb::RunData> datasetRuns(const std::string& dataset, const std::stri
   return runs;
 }
 
-/// Options both calibrate and diagnose take; true when `a` was one of them.
+/// Options both calibrate and diagnose take, as given; checked by analysisOptions.
+struct AnalysisArgs {
+  std::vector<std::string> datasets;  ///< exactly one, checked after parsing (named in the error)
+  std::string out_dir, topic, airbag_override, params, threads = "2", effects;
+  bool no_plots = false, no_calibration = false;
+};
+
+/// The checked common options.
 struct CommonOptions {
   std::string dataset, out_dir, topic, airbag_override;
   bool plots = true;
 };
 
-bool commonOption(ArgWalker& walk, CommonOptions* c, nb::DiagnosisOptions* options) {
-  const std::string& a = walk.flag();
-  if (a == "--out") {
-    c->out_dir = walk.value();
-  } else if (a == "--topic") {
-    c->topic = walk.value();
-  } else if (a == "--airbag") {
-    c->airbag_override = walk.value();
-  } else if (a == "--params") {
-    options->calibration_params = calibrationParamList(walk.value());
-  } else if (a == "--threads") {
-    const std::string v = walk.value();
-    const double t = parseNumber(a, v);
-    if (t < 1 || t > 64 || t != std::floor(t)) throw UsageError("--threads: expected a whole number 1..64, got '" + v + "'");
-    options->threads = static_cast<int>(t);
-  } else if (a == "--no-plots") {
-    c->plots = false;
-  } else if (!a.empty() && a[0] == '-') {
-    throw UsageError("unknown option '" + a + "'");
-  } else if (c->dataset.empty()) {
-    c->dataset = a;
-  } else {
-    throw UsageError("one DATASET only, got '" + c->dataset + "' and '" + a + "'");
-  }
-  return true;
+void defineCommon(CLI::App& sub, AnalysisArgs* a) {
+  tools::takeAll(sub.add_option("DATASET", a->datasets, "a directory of run CSVs and/or bags, optional dataset.yaml"));
+  sub.add_option("--out", a->out_dir, "output directory (created)")->type_name("DIR");
+  sub.add_option("--topic", a->topic,
+                 "diagnose only the bag runs of this AirbagState topic (one cell of a bed bag); CSV runs are "
+                 "left out then")
+      ->type_name("TOPIC");
+  sub.add_option("--params", a->params,
+                 "model parameters to calibrate first (gap calibrate --help; default: those the runs can tell)")
+      ->type_name("NAME,...");
+  sub.add_option("--airbag", a->airbag_override, "the nominal parameter file (default: the one the dataset names)")
+      ->type_name("FILE");
+  sub.add_option("--threads", a->threads, "candidate fits in parallel")->type_name("N");
+  sub.add_flag("--no-plots", a->no_plots, "skip the PNG plots (they need /usr/bin/python3 with matplotlib)");
+}
+
+/// The common options checked, and the diagnosis options they set; a UsageError naming the
+/// option otherwise.
+CommonOptions analysisOptions(const AnalysisArgs& a, nb::DiagnosisOptions* options) {
+  if (a.datasets.size() > 1)
+    throw UsageError("one DATASET only, got '" + a.datasets[0] + "' and '" + a.datasets[1] + "'");
+  CommonOptions c;
+  c.dataset = a.datasets.empty() ? "" : a.datasets[0];
+  c.out_dir = a.out_dir;
+  c.topic = a.topic;
+  c.airbag_override = a.airbag_override;
+  c.plots = !a.no_plots;
+  if (!a.params.empty()) options->calibration_params = calibrationParamList(a.params);
+  const double t = parseNumber("--threads", a.threads);
+  if (t < 1 || t > 64 || t != std::floor(t))
+    throw UsageError("--threads: expected a whole number 1..64, got '" + a.threads + "'");
+  options->threads = static_cast<int>(t);
+  if (c.dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
+  if (c.out_dir.empty()) throw UsageError("--out DIR is required");
+  return c;
 }
 
 /// Reads the dataset and its airbag (or --airbag FILE), runs `analyse`, writes the report (and
@@ -320,8 +307,6 @@ bool commonOption(ArgWalker& walk, CommonOptions* c, nb::DiagnosisOptions* optio
 int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const char* name,
                    nb::DiagnosisReport (*analyse)(std::vector<nb::RunData>, const nb::CellParams&,
                                                   const nb::DiagnosisOptions&, const std::string&)) {
-  if (c.dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
-  if (c.out_dir.empty()) throw UsageError("--out DIR is required");
   std::string airbag;
   std::vector<nb::RunData> runs = datasetRuns(c.dataset, c.topic, &airbag);
   if (!c.airbag_override.empty()) airbag = c.airbag_override;
@@ -344,78 +329,50 @@ int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const c
   return 0;
 }
 
-constexpr const char* kCalibrateUsage =
+constexpr const char* kCalibrateSynopsis =
     "usage: gap calibrate DATASET --out DIR [--params NAME,NAME...] [--airbag FILE] [--topic TOPIC]\n"
     "                     [--threads N] [--no-plots]\n"
     "Fits the model's own uncertain parameters on the fit runs of DATASET (the effects are not\n"
     "looked for) and writes DIR/calibrated_airbag.yaml (a complete parameter file: sim.launch\n"
     "cell_params:=..., the nodes and gap diagnose --airbag accept it), DIR/report.json (the\n"
     "calibration block: value, standard error, correlations, what the runs cannot tell apart),\n"
-    "DIR/report.md, DIR/traces/*.csv and plots.\n"
-    "  --params   parameters to calibrate (default: film_stiffness_scale, gusset_height_m,\n"
-    "             dead_volume_m3, plate_mass_kg; plus inlet_area_m2, vent_area_m2,\n"
-    "             regulator_time_constant_s for runs driven through the valves, no flow meter)\n"
-    "  --airbag   the nominal parameter file (default: the one the dataset names)\n"
-    "  --topic, --threads, --no-plots: as for gap diagnose\n";
+    "DIR/report.md, DIR/traces/*.csv and plots. --params defaults to film_stiffness_scale,\n"
+    "gusset_height_m, dead_volume_m3, plate_mass_kg; plus inlet_area_m2, vent_area_m2,\n"
+    "regulator_time_constant_s for runs driven through the valves, no flow meter.";
 
-int runCalibrate(const std::vector<std::string>& args) {
-  CommonOptions c;
+int runCalibrate(const AnalysisArgs& a) {
   nb::DiagnosisOptions options;
-  ArgWalker walk(args);
-  while (walk.next()) {
-    if (walk.flag() == "--help" || walk.flag() == "-h") {
-      std::cout << kCalibrateUsage << "parameters:\n" << calibrationParamText();
-      return 0;
-    }
-    commonOption(walk, &c, &options);
-  }
+  const CommonOptions c = analysisOptions(a, &options);
   return analyseDataset(c, options, "calibrate", nb::calibrateRuns);
 }
 
-int runDiagnose(const std::vector<std::string>& args) {
-  CommonOptions c;
+void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
+  defineCommon(sub, a);
+  sub.add_option("--effects", a->effects, "candidates to try, comma-separated (default: all seven)")
+      ->type_name("NAME,NAME...");
+  sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");
+}
+
+int runDiagnose(const AnalysisArgs& a) {
   nb::DiagnosisOptions options;
-  ArgWalker walk(args);
-  while (walk.next()) {
-    const std::string& a = walk.flag();
-    auto value = [&]() { return walk.value(); };
-    if (a == "--help" || a == "-h") {
-      std::cout << kDiagnoseUsage;
-      return 0;
-    } else if (a == "--no-calibration") {
-      options.calibrate = false;
-    } else if (a == "--effects") {
-      options.candidates = nameList("--effects", value(), [](const std::string& name) {
-        const auto known = nb::candidateEffectNames();
-        if (std::find(known.begin(), known.end(), name) == known.end())
-          throw UsageError("--effects: '" + name + "' is not a candidate effect; candidates:\n" + effectList());
-      });
-    } else {
-      commonOption(walk, &c, &options);
-    }
-  }
+  const CommonOptions c = analysisOptions(a, &options);
+  options.calibrate = !a.no_calibration;
+  if (!a.effects.empty())
+    options.candidates = nameList("--effects", a.effects, [](const std::string& name) {
+      const auto known = nb::candidateEffectNames();
+      if (std::find(known.begin(), known.end(), name) == known.end())
+        throw UsageError("--effects: '" + name + "' is not a candidate effect; candidates:\n" + effectList());
+    });
   return analyseDataset(c, options, "diagnose", nb::diagnoseRuns);
 }
 
-constexpr const char* kEq24Usage =
+constexpr const char* kEq24Synopsis =
     "usage: gap eq24 [--out FILE]\n"
     "The paper's eq. 24 curve (x read as bar) as measured quasi-static h(p) at its 10.4 N load:\n"
     "where the nominal model departs from it, what each candidate effect changes, and the guide\n"
-    "friction that would be needed. Prints markdown (and writes it to FILE).\n";
+    "friction that would be needed. Prints markdown (and writes it to FILE).";
 
-int runEq24(const std::vector<std::string>& args) {
-  std::string out;
-  ArgWalker walk(args);
-  while (walk.next()) {
-    if (walk.flag() == "--help" || walk.flag() == "-h") {
-      std::cout << kEq24Usage;
-      return 0;
-    } else if (walk.flag() == "--out") {
-      out = walk.value();
-    } else {
-      throw UsageError("unknown argument '" + walk.flag() + "'");
-    }
-  }
+int runEq24(const std::string& out) {
   const nb::CellParams params = nb::loadCellParamsYaml(nb::resolveAirbagParamsFile(""));
   const std::string text = nb::paperStudyMarkdown(nb::studyPaperEq24(params));
   std::cout << text;
@@ -427,40 +384,33 @@ int runEq24(const std::vector<std::string>& args) {
   return 0;
 }
 
-constexpr const char* kImportUsage =
+constexpr const char* kImportSynopsis =
     "usage: gap import MAPPING LOG... --out DIR\n"
     "Reads logs of another format with a column-mapping file (doc/formats/import_mapping.md):\n"
     "units (detected where the mapping gives candidates), derived flows, runs of whole cycles,\n"
     "fit/withheld roles; writes DIR/<run>.csv and DIR/dataset.yaml. Everything is checked first:\n"
-    "a malformed log is named with its line and column, and nothing is written.\n"
-    "  MAPPING  the mapping file (e.g. config/import/respiraworks_net_flow.yaml)\n"
-    "  LOG      one or more log files\n"
-    "  --out    output directory (created; must not exist or be empty)\n";
+    "a malformed log is named with its line and column, and nothing is written.";
 
-int runImport(const std::vector<std::string>& args) {
-  std::string mapping_path, out;
-  std::vector<std::string> logs;
-  ArgWalker walk(args);
-  while (walk.next()) {
-    const std::string& a = walk.flag();
-    if (a == "--help" || a == "-h") {
-      std::cout << kImportUsage;
-      return 0;
-    } else if (a == "--out") {
-      out = walk.value();
-    } else if (!a.empty() && a[0] == '-') {
-      throw UsageError("unknown option '" + a + "'");
-    } else if (mapping_path.empty()) {
-      mapping_path = a;
-    } else {
-      logs.push_back(a);
-    }
-  }
-  if (mapping_path.empty()) throw UsageError("MAPPING (a column-mapping file) is required");
-  if (logs.empty()) throw UsageError("at least one LOG is required");
-  if (out.empty()) throw UsageError("--out DIR is required");
-  const nb::ImportMapping mapping = nb::loadImportMapping(mapping_path);
-  const std::vector<nb::ImportedLog> imported = nb::importLogsToDataset(mapping, logs, out);
+struct ImportArgs {
+  std::vector<std::string> inputs;  ///< MAPPING then the LOGs
+  std::string out;
+};
+
+void defineImport(CLI::App& sub, ImportArgs* a) {
+  tools::takeAll(sub.add_option("MAPPING LOG", a->inputs,
+                                "the mapping file (e.g. config/import/respiraworks_net_flow.yaml), then one or "
+                                "more log files"))
+      ->type_name("FILE");
+  sub.add_option("--out", a->out, "output directory (created; must not exist or be empty)")->type_name("DIR");
+}
+
+int runImport(const ImportArgs& a) {
+  if (a.inputs.empty()) throw UsageError("MAPPING (a column-mapping file) is required");
+  if (a.inputs.size() < 2) throw UsageError("at least one LOG is required");
+  if (a.out.empty()) throw UsageError("--out DIR is required");
+  const nb::ImportMapping mapping = nb::loadImportMapping(a.inputs.front());
+  const std::vector<std::string> logs(a.inputs.begin() + 1, a.inputs.end());
+  const std::vector<nb::ImportedLog> imported = nb::importLogsToDataset(mapping, logs, a.out);
   std::size_t runs = 0;
   for (const auto& log : imported) {
     for (const auto& note : log.notes) std::cout << note << "\n";
@@ -469,55 +419,99 @@ int runImport(const std::vector<std::string>& args) {
                 << (r.role.empty() ? "" : ", " + r.role) << "\n";
     runs += log.runs.size();
   }
-  std::cout << "wrote " << runs << " runs from " << imported.size() << " logs to " << out << "\n";
+  std::cout << "wrote " << runs << " runs from " << imported.size() << " logs to " << a.out << "\n";
   return 0;
 }
 
-const Subcommand kSubcommands[] = {
-    {"synth", "write a synthetic dataset with planted effects", kSynthUsage, runSynth},
-    {"calibrate", "calibrate the model's own parameters on a dataset", kCalibrateUsage, runCalibrate},
-    {"diagnose", "diagnose the gap between a dataset of runs and the model", kDiagnoseUsage, runDiagnose},
-    {"eq24", "the paper's eq. 24 curve as data: where the model departs", kEq24Usage, runEq24},
-    {"import", "turn logs of another format into a dataset with a mapping file", kImportUsage, runImport},
+constexpr const char* kSynopsis =
+    "usage: gap SUBCOMMAND [options]   (gap SUBCOMMAND --help for its options)\n"
+    "Sim-to-real gap diagnosis of the airbag cell model.";
+
+/// Every subcommand's arguments, filled by CLI11.
+struct GapArgs {
+  SynthArgs synth;
+  AnalysisArgs calibrate, diagnose;
+  std::string eq24_out;
+  ImportArgs import;
 };
 
-void printUsage(std::ostream& out) {
-  out << "usage: gap SUBCOMMAND [options]   (gap SUBCOMMAND --help for its options)\n"
-      << "Sim-to-real gap diagnosis of the airbag cell model.\n"
-      << "subcommands:\n";
-  for (const auto& s : kSubcommands)
-    out << "  " << s.name << std::string(10 - std::string(s.name).size(), ' ') << s.summary << "\n";
+/// The subcommands, each with its options and what runs it.
+std::vector<std::pair<CLI::App*, std::function<int()>>> defineSubcommands(CLI::App& app, GapArgs* a) {
+  CLI::App* synth = app.add_subcommand("synth", "write a synthetic dataset with planted effects");
+  tools::setSynopsis(*synth, kSynthSynopsis);
+  defineSynth(*synth, &a->synth);
+  CLI::App* calibrate = app.add_subcommand("calibrate", "calibrate the model's own parameters on a dataset");
+  tools::setSynopsis(*calibrate, kCalibrateSynopsis);
+  defineCommon(*calibrate, &a->calibrate);
+  calibrate->footer("parameters:\n" + calibrationParamText());
+  CLI::App* diagnose = app.add_subcommand("diagnose", "diagnose the gap between a dataset of runs and the model");
+  tools::setSynopsis(*diagnose, kDiagnoseSynopsis);
+  defineDiagnose(*diagnose, &a->diagnose);
+  CLI::App* eq24 = app.add_subcommand("eq24", "the paper's eq. 24 curve as data: where the model departs");
+  tools::setSynopsis(*eq24, kEq24Synopsis);
+  eq24->add_option("--out", a->eq24_out, "also write the markdown to FILE")->type_name("FILE");
+  CLI::App* import = app.add_subcommand("import", "turn logs of another format into a dataset with a mapping file");
+  tools::setSynopsis(*import, kImportSynopsis);
+  defineImport(*import, &a->import);
+  return {{synth, [a] { return runSynth(a->synth); }},
+          {calibrate, [a] { return runCalibrate(a->calibrate); }},
+          {diagnose, [a] { return runDiagnose(a->diagnose); }},
+          {eq24, [a] { return runEq24(a->eq24_out); }},
+          {import, [a] { return runImport(a->import); }}};
+}
+
+/// The subcommand named on the command line; a UsageError when there is none or it is unknown.
+const CLI::App* chosenSubcommand(const CLI::App& app) {
+  const std::vector<CLI::App*> chosen = app.get_subcommands();
+  if (!chosen.empty()) return chosen.front();
+  const std::vector<std::string> extras = app.remaining();
+  if (extras.empty()) throw UsageError("missing subcommand");
+  throw UsageError("unknown subcommand '" + extras.front() + "'");
+}
+
+/// "gap" or "gap SUBCOMMAND", as messages are prefixed.
+std::string messagePrefix(const CLI::App& app) {
+  const std::vector<CLI::App*> chosen = app.get_subcommands();
+  return chosen.empty() ? "gap" : "gap " + chosen.front()->get_name();
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    printUsage(std::cerr);
-    std::cerr << "gap: missing subcommand\n";
-    return 2;
-  }
   // Ceres logs an error when a replay fails inside a step; the fit takes that as a refused step.
   FLAGS_minloglevel = google::GLOG_FATAL;
-  const std::string command = argv[1];
-  if (command == "--help" || command == "-h" || command == "help") {
-    printUsage(std::cout);
+  CLI::App app(kSynopsis, "gap");
+  tools::configureApp(app);
+  GapArgs args;
+  const auto subcommands = defineSubcommands(app, &args);
+  if (argc == 2 && std::string(argv[1]) == "help") {
+    std::cout << app.help();
     return 0;
   }
-  const std::vector<std::string> args(argv + 2, argv + argc);
-  for (const auto& s : kSubcommands) {
-    if (command != s.name) continue;
+  const CLI::App* sub = nullptr;
+  try {
+    app.parse(argc, argv);
+    sub = chosenSubcommand(app);
+    tools::checkNoExtras(app);
+  } catch (const CLI::CallForHelp&) {
+    std::cout << app.help();
+    return 0;
+  } catch (const CLI::ParseError& e) {
+    return tools::reportMistake(app, messagePrefix(app), tools::mistakeText(e));
+  } catch (const UsageError& e) {
+    return tools::reportMistake(app, messagePrefix(app), e.what());
+  }
+  const std::string name = messagePrefix(app);
+  for (const auto& [command, run] : subcommands) {
+    if (command != sub) continue;
     try {
-      return s.run(args);
+      return run();
     } catch (const UsageError& e) {
-      std::cerr << s.usage << "gap " << s.name << ": " << e.what() << "\n";
-      return 2;
+      return tools::reportMistake(app, name, e.what());
     } catch (const std::exception& e) {
-      std::cerr << "gap " << s.name << ": " << e.what() << "\n";
+      std::cerr << name << ": " << e.what() << "\n";
       return 1;
     }
   }
-  printUsage(std::cerr);
-  std::cerr << "gap: unknown subcommand '" << command << "'\n";
-  return 2;
+  return 1;
 }

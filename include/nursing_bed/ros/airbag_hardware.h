@@ -9,6 +9,7 @@
 #include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 
@@ -29,8 +30,8 @@ struct AirbagHardwareParams {
   bool observer_force = false;       ///< observer/force: use the estimate even with a height sensor
 
   bool simulated() const { return plugin == "nursing_bed/SimulatedHardware"; }
-  /// Empty when valid, else every problem found.
-  std::string validate() const;
+  /// Success, or every problem found.
+  Status validate() const;
   static AirbagHardwareParams load(const ros::NodeHandle& private_nh, const std::string& defaults_ns);
 };
 

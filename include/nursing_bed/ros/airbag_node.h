@@ -15,6 +15,7 @@
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetPressure.h"
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/ros/airbag_hardware.h"
 #include "nursing_bed/ros/bed_layout.h"
 #include <std_msgs/Bool.h>
@@ -42,8 +43,8 @@ struct AirbagNodeParams {
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
   AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
-  /// Empty when valid, else every problem found.
-  std::string validate() const;
+  /// Success, or every problem found.
+  Status validate() const;
 };
 
 class AirbagNode {
@@ -62,8 +63,8 @@ class AirbagNode {
   /// publishing thread, so a slow simulation round never silences the cell).
   void publish(const ros::Time& now);
   /// A height request from the service or the manager's topic (the manager has rate-limited it):
-  /// empty when accepted, else why not (nothing changes).
-  std::string request(double height_m, const ros::Time& now);
+  /// success when accepted, else why not (nothing changes).
+  Status request(double height_m, const ros::Time& now);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   bool setPressure(SetPressure::Request& req, SetPressure::Response& res);
   /// The cell over the hardware plugin of params_.hardware (the simulated cell by default).

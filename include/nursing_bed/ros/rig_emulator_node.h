@@ -11,6 +11,7 @@
 #include <string>
 
 #include "nursing_bed/RigTruth.h"
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nursing_bed {
@@ -30,7 +31,8 @@ struct RigEmulatorNodeParams {
   int simulation_realtime_priority = 20;  ///< ~simulation_realtime_priority: SCHED_FIFO priority of the simulation thread (0: normal)
   std::uint32_t noise_seed = 1;        ///< ~noise_seed
 
-  std::string validate() const;
+  /// Success, or every problem found.
+  Status validate() const;
 };
 
 class RigEmulatorNode {

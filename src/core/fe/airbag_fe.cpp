@@ -12,16 +12,16 @@
 namespace nursing_bed {
 namespace fe {
 
-std::string AirbagFeOptions::validate() const {
-  for (const std::string& e : {geometry.validate(), material.validate(), membrane.validate(), relax.validate()}) {
-    if (!e.empty()) return e;
+Status AirbagFeOptions::validate() const {
+  for (const Status& s : {geometry.validate(), material.validate(), membrane.validate(), relax.validate()}) {
+    if (!s) return s;
   }
-  return "";
+  return Status::success();
 }
 
 AirbagFe::AirbagFe(const AirbagFeOptions& options) : options_(options) {
-  const std::string error = options_.validate();
-  if (!error.empty()) throw std::invalid_argument("AirbagFe: " + error);
+  const Status valid = options_.validate();
+  if (!valid) throw std::invalid_argument("AirbagFe: " + valid.message());
   options_.membrane.self_contact_radius_m = options_.geometry.layerGap();
   model_ = std::make_unique<MembraneModel>(buildAirbagMesh(options_.geometry), options_.material, options_.membrane);
   const MembraneMesh& m = model_->mesh();

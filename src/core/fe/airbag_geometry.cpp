@@ -16,7 +16,7 @@ AirbagGeometry AirbagGeometry::gusseted() {
   return g;
 }
 
-std::string AirbagGeometry::validate() const {
+Status AirbagGeometry::validate() const {
   std::ostringstream err;
   if (!(face_side_m > 0.0 && face_side_m < 10.0)) err << "face_side_m must be in (0, 10) m, got " << face_side_m;
   else if (chambers < 1 || chambers > 8) err << "chambers must be 1..8, got " << chambers;
@@ -28,7 +28,7 @@ std::string AirbagGeometry::validate() const {
     err << "elements_per_side must be even and in 4..200, got " << elements_per_side;
   else if (chambers > 1 && !(connection_side_m >= 2.0 * elementSize() && connection_side_m <= face_side_m - 4.0 * elementSize()))
     err << "connection_side_m must span at least 2 elements and leave 2 free on each side, got " << connection_side_m;
-  return err.str();
+  return Status::fromMessage(err.str());
 }
 
 std::string AirbagGeometry::describe() const {
@@ -127,8 +127,8 @@ void pinCentres(const AirbagGeometry& g, MembraneMesh* bag) {
 }  // namespace
 
 MembraneMesh buildAirbagMesh(const AirbagGeometry& g) {
-  const std::string error = g.validate();
-  if (!error.empty()) throw std::invalid_argument("AirbagGeometry: " + error);
+  const Status valid = g.validate();
+  if (!valid) throw std::invalid_argument("AirbagGeometry: " + valid.message());
   const double gap = g.layerGap(), tol = 0.05 * gap;
   const bool gussets = g.gusset_height_m > 0.0;
   MembraneMesh bag;

@@ -11,7 +11,7 @@
 namespace nursing_bed {
 namespace fe {
 
-std::string TransientSetup::validate() const {
+Status TransientSetup::validate() const {
   std::ostringstream err;
   const std::string cell_error = cell.validate();
   if (!cell_error.empty()) err << "cell: " << cell_error;
@@ -19,7 +19,7 @@ std::string TransientSetup::validate() const {
   else if (!(duration_s > 0.0)) err << "duration_s must be positive, got " << duration_s;
   else if (!(film_damping_per_s >= 0.0)) err << "film_damping_per_s must be >= 0";
   else if (!(sample_s > 0.0)) err << "sample_s must be positive";
-  return err.str();
+  return Status::fromMessage(err.str());
 }
 
 namespace {
@@ -46,8 +46,8 @@ double inflowAt(const TransientSetup& s, double t, double p_abs, double t_gas, d
 }  // namespace
 
 TransientResult runTransient(AirbagFe* bag, const TransientSetup& setup, const std::function<void(double)>& progress) {
-  const std::string error = setup.validate();
-  if (!error.empty()) throw std::invalid_argument("runTransient: " + error);
+  const Status valid = setup.validate();
+  if (!valid) throw std::invalid_argument("runTransient: " + valid.message());
   MembraneModel& model = bag->model();
   const CellParams& c = setup.cell;
   PlateState& plate = model.plate();

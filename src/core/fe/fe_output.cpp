@@ -1,5 +1,7 @@
 #include "nursing_bed/core/fe/fe_output.h"
 
+#include <yaml-cpp/yaml.h>
+
 #include <fstream>
 #include <iomanip>
 #include <stdexcept>
@@ -13,12 +15,6 @@ std::ofstream openOrThrow(const std::string& path) {
   if (!f) throw std::runtime_error("cannot write " + path);
   f << std::setprecision(9);
   return f;
-}
-
-void writeRow(std::ofstream& f, const std::vector<double>& v) {
-  f << "[";
-  for (std::size_t i = 0; i < v.size(); ++i) f << (i ? ", " : "") << v[i];
-  f << "]";
 }
 
 }  // namespace
@@ -53,23 +49,23 @@ void writeVtk(const std::string& path, const MembraneModel& model, const std::st
 }
 
 void writeStructureTable(const std::string& path, const StructureTable& t) {
+  YAML::Emitter e;
+  e.SetDoublePrecision(9);
+  e << YAML::BeginMap << YAML::Key << "description" << YAML::Value << YAML::DoubleQuoted << t.description;
+  e << YAML::Key << "heights_m" << YAML::Value << YAML::Flow << t.heights_m;
+  e << YAML::Key << "pressures_pa" << YAML::Value << YAML::Flow << t.pressures_pa;
+  for (const auto& [name, grid] : {std::make_pair("volume_m3", &t.volume_m3), std::make_pair("plate_force_n", &t.plate_force_n)}) {
+    e << YAML::Key << name << YAML::Value << YAML::BeginSeq;
+    for (const auto& row : *grid) e << YAML::Flow << row;
+    e << YAML::EndSeq;
+  }
+  e << YAML::EndMap;
   std::ofstream f = openOrThrow(path);
-  f << "# FE-derived airbag structure (fe_airbag --mode table; doc/fe_membrane.md).\n"
+  f << "# FE-derived airbag structure (fe_airbag table; doc/fe_membrane.md).\n"
     << "# Rows: plate heights; columns: gauge pressures. volume_m3 = gas volume (paper eq. 11),\n"
     << "# plate_force_n = upward force of the film on the plate held at that height.\n"
-    << "description: \"" << t.description << "\"\n";
-  f << "heights_m: ";
-  writeRow(f, t.heights_m);
-  f << "\npressures_pa: ";
-  writeRow(f, t.pressures_pa);
-  for (const auto& [name, grid] : {std::make_pair("volume_m3", &t.volume_m3), std::make_pair("plate_force_n", &t.plate_force_n)}) {
-    f << "\n" << name << ":\n";
-    for (const auto& row : *grid) {
-      f << "  - ";
-      writeRow(f, row);
-      f << "\n";
-    }
-  }
+    << e.c_str() << "\n";
+  if (!f) throw std::runtime_error("cannot write " + path);
 }
 
 }  // namespace fe

@@ -6,15 +6,15 @@
 namespace nursing_bed {
 namespace fe {
 
-std::string FilmMaterial::validate() const {
+Status FilmMaterial::validate() const {
   const std::string yeoh_error = yeoh.validate();
-  if (!yeoh_error.empty()) return "material: " + yeoh_error;
+  if (!yeoh_error.empty()) return Status::error("material: " + yeoh_error);
   if (!(density_kg_m3 > 0.0) || !std::isfinite(density_kg_m3)) {
     std::ostringstream err;
     err << "density_kg_m3 must be positive and finite, got " << density_kg_m3;
-    return err.str();
+    return Status::error(err.str());
   }
-  return "";
+  return Status::success();
 }
 
 TriangleReference triangleReference(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,

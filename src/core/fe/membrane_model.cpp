@@ -11,7 +11,7 @@
 namespace nursing_bed {
 namespace fe {
 
-std::string MembraneOptions::validate() const {
+Status MembraneOptions::validate() const {
   std::ostringstream err;
   if (!(cfl > 0.0 && cfl <= 1.0)) err << "cfl must be in (0, 1], got " << cfl;
   else if (!(stiffening_factor >= 1.0 && stiffening_factor <= 100.0))
@@ -25,13 +25,13 @@ std::string MembraneOptions::validate() const {
     err << "self_contact_radius_m must be >= 0, got " << self_contact_radius_m;
   else if (self_contact_exclusion_rings < 1) err << "self_contact_exclusion_rings must be >= 1";
   else if (threads < 1) err << "threads must be >= 1, got " << threads;
-  return err.str();
+  return Status::fromMessage(err.str());
 }
 
 MembraneModel::MembraneModel(MembraneMesh mesh, FilmMaterial material, MembraneOptions options)
     : mesh_(std::move(mesh)), material_(material), options_(options) {
-  for (const std::string& e : {mesh_.validate(), material_.validate(), options_.validate()}) {
-    if (!e.empty()) throw std::invalid_argument("MembraneModel: " + e);
+  for (const Status& s : {mesh_.validate(), material_.validate(), options_.validate()}) {
+    if (!s) throw std::invalid_argument("MembraneModel: " + s.message());
   }
   x_ = mesh_.initial;
   v_.setZero(3, nodeCount());

@@ -8,38 +8,38 @@
 namespace nursing_bed {
 namespace fe {
 
-std::string MembraneMesh::validate() const {
+Status MembraneMesh::validate() const {
   std::ostringstream err;
   const std::size_t n = static_cast<std::size_t>(initial.cols());
   const std::size_t t = triangles.size();
-  if (n < 3 || t == 0) return "mesh: needs at least 3 nodes and 1 triangle";
+  if (n < 3 || t == 0) return Status::error("mesh: needs at least 3 nodes and 1 triangle");
   if (static_cast<std::size_t>(initial.cols()) != n || fixed.size() != n) {
-    return "mesh: initial positions and fixed flags must have one entry per node";
+    return Status::error("mesh: initial positions and fixed flags must have one entry per node");
   }
   if (rest.size() != t || thickness_m.size() != t || pressurised.size() != t || part.size() != t) {
-    return "mesh: rest, thickness_m, pressurised and part must have one entry per triangle";
+    return Status::error("mesh: rest, thickness_m, pressurised and part must have one entry per triangle");
   }
-  if (!initial.allFinite()) return "mesh: node positions must be finite";
+  if (!initial.allFinite()) return Status::error("mesh: node positions must be finite");
   for (std::size_t i = 0; i < t; ++i) {
     const Eigen::Vector3i& tri = triangles[i];
     for (int k = 0; k < 3; ++k) {
       if (tri[k] < 0 || static_cast<std::size_t>(tri[k]) >= n) {
         err << "mesh: triangle " << i << " refers to node " << tri[k] << " of " << n;
-        return err.str();
+        return Status::error(err.str());
       }
     }
     const auto& r = rest[i];
     const double area = 0.5 * (r[1] - r[0]).cross(r[2] - r[0]).norm();
     if (!(area > 0.0) || !std::isfinite(area)) {
       err << "mesh: triangle " << i << " has zero reference area (degenerate geometry)";
-      return err.str();
+      return Status::error(err.str());
     }
     if (!(thickness_m[i] > 0.0) || !std::isfinite(thickness_m[i])) {
       err << "mesh: thickness_m of triangle " << i << " must be positive, got " << thickness_m[i];
-      return err.str();
+      return Status::error(err.str());
     }
   }
-  return "";
+  return Status::success();
 }
 
 double enclosedVolume(const MembraneMesh& mesh, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& axis_weights) {

@@ -12,7 +12,7 @@ double PressureControl::pressureAt(double volume_m3) const {
   return gauge_pressure_pa + volume_stiffness_pa * (1.0 - volume_m3 / target_volume_m3);
 }
 
-std::string RelaxOptions::validate() const {
+Status RelaxOptions::validate() const {
   std::ostringstream err;
   if (!(tolerance > 0.0 && tolerance < 1.0)) err << "tolerance must be in (0, 1), got " << tolerance;
   else if (!(pressure_floor_pa > 0.0)) err << "pressure_floor_pa must be positive, got " << pressure_floor_pa;
@@ -20,7 +20,7 @@ std::string RelaxOptions::validate() const {
     err << "need 0 <= min_iterations <= max_iterations, max_iterations >= 1";
   else if (!(plate_mass_ratio > 0.0)) err << "plate_mass_ratio must be positive, got " << plate_mass_ratio;
   else if (!(damping_per_s >= 0.0)) err << "damping_per_s must be >= 0, got " << damping_per_s;
-  return err.str();
+  return Status::fromMessage(err.str());
 }
 
 namespace {
@@ -40,8 +40,8 @@ double relativeResidual(const MembraneModel& model, double pressure_pa, const Re
 }  // namespace
 
 RelaxResult relax(MembraneModel* model, const PressureControl& control, const RelaxOptions& options) {
-  const std::string error = options.validate();
-  if (!error.empty()) throw std::invalid_argument("relax: " + error);
+  const Status valid = options.validate();
+  if (!valid) throw std::invalid_argument("relax: " + valid.message());
   if (control.volumeControlled() && !(control.target_volume_m3 > 0.0 && control.volume_stiffness_pa > 0.0)) {
     throw std::invalid_argument("relax: target_volume_m3 and volume_stiffness_pa must be positive");
   }

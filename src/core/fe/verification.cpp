@@ -95,7 +95,7 @@ double tubePressureExact(const YeohMaterial& m, double thickness_m, double radiu
   return 2.0 * m.energyDerivative(i1) * (l2 - 1.0 / l2) * thickness_m / (l2 * radius_m);
 }
 
-std::string VerificationCase::validate() const {
+Status VerificationCase::validate() const {
   std::ostringstream err;
   if (!(radius_m > 0.0)) err << "radius_m must be positive, got " << radius_m;
   else if (!(thickness_m > 0.0 && thickness_m < 0.1 * radius_m))
@@ -106,12 +106,12 @@ std::string VerificationCase::validate() const {
   for (double s : stretches) {
     if (err.tellp() == 0 && !(s > 1.0 && s <= 2.2)) err << "stretches must lie in (1, 2.2], got " << s;
   }
-  return err.str();
+  return Status::fromMessage(err.str());
 }
 
 std::vector<VerificationPoint> runVerification(const VerificationCase& c, const FilmMaterial& material) {
-  const std::string error = c.validate();
-  if (!error.empty()) throw std::invalid_argument("runVerification: " + error);
+  const Status valid = c.validate();
+  if (!valid) throw std::invalid_argument("runVerification: " + valid.message());
   const bool sphere = c.shape == VerificationCase::Shape::kSphere;
   MembraneMesh mesh = sphere ? icosphereMesh(c.radius_m, c.resolution, c.thickness_m)
                              : tubeMesh(c.radius_m, c.tube_length_m, std::max(6, c.resolution), 2, c.thickness_m);

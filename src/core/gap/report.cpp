@@ -7,55 +7,31 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
+
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/effects.h"
 
 namespace nursing_bed {
 namespace {
 
-/// Shortest exact form of a finite number, "null" otherwise (JSON has no NaN).
-std::string jsonNumber(double v) {
-  if (!std::isfinite(v)) return "null";
+using Json = nlohmann::ordered_json;  // keys in the order doc/formats/gap_report.md lists them
+
+/// Shortest exact form of a finite number, "" otherwise (an empty CSV field).
+std::string csvNumber(double v) {
+  if (!std::isfinite(v)) return "";
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof(buf), v);
   return std::string(buf, r.ptr);
 }
 
-std::string jsonString(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof(buf), "\\u%04x", c);
-          out += buf;
-        } else {
-          out += c;
-        }
-    }
-  }
-  return out + "\"";
-}
+/// A number, or null where it is not finite (JSON has no NaN).
+Json number(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
 
-std::string jsonStrings(const std::vector<std::string>& v) {
-  std::string s = "[";
-  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + jsonString(v[i]);
-  return s + "]";
-}
-
-std::string jsonParams(const std::map<std::string, double>& params) {
-  std::string s = "{";
-  bool first = true;
-  for (const auto& [k, v] : params) {
-    s += (first ? "" : ", ") + jsonString(k) + ": " + jsonNumber(v);
-    first = false;
-  }
-  return s + "}";
+Json numbers(const std::map<std::string, double>& params) {
+  Json j = Json::object();
+  for (const auto& [k, v] : params) j[k] = number(v);
+  return j;
 }
 
 std::string fixed(double v, int digits) {
@@ -94,69 +70,63 @@ double shrinkPercent(double before, double after) {
 }
 
 /// The `calibration` block of report.json (doc/formats/gap_report.md).
-std::string calibrationJson(const CalibrationSummary& c) {
-  std::ostringstream j;
-  j << "{\n    \"parameters\": [";
-  for (std::size_t i = 0; i < c.parameters.size(); ++i) {
-    const CalibratedParam& p = c.parameters[i];
-    j << (i ? "," : "") << "\n      {\"name\": " << jsonString(p.name) << ", \"nominal\": " << jsonNumber(p.nominal)
-      << ", \"value\": " << jsonNumber(p.value) << ", \"fitted\": " << jsonNumber(p.fitted)
-      << ", \"std_error\": " << jsonNumber(p.std_error) << ", \"moved\": " << (p.moved ? "true" : "false") << "}";
-  }
-  j << (c.parameters.empty() ? "],\n" : "\n    ],\n");
-  j << "    \"correlation\": {\"names\": " << jsonStrings(c.correlation_names) << ", \"matrix\": [";
+Json calibrationJson(const CalibrationSummary& c) {
+  Json parameters = Json::array();
+  for (const CalibratedParam& p : c.parameters)
+    parameters.push_back({{"name", p.name}, {"nominal", number(p.nominal)}, {"value", number(p.value)},
+                          {"fitted", number(p.fitted)}, {"std_error", number(p.std_error)}, {"moved", p.moved}});
+  Json matrix = Json::array();
   for (Eigen::Index a = 0; a < c.correlation.rows(); ++a) {
-    j << (a ? ", [" : "[");
-    for (Eigen::Index b = 0; b < c.correlation.cols(); ++b) j << (b ? ", " : "") << jsonNumber(c.correlation(a, b));
-    j << "]";
+    Json row = Json::array();
+    for (Eigen::Index b = 0; b < c.correlation.cols(); ++b) row.push_back(number(c.correlation(a, b)));
+    matrix.push_back(row);
   }
-  j << "]},\n";
-  j << "    \"file\": " << jsonString(c.file) << ", \"bic_delta\": " << jsonNumber(c.bic_delta)
-    << ",\n    \"withheld_nrmse_calibrated_only\": " << jsonNumber(c.withheld_nrmse)
-    << ", \"withheld_chi2_per_sample\": " << jsonNumber(c.withheld_chi2_per_sample) << ",\n";
-  j << "    \"unidentifiable\": [";
-  for (std::size_t i = 0; i < c.unidentifiable.size(); ++i) j << (i ? ", " : "") << jsonStrings(c.unidentifiable[i]);
-  j << "],\n    \"notes\": " << jsonStrings(c.notes) << "\n  }";
-  return j.str();
+  return {{"parameters", parameters},
+          {"correlation", {{"names", c.correlation_names}, {"matrix", matrix}}},
+          {"file", c.file},
+          {"bic_delta", number(c.bic_delta)},
+          {"withheld_nrmse_calibrated_only", number(c.withheld_nrmse)},
+          {"withheld_chi2_per_sample", number(c.withheld_chi2_per_sample)},
+          {"unidentifiable", c.unidentifiable},
+          {"notes", c.notes}};
+}
+
+Json localizationJson(const std::vector<GapShare>& localization) {
+  Json out = Json::array();
+  for (const GapShare& g : localization)
+    out.push_back({{"signal", g.signal}, {"phase", g.phase}, {"load_n", number(g.load_n)}, {"share", number(g.share)},
+                   {"t_start_s", number(g.t_start_s)}, {"t_end_s", number(g.t_end_s)}});
+  return out;
+}
+
+Json candidatesJson(const std::vector<CandidateFit>& candidates) {
+  Json out = Json::array();
+  for (const CandidateFit& c : candidates)
+    out.push_back({{"effects", c.effects}, {"params", numbers(c.params)}, {"bic_delta", number(c.bic_delta)},
+                   {"fit_nrmse", number(c.fit_nrmse)}, {"withheld_nrmse", number(c.withheld_nrmse)}});
+  return out;
 }
 
 }  // namespace
 
 std::string reportJson(const DiagnosisReport& r) {
-  std::ostringstream j;
-  j << "{\n";
-  j << "  \"format\": \"nursing_bed_gap_report/1\",\n";
-  j << "  \"dataset\": " << jsonString(r.dataset) << ",\n";
-  j << "  \"runs\": {\"fit\": " << jsonStrings(r.fit_runs) << ", \"withheld\": " << jsonStrings(r.withheld_runs)
-    << "},\n";
-  j << "  \"noise\": {\"p_gauge_pa\": " << jsonNumber(r.noise_p_pa) << ", \"h_m\": " << jsonNumber(r.noise_h_m)
-    << "},\n";
-  j << "  \"localization\": [";
-  for (std::size_t i = 0; i < r.localization.size(); ++i) {
-    const GapShare& g = r.localization[i];
-    j << (i ? ",\n" : "\n") << "    {\"signal\": " << jsonString(g.signal) << ", \"phase\": " << jsonString(g.phase)
-      << ", \"load_n\": " << jsonNumber(g.load_n) << ", \"share\": " << jsonNumber(g.share)
-      << ", \"t_start_s\": " << jsonNumber(g.t_start_s) << ", \"t_end_s\": " << jsonNumber(g.t_end_s) << "}";
-  }
-  j << (r.localization.empty() ? "],\n" : "\n  ],\n");
-  j << "  \"candidates\": [";
-  for (std::size_t i = 0; i < r.candidates.size(); ++i) {
-    const CandidateFit& c = r.candidates[i];
-    j << (i ? ",\n" : "\n") << "    {\"effects\": " << jsonStrings(c.effects) << ", \"params\": " << jsonParams(c.params)
-      << ", \"bic_delta\": " << jsonNumber(c.bic_delta) << ", \"fit_nrmse\": " << jsonNumber(c.fit_nrmse)
-      << ", \"withheld_nrmse\": " << jsonNumber(c.withheld_nrmse) << "}";
-  }
-  j << (r.candidates.empty() ? "],\n" : "\n  ],\n");
-  if (r.calibration.done) j << "  \"calibration\": " << calibrationJson(r.calibration) << ",\n";
-  j << "  \"verdict\": {\"effects\": " << jsonStrings(r.verdict_effects) << ", \"status\": " << jsonString(r.status)
-    << "},\n";
-  j << "  \"shrinkage\": {\"withheld_nrmse_before\": " << jsonNumber(r.withheld_before)
-    << ", \"withheld_nrmse_after\": " << jsonNumber(r.withheld_after) << ",\n";
-  j << "                \"by_signal\": {\"pressure\": [" << jsonNumber(r.withheld_p_before) << ", "
-    << jsonNumber(r.withheld_p_after) << "], \"height\": [" << jsonNumber(r.withheld_h_before) << ", "
-    << jsonNumber(r.withheld_h_after) << "]}}\n";
-  j << "}\n";
-  return j.str();
+  Json j;
+  j["format"] = "nursing_bed_gap_report/1";
+  j["dataset"] = r.dataset;
+  j["runs"] = {{"fit", r.fit_runs}, {"withheld", r.withheld_runs}};
+  j["noise"] = {{"p_gauge_pa", number(r.noise_p_pa)}, {"h_m", number(r.noise_h_m)}};
+  j["localization"] = localizationJson(r.localization);
+  j["candidates"] = candidatesJson(r.candidates);
+  if (r.calibration.done) j["calibration"] = calibrationJson(r.calibration);
+  j["verdict"] = {{"effects", r.verdict_effects}, {"status", r.status}};
+  j["shrinkage"] = {
+      {"withheld_nrmse_before", number(r.withheld_before)},
+      {"withheld_nrmse_after", number(r.withheld_after)},
+      {"by_signal",
+       {{"pressure", {number(r.withheld_p_before), number(r.withheld_p_after)}},
+        {"height", {number(r.withheld_h_before), number(r.withheld_h_after)}}}}};
+  // Bytes that are not UTF-8 (a path from another system) are replaced, not an exception.
+  return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 namespace {
@@ -342,9 +312,10 @@ void writeReportFiles(const std::string& dir, const DiagnosisReport& r) {
     std::ostringstream s;
     s << "# run: " << t.name << "\n# role: " << t.role << "\n";
     for (const auto& run : r.runs)
-      if (run.name == t.name) s << "# load_n: " << jsonNumber(run.load_n) << "\n";
+      if (run.name == t.name)
+        s << "# load_n: " << (std::isfinite(run.load_n) ? csvNumber(run.load_n) : std::string("null")) << "\n";
     s << "t_s,mdot_in_kg_s,p_meas_pa,h_meas_m,p_nominal_pa,h_nominal_m,p_after_pa,h_after_m,phase\n";
-    auto num = [](double v) { return std::isfinite(v) ? jsonNumber(v) : std::string(); };
+    auto num = csvNumber;
     for (std::size_t i = 0; i < t.t_s.size(); ++i)
       s << num(t.t_s[i]) << ',' << num(t.mdot_in_kg_s[i]) << ',' << num(t.p_meas_pa[i]) << ',' << num(t.h_meas_m[i])
         << ',' << num(t.p_nominal_pa[i]) << ',' << num(t.h_nominal_m[i]) << ',' << num(t.p_after_pa[i]) << ','

@@ -12,6 +12,9 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
+#include <yaml-cpp/yaml.h>
+
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
@@ -33,17 +36,6 @@ std::string shortNumber(double v) {
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof(buf), v);
   return std::string(buf, r.ptr);
-}
-
-std::string jsonNumber(double v) { return std::isfinite(v) ? shortNumber(v) : "null"; }
-
-std::string jsonString(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
-  return out + "\"";
 }
 
 // "10p6" for 10.6 N.
@@ -339,78 +331,70 @@ void sayRun(const SynthOptions& o, const SynthResult& result, std::size_t k, con
 }
 
 void writeDatasetYaml(const SynthOptions& o, const SynthResult& result, const fs::path& dir) {
+  YAML::Emitter e;
+  e << YAML::BeginMap << YAML::Key << "airbag" << YAML::Value << o.airbag_file;
+  e << YAML::Key << "runs" << YAML::Value << YAML::BeginMap;
+  for (const auto& plan : result.protocol.runs) e << YAML::Key << plan.name << YAML::Value << plan.role;
+  e << YAML::EndMap << YAML::EndMap;
   std::ofstream y(dir / "dataset.yaml");
   y << "# Written by gap synth (protocol " << o.protocol << "). Roles: fit runs train the diagnosis, withheld\n"
-    << "# runs only judge it.\n";
-  y << "airbag: " << o.airbag_file << "\n";
-  y << "runs:\n";
-  for (const auto& plan : result.protocol.runs) y << "  " << plan.name << ": " << plan.role << "\n";
+    << "# runs only judge it.\n"
+    << e.c_str() << "\n";
   if (!y) throw std::runtime_error("gap synth: cannot write " + (dir / "dataset.yaml").string());
 }
 
-std::string noiseJson(const SensorNoise& n) {
-  std::ostringstream j;
-  j << "{\"pressure_sd_pa\": " << jsonNumber(n.pressure_sd_pa) << ", \"pressure_step_pa\": " << jsonNumber(n.pressure_step_pa)
-    << ", \"height_sd_m\": " << jsonNumber(n.height_sd_m) << ", \"height_step_m\": " << jsonNumber(n.height_step_m)
-    << ", \"flow_relative_sd\": " << jsonNumber(n.flow_relative_sd) << ", \"flow_sd_kg_s\": " << jsonNumber(n.flow_sd_kg_s)
-    << ", \"flow_step_kg_s\": " << jsonNumber(n.flow_step_kg_s) << "}";
-  return j.str();
+using Json = nlohmann::ordered_json;  // keys in a fixed order: same seed, same file
+
+Json noiseJson(const SensorNoise& n) {
+  return {{"pressure_sd_pa", n.pressure_sd_pa}, {"pressure_step_pa", n.pressure_step_pa},
+          {"height_sd_m", n.height_sd_m},       {"height_step_m", n.height_step_m},
+          {"flow_relative_sd", n.flow_relative_sd}, {"flow_sd_kg_s", n.flow_sd_kg_s},
+          {"flow_step_kg_s", n.flow_step_kg_s}};
 }
 
-std::string effectsJson(const SynthResult& result) {
-  std::ostringstream j;
-  j << "[";
-  for (std::size_t i = 0; i < result.effect_names.size(); ++i) {
-    j << (i ? "," : "") << "\n    {\"name\": " << jsonString(result.effect_names[i])
-      << ", \"candidate\": " << (effectSpec(result.effect_names[i]).candidate ? "true" : "false") << ", \"params\": {";
-    bool first = true;
-    for (const auto& [k, v] : result.effect_params[i]) {
-      j << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
-      first = false;
-    }
-    j << "}}";
-  }
-  j << (result.effect_names.empty() ? "" : "\n  ") << "]";
-  return j.str();
+Json numbers(const std::map<std::string, double>& values) {
+  Json j = Json::object();
+  for (const auto& [k, v] : values) j[k] = v;
+  return j;
 }
 
-std::string runsJson(const SynthProtocol& protocol) {
-  std::ostringstream j;
-  j << "[";
-  for (std::size_t i = 0; i < protocol.runs.size(); ++i) {
-    const SynthRunPlan& r = protocol.runs[i];
-    j << (i ? "," : "") << "\n    {\"file\": " << jsonString(r.name) << ", \"load_n\": " << jsonNumber(r.load_n)
-      << ", \"flow\": " << jsonString(r.flow) << ", \"target_height_m\": " << jsonNumber(r.target_height_m)
-      << ", \"inflow_mass_kg\": " << jsonNumber(r.inflow_mass_kg) << ", \"role\": " << jsonString(r.role) << "}";
-  }
-  j << "\n  ]";
-  return j.str();
+Json effectsJson(const SynthResult& result) {
+  Json j = Json::array();
+  for (std::size_t i = 0; i < result.effect_names.size(); ++i)
+    j.push_back({{"name", result.effect_names[i]},
+                 {"candidate", effectSpec(result.effect_names[i]).candidate},
+                 {"params", numbers(result.effect_params[i])}});
+  return j;
 }
 
-/// truth.json: what was hidden in the runs (never read by the diagnosis).
+Json runsJson(const SynthProtocol& protocol) {
+  Json j = Json::array();
+  for (const SynthRunPlan& r : protocol.runs)
+    j.push_back({{"file", r.name}, {"load_n", r.load_n}, {"flow", r.flow}, {"target_height_m", r.target_height_m},
+                 {"inflow_mass_kg", r.inflow_mass_kg}, {"role", r.role}});
+  return j;
+}
+
+/// truth.json: what was hidden in the runs (never read by the diagnosis). Numbers that are not
+/// finite are written as null (nlohmann-json's rule; JSON has no NaN).
 void writeTruthJson(const SynthOptions& o, const SynthResult& result, const SensorNoise& noise, const fs::path& dir) {
   const SynthProtocol& p = result.protocol;
-  std::ofstream j(dir / "truth.json");
-  j << "{\n  \"format\": \"nursing_bed_gap_truth/1\",\n";
-  j << "  \"protocol\": " << jsonString(o.protocol) << ",\n";
-  j << "  \"seed\": " << o.seed << ",\n";
-  j << "  \"noise_scale\": " << jsonNumber(o.noise_scale) << ",\n";
-  j << "  \"noise\": " << noiseJson(noise) << ",\n";
-  j << "  \"effects\": " << effectsJson(result) << ",\n";
-  j << "  \"airbag_params\": {";
-  bool first = true;
-  for (const auto& [k, v] : o.airbag_params) {
-    j << (first ? "" : ", ") << jsonString(k) << ": " << jsonNumber(v);
-    first = false;
-  }
-  j << "},\n";
-  j << "  \"flow_meter\": " << (o.flow_meter ? "true" : "false") << ", \"height_sensor\": "
-    << (o.height_sensor ? "true" : "false") << ",\n";
-  j << "  \"runs\": " << runsJson(p) << ",\n";
-  j << "  \"timing\": {\"inflate_s\": " << jsonNumber(p.inflate_s) << ", \"peak_s\": " << jsonNumber(p.peak_s)
-    << ", \"hold_s\": " << jsonNumber(p.hold_s) << ", \"vent_s\": " << jsonNumber(p.vent_s)
-    << ", \"sample_hz\": " << jsonNumber(p.sample_hz) << "}\n}\n";
-  if (!j) throw std::runtime_error("gap synth: cannot write " + (dir / "truth.json").string());
+  Json j;
+  j["format"] = "nursing_bed_gap_truth/1";
+  j["protocol"] = o.protocol;
+  j["seed"] = o.seed;
+  j["noise_scale"] = o.noise_scale;
+  j["noise"] = noiseJson(noise);
+  j["effects"] = effectsJson(result);
+  j["airbag_params"] = numbers(o.airbag_params);
+  j["flow_meter"] = o.flow_meter;
+  j["height_sensor"] = o.height_sensor;
+  j["runs"] = runsJson(p);
+  j["timing"] = {{"inflate_s", p.inflate_s}, {"peak_s", p.peak_s}, {"hold_s", p.hold_s}, {"vent_s", p.vent_s},
+                 {"sample_hz", p.sample_hz}};
+  std::ofstream out(dir / "truth.json");
+  out << j.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";
+  if (!out) throw std::runtime_error("gap synth: cannot write " + (dir / "truth.json").string());
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "nursing_bed/core/hardware/thread_priority.h"
+#include "nursing_bed/core/io/errors.h"
 
 namespace nursing_bed {
 namespace {
@@ -148,57 +149,57 @@ constexpr double kFaultReportS = 0.5;       ///< a silent terminal's cells repor
 
 /// link_loss_after_s against the request timing: one unanswered request tolerated, a silent
 /// terminal reported within kFaultReportS.
-void checkLinkLoss(const TerminalMap& t, const std::string& at, std::ostringstream& err) {
+void checkLinkLoss(const TerminalMap& t, const std::string& at, ErrorList& err) {
   const double l = t.link_loss_after_s, request_s = t.response_timeout_s + t.cycle_s;
   if (!(l > 0.0 && l <= kMaxLinkLossAfterS)) {
-    err << at << ": link_loss_after_s " << l << " must lie in (0, " << kMaxLinkLossAfterS << "] s; ";
+    err.add(at, ": link_loss_after_s ", l, " must lie in (0, ", kMaxLinkLossAfterS, "] s");
   } else if (!(l > request_s)) {
-    err << at << ": link_loss_after_s " << l << " must exceed response_timeout_s + cycle_s (" << request_s
-        << " s), or one unanswered request takes the link down; ";
+    err.add(at, ": link_loss_after_s ", l, " must exceed response_timeout_s + cycle_s (", request_s,
+            " s), or one unanswered request takes the link down");
   } else if (l + request_s > kFaultReportS) {
-    err << at << ": link_loss_after_s + response_timeout_s + cycle_s (" << l + request_s << " s) must not exceed "
-        << kFaultReportS << " s, the time in which a silent terminal is reported; ";
+    err.add(at, ": link_loss_after_s + response_timeout_s + cycle_s (", l + request_s, " s) must not exceed ",
+            kFaultReportS, " s, the time in which a silent terminal is reported");
   }
 }
 
-void checkTerminalValues(const TerminalMap& t, std::ostringstream& err) {
+void checkTerminalValues(const TerminalMap& t, ErrorList& err) {
   const std::string at = "terminal '" + t.name + "'";
-  if (t.host.empty()) err << at << ": host is empty; ";
-  if (t.port < 1 || t.port > 65535) err << at << ": port " << t.port << " not in 1..65535; ";
-  if (t.unit_id < 0 || t.unit_id > 247) err << at << ": unit_id " << t.unit_id << " not in 0..247; ";
-  if (!(t.response_timeout_s > 0.0 && t.response_timeout_s <= 1.0)) err << at << ": response_timeout_s must lie in (0, 1] s; ";
-  if (!(t.reconnect_interval_s > 0.0)) err << at << ": reconnect_interval_s must be > 0; ";
-  if (!(t.cycle_s > 0.0 && t.cycle_s <= 0.1)) err << at << ": cycle_s must lie in (0, 0.1] s; ";
-  if (!(t.stale_after_s > t.cycle_s)) err << at << ": stale_after_s must exceed cycle_s; ";
+  if (t.host.empty()) err.add(at, ": host is empty");
+  if (t.port < 1 || t.port > 65535) err.add(at, ": port ", t.port, " not in 1..65535");
+  if (t.unit_id < 0 || t.unit_id > 247) err.add(at, ": unit_id ", t.unit_id, " not in 0..247");
+  if (!(t.response_timeout_s > 0.0 && t.response_timeout_s <= 1.0)) err.add(at, ": response_timeout_s must lie in (0, 1] s");
+  if (!(t.reconnect_interval_s > 0.0)) err.add(at, ": reconnect_interval_s must be > 0");
+  if (!(t.cycle_s > 0.0 && t.cycle_s <= 0.1)) err.add(at, ": cycle_s must lie in (0, 0.1] s");
+  if (!(t.stale_after_s > t.cycle_s)) err.add(at, ": stale_after_s must exceed cycle_s");
   if (!(t.watchdog_s > t.cycle_s && t.watchdog_s <= 60.0))
-    err << at << ": watchdog_s " << t.watchdog_s << " must exceed cycle_s and be at most 60 s; ";
-  const std::string priority = realtimePriorityProblem(t.realtime_priority);
-  if (!priority.empty()) err << at << ": realtime_priority " << t.realtime_priority << " " << priority << "; ";
+    err.add(at, ": watchdog_s ", t.watchdog_s, " must exceed cycle_s and be at most 60 s");
+  const Status priority = checkRealtimePriority(t.realtime_priority);
+  if (!priority) err.add(at, ": realtime_priority ", t.realtime_priority, " ", priority.message());
   checkLinkLoss(t, at, err);
-  if (t.cells.empty()) err << at << ": serves no cells; ";
+  if (t.cells.empty()) err.add(at, ": serves no cells");
 }
 
-void checkInput(const AnalogInput& in, const std::string& at, std::ostringstream& err) {
+void checkInput(const AnalogInput& in, const std::string& at, ErrorList& err) {
   if (!in.present()) return;
-  if (!(std::isfinite(in.scale) && in.scale != 0.0)) err << at << ": scale " << in.scale << " must be finite and non-zero; ";
-  if (!std::isfinite(in.offset)) err << at << ": offset must be finite; ";
-  if (in.address > 65535) err << at << ": address " << in.address << " not in 0..65535; ";
+  if (!(std::isfinite(in.scale) && in.scale != 0.0)) err.add(at, ": scale ", in.scale, " must be finite and non-zero");
+  if (!std::isfinite(in.offset)) err.add(at, ": offset must be finite");
+  if (in.address > 65535) err.add(at, ": address ", in.address, " not in 0..65535");
 }
 
-void checkValve(const ValveOutput& v, const std::string& at, std::ostringstream& err) {
-  if (v.address < 0 || v.address > 65535) err << at << ": address " << v.address << " not in 0..65535; ";
+void checkValve(const ValveOutput& v, const std::string& at, ErrorList& err) {
+  if (v.address < 0 || v.address > 65535) err.add(at, ": address ", v.address, " not in 0..65535");
   if (v.kind == ValveOutput::kHoldingRegister && !(v.full_scale >= 1.0 && v.full_scale <= 65535.0))
-    err << at << ": full_scale " << v.full_scale << " must lie in [1, 65535]; ";
+    err.add(at, ": full_scale ", v.full_scale, " must lie in [1, 65535]");
 }
 
 /// Every address of one space (coils, holding or input registers) used once per terminal.
 class AddressBook {
  public:
-  void use(int address, const std::string& who, std::ostringstream& err) {
+  void use(int address, const std::string& who, ErrorList& err) {
     if (address < 0) return;
     const auto it = users_.find(address);
     if (it != users_.end()) {
-      err << who << " uses address " << address << ", already used by " << it->second << "; ";
+      err.add(who, " uses address ", address, ", already used by ", it->second);
       return;
     }
     users_[address] = who;
@@ -208,7 +209,7 @@ class AddressBook {
   std::map<int, std::string> users_;
 };
 
-void checkTerminalCells(const TerminalMap& t, std::ostringstream& err) {
+void checkTerminalCells(const TerminalMap& t, ErrorList& err) {
   AddressBook coils, holding, inputs;
   auto output = [&](const ValveOutput& v, const std::string& who) {
     (v.kind == ValveOutput::kCoil ? coils : holding).use(v.address, who + " (" + (v.kind == ValveOutput::kCoil ? "coil" : "holding register") + ")", err);
@@ -223,7 +224,7 @@ void checkTerminalCells(const TerminalMap& t, std::ostringstream& err) {
     checkValve(c.vent, at + " vent", err);
     output(c.inlet, at + " inlet");
     output(c.vent, at + " vent");
-    if (!c.pressure_pa.present()) err << at << ": no pressure input; ";
+    if (!c.pressure_pa.present()) err.add(at, ": no pressure input");
     const std::pair<const AnalogInput*, const char*> ins[] = {
         {&c.pressure_pa, " pressure"}, {&c.height_m, " height"}, {&c.inflow_kg_s, " inflow"}};
     for (const auto& in : ins) {
@@ -233,25 +234,27 @@ void checkTerminalCells(const TerminalMap& t, std::ostringstream& err) {
   }
 }
 
-void checkCellCoverage(const RegisterMap& map, std::uint32_t expected_cells, std::ostringstream& err) {
+void checkCellCoverage(const RegisterMap& map, std::uint32_t expected_cells, ErrorList& err) {
   std::map<std::uint32_t, std::string> served;
   std::set<std::string> endpoints;
   for (const TerminalMap& t : map.terminals) {
-    if (!endpoints.insert(t.endpoint()).second) err << "terminal '" << t.name << "': " << t.endpoint() << " is used by another terminal; ";
+    if (!endpoints.insert(t.endpoint()).second)
+      err.add("terminal '", t.name, "': ", t.endpoint(), " is used by another terminal");
     for (const CellRegisters& c : t.cells) {
       if (expected_cells > 0 && c.cell_id >= expected_cells)
-        err << "terminal '" << t.name << "' cell " << c.cell_id << ": not in the bed (cells 0.." << expected_cells - 1 << "); ";
+        err.add("terminal '", t.name, "' cell ", c.cell_id, ": not in the bed (cells 0..", expected_cells - 1, ")");
       const auto it = served.find(c.cell_id);
-      if (it != served.end()) err << "cell " << c.cell_id << " is mapped twice (terminals '" << it->second << "' and '" << t.name << "'); ";
+      if (it != served.end())
+        err.add("cell ", c.cell_id, " is mapped twice (terminals '", it->second, "' and '", t.name, "')");
       served.emplace(c.cell_id, t.name);
     }
   }
   int missing = 0;
   for (std::uint32_t id = 0; id < expected_cells; ++id) {
     if (served.count(id)) continue;
-    if (++missing <= 5) err << "cell " << id << " is missing from the register map; ";
+    if (++missing <= 5) err.add("cell ", id, " is missing from the register map");
   }
-  if (missing > 5) err << "(" << missing << " cells missing in all); ";
+  if (missing > 5) err.add("(", missing, " cells missing in all)");
 }
 
 }  // namespace
@@ -273,17 +276,15 @@ bool RegisterMap::find(std::uint32_t cell_id, std::size_t* terminal, std::size_t
   return false;
 }
 
-std::string validateRegisterMap(const RegisterMap& map, std::uint32_t expected_cells) {
-  std::ostringstream err;
-  if (map.terminals.empty()) err << "no terminals; ";
+Status validateRegisterMap(const RegisterMap& map, std::uint32_t expected_cells) {
+  ErrorList err;
+  if (map.terminals.empty()) err.add("no terminals");
   for (const TerminalMap& t : map.terminals) {
     checkTerminalValues(t, err);
     checkTerminalCells(t, err);
   }
   checkCellCoverage(map, expected_cells, err);
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  return err.status();
 }
 
 RegisterMap parseRegisterMap(const std::string& yaml_text, const std::string& source, std::uint32_t expected_cells) {
@@ -299,8 +300,8 @@ RegisterMap parseRegisterMap(const std::string& yaml_text, const std::string& so
   RegisterMap map;
   for (std::size_t i = 0; i < terminals.size(); ++i)
     map.terminals.push_back(readTerminal(terminals[i], source + ": terminals[" + std::to_string(i) + "]"));
-  const std::string error = validateRegisterMap(map, expected_cells);
-  if (!error.empty()) fail(source, "bad register map: " + error);
+  const Status valid = validateRegisterMap(map, expected_cells);
+  if (!valid) fail(source, "bad register map: " + valid.message());
   return map;
 }
 

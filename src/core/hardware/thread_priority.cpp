@@ -7,8 +7,9 @@
 
 namespace nursing_bed {
 
-std::string realtimePriorityProblem(int priority) {
-  return priority < 0 || priority > 99 ? "not in 0..99 (0: the normal scheduler)" : "";
+Status checkRealtimePriority(int priority) {
+  if (priority < 0 || priority > 99) return Status::error("not in 0..99 (0: the normal scheduler)");
+  return Status::success();
 }
 
 ThreadScheduling scheduleRealtime(std::thread& thread, int priority) {

@@ -59,6 +59,34 @@ std::string formatParamValue(double value) {
   return text;
 }
 
+std::string emitParamsYaml(const std::vector<YamlParamLine>& lines) {
+  if (lines.empty()) return "";
+  YAML::Emitter e;
+  e << YAML::BeginMap;
+  std::vector<std::string> open_groups;
+  for (const YamlParamLine& line : lines) {
+    std::vector<std::string> groups;
+    std::size_t start = 0, slash;
+    while ((slash = line.key.find('/', start)) != std::string::npos) {
+      groups.push_back(line.key.substr(start, slash - start));
+      start = slash + 1;
+    }
+    std::size_t common = 0;
+    while (common < groups.size() && common < open_groups.size() && groups[common] == open_groups[common]) ++common;
+    for (; open_groups.size() > common; open_groups.pop_back()) e << YAML::EndMap;
+    for (std::size_t i = common; i < groups.size(); ++i) {
+      e << YAML::Key << groups[i] << YAML::Value << YAML::BeginMap;
+      open_groups.push_back(groups[i]);
+    }
+    // The value goes as its text so that it keeps formatParamValue's YAML 1.1 spelling.
+    e << YAML::Key << line.key.substr(start) << YAML::Value << formatParamValue(line.value)
+      << YAML::Comment(line.description);
+  }
+  for (; !open_groups.empty(); open_groups.pop_back()) e << YAML::EndMap;
+  e << YAML::EndMap;
+  return std::string(e.c_str()) + "\n";
+}
+
 FlatParams flattenYaml(const YAML::Node& root, const std::string& source) {
   FlatParams out;
   if (root.IsNull()) return out;

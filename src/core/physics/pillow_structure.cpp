@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
@@ -13,25 +14,21 @@ constexpr double kCornerAreaFactor = kPi * kPi / 4.0 - kPi / 2.0;
 }  // namespace
 
 std::string PillowParams::validate() const {
-  std::ostringstream err;
-  auto positive = [&err](const char* name, double value) {
-    if (!(value > 0.0) || !std::isfinite(value))
-      err << name << " must be a positive finite number, got " << value << "; ";
+  ErrorList errors;
+  auto positive = [&errors](const char* name, double value) {
+    errors.addIf(!(value > 0.0) || !std::isfinite(value), name, " must be a positive finite number, got ", value);
   };
   positive("face_side_m", face_side_m);
   positive("film_thickness_m", film_thickness_m);
   positive("dead_volume_m3", dead_volume_m3);
   positive("film_relaxation_time_s", film_relaxation_time_s);
-  if (!(max_film_stretch > 1.0) || !std::isfinite(max_film_stretch))
-    err << "max_film_stretch must be > 1, got " << max_film_stretch << "; ";
-  if (!(gusset_height_m >= 0.0) || !std::isfinite(gusset_height_m))
-    err << "gusset_height_m must be >= 0, got " << gusset_height_m << "; ";
-  if (chambers < 1 || chambers > 8) err << "chambers must be 1..8, got " << chambers << "; ";
-  const std::string material_error = material.validate();
-  if (!material_error.empty()) err << "material: " << material_error << "; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  errors.addIf(!(max_film_stretch > 1.0) || !std::isfinite(max_film_stretch), "max_film_stretch must be > 1, got ",
+               max_film_stretch);
+  errors.addIf(!(gusset_height_m >= 0.0) || !std::isfinite(gusset_height_m), "gusset_height_m must be >= 0, got ",
+               gusset_height_m);
+  errors.addIf(chambers < 1 || chambers > 8, "chambers must be 1..8, got ", chambers);
+  errors.addNested(material.validate(), "material: ");
+  return errors.text();
 }
 
 PillowStructure::PillowStructure(const PillowParams& params) : params_(params) {

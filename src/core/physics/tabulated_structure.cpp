@@ -17,15 +17,18 @@ bool increasingPositive(const std::vector<double>& v) {
   return v.size() >= 2;
 }
 
-std::string gridError(const std::vector<std::vector<double>>& g, std::size_t rows, std::size_t cols, bool positive) {
-  if (g.size() != rows) return "needs one row per height";
+/// Success, or what is wrong with grid `name` (one row per height, one column per pressure).
+Status checkGrid(const std::string& name, const std::vector<std::vector<double>>& g, std::size_t rows, std::size_t cols,
+                 bool positive) {
+  if (g.size() != rows) return Status::error(name + " needs one row per height");
   for (const auto& row : g) {
-    if (row.size() != cols) return "needs one column per pressure";
+    if (row.size() != cols) return Status::error(name + " needs one column per pressure");
     for (double x : row) {
-      if (!std::isfinite(x) || (positive && !(x > 0.0))) return positive ? "values must be positive" : "values must be finite";
+      if (!std::isfinite(x) || (positive && !(x > 0.0)))
+        return Status::error(name + (positive ? " values must be positive" : " values must be finite"));
     }
   }
-  return "";
+  return Status::success();
 }
 
 // Index i with axis[i] <= x < axis[i+1] (clamped) and the fraction within.
@@ -42,20 +45,19 @@ constexpr double kShapeUnitPa = 1.0e4;
 
 }  // namespace
 
-std::string StructureTableData::validate() const {
-  if (!increasingPositive(heights_m)) return "heights_m must have >= 2 positive, strictly increasing values";
-  if (!increasingPositive(pressures_pa)) return "pressures_pa must have >= 2 positive, strictly increasing values";
-  std::string e = gridError(volume_m3, heights_m.size(), pressures_pa.size(), true);
-  if (!e.empty()) return "volume_m3 " + e;
-  e = gridError(plate_force_n, heights_m.size(), pressures_pa.size(), false);
-  if (!e.empty()) return "plate_force_n " + e;
-  return "";
+Status StructureTableData::validate() const {
+  if (!increasingPositive(heights_m)) return Status::error("heights_m must have >= 2 positive, strictly increasing values");
+  if (!increasingPositive(pressures_pa))
+    return Status::error("pressures_pa must have >= 2 positive, strictly increasing values");
+  const Status volume = checkGrid("volume_m3", volume_m3, heights_m.size(), pressures_pa.size(), true);
+  if (!volume) return volume;
+  return checkGrid("plate_force_n", plate_force_n, heights_m.size(), pressures_pa.size(), false);
 }
 
 TabulatedStructure::TabulatedStructure(StructureTableData table, double film_relaxation_time_s, double dead_volume_m3)
     : table_(std::move(table)), relaxation_time_s_(film_relaxation_time_s), dead_volume_m3_(dead_volume_m3) {
-  const std::string e = table_.validate();
-  if (!e.empty()) throw std::invalid_argument("TabulatedStructure: " + e);
+  const Status valid = table_.validate();
+  if (!valid) throw std::invalid_argument("TabulatedStructure: " + valid.message());
   if (!(relaxation_time_s_ > 0.0)) throw std::invalid_argument("TabulatedStructure: film_relaxation_time_s must be positive");
   if (!(dead_volume_m3_ > 0.0 && std::isfinite(dead_volume_m3_)))
     throw std::invalid_argument("TabulatedStructure: dead_volume_m3 must be positive");
@@ -77,8 +79,8 @@ StructureTableData TabulatedStructure::load(const std::string& path) {
   } catch (const std::exception& e) {
     throw std::runtime_error("structure table " + path + ": " + e.what());
   }
-  const std::string e = t.validate();
-  if (!e.empty()) throw std::runtime_error("structure table " + path + ": " + e);
+  const Status valid = t.validate();
+  if (!valid) throw std::runtime_error("structure table " + path + ": " + valid.message());
   return t;
 }
 

@@ -59,13 +59,13 @@ TEST(FeFilm, ForcesAreTheEnergyGradient) {
 TEST(FeFilm, BadMaterialAndOptionsAreRefusedByName) {
   FilmMaterial m;
   m.density_kg_m3 = 0.0;
-  EXPECT_NE(m.validate().find("density_kg_m3"), std::string::npos);
+  EXPECT_NE(m.validate().message().find("density_kg_m3"), std::string::npos);
   MembraneOptions o;
   o.cfl = 2.0;
-  EXPECT_NE(o.validate().find("cfl"), std::string::npos);
+  EXPECT_NE(o.validate().message().find("cfl"), std::string::npos);
   o = MembraneOptions{};
   o.self_contact_radius_m = -1.0;
-  EXPECT_NE(o.validate().find("self_contact_radius_m"), std::string::npos);
+  EXPECT_NE(o.validate().message().find("self_contact_radius_m"), std::string::npos);
 }
 
 }  // namespace fe

@@ -204,6 +204,38 @@ TEST_F(GapDiagnoseCli, UnknownSubcommandAndHelp) {
   expectContains(help.output, {"usage: gap diagnose DATASET --out DIR", "--topic", "--effects", "--threads"});
 }
 
+TEST_F(GapDiagnoseCli, HelpListsEveryOptionOfTheSubcommand) {
+  const ToolResult synth = runGap({"synth", "--help"});
+  EXPECT_EQ(synth.code, 0) << synth.output;
+  expectContains(synth.output, {"usage: gap synth --out DIR", "--out", "--effect", "--seed", "--noise-scale",
+                                "--protocol", "--airbag-param", "--no-flow-meter", "--no-height",
+                                "effects and their parameters:", "leak:"});
+  const ToolResult calibrate = runGap({"calibrate", "--help"});
+  EXPECT_EQ(calibrate.code, 0) << calibrate.output;
+  expectContains(calibrate.output, {"usage: gap calibrate DATASET --out DIR", "--params", "--airbag", "--topic",
+                                    "--threads", "--no-plots", "parameters:", "film_stiffness_scale"});
+  const ToolResult diagnose = runGap({"diagnose", "--help"});
+  EXPECT_EQ(diagnose.code, 0) << diagnose.output;
+  expectContains(diagnose.output, {"--no-calibration", "--effects", "--params", "--airbag", "--no-plots"});
+  const ToolResult top = runGap({"--help"});
+  EXPECT_EQ(top.code, 0) << top.output;
+  expectContains(top.output, {"usage: gap SUBCOMMAND", "synth", "calibrate", "diagnose", "eq24"});
+}
+
+TEST_F(GapDiagnoseCli, AnUnknownFlagIsRefusedByNameAndNothingIsWritten) {
+  const fs::path out = tmpDir("bad_flag_out", false);
+  const ToolResult synth = runGap({"synth", "--out", out.string(), "--protocol", "small", "--bogus-flag"});
+  EXPECT_EQ(synth.code, 2) << synth.output;
+  expectContains(synth.output, {"usage: gap synth", "gap synth: unknown option '--bogus-flag'"});
+  const ToolResult seed = runGap({"synth", "--out", out.string(), "--seed", "-3"});
+  EXPECT_EQ(seed.code, 2) << seed.output;
+  expectContains(seed.output, {"--seed", "'-3'"});
+  const ToolResult missing = runGap({"synth", "--out", out.string(), "--effect"});
+  EXPECT_EQ(missing.code, 2) << missing.output;
+  expectContains(missing.output, {"--effect needs a value"});
+  EXPECT_FALSE(fs::exists(out)) << "a refused command line created " << out;
+}
+
 TEST_F(GapDiagnoseCli, MissingOrEmptyDatasetExitsWith1) {
   const fs::path missing = tmpDir("does_not_exist", false);
   {

@@ -9,6 +9,7 @@
 #include "nursing_bed/core/fe/airbag_geometry.h"
 #include "nursing_bed/core/fe/membrane_model.h"
 #include "nursing_bed/core/fe/relaxation.h"
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/time_series.h"
 
@@ -32,8 +33,8 @@ struct AirbagFeOptions {
   MembraneOptions membrane;   ///< self_contact_radius_m is set to the geometry's layer gap
   RelaxOptions relax = airbagRelaxDefaults();
 
-  /// Empty when valid, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
 };
 
 /// One quasi-static state.
@@ -95,7 +96,8 @@ struct TransientSetup {
   double film_damping_per_s = 30.0;        ///< mass-proportional film damping (air drag, TPU losses) [1/s]
   double sample_s = 0.01;
 
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
 };
 
 struct TransientSample {

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "nursing_bed/core/fe/mesh.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 namespace fe {
@@ -36,8 +37,8 @@ struct AirbagGeometry {
   double elementSize() const { return face_side_m / elements_per_side; }
   /// Gap between film layers at the start, also the self-contact distance [m].
   double layerGap() const { return 0.4 * elementSize(); }
-  /// Empty when valid, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
   std::string describe() const;
 };
 

@@ -6,6 +6,7 @@
 #include <array>
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/physics/yeoh.h"
 
 namespace nursing_bed {
@@ -16,8 +17,8 @@ struct FilmMaterial {
   YeohMaterial yeoh;                 ///< paper eq. 7, fitted constants by default
   double density_kg_m3 = 1200.0;     ///< TPU 1.1-1.25 g/cm3 (doc/paper_targets.md)
 
-  /// Empty when valid, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
 };
 
 /// Wrinkling state of an element under the relaxed energy.

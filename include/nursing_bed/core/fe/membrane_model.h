@@ -11,6 +11,7 @@
 
 #include "nursing_bed/core/fe/film.h"
 #include "nursing_bed/core/fe/mesh.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 namespace fe {
@@ -29,8 +30,8 @@ struct MembraneOptions {
   int self_contact_exclusion_rings = 2;     ///< nodes this close in the mesh graph never touch [-]
   int threads = 2;                          ///< OpenMP threads (the machine has two cores)
 
-  /// Empty when valid, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
 };
 
 /// The rigid plate on top of the bag (paper fig. 7): an infinite horizontal plane.

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/status.h"
+
 namespace nursing_bed {
 namespace fe {
 
@@ -27,8 +29,8 @@ struct MembraneMesh {
 
   int nodeCount() const { return static_cast<int>(initial.cols()); }
   int triangleCount() const { return static_cast<int>(triangles.size()); }
-  /// Empty when consistent (sizes, indices, positive areas and thicknesses), else what is wrong.
-  std::string validate() const;
+  /// Success when consistent (sizes, indices, positive areas and thicknesses), else what is wrong.
+  Status validate() const;
 };
 
 /**

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "nursing_bed/core/fe/membrane_model.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 namespace fe {
@@ -37,8 +38,8 @@ struct RelaxOptions {
   /// this rate instead (near the slowest mode's critical damping 2 omega_1) [1/s].
   double damping_per_s = 0.0;
 
-  /// Empty when valid, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
 };
 
 struct RelaxResult {

@@ -8,6 +8,7 @@
 
 #include "nursing_bed/core/fe/film.h"
 #include "nursing_bed/core/fe/mesh.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 namespace fe {
@@ -42,8 +43,8 @@ struct VerificationCase {
   int resolution = 3;              ///< sphere: subdivisions; tube: cells around (along: 2)
   std::vector<double> stretches;   ///< volume-controlled targets
 
-  /// Empty when valid, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success, or what is wrong (names the field).
+  Status validate() const;
 };
 
 /// Runs the case by continuation; throws std::invalid_argument for a bad case or material.

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/status.h"
+
 namespace nursing_bed {
 
 /// One valve output. A coil is an on/off valve (pulse-width modulated over the control
@@ -70,9 +72,9 @@ struct RegisterMap {
   bool find(std::uint32_t cell_id, std::size_t* terminal, std::size_t* slot) const;
 };
 
-/// Empty when the map serves cells 0..expected_cells-1 exactly once (expected_cells 0: any
+/// Success when the map serves cells 0..expected_cells-1 exactly once (expected_cells 0: any
 /// set) with sane values and no address used twice, else every problem, naming the entry.
-std::string validateRegisterMap(const RegisterMap& map, std::uint32_t expected_cells);
+Status validateRegisterMap(const RegisterMap& map, std::uint32_t expected_cells);
 
 /// Parses and validates; throws std::runtime_error naming `source` and the entry at fault.
 RegisterMap parseRegisterMap(const std::string& yaml_text, const std::string& source, std::uint32_t expected_cells);

@@ -7,6 +7,8 @@
 #include <string>
 #include <thread>
 
+#include "nursing_bed/core/io/status.h"
+
 namespace nursing_bed {
 
 /// How a thread runs after scheduleRealtime.
@@ -15,8 +17,8 @@ struct ThreadScheduling {
   std::string text;      ///< "SCHED_FIFO <priority>", "normal" or "normal (SCHED_FIFO <priority> refused: <reason>)"
 };
 
-/// Empty when `priority` is one scheduleRealtime takes (0..99), else what is wrong with it.
-std::string realtimePriorityProblem(int priority);
+/// Success when `priority` is one scheduleRealtime takes (0..99), else what is wrong with it.
+Status checkRealtimePriority(int priority);
 
 /// Puts `thread` under SCHED_FIFO at `priority` (1-99; 0: leaves it on the normal scheduler).
 /// When the system refuses (no CAP_SYS_NICE, an RT limit of 0) the thread runs on normally and

@@ -96,6 +96,16 @@ std::string paramsToYaml(const Params& params, const ParamTable<Params>& table);
 bool isWholeNumber(double value);
 std::string formatParamValue(double value);
 
+/// One "key: value  # description" line of paramsToYaml; "a/b/c" keys become nested maps
+/// (lines of one group must be adjacent).
+struct YamlParamLine {
+  std::string key;
+  double value = 0.0;
+  std::string description;
+};
+/// The lines as YAML (yaml-cpp's emitter), values in formatParamValue's spelling.
+std::string emitParamsYaml(const std::vector<YamlParamLine>& lines);
+
 template <typename Params>
 void applyFlatParams(const FlatParams& values, const std::string& source, const ParamTable<Params>& table,
                      Params* params, const std::string& prefix) {
@@ -114,26 +124,9 @@ void applyFlatParams(const FlatParams& values, const std::string& source, const 
 
 template <typename Params>
 std::string paramsToYaml(const Params& params, const ParamTable<Params>& table) {
-  std::string out;
-  std::vector<std::string> open_groups;
-  for (const auto& f : table) {
-    std::vector<std::string> parts;
-    std::size_t start = 0, slash;
-    while ((slash = f.key.find('/', start)) != std::string::npos) {
-      parts.push_back(f.key.substr(start, slash - start));
-      start = slash + 1;
-    }
-    std::size_t common = 0;
-    while (common < parts.size() && common < open_groups.size() && parts[common] == open_groups[common]) ++common;
-    open_groups.resize(common);
-    for (std::size_t i = common; i < parts.size(); ++i) {
-      out += std::string(2 * i, ' ') + parts[i] + ":\n";
-      open_groups.push_back(parts[i]);
-    }
-    out += std::string(2 * parts.size(), ' ') + f.key.substr(start) + ": " + formatParamValue(f.get(params)) +
-           "  # " + f.description + "\n";
-  }
-  return out;
+  std::vector<YamlParamLine> lines;
+  for (const auto& f : table) lines.push_back({f.key, f.get(params), f.description});
+  return emitParamsYaml(lines);
 }
 
 }  // namespace nursing_bed

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/physics/cell_structure.h"
 #include "nursing_bed/core/physics/pillow_structure.h"
 
@@ -18,8 +19,8 @@ struct StructureTableData {
   std::vector<std::vector<double>> volume_m3;       ///< [height][pressure], > 0
   std::vector<std::vector<double>> plate_force_n;   ///< [height][pressure]
 
-  /// Empty when consistent, else what is wrong (names the field).
-  std::string validate() const;
+  /// Success when consistent, else what is wrong (names the field).
+  Status validate() const;
 };
 
 /**
