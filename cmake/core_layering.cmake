@@ -16,7 +16,7 @@ set(NURSING_BED_CORE_ALLOWED_physics io)
 # The cell observer (what a cell's readings say about its gas and load).
 set(NURSING_BED_CORE_ALLOWED_observer io physics)
 # The cell hardware boundary and its drivers (simulated, Modbus TCP).
-set(NURSING_BED_CORE_ALLOWED_hardware physics)
+set(NURSING_BED_CORE_ALLOWED_hardware io physics)
 # The airbag controller runs the observer and reads and writes cells through the hardware.
 set(NURSING_BED_CORE_ALLOWED_control io physics observer hardware)
 # The bed: cell grid, body model, posture plans and the manager's policy (rate limits).
@@ -24,7 +24,7 @@ set(NURSING_BED_CORE_ALLOWED_bed io physics control)
 # The sim-to-real gap diagnosis.
 set(NURSING_BED_CORE_ALLOWED_gap io physics)
 # The FE membrane model of one airbag.
-set(NURSING_BED_CORE_ALLOWED_fe physics)
+set(NURSING_BED_CORE_ALLOWED_fe io physics)
 # The rig emulator: Modbus TCP servers over simulated cells, a test rig and bench tool (not the
 # bed's driver, so neither the hardware nor the control side links it).
 set(NURSING_BED_CORE_ALLOWED_rig hardware)
