@@ -318,8 +318,13 @@ TEST(BedSupervisor, ABadSavedRecordIsRefusedWithTheReasonAndNothingRuns) {
 
 TEST(BedSupervisor, ABadInterruptedPlanIsDroppedAndTheSavedPlanStillResumes) {
   Bed bed;
-  nb::ResumeRecord record{{{"max_inflate", {{"timeout_s", "2"}}, {}}, kStartS - 1.0},
-                          nb::SavedPlan{{"flat", {}, {}}, -5.0}};
+  nb::ResumeRecord record;
+  record.running.request = {"max_inflate", {{"timeout_s", "2"}}, {}};
+  record.running.start_s = kStartS - 1.0;
+  nb::SavedPlan interrupted;  // built apart: GCC 12 takes a nested brace-init's optional as maybe uninitialised
+  interrupted.request.plan = "flat";
+  interrupted.start_s = -5.0;
+  record.interrupted = interrupted;
   ASSERT_TRUE(bed.sup.resume(record, bed.now).ok);
   bed.out = bed.sup.takeOutput();
   EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kResumeRefused, "the saved plan 'flat' cannot be resumed (bad start"));
