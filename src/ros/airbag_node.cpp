@@ -259,7 +259,7 @@ void AirbagNode::publish(const ros::Time& now) {
 }
 
 void AirbagNode::publishState(const CellSnapshot& s, const ros::Time& stamp) {
-  const Measurement& m = s.measurement;
+  const Readings& m = s.measurement;
   // Published as a shared pointer: the bed manager nodelet in the same manager gets it without a copy.
   const boost::shared_ptr<AirbagState> out = boost::make_shared<AirbagState>();
   AirbagState& msg = *out;

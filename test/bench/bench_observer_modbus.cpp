@@ -153,7 +153,7 @@ void traceRow(std::FILE* f, double t, const nb::CellTruth& truth, const nb::Airb
                truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
                truth.vent_flow_kg_s, truth.inlet_opening, truth.vent_opening, e.height_m,
                cell.measurement().gauge_pressure_pa, e.mass_kg, e.temperature_k, v.inflow_kg_s, v.vent_flow_kg_s,
-               obs.appliedInputs().inlet_opening, obs.appliedInputs().vent_opening, cell.controller().restingHeight());
+               obs.appliedInputs().valves.inlet, obs.appliedInputs().valves.vent, cell.controller().restingHeight());
 }
 
 struct Target {

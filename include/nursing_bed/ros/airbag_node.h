@@ -85,7 +85,7 @@ class AirbagNode {
   /// What the publishing thread reads of the cell: its state after its last period.
   struct CellSnapshot {
     double time_s = -1.0;
-    Measurement measurement;
+    Readings measurement{0.0, 0.0, 0.0, 0.0};  ///< zeros until the first period
     double volume_m3 = 0.0, gas_mass_kg = 0.0, gas_temperature_k = 0.0, load_n = 0.0;
     double metered_kg = 0.0, inlet_s = 0.0, vent_s = 0.0;  ///< the flow and valve totalisers
     ValveOpenings valves;

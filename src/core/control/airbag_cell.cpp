@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -289,9 +290,10 @@ void AirbagCell::addTotals(double period_s, double inflow_kg_s) {
 }
 
 ObserverInputs AirbagCell::linkDownInputs(const CellReadings& readings) const {
-  ObserverInputs in{valves_.inlet, valves_.vent, 0.0, supply_pressure_pa_};
-  if (readings.inlet_driven.present()) in.inlet_opening = readings.inlet_driven.value;
-  if (readings.vent_driven.present()) in.vent_opening = readings.vent_driven.value;
+  ObserverInputs in;
+  in.valves.inlet = readings.inlet_driven.present() ? readings.inlet_driven.value : valves_.inlet;
+  in.valves.vent = readings.vent_driven.present() ? readings.vent_driven.value : valves_.vent;
+  in.supply_pressure_pa = supply_pressure_pa_;
   return in;
 }
 
@@ -336,24 +338,22 @@ void AirbagCell::onLink(const CellReadings& readings) {
 }
 
 void AirbagCell::observe(const CellReadings& readings, double dt_s) {
-  measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
-  measurement_.height_m = readings.height_m.value;
-  measurement_.inflow_kg_s = readings.inflow_kg_s.value;
-  measurement_.temperature_k = readings.gas_temperature_k.value;
+  measurement_ = readingsOf(readings);
   if (!observer_ || (sim_ && !use_estimate_)) return;
   ObserverInputs in;
   // What the driver applied where it says (PWM pulses), else what was commanded.
-  in.inlet_opening = readings.inlet_driven.present() ? readings.inlet_driven.value : valves_.inlet;
-  in.vent_opening = readings.vent_driven.present() ? readings.vent_driven.value : valves_.vent;
+  in.valves.inlet = readings.inlet_driven.present() ? readings.inlet_driven.value : valves_.inlet;
+  in.valves.vent = readings.vent_driven.present() ? readings.vent_driven.value : valves_.vent;
   // The vent's outlet as the hardware has it (a bed without a vacuum source vents to the air:
   // modelled with the vacuum, a vented cell's estimate fell 2.5 times too fast, 40 mm off).
   in.vent_back_pressure_pa = ventToVacuum() ? params_.cpr_vacuum_pa : 0.0;
   in.supply_pressure_pa = supply_pressure_pa_;
   if (readings.supply_pressure_pa.present()) in.measured_supply_pa = readings.supply_pressure_pa.value;
-  ObserverReadings z;
-  z.gauge_pressure_pa = readings.gauge_pressure_pa.value;
-  if (!use_estimate_) z.height_m = readings.height_m.value;
-  if (capabilities_.inflow && !sim_) z.inflow_kg_s = readings.inflow_kg_s.value;
+  // The height sensor is left out where the estimate stands for it, the simulated plant's
+  // inflow (its flows are the observer's own model) and any hardware's without a flow meter.
+  Readings z = measurement_;
+  if (use_estimate_) z.height_m = std::numeric_limits<double>::quiet_NaN();
+  if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
   gas_.note(observer_->step(in, z, dt_s));
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
 }

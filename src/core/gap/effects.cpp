@@ -230,7 +230,7 @@ void InflowBiasEffect::contribute(const CellParams& params, const CellVariables&
       cp * (truth * inletFlowTemperature(params, cell, truth) - metered * inletFlowTemperature(params, cell, metered));
 }
 
-void InflowBiasEffect::measure(const CellParams&, const CellVariables& cell, const double*, Measurement* m) const {
+void InflowBiasEffect::measure(const CellParams&, const CellVariables& cell, const double*, Readings* m) const {
   if (off() || cell.inflow_prescribed == 1.0) return;  // a prescribed series is already the reading
   m->inflow_kg_s = (1.0 + scale_error_) * m->inflow_kg_s + offset_kg_s_;
 }
@@ -248,7 +248,7 @@ void PressureSensorLagEffect::contribute(const CellParams&, const CellVariables&
 }
 
 void PressureSensorLagEffect::measure(const CellParams&, const CellVariables& cell, const double* state,
-                                      Measurement* m) const {
+                                      Readings* m) const {
   if (stateSize() == 0) return;
   m->gauge_pressure_pa += state[0] * kPressureStateUnitPa - cell.pressure_pa;
 }
@@ -301,7 +301,7 @@ void SupplyLineEffect::contribute(const CellParams& params, const CellVariables&
 }
 
 void SupplyLineEffect::measure(const CellParams& params, const CellVariables& cell, const double* state,
-                               Measurement* m) const {
+                               Readings* m) const {
   if (stateSize() == 0) return;
   const double p_line = state[0] * kPressureStateUnitPa;
   m->gauge_pressure_pa += p_line - cell.pressure_pa;
@@ -330,7 +330,7 @@ void AmbientDriftEffect::contribute(const CellParams& params, const CellVariable
 // ---- pressure_offset_drift -------------------------------------------------------------------
 
 void PressureOffsetDriftEffect::measure(const CellParams&, const CellVariables& cell, const double*,
-                                        Measurement* m) const {
+                                        Readings* m) const {
   if (drift_pa_s_ == 0.0) return;
   m->gauge_pressure_pa += drift_pa_s_ * cell.time_s;
 }

@@ -221,7 +221,7 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
         if (interval_mean || valve_driven) advanceInterval(&model, dt, in, shape, valveDuty(run, i));
         else model.advance(dt, in);
       }
-      const Measurement m = model.measure();
+      const Readings m = model.measure();
       out.p_gauge_pa[i] = m.gauge_pressure_pa;
       out.h_m[i] = m.height_m;
     }

@@ -259,7 +259,7 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
     if (protocol.valve_driven) command = i > 0 ? advanceValveDriven(&model, protocol, t, opening, target_mass, &in) : 0.0;
     else if (i > 0) command = advanceMetered(&model, protocol, t, inflow, &in);
     else command = 1.0;
-    const Measurement m = model.measure();
+    const Readings m = model.measure();
     double pressure = m.gauge_pressure_pa, height = m.height_m, flow = m.inflow_kg_s;
     if (rng) {
       pressure = quantise(pressure + noise.pressure_sd_pa * gauss(*rng), noise.pressure_step_pa);

@@ -120,7 +120,7 @@ CellReadings SimulatedCellHardware::read(double now_s) {
   r.gauge_pressure_pa = {measurement_.gauge_pressure_pa, t};
   if (rig_.height_sensor) r.height_m = {measurement_.height_m, t};
   r.inflow_kg_s = {measurement_.inflow_kg_s, t};
-  r.gas_temperature_k = {measurement_.temperature_k, t};
+  r.gas_temperature_k = {measurement_.gas_temperature_k, t};
   r.supply_pressure_pa = {model_->variables().regulator_pressure_pa, t};
   r.device_reset = device_reset_;
   device_reset_ = false;

@@ -123,8 +123,8 @@ void CellObserver::resetToHeight(double height_m, double load_n) {
 
 CellInputs CellObserver::modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const {
   CellInputs c;
-  c.inlet_opening = std::clamp(in.inlet_opening, 0.0, 1.0);
-  c.vent_opening = std::clamp(in.vent_opening, 0.0, 1.0);
+  c.inlet_opening = std::clamp(in.valves.inlet, 0.0, 1.0);
+  c.vent_opening = std::clamp(in.valves.vent, 0.0, 1.0);
   c.vent_back_pressure_pa = in.vent_back_pressure_pa;
   c.supply_pressure_pa = in.supply_pressure_pa;
   c.load_n = load_n_;
@@ -324,7 +324,7 @@ void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s
   load_var_n2_ = std::min(cap, (1.0 - w) * load_var_n2_ + w * from_height + noise);
 }
 
-ObserverEvents CellObserver::step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s) {
+ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& readings, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   const double p_new = readings.gauge_pressure_pa;
   ObserverEvents events;
@@ -408,7 +408,7 @@ void CellObserver::keepPhysical() {
   x_[CellModel::kEnergy] = std::max(x_[CellModel::kEnergy], 1e-6);
 }
 
-bool CellObserver::checkReanchor(const ObserverReadings& readings) {
+bool CellObserver::checkReanchor(const Readings& readings) {
   // A plate cannot rest lifted below the plate alone's pressure: a cell with its inlet shut
   // found that low for reanchor_time_s is flat, and its gas is known again.
   double mean_pa = 0.0;

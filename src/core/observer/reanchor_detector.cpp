@@ -14,8 +14,8 @@ void ReanchorDetector::reset() {
 }
 
 bool ReanchorDetector::update(double now_s, const ObserverInputs& applied, double gauge_pressure_pa, double* mean_pa) {
-  const bool to_vacuum = applied.vent_opening > 0.0 && applied.vent_back_pressure_pa != 0.0;
-  if (applied.inlet_opening > 0.0 || to_vacuum || !std::isfinite(gauge_pressure_pa)) {
+  const bool to_vacuum = applied.valves.vent > 0.0 && applied.vent_back_pressure_pa != 0.0;
+  if (applied.valves.inlet > 0.0 || to_vacuum || !std::isfinite(gauge_pressure_pa)) {
     flat_since_s_ = -1.0;
     return false;
   }

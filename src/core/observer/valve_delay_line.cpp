@@ -20,14 +20,14 @@ ObserverInputs ValveDelayLine::delayed(const ObserverInputs& in, double dt) {
     pending_.pop_front();
   }
   ObserverInputs out = in;
-  out.inlet_opening = out.vent_opening = 0.0;  // before the first command: shut
+  out.valves.inlet = out.valves.vent = 0.0;  // before the first command: shut
   const double from = pending_s_ - dead - dt;  // the acting span's start, from the queue's start
   double start = 0.0;
   for (const Held& h : pending_) {
     const double overlap = std::min(start + h.held_s, from + dt) - std::max(start, from);
     if (overlap > 0.0) {
-      out.inlet_opening += h.inputs.inlet_opening * overlap / dt;
-      out.vent_opening += h.inputs.vent_opening * overlap / dt;
+      out.valves.inlet += h.inputs.valves.inlet * overlap / dt;
+      out.valves.vent += h.inputs.valves.vent * overlap / dt;
       out.vent_back_pressure_pa = h.inputs.vent_back_pressure_pa;
     }
     start += h.held_s;

@@ -456,12 +456,12 @@ bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
          a.inlet_closed == b.inlet_closed;
 }
 
-Measurement CellModel::measure() const {
-  Measurement m;
+Readings CellModel::measure() const {
+  Readings m;
   m.gauge_pressure_pa = vars_.gauge_pressure_pa;
   m.height_m = vars_.height_m;
   m.inflow_kg_s = vars_.metered_inflow_kg_s;
-  m.temperature_k = vars_.temperature_k;
+  m.gas_temperature_k = vars_.temperature_k;
   for (std::size_t i = 0; i < effects_.size(); ++i)
     effects_[i]->measure(params_, vars_, state_.data() + effect_offsets_[i], &m);
   return m;

@@ -259,7 +259,7 @@ void RigEmulator::applyOutputs(RigTerminalServer& server, const std::vector<doub
 }
 
 void RigEmulator::publishInputs(RigTerminalServer& server, const Cell& cell) {
-  const Measurement& m = cell.hardware->measurement();
+  const Readings& m = cell.hardware->measurement();
   const CellRegisters& r = cell.registers;
   server.withRegisters([&](modbus_mapping_t* map) {
     map->tab_input_registers[r.pressure_pa.address] = r.pressure_pa.toCount(m.gauge_pressure_pa);

@@ -17,7 +17,7 @@ namespace {
 struct Sample {
   double t;
   nb::CellVariables v;
-  nb::Measurement m;
+  nb::Readings m;
   nb::CellModel::StateVector x;
 };
 
@@ -83,7 +83,7 @@ void expectIdentical(const std::vector<Sample>& a, const std::vector<Sample>& b,
     ASSERT_EQ(a[i].m.gauge_pressure_pa, b[i].m.gauge_pressure_pa) << what << " t " << a[i].t;
     ASSERT_EQ(a[i].m.height_m, b[i].m.height_m) << what << " t " << a[i].t;
     ASSERT_EQ(a[i].m.inflow_kg_s, b[i].m.inflow_kg_s) << what << " t " << a[i].t;
-    ASSERT_EQ(a[i].m.temperature_k, b[i].m.temperature_k) << what << " t " << a[i].t;
+    ASSERT_EQ(a[i].m.gas_temperature_k, b[i].m.gas_temperature_k) << what << " t " << a[i].t;
   }
 }
 

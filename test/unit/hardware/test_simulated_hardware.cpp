@@ -1,5 +1,5 @@
 // The simulated hardware's plant fault: a failed or invalid solve resets the plant flat at rest
-// and is reported once as CellReadings::device_reset.
+// and is reported once as CellReadings::device_reset. And what the observer is given of a report.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -31,6 +31,21 @@ TEST(SimulatedCellHardware, AnInvalidPlantIsResetAndReportedOnce) {
   EXPECT_TRUE(std::isfinite(r.gauge_pressure_pa.value));
   r = hw.read(0.04);
   EXPECT_FALSE(r.device_reset);  // reported once
+}
+
+TEST(ReadingsOf, TakesEachSignalsValueAndLeavesAnAbsentOneNaN) {
+  nb::CellReadings r;
+  r.gauge_pressure_pa = {1200.0, 3.0};
+  r.inflow_kg_s = {2e-4, 3.0};
+  r.gas_temperature_k = {295.0, 3.0};
+  r.supply_pressure_pa = {40000.0, 3.0};
+  const nb::Readings z = nb::readingsOf(r);
+  EXPECT_EQ(z.gauge_pressure_pa, 1200.0);
+  EXPECT_TRUE(std::isnan(z.height_m)) << "no height sensor: absent";
+  EXPECT_EQ(z.inflow_kg_s, 2e-4);
+  EXPECT_EQ(z.gas_temperature_k, 295.0);
+  r.height_m = {0.12, 3.0};
+  EXPECT_EQ(nb::readingsOf(r).height_m, 0.12);
 }
 
 }  // namespace

@@ -103,12 +103,12 @@ RunResult run(const RunOptions& o, const std::string& label) {
       if (valve_line.size() > delay) valve_line.pop_front();
       acting.load_n = load;
       plant.advance(op.period_s, acting);
-      nb::ObserverReadings z;
+      nb::Readings z;
       reading_line.push_back(adc(plant.variables().gauge_pressure_pa + o.pressure_noise_pa * noise(rng), o.adc_step_pa));
       z.gauge_pressure_pa = reading_line.front();
       if (reading_line.size() > static_cast<std::size_t>(o.reading_delay_periods)) reading_line.pop_front();
       if (o.height_sensor) z.height_m = plant.variables().height_m + 2e-4 * noise(rng);
-      observer.step({ph.inlet, ph.vent, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+      observer.step({{ph.inlet, ph.vent}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
       const double error = plant.variables().height_m - observer.estimate().height_m;
       r.error.add(error);
       if (k + 2 >= phases.size()) r.after_flat.add(error);
@@ -142,9 +142,9 @@ struct PlateAlone {
       in.vent_opening = vent;
       in.load_n = 0.6;
       plant.advance(op.period_s, in);
-      nb::ObserverReadings z;
+      nb::Readings z;
       z.gauge_pressure_pa = read(plant.variables().gauge_pressure_pa);
-      observer.step({0.0, vent, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+      observer.step({{0.0, vent}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
     }
   }
   const nb::CellParams cell;
@@ -284,13 +284,13 @@ TEST(CellObserver, DelaysTheValvesInTimeNotInTicks) {
     observer.reset(15.6);
     const double m0 = observer.estimate().mass_kg;
     const double supply = cell.supply_pressure_pa;
-    nb::ObserverReadings lifted;  // the plate held up by the gas: its flows at this pressure
+    nb::Readings lifted;  // the plate held up by the gas: its flows at this pressure
     lifted.gauge_pressure_pa = 1600.0;
     for (int k = 0; k < 30; ++k) {
-      observer.step({1.0, 0.0, 0.0, supply}, lifted, 0.009);
-      observer.step({0.0, 0.0, 0.0, supply}, lifted, 0.001);
+      observer.step({{1.0, 0.0}, 0.0, supply}, lifted, 0.009);
+      observer.step({{0.0, 0.0}, 0.0, supply}, lifted, 0.001);
     }
-    for (int k = 0; k < 20; ++k) observer.step({0.0, 0.0, 0.0, supply}, lifted, 0.005);
+    for (int k = 0; k < 20; ++k) observer.step({{0.0, 0.0}, 0.0, supply}, lifted, 0.005);
     return observer.estimate().mass_kg - m0;
   };
   const double at_once = gained(0.0), late = gained(0.015);
@@ -366,10 +366,10 @@ BoundRun fillAndHold(double load_n, double fill_s, double inlet_gain, double hol
     in.inlet_opening = inlet * inlet_gain;
     in.load_n = load_n;
     plant.advance(dt, in);
-    nb::ObserverReadings z;
+    nb::Readings z;
     if (period % repeats == 0) reading = adc(plant.variables().gauge_pressure_pa + noise(rng), 12.2);
     z.gauge_pressure_pa = reading;
-    observer.step({inlet, 0.0, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+    observer.step({{inlet, 0.0}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
     if (t > fill_s + 1.0)
       r.worst_below_truth_m = std::max(r.worst_below_truth_m, plant.variables().height_m - observer.estimate().height_m);
   }

@@ -15,8 +15,8 @@ namespace {
 
 nb::ObserverInputs openings(double inlet, double vent) {
   nb::ObserverInputs in;
-  in.inlet_opening = inlet;
-  in.vent_opening = vent;
+  in.valves.inlet = inlet;
+  in.valves.vent = vent;
   return in;
 }
 
@@ -24,16 +24,16 @@ nb::ObserverInputs openings(double inlet, double vent) {
 
 TEST(ValveDelayLine, ACommandActsTheDeadTimeLaterOverTheSameSpan) {
   nb::ValveDelayLine none;
-  EXPECT_EQ(none.delayed(openings(0.7, 0.0), 0.005).inlet_opening, 0.7) << "no dead time: as given";
+  EXPECT_EQ(none.delayed(openings(0.7, 0.0), 0.005).valves.inlet, 0.7) << "no dead time: as given";
   nb::ValveDelayLine line(0.01);
-  EXPECT_EQ(line.delayed(openings(1.0, 0.0), 0.005).inlet_opening, 0.0) << "shut before the first command";
-  EXPECT_EQ(line.delayed(openings(0.0, 1.0), 0.005).inlet_opening, 0.0);
-  EXPECT_NEAR(line.delayed(openings(0.0, 0.0), 0.005).inlet_opening, 1.0, 1e-12);
+  EXPECT_EQ(line.delayed(openings(1.0, 0.0), 0.005).valves.inlet, 0.0) << "shut before the first command";
+  EXPECT_EQ(line.delayed(openings(0.0, 1.0), 0.005).valves.inlet, 0.0);
+  EXPECT_NEAR(line.delayed(openings(0.0, 0.0), 0.005).valves.inlet, 1.0, 1e-12);
   // A late tick (10 ms) spans the vent's 5 ms command and the shut one after it.
   const nb::ObserverInputs late = line.delayed(openings(0.0, 0.0), 0.01);
-  EXPECT_NEAR(late.vent_opening, 0.5, 1e-12);
+  EXPECT_NEAR(late.valves.vent, 0.5, 1e-12);
   line.reset();
-  EXPECT_EQ(line.delayed(openings(1.0, 1.0), 0.005).vent_opening, 0.0) << "a reset forgets the commands held";
+  EXPECT_EQ(line.delayed(openings(1.0, 1.0), 0.005).valves.vent, 0.0) << "a reset forgets the commands held";
 }
 
 TEST(ReanchorDetector, FindsAFlatCellOnlyWithItsInletShutForTheTestsTime) {

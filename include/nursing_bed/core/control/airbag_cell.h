@@ -128,7 +128,7 @@ class AirbagCell {
   /// Last sensor readings (NaN after a sensor failure), taken at time(): at the end of the
   /// last control period, which is the start of the next (the controller acts on them there).
   /// Without a height sensor, height_m is the observer's estimate.
-  const Measurement& measurement() const { return measurement_; }
+  const Readings& measurement() const { return measurement_; }
   /// Gas that the inlet's flow meter has counted since reset [kg] (a totaliser: its change over
   /// an interval divided by the interval is the mean metered inflow, which a sampled replay can
   /// integrate without losing the mass of valve switches between samples).
@@ -221,7 +221,7 @@ class AirbagCell {
   AirbagMode mode_ = AirbagMode::kIdle;
   std::uint32_t faults_ = kFaultNone;
   ValveOpenings valves_;
-  Measurement measurement_;
+  Readings measurement_{0.0, 0.0, 0.0, 0.0};  ///< zeros until the first reading
   bool cpr_ = false;
   HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
   SafetyLayer safety_;    ///< sensor range, command watchdog, relief

@@ -138,7 +138,7 @@ class InflowBiasEffect : public CellEffect {
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
   void measure(const CellParams& params, const CellVariables& cell, const double* state,
-               Measurement* measurement) const override;
+               Readings* measurement) const override;
 
  private:
   bool off() const { return scale_error_ == 0.0 && offset_kg_s_ == 0.0; }
@@ -158,7 +158,7 @@ class PressureSensorLagEffect : public CellEffect {
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
   void measure(const CellParams& params, const CellVariables& cell, const double* state,
-               Measurement* measurement) const override;
+               Readings* measurement) const override;
 
  private:
   double time_constant_s_;
@@ -180,7 +180,7 @@ class SupplyLineEffect : public CellEffect {
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
   void measure(const CellParams& params, const CellVariables& cell, const double* state,
-               Measurement* measurement) const override;
+               Readings* measurement) const override;
 
  private:
   /// Metered flow into the line [kg/s] at line pressure p_line.
@@ -229,7 +229,7 @@ class PressureOffsetDriftEffect : public CellEffect {
   std::map<std::string, double> parameters() const override { return {{"drift_pa_s", drift_pa_s_}}; }
   void contribute(const CellParams&, const CellVariables&, const double*, EffectTerms*, double*) const override {}
   void measure(const CellParams& params, const CellVariables& cell, const double* state,
-               Measurement* measurement) const override;
+               Readings* measurement) const override;
 
  private:
   double drift_pa_s_;

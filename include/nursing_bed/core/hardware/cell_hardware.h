@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/readings.h"
 #include "nursing_bed/core/physics/valve_openings.h"
 
 namespace nursing_bed {
@@ -53,6 +54,16 @@ struct CellReadings {
   /// emptied). The control side answers with a fault (kFaultModel) and mode SAFE.
   bool device_reset = false;
 };
+
+/// The values of a driver's report, stamps and link state dropped: NaN where it has none.
+inline Readings readingsOf(const CellReadings& r) {
+  Readings out;
+  out.gauge_pressure_pa = r.gauge_pressure_pa.value;
+  out.height_m = r.height_m.value;
+  out.inflow_kg_s = r.inflow_kg_s.value;
+  out.gas_temperature_k = r.gas_temperature_k.value;
+  return out;
+}
 
 /// Which readings the hardware has (fixed for its lifetime).
 struct HardwareCapabilities {

@@ -49,7 +49,7 @@ class SimulatedCellHardware : public CellHardware {
   const CellModel& model() const { return *model_; }
   const CellVariables& variables() const { return model_->variables(); }
   /// Last sensor readings (noise and quantisation applied; NaN after a sensor failure).
-  const Measurement& measurement() const { return measurement_; }
+  const Readings& measurement() const { return measurement_; }
   /// Valve openings acting on the plant now (after the dead time).
   const ValveOpenings& actingValves() const { return acting_; }
   /// Flow totaliser and valve-opening integrals since reset [kg], [s].
@@ -73,7 +73,7 @@ class SimulatedCellHardware : public CellHardware {
   double supply_pressure_pa_ = 0.0;
   ValveOpenings commanded_, acting_;
   std::deque<ValveOpenings> valve_line_;  ///< commands on their way (dead time)
-  Measurement measurement_;
+  Readings measurement_{0.0, 0.0, 0.0, 0.0};  ///< zeros until the first reading
   bool sensor_failed_ = false;
   bool device_reset_ = false;  ///< reported by (and cleared by) the next read()
   double metered_inlet_mass_kg_ = 0.0, inlet_opening_s_ = 0.0, vent_opening_s_ = 0.0;

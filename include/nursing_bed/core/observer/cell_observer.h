@@ -117,7 +117,7 @@ class CellObserver {
   /// > 0: the time since the last step when it differs from period_s (a real-time loop's
   /// jitter).
   /// Returns what the step found (a re-anchor, a weight bound).
-  ObserverEvents step(const ObserverInputs& inputs, const ObserverReadings& readings, double dt_s = 0.0);
+  ObserverEvents step(const ObserverInputs& inputs, const Readings& readings, double dt_s = 0.0);
   /// A period without readings (a lost link): the gas integrated, the plate held.
   void predict(const ObserverInputs& inputs, double dt_s = 0.0);
 
@@ -164,7 +164,7 @@ class CellObserver {
   void updateLoad(double gauge_pressure_pa, bool lifted, double dt_s);
   void keepPhysical();
   /// True when the cell was found flat and its gas re-anchored.
-  bool checkReanchor(const ObserverReadings& readings);
+  bool checkReanchor(const Readings& readings);
   /// The flat cell's gas at `gauge_pressure_pa` (the mean read).
   void anchorFlat(double gauge_pressure_pa);
   void refresh(const CellInputs& in);
@@ -178,7 +178,7 @@ class CellObserver {
   void trackReadingNoise(double gauge_pressure_pa, double dt_s);
   double pressureNoise() const { return reading_noise_.sd(); }
   /// Both valves shut over the last period (the inputs acting, after the dead time).
-  bool valvesShut() const { return applied_.inlet_opening == 0.0 && applied_.vent_opening == 0.0; }
+  bool valvesShut() const { return applied_.valves.inlet == 0.0 && applied_.valves.vent == 0.0; }
   /// The period's inputs: the valves acting (delayed), the supply line where it is measured.
   void takeInputs(const ObserverInputs& inputs, double dt);
 

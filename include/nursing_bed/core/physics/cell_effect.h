@@ -10,6 +10,7 @@
 
 #include "nursing_bed/core/physics/cell_structure.h"
 #include "nursing_bed/core/physics/gas.h"
+#include "nursing_bed/core/physics/readings.h"
 
 namespace nursing_bed {
 
@@ -51,14 +52,6 @@ struct EffectTerms {
   std::array<double, kMaxShapeDofs> shape_force{};  ///< added to dW/dq (film overstress) [J]
 };
 
-/// Measured signals as the rig's sensors report them.
-struct Measurement {
-  double gauge_pressure_pa = 0.0;
-  double height_m = 0.0;
-  double inflow_kg_s = 0.0;       ///< flow meter at the inlet
-  double temperature_k = 0.0;
-};
-
 class CellEffect {
  public:
   virtual ~CellEffect() = default;
@@ -76,7 +69,7 @@ class CellEffect {
                           EffectTerms* terms, double* state_rate) const = 0;
   /// Lets the effect change what the sensors report.
   virtual void measure(const CellParams& /*params*/, const CellVariables& /*cell*/,
-                       const double* /*state*/, Measurement* /*measurement*/) const {}
+                       const double* /*state*/, Readings* /*measurement*/) const {}
 };
 
 using CellEffectPtr = std::shared_ptr<const CellEffect>;

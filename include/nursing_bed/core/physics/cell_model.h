@@ -145,7 +145,7 @@ class CellModel {
   void setSubstepBudget(long max_substeps) { substep_budget_ = max_substeps; }
   const CellVariables& variables() const { return vars_; }
   /// What the sensors report (true values unless an effect changes them).
-  Measurement measure() const;
+  Readings measure() const;
   const StateVector& state() const { return state_; }
   /// Replaces the state (size must match); variables are recomputed. `keep_jacobian`: the new
   /// state is near the old one (an observer's correction), so the Jacobian and step size are
