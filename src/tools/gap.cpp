@@ -99,7 +99,7 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
                                 "structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)"))
       ->type_name("NAME=VALUE");
   sub.add_flag("--no-flow-meter", a->no_flow_meter,
-               "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (run-data.md)");
+               "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (doc/formats/run_data.md)");
   sub.add_flag("--no-height", a->no_height, "no height sensor: h_m left out");
   sub.footer("effects and their parameters:\n" + effectList());
 }
