@@ -240,6 +240,16 @@ void AirbagCell::heartbeat(double now_s) {
   }
 }
 
+void AirbagCell::retune(const AirbagCellParams& params) {
+  const std::string error = params.validate();
+  if (!error.empty()) throw std::invalid_argument("airbag parameters: " + error);
+  controller_.retune(params.controller);  // throws before anything here changes
+  const double command_timeout_s = params_.safety.command_timeout_s;
+  params_.controller = params.controller;
+  params_.safety = params.safety;
+  params_.safety.command_timeout_s = command_timeout_s;
+}
+
 void AirbagCell::setSupplyPressure(double pressure_pa) {
   supply_pressure_pa_ = pressure_pa;
   controller_.setSupplyPressure(pressure_pa);

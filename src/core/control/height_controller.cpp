@@ -43,6 +43,15 @@ HeightController::HeightController(const HeightControllerParams& params,
   if (!characteristic_) throw std::invalid_argument("height controller: no characteristic");
 }
 
+void HeightController::retune(const HeightControllerParams& params) {
+  const std::string error = params.validate();
+  if (!error.empty()) throw std::invalid_argument("height controller parameters: " + error);
+  if (params.load_filter_time_s != params_.load_filter_time_s)
+    throw std::invalid_argument("height controller: load_filter_time_s cannot change on a running controller");
+  params_ = params;
+  integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
+}
+
 std::string HeightController::checkSetpoint(double height_m) const {
   std::ostringstream msg;
   if (!std::isfinite(height_m)) {

@@ -118,6 +118,12 @@ class AirbagCell {
   /// Changes safety.command_timeout_s (0: off); the watchdog counts from the last command.
   void setCommandTimeout(double timeout_s) { params_.safety.command_timeout_s = timeout_s; }
 
+  /// New controller tuning and safety thresholds on a running cell (dynamic reconfigure): only
+  /// params.controller and params.safety are taken, the command timeout keeps its current
+  /// setting (setCommandTimeout). Throws std::invalid_argument (nothing changed) when `params`
+  /// fails validate() or HeightController::retune refuses it.
+  void retune(const AirbagCellParams& params);
+
   void setSupplyPressure(double pressure_pa);
   /// Test hook: the sensors fail (read NaN) while set; read again at once.
   void setSensorFailure(bool failed);

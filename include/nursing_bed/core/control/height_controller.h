@@ -78,6 +78,12 @@ class HeightController {
   bool hasTarget() const { return has_target_; }
   double target() const { return target_m_; }
 
+  /// New tuning on a running controller (dynamic reconfigure): target, load estimate and
+  /// move in progress are kept, the integral correction is bounded by the new limit. Throws
+  /// std::invalid_argument (nothing changed) when `params` is invalid or changes
+  /// load_filter_time_s, which the load estimator is built with.
+  void retune(const HeightControllerParams& params);
+
   /// One control period: measured gauge pressure [Pa], height [m], their time step [s].
   ValveCommand update(double dt_s, double gauge_pressure_pa, double height_m);
 
