@@ -13,6 +13,7 @@
 #include "nursing_bed/ros/bed_topics.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
+#include "nursing_bed/ros/reconfigure.h"
 #include "nursing_bed/ros/ros_params.h"
 
 namespace nursing_bed {
@@ -116,6 +117,8 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   params_.update_rate_hz = ticker.rateHz();
   ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); },
                               [this](const ros::Time& now) { publish(now); });
+  reconfigure_ = std::make_unique<ReconfigureServer<AirbagCellConfig>>(
+      private_nh_, airbagConfigFrom(params_), [this](AirbagCellConfig& config) { onReconfigure(config); });
   ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->hardware().describe().c_str());
   const std::string warning = cell_->hardware().warning();
   if (!warning.empty()) ROS_WARN_ONCE("%s", warning.c_str());  // once per process: a terminal's cells share it
@@ -427,6 +430,20 @@ void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
   takeSnapshot();
+}
+
+void AirbagNode::onReconfigure(AirbagCellConfig& config) {
+  ReconfiguredKeys changed;
+  {
+    std::lock_guard<std::timed_mutex> lock(mutex_);
+    AirbagNodeParams p = params_;
+    if (!reconfigureRequest(config, &p, &changed, names::airbagName(params_.row, params_.col))) return;
+    cell_->retune(p.airbag);
+    // Only what the cell was retuned with: the publishing thread reads other fields unlocked.
+    params_.airbag.controller = p.airbag.controller;
+    params_.airbag.safety = p.airbag.safety;
+  }
+  saveReconfigured(private_nh_, changed);
 }
 
 void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) { onBedHeartbeat(); }

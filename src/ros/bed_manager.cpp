@@ -13,6 +13,7 @@
 #include "nursing_bed/BedState.h"
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/ros/names.h"
+#include "nursing_bed/ros/reconfigure.h"
 #include "nursing_bed/ros/ros_params.h"
 
 namespace nursing_bed {
@@ -128,7 +129,22 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   diagnostics_timer_ =
       nh_.createTimer(ros::Duration(1.0 / params_.diagnostics_rate_hz), &BedManager::publishDiagnostics, this);
   step_timer_ = nh_.createTimer(ros::Duration(1.0 / params_.plan_rate_hz), &BedManager::step, this);
+  reconfigure_ = std::make_unique<ReconfigureServer<BedManagerConfig>>(
+      private_nh_, bedManagerConfigFrom(params_), [this](BedManagerConfig& config) { onReconfigure(config); });
   ROS_INFO("bed_manager: %s", layout_.describe().c_str());
+}
+
+BedManager::~BedManager() = default;
+
+void BedManager::onReconfigure(BedManagerConfig& config) {
+  ReconfiguredKeys changed;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    BedManagerParams p = params_;
+    if (!reconfigureRequest(config, &p, &changed, "bed_manager")) return;
+    params_ = p;  // read under mutex_ only; plan defaults apply to plans started from now on
+  }
+  saveReconfigured(private_nh_, changed);
 }
 
 BedGrid BedManager::grid() const {

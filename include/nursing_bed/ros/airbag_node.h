@@ -24,6 +24,10 @@
 
 namespace nursing_bed {
 
+class AirbagCellConfig;  // dynamic_reconfigure (cfg/AirbagCell.cfg, ros/reconfigure.h)
+template <class Config>
+class ReconfigureServer;
+
 /// Everything the airbag node reads from the parameter server, validated in one place.
 struct AirbagNodeParams {
   int row = -1;                       ///< ~row: the cell's row in the bed (required)
@@ -75,6 +79,8 @@ class AirbagNode {
   void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
   void onBedHeartbeat();
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
+  /// A dynamic_reconfigure request: retunes the cell, or refuses it whole (ros/reconfigure.h).
+  void onReconfigure(AirbagCellConfig& config);
   /// Applies an external load from a topic, refusing bad ones with a throttled error naming `source`.
   void applyLoad(double load_n, const char* source);
   /// True while the bed manager streams setpoints to this cell (it owns the cell then).
@@ -145,6 +151,7 @@ class AirbagNode {
   ros::ServiceServer set_height_srv_, set_pressure_srv_;
   int ticker_handle_ = -1;
   int bed_topics_handle_ = -1;  ///< registration with the process's BedTopics
+  std::unique_ptr<ReconfigureServer<AirbagCellConfig>> reconfigure_;  ///< ~set_parameters
 };
 
 }  // namespace nursing_bed

@@ -24,6 +24,10 @@
 
 namespace nursing_bed {
 
+class BedManagerConfig;  // dynamic_reconfigure (cfg/BedManager.cfg, ros/reconfigure.h)
+template <class Config>
+class ReconfigureServer;
+
 struct BedManagerParams {
   std::string robot_description = "robot_description";  ///< ~robot_description_param
   std::string defaults_ns = "/airbag_defaults";          ///< ~defaults_ns: the cells' shared parameters
@@ -47,6 +51,7 @@ struct BedManagerParams {
 class BedManager {
  public:
   BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh);
+  ~BedManager();
   static BedManagerParams loadParams(const ros::NodeHandle& private_nh);
 
  private:
@@ -90,6 +95,8 @@ class BedManager {
   /// The plan's targets through the rate limiter (every cell rate and the roll under the body).
   std::vector<double> limitTargets(const std::vector<double>& wanted, double dt_s);
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
+  /// A dynamic_reconfigure request: new alarm thresholds and plan defaults, or refused whole.
+  void onReconfigure(BedManagerConfig& config);
   void publishCpr(bool on);
   /// Cells that stopped reporting or report faults; moves the bed to its safe level (mutex_ held).
   void watchCells(const ros::Time& now);
@@ -125,6 +132,7 @@ class BedManager {
   ros::Publisher joint_state_pub_, heights_pub_, diagnostics_pub_, state_pub_;
   ros::ServiceServer set_height_srv_, set_heights_srv_, set_posture_srv_;
   ros::Timer joint_state_timer_, diagnostics_timer_, step_timer_;
+  std::unique_ptr<ReconfigureServer<BedManagerConfig>> reconfigure_;  ///< ~set_parameters
 };
 
 }  // namespace nursing_bed
