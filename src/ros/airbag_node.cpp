@@ -56,7 +56,7 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
   pnh.param("supply_pressure_pa", p.supply_pressure_pa, p.supply_pressure_pa);
   pnh.param("effects", p.effects, p.effects);
-  pnh.param("reconfigure", p.reconfigure, p.reconfigure);
+  if (!pnh.getParam("reconfigure", p.reconfigure)) pnh.param(p.defaults_ns + "/reconfigure", p.reconfigure, p.reconfigure);
   const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
   p.hardware = AirbagHardwareParams::load(pnh, p.defaults_ns);

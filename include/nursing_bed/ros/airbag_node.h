@@ -43,7 +43,8 @@ struct AirbagNodeParams {
   /// tests of the gap diagnosis: "NAME[:param=value,...][;NAME...]" (core/gap/effects.h; parameters
   /// not given are drawn from the noise seed). Default "": the nominal cell.
   std::string effects;
-  /// ~reconfigure: serve ~set_parameters (dynamic_reconfigure); off, the cell starts faster.
+  /// ~reconfigure (else defaults_ns/reconfigure): serve ~set_parameters (dynamic_reconfigure);
+  /// off, the cell starts faster.
   bool reconfigure = true;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
   AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
