@@ -8,12 +8,14 @@
 #include <sstream>
 
 #include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/control/cell_tuning.h"
 #include "nursing_bed/core/control/rate_limiter.h"
 #include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/ros/bed_topics.h"
 #include "nursing_bed/ros/cell_ticker.h"
 #include "nursing_bed/ros/names.h"
+#include "nursing_bed/ros/reconfigure.h"
 #include "nursing_bed/ros/ros_params.h"
 
 namespace nursing_bed {
@@ -51,6 +53,7 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
   pnh.param("supply_pressure_pa", p.supply_pressure_pa, p.supply_pressure_pa);
   pnh.param("effects", p.effects, p.effects);
+  if (!pnh.getParam("reconfigure", p.reconfigure)) pnh.param(p.defaults_ns + "/reconfigure", p.reconfigure, p.reconfigure);
   const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
   p.hardware = AirbagHardwareParams::load(pnh, p.defaults_ns);
@@ -114,6 +117,9 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   params_.update_rate_hz = ticker.rateHz();
   ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); },
                               [this](const ros::Time& now) { publish(now); });
+  if (params_.reconfigure)  // each server costs the start-up a few master calls per parameter
+    reconfigure_ = std::make_unique<ReconfigureServer<AirbagCellConfig>>(
+        private_nh_, airbagConfigFrom(params_), [this](AirbagCellConfig& config) { onReconfigure(config); });
   ROS_DEBUG("airbag %s (cell %u) up: %s", layout_.link_name.c_str(), layout_.id, cell_->hardware().describe().c_str());
   const std::string warning = cell_->hardware().warning();
   if (!warning.empty()) ROS_WARN_ONCE("%s", warning.c_str());  // once per process: a terminal's cells share it
@@ -424,6 +430,26 @@ void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
   takeSnapshot();
+}
+
+void AirbagNode::onReconfigure(AirbagCellConfig& config) {
+  ReconfiguredKeys changed;
+  {
+    std::lock_guard<std::timed_mutex> lock(mutex_);
+    AirbagNodeParams p = params_;
+    if (!reconfigureRequest(config, &p, &changed, names::airbagName(params_.row, params_.col))) return;
+    const std::string error = applyTuning(*cell_, p.airbag.controller, p.airbag.safety);
+    if (!error.empty()) {  // the cell's own checks (e.g. load_filter_time_s on a running controller)
+      ROS_ERROR("%s: dynamic_reconfigure refused: %s (the running values stay)", layout_.link_name.c_str(),
+                error.c_str());
+      config = airbagConfigFrom(params_);
+      return;
+    }
+    // Only what the cell was tuned with: the publishing thread reads other fields unlocked.
+    params_.airbag.controller = p.airbag.controller;
+    params_.airbag.safety = p.airbag.safety;
+  }
+  saveReconfigured(private_nh_, changed);
 }
 
 void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) { onBedHeartbeat(); }

@@ -3,54 +3,11 @@
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
 
-#include <sstream>
-
 #include "nursing_bed/ros/bed_manager_msgs.h"
 #include "nursing_bed/ros/names.h"
-#include "nursing_bed/ros/ros_params.h"
+#include "nursing_bed/ros/reconfigure.h"
 
 namespace nursing_bed {
-
-std::string BedManagerParams::validate() const {
-  std::ostringstream err;
-  if (!(joint_state_rate_hz > 0.0 && joint_state_rate_hz <= 200.0)) err << "~joint_state_rate_hz must lie in (0, 200]; ";
-  if (!(plan_rate_hz > 0.0 && plan_rate_hz <= 100.0)) err << "~plan_rate_hz must lie in (0, 100]; ";
-  if (!(diagnostics_rate_hz > 0.0 && diagnostics_rate_hz <= 50.0)) err << "~diagnostics_rate_hz must lie in (0, 50]; ";
-  std::string s = err.str() + bed.validate("~");
-  if (s.size() >= 2 && s.compare(s.size() - 2, 2, "; ") == 0) s.resize(s.size() - 2);
-  return s;
-}
-
-BedManagerParams BedManager::loadParams(const ros::NodeHandle& pnh) {
-  BedManagerParams p;
-  BedSupervisorParams& b = p.bed;
-  pnh.param("robot_description_param", p.robot_description, p.robot_description);
-  pnh.param("defaults_ns", p.defaults_ns, p.defaults_ns);
-  pnh.param("cells_ns", p.cells_ns, p.cells_ns);
-  pnh.param("joint_state_rate_hz", p.joint_state_rate_hz, p.joint_state_rate_hz);
-  pnh.param("plan_rate_hz", p.plan_rate_hz, p.plan_rate_hz);
-  pnh.param("cell_timeout_s", b.cell_timeout_s, b.cell_timeout_s);
-  pnh.param("diagnostics_rate_hz", p.diagnostics_rate_hz, p.diagnostics_rate_hz);
-  pnh.param("resend_s", b.resend_s, b.resend_s);
-  pnh.param("leak_alarm_error_m", b.leak_alarm_error_m, b.leak_alarm_error_m);
-  pnh.param("leak_alarm_s", b.leak_alarm_s, b.leak_alarm_s);
-  pnh.param("initial_plan", p.initial_plan, p.initial_plan);
-  applyFlatParams(flattenRosParams(pnh, "plans"), "parameters " + pnh.resolveName("plans"), planConfigFields(), &b.plans);
-  pnh.param("body/first_row", b.body.first_row, b.body.first_row);
-  pnh.param("body/last_row", b.body.last_row, b.body.last_row);
-  pnh.param("body/center_y_m", b.body.center_y_m, b.body.center_y_m);
-  // Plans must stay inside what the cells accept.
-  double cell_max = b.plans.max_height_m;
-  pnh.param(p.defaults_ns + "/controller/max_height_m", cell_max, cell_max);
-  pnh.param(p.defaults_ns + "/safety/max_height_rate_m_s", b.max_height_rate_m_s, b.max_height_rate_m_s);
-  if (b.plans.max_height_m > cell_max) {
-    std::ostringstream m;
-    m << "bed_manager: ~plans/max_height_m " << b.plans.max_height_m << " m exceeds the cells' controller/max_height_m "
-      << cell_max << " m";
-    throw std::runtime_error(m.str());
-  }
-  return p;
-}
 
 BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), private_nh_(private_nh) {
   params_ = loadParams(private_nh_);
@@ -95,8 +52,12 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   diagnostics_timer_ =
       nh_.createTimer(ros::Duration(1.0 / params_.diagnostics_rate_hz), &BedManager::publishDiagnostics, this);
   step_timer_ = nh_.createTimer(ros::Duration(1.0 / params_.plan_rate_hz), &BedManager::step, this);
+  reconfigure_ = std::make_unique<ReconfigureServer<BedManagerConfig>>(
+      private_nh_, bedManagerConfigFrom(params_), [this](BedManagerConfig& config) { onReconfigure(config); });
   ROS_INFO("bed_manager: %s", layout_.describe().c_str());
 }
+
+BedManager::~BedManager() = default;
 
 void BedManager::carryOut(SupervisorOutput out) {
   if (out.heartbeat) heartbeat_pub_.publish(std_msgs::Empty());
@@ -171,6 +132,23 @@ void BedManager::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   std::lock_guard<std::mutex> lock(mutex_);
   supervisor_->onCpr(msg->data, ros::Time::now().toSec());
   carryOut(supervisor_->takeOutput());
+}
+
+void BedManager::onReconfigure(BedManagerConfig& config) {
+  ReconfiguredKeys changed;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    BedManagerParams p = params_;
+    if (!reconfigureRequest(config, &p, &changed, "bed_manager")) return;
+    const std::string error = supervisor_->setTunables(p.bed);
+    if (!error.empty()) {  // the supervisor's own checks (e.g. the plan limits narrowed to the cells)
+      ROS_ERROR("bed_manager: dynamic_reconfigure refused: %s (the running values stay)", error.c_str());
+      config = bedManagerConfigFrom(params_);
+      return;
+    }
+    params_ = p;  // plan defaults apply to plans started from now on
+  }
+  saveReconfigured(private_nh_, changed);
 }
 
 void BedManager::publishHeights(const ros::TimerEvent&) {

@@ -25,6 +25,10 @@
 
 namespace nursing_bed {
 
+class AirbagCellConfig;  // dynamic_reconfigure (cfg/AirbagCell.cfg, ros/reconfigure.h)
+template <class Config>
+class ReconfigureServer;
+
 /// Everything the airbag node reads from the parameter server, validated in one place.
 struct AirbagNodeParams {
   int row = -1;                       ///< ~row: the cell's row in the bed (required)
@@ -40,6 +44,9 @@ struct AirbagNodeParams {
   /// tests of the gap diagnosis: "NAME[:param=value,...][;NAME...]" (core/gap/effects.h; parameters
   /// not given are drawn from the noise seed). Default "": the nominal cell.
   std::string effects;
+  /// ~reconfigure (else defaults_ns/reconfigure): serve ~set_parameters (dynamic_reconfigure);
+  /// off, the cell starts faster.
+  bool reconfigure = true;
   AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
   AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
@@ -76,6 +83,9 @@ class AirbagNode {
   void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
   void onBedHeartbeat();
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
+  /// A dynamic_reconfigure request: new controller tuning and safety thresholds for the cell
+  /// (applyTuning), or refused whole (ros/reconfigure.h).
+  void onReconfigure(AirbagCellConfig& config);
   /// Applies an external load from a topic, refusing bad ones with a throttled error naming `source`.
   void applyLoad(double load_n, const char* source);
   /// True while the bed manager streams setpoints to this cell (it owns the cell then).
@@ -146,6 +156,8 @@ class AirbagNode {
   ros::ServiceServer set_height_srv_, set_pressure_srv_;
   int ticker_handle_ = -1;
   int bed_topics_handle_ = -1;  ///< registration with the process's BedTopics
+  /// ~set_parameters; null when ~reconfigure is off. Last: destroyed first.
+  std::unique_ptr<ReconfigureServer<AirbagCellConfig>> reconfigure_;
 };
 
 }  // namespace nursing_bed

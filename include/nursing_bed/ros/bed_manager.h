@@ -23,6 +23,10 @@
 
 namespace nursing_bed {
 
+class BedManagerConfig;  // dynamic_reconfigure (cfg/BedManager.cfg, ros/reconfigure.h)
+template <class Config>
+class ReconfigureServer;
+
 struct BedManagerParams {
   std::string robot_description = "robot_description";  ///< ~robot_description_param
   std::string defaults_ns = "/airbag_defaults";          ///< ~defaults_ns: the cells' shared parameters
@@ -41,11 +45,15 @@ struct BedManagerParams {
 class BedManager {
  public:
   BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh);
+  ~BedManager();
   static BedManagerParams loadParams(const ros::NodeHandle& private_nh);
 
  private:
   void onState(const AirbagState::ConstPtr& msg);
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
+  /// A dynamic_reconfigure request: new alarm thresholds, cell timeout and plan defaults for the
+  /// supervisor (BedSupervisor::setTunables), or refused whole.
+  void onReconfigure(BedManagerConfig& config);
   /// /joint_states (the URDF's joints) and ~heights (each cell's height at its own stamp).
   void publishHeights(const ros::TimerEvent&);
   void publishDiagnostics(const ros::TimerEvent&);
@@ -76,6 +84,8 @@ class BedManager {
   ros::Publisher joint_state_pub_, heights_pub_, diagnostics_pub_, state_pub_;
   ros::ServiceServer set_height_srv_, set_heights_srv_, set_posture_srv_;
   ros::Timer joint_state_timer_, diagnostics_timer_, step_timer_;
+  /// ~set_parameters. Last: destroyed first.
+  std::unique_ptr<ReconfigureServer<BedManagerConfig>> reconfigure_;
 };
 
 }  // namespace nursing_bed

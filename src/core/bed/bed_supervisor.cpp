@@ -66,6 +66,26 @@ BedSupervisor::BedSupervisor(BedSupervisorParams params, const BedGrid& grid, st
       commander_(cells, rateLimits(params_, grid), params_.resend_s),
       runner_(params_.plans, grid, params_.body) {}
 
+std::string BedSupervisor::setTunables(const BedSupervisorParams& params) {
+  BedSupervisorParams next = params_;
+  next.cell_timeout_s = params.cell_timeout_s;
+  next.leak_alarm_error_m = params.leak_alarm_error_m;
+  next.leak_alarm_s = params.leak_alarm_s;
+  next.plans = params.plans;
+  next.plans.min_height_m = params_.plans.min_height_m;
+  next.plans.max_height_m = params_.plans.max_height_m;
+  next.plans.max_tilt_deg = params_.plans.max_tilt_deg;
+  next.plans.max_tilt_rate_deg_s = params_.plans.max_tilt_rate_deg_s;
+  next.plans.bed_tilt_rate_fraction = params_.plans.bed_tilt_rate_fraction;
+  const std::string error = next.validate();
+  if (!error.empty()) return error;
+  params_ = next;
+  health_.setTimeout(params_.cell_timeout_s);
+  leaks_.setThresholds(params_.leak_alarm_error_m, params_.leak_alarm_s);
+  runner_.setConfig(params_.plans);
+  return "";
+}
+
 bool BedSupervisor::onCellState(const CellSnapshot& snapshot) { return health_.record(snapshot); }
 
 SupervisorOutput BedSupervisor::takeOutput() {

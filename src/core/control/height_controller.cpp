@@ -46,8 +46,11 @@ HeightController::HeightController(const HeightControllerParams& params,
 std::string HeightController::setParams(const HeightControllerParams& params) {
   const std::string error = params.validate();
   if (!error.empty()) return error;
+  // The load estimate was filtered with the old time constant: a new one would mix two filters.
+  if (params.load_filter_time_s != params_.load_filter_time_s)
+    return "load_filter_time_s cannot change on a running controller";
   params_ = params;
-  load_.setFilterTime(params.load_filter_time_s);
+  integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
   return "";
 }
 

@@ -552,6 +552,89 @@ TEST(BedSupervisor, TheLargestStateGapIsMeasuredSinceThePlanStarted) {
   EXPECT_NEAR(bed.run(0.1).largest_state_gap_s, 0.1, 1e-6);
 }
 
+// ---- tunables on a running bed (dynamic reconfigure) --------------------------------------------
+
+TEST(BedSupervisor, NewAlarmThresholdsAndCellTimeoutActOnTheRunningBed) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.run(1.0);
+  nb::BedSupervisorParams tuned = bed.sup.params();
+  tuned.leak_alarm_s = 5.0;
+  tuned.leak_alarm_error_m = 0.012;
+  tuned.cell_timeout_s = 0.25;
+  ASSERT_EQ(bed.sup.setTunables(tuned), "");
+  EXPECT_DOUBLE_EQ(bed.sup.params().leak_alarm_s, 5.0);
+  bed.heights[1] = 0.089;  // 11 mm below: under the new error, no alarm however long
+  EXPECT_TRUE(bed.run(6.0).alarms.empty());
+  bed.heights[1] = 0.085;  // 15 mm below: the alarm after the new 5 s, not the old 15 s
+  EXPECT_TRUE(bed.run(5.0).alarms.empty());
+  nb::BedStatus status = bed.run(0.2);
+  ASSERT_EQ(status.alarms.size(), 1u);
+  EXPECT_TRUE(contains(status.alarms[0], "cell 1 (airbag_0_1) low pressure or leak")) << status.alarms[0];
+  // Silent for 0.3 s: dead under the new timeout (the old 0.5 s would keep it alive).
+  bed.silent[4] = true;
+  status = bed.run(0.3);
+  EXPECT_EQ(status.dead_cells, std::vector<std::uint32_t>{4});
+}
+
+TEST(BedSupervisor, NewPlanDefaultsApplyToPlansStartedAfterwards) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  EXPECT_EQ(bed.run(0.1).parameters, "height_m=0.1");
+  nb::BedSupervisorParams tuned = bed.sup.params();
+  tuned.plans.nominal_height_m = 0.08;
+  tuned.plans.max_inflate_timeout_s = 300.0;
+  ASSERT_EQ(bed.sup.setTunables(tuned), "");
+  EXPECT_EQ(bed.run(0.1).parameters, "height_m=0.1") << "the running plan keeps its parameters";
+  const nb::RequestResult r = bed.posture("flat");
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_EQ(bed.run(0.1).parameters, "height_m=0.08");
+  EXPECT_DOUBLE_EQ(bed.sup.params().plans.max_inflate_timeout_s, 300.0);
+}
+
+TEST(BedSupervisor, InvalidTunablesAreRefusedNamingTheKeyAndChangeNothing) {
+  nb::BedSupervisorParams params;
+  params.plans.max_height_m = 0.14;
+  Bed bed(params);
+  const nb::BedSupervisorParams before = bed.sup.params();
+  nb::BedSupervisorParams bad = before;
+  bad.leak_alarm_s = 0.0;
+  bad.cell_timeout_s = 2.0;  // valid, but refused with the rest
+  EXPECT_TRUE(contains(bed.sup.setTunables(bad), "leak_alarm_s must be positive"));
+  bad = before;
+  bad.plans.nominal_height_m = 0.145;  // above the running plan limit
+  bad.plans.max_height_m = 0.15;       // a limit: not taken, so it does not make room
+  EXPECT_TRUE(contains(bed.sup.setTunables(bad), "plans:")) << bed.sup.setTunables(bad);
+  bad = before;
+  bad.plans.alternating_transition_s = 200.0;  // too long for the cycle
+  EXPECT_TRUE(contains(bed.sup.setTunables(bad), "alternating")) << bed.sup.setTunables(bad);
+  EXPECT_DOUBLE_EQ(bed.sup.params().leak_alarm_s, before.leak_alarm_s);
+  EXPECT_DOUBLE_EQ(bed.sup.params().cell_timeout_s, before.cell_timeout_s);
+  EXPECT_DOUBLE_EQ(bed.sup.params().plans.nominal_height_m, before.plans.nominal_height_m);
+  EXPECT_DOUBLE_EQ(bed.sup.params().plans.alternating_transition_s, before.plans.alternating_transition_s);
+  // Nothing changed in what the bed does: a flat plan at the old nominal height; a cell silent
+  // for 1 s is dead under the old 0.5 s timeout, not alive under the refused 2 s.
+  ASSERT_TRUE(bed.posture("flat").ok);
+  EXPECT_EQ(bed.run(0.1).parameters, "height_m=0.1");
+  bed.silent[0] = true;
+  EXPECT_EQ(bed.run(1.0).dead_cells, std::vector<std::uint32_t>{0});
+}
+
+TEST(BedSupervisor, TunablesLeaveThePlanLimitsAndTheOtherSettingsAsTheyRun) {
+  Bed bed;
+  nb::BedSupervisorParams tuned = bed.sup.params();
+  tuned.plans.max_height_m = 0.12;
+  tuned.plans.max_tilt_deg = 10.0;
+  tuned.resend_s = 5.0;
+  tuned.leak_alarm_s = 20.0;
+  ASSERT_EQ(bed.sup.setTunables(tuned), "");
+  EXPECT_DOUBLE_EQ(bed.sup.params().leak_alarm_s, 20.0);
+  EXPECT_DOUBLE_EQ(bed.sup.params().plans.max_height_m, 0.15);
+  EXPECT_DOUBLE_EQ(bed.sup.params().plans.max_tilt_deg, nb::PlanConfig{}.max_tilt_deg);
+  EXPECT_DOUBLE_EQ(bed.sup.params().resend_s, nb::BedSupervisorParams{}.resend_s);
+  EXPECT_TRUE(bed.posture("lateral_turn", {"side", "angle_deg"}, {"left", "20"}).ok) << "the old tilt limit holds";
+}
+
 TEST(BedSupervisor, InvalidParametersAreRefusedNamingTheKey) {
   nb::BedSupervisorParams p;
   p.cell_timeout_s = 0.0;

@@ -109,6 +109,13 @@ class BedSupervisor {
   /// Diagnostics at `now_s`.
   BedReport report(double now_s) const;
 
+  /// What an operator may change on a running bed (dynamic reconfigure): takes `params`'
+  /// cell_timeout_s, leak alarm thresholds and plan defaults (for plans started afterwards) and
+  /// returns "", or returns why not and changes nothing. The rest keeps its running values:
+  /// the plan limits (heights, tilt, tilt rates: the envelope the rate limiter was built with),
+  /// resend_s, startup_grace_s, max_height_rate_m_s and the body.
+  std::string setTunables(const BedSupervisorParams& params);
+
   const CellHealthWatcher& health() const { return health_; }
   const BedSupervisorParams& params() const { return params_; }
 

@@ -75,6 +75,9 @@ class CellHealthWatcher {
   /// The longest wait between two states of one cell since resetLargestGap() [s].
   double largestGapS() const { return largest_gap_s_; }
   void resetLargestGap() { largest_gap_s_ = 0.0; }
+  /// A new silence after which a cell is dead (> 0, checked by the caller) [s]; the next
+  /// watch() applies it.
+  void setTimeout(double timeout_s) { timeout_s_ = timeout_s; }
 
  private:
   std::vector<BedCell> cells_;

@@ -20,6 +20,12 @@ class LeakWatch {
   /// none). A `silent` cell (dead or never reported) is not watched. Returns the alarm text
   /// while the alarm stands, else "".
   std::string update(const BedCell& cell, bool silent, double height_m, double target_m, double now_s);
+  /// New thresholds (both > 0, checked by the caller); a cell already below its target keeps
+  /// the time it went below.
+  void setThresholds(double error_m, double duration_s) {
+    error_m_ = error_m;
+    duration_s_ = duration_s;
+  }
 
  private:
   std::vector<double> below_since_s_;  ///< by cell id; NaN: not below

@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "nursing_bed/core/bed/posture_plans.h"
@@ -63,6 +64,9 @@ class PlanRunner {
   /// The running plan's record (call only while running()).
   ResumeRecord record() const;
   const PlanConfig& config() const { return config_; }
+  /// A new configuration (valid, checked by the caller) for the plans made from now on; the
+  /// running plan keeps the one it was made with.
+  void setConfig(PlanConfig config) { config_ = std::move(config); }
 
  private:
   std::optional<RunningPlan> restore(const SavedPlan& saved, double now_s, std::string* why) const;

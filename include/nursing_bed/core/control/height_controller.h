@@ -62,7 +62,7 @@ struct HeightControllerParams {
  * a resting error is integrated into the target the predictor aims at. The load is estimated
  * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
  */
-/// Size: ~26 methods and 16 members are one valve law's state (target, integral, load, hold,
+/// Size: ~27 methods and 16 members are one valve law's state (target, integral, load, hold,
 /// rest prediction); the move and the commands in flight are their own classes.
 class HeightController {
  public:
@@ -75,6 +75,8 @@ class HeightController {
   void clearTarget();
   bool hasTarget() const { return has_target_; }
   double target() const { return target_m_; }
+  /// The integral correction added to the target the predictor aims at [m].
+  double integralCorrection() const { return integral_m_; }
 
   /// One control period: measured gauge pressure [Pa], height [m], their time step [s].
   ValveOpenings update(double dt_s, double gauge_pressure_pa, double height_m);
@@ -102,8 +104,10 @@ class HeightController {
   bool targetOutOfReach() const;
   const HeightControllerParams& params() const { return params_; }
   /// Replaces the gains, bands and limits (e.g. from dynamic reconfigure) when `params` is
-  /// valid and returns ""; else returns why not and changes nothing. Target, integral
-  /// correction, load estimate and a move under way are kept.
+  /// valid and returns ""; else returns why not and changes nothing. Refused too: a new
+  /// load_filter_time_s (the load estimate is filtered with the old one). Target, load
+  /// estimate and a move under way are kept; the integral correction is bounded by the new
+  /// integral_limit_m.
   std::string setParams(const HeightControllerParams& params);
   /// The phase of the shaped move under way (kNone outside moves).
   MovePhase movePhase() const { return move_.phase(); }
