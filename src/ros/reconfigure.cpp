@@ -8,6 +8,7 @@
 
 #include "nursing_bed/core/bed/posture_plans.h"
 #include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 namespace {
@@ -64,6 +65,10 @@ Values valuesOf(const Config& config) {
   return out;
 }
 
+/// A validate()'s problems as text (empty when valid), whether it returns a Status or a string.
+inline std::string problemsOf(const Status& status) { return status.message(); }
+inline std::string problemsOf(const std::string& problems) { return problems; }
+
 template <class Config, class Params>
 Config configFrom(const Params& params, const ParamTable<Params>& table) {
   Config config = Config::__getDefault__();
@@ -88,7 +93,7 @@ std::string reconfigureWith(const Config& config, Params* params, ReconfiguredKe
     differs[f.key] = value;
     requested << (differs.size() > 1 ? ", " : "") << name << " = " << value;
   }
-  const std::string error = next.validate();
+  const std::string error = problemsOf(next.validate());
   if (!error.empty()) return "refused " + requested.str() + ": " + error + " (the running values stay)";
   *params = next;
   *changed = differs;
