@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "nursing_bed/InterfacePressure.h"
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 #include "nursing_bed/ros/names.h"
 
@@ -203,21 +204,18 @@ std_msgs::ColorRGBA pressureColour(double mmhg) {
   return mix(rgba(0.92, 0.05, 0.03), rgba(0.45, 0.0, 0.12), (mmhg - 60.0) / 40.0);
 }
 
-std::string SimulatorParams::validate() const {
-  std::ostringstream err;
-  const std::string patient_error = patient.validate();
-  if (!patient_error.empty()) err << "~patient/: " << patient_error << "; ";
-  if (!(rate_hz > 0.0 && rate_hz <= 500.0)) err << "~rate_hz must lie in (0, 500]; ";
-  if (!(load_filter_time_s >= 0.0 && load_filter_time_s <= 10.0)) err << "~load_filter_time_s must lie in [0, 10] s; ";
-  if (!(plate_weight_n >= 0.0 && std::isfinite(plate_weight_n))) err << "~plate_weight_n must be >= 0 N; ";
-  if (!(marker_rate_hz > 0.0 && marker_rate_hz <= rate_hz)) err << "~marker_rate_hz must lie in (0, rate_hz]; ";
-  if (!(cell_timeout_s > 0.0)) err << "~cell_timeout_s must be positive; ";
-  if (!(startup_wait_s >= 0.0)) err << "~startup_wait_s must be >= 0; ";
-  if (!(clock_speed > 0.0 && clock_speed <= 100.0)) err << "~clock_speed must lie in (0, 100]; ";
-  if (!(clock_step_s > 0.0 && clock_step_s <= 1.0 / rate_hz)) err << "~clock_step_s must lie in (0, 1 / rate_hz]; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+Status SimulatorParams::validate() const {
+  ErrorList errors;
+  errors.addNested(patient.validate(), "~patient/: ");
+  errors.addIf(!(rate_hz > 0.0 && rate_hz <= 500.0), "~rate_hz must lie in (0, 500]");
+  errors.addIf(!(load_filter_time_s >= 0.0 && load_filter_time_s <= 10.0), "~load_filter_time_s must lie in [0, 10] s");
+  errors.addIf(!(plate_weight_n >= 0.0 && std::isfinite(plate_weight_n)), "~plate_weight_n must be >= 0 N");
+  errors.addIf(!(marker_rate_hz > 0.0 && marker_rate_hz <= rate_hz), "~marker_rate_hz must lie in (0, rate_hz]");
+  errors.addIf(!(cell_timeout_s > 0.0), "~cell_timeout_s must be positive");
+  errors.addIf(!(startup_wait_s >= 0.0), "~startup_wait_s must be >= 0");
+  errors.addIf(!(clock_speed > 0.0 && clock_speed <= 100.0), "~clock_speed must lie in (0, 100]");
+  errors.addIf(!(clock_step_s > 0.0 && clock_step_s <= 1.0 / rate_hz), "~clock_step_s must lie in (0, 1 / rate_hz]");
+  return errors.status();
 }
 
 SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
@@ -258,8 +256,8 @@ SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
 
 Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), private_nh_(private_nh) {
   params_ = loadParams(private_nh_);
-  const std::string error = params_.validate();
-  if (!error.empty()) throw std::runtime_error("simulator: " + error);
+  const Status valid = params_.validate();
+  if (!valid.ok()) throw std::runtime_error("simulator: " + valid.message());
   std::string urdf;
   if (!nh_.getParam(params_.robot_description, urdf))
     throw std::runtime_error("simulator: no bed description on parameter '" + nh_.resolveName(params_.robot_description) +

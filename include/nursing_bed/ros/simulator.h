@@ -20,6 +20,7 @@
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/core/bed/body_model.h"
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/ros/bed_layout.h"
 
 namespace nursing_bed {
@@ -46,8 +47,8 @@ struct SimulatorParams {
   double clock_speed = 1.0;              ///< ~clock_speed: simulated seconds per wall second
   double clock_step_s = 0.005;           ///< ~clock_step_s: /clock increment [s]
 
-  /// Empty when valid, else every problem found.
-  std::string validate() const;
+  /// Success when valid, else an error with every problem found.
+  Status validate() const;
 };
 
 /// Colour of an interface pressure [mmHg]: grey without contact, green below the capillary

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "nursing_bed/core/bed/request_validator.h"
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
@@ -41,21 +42,18 @@ RateLimits rateLimits(const BedSupervisorParams& p, const BedGrid& grid) {
 
 std::string BedSupervisorParams::validate(const std::string& key_prefix) const {
   const std::string& k = key_prefix;
-  std::ostringstream err;
-  if (!(cell_timeout_s > 0.0)) err << k << "cell_timeout_s must be positive; ";
-  if (!(startup_grace_s >= 0.0)) err << k << "startup_grace_s must be >= 0; ";
-  if (!(resend_s > 0.0)) err << k << "resend_s must be positive; ";
-  if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
-    err << "the cells' safety/max_height_rate_m_s must be positive; ";
-  if (!(leak_alarm_error_m > 0.0 && leak_alarm_s > 0.0))
-    err << k << "leak_alarm_error_m and " << k << "leak_alarm_s must be positive; ";
-  if (body.first_row < 0 || body.last_row < body.first_row)
-    err << k << "body rows must satisfy 0 <= first_row <= last_row; ";
-  const std::string plan_error = plans.validate();
-  if (!plan_error.empty()) err << k << "plans: " << plan_error << "; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  ErrorList errors;
+  errors.addIf(!(cell_timeout_s > 0.0), k, "cell_timeout_s must be positive");
+  errors.addIf(!(startup_grace_s >= 0.0), k, "startup_grace_s must be >= 0");
+  errors.addIf(!(resend_s > 0.0), k, "resend_s must be positive");
+  errors.addIf(!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)),
+               "the cells' safety/max_height_rate_m_s must be positive");
+  errors.addIf(!(leak_alarm_error_m > 0.0 && leak_alarm_s > 0.0), k, "leak_alarm_error_m and ", k,
+               "leak_alarm_s must be positive");
+  errors.addIf(body.first_row < 0 || body.last_row < body.first_row, k,
+               "body rows must satisfy 0 <= first_row <= last_row");
+  errors.addNested(plans.validate(), k + "plans: ");
+  return errors.text();
 }
 
 BedSupervisor::BedSupervisor(BedSupervisorParams params, const BedGrid& grid, std::vector<BedCell> cells,

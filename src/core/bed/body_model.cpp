@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
@@ -89,23 +90,21 @@ std::vector<int> sortedUnique(std::set<int> s) { return std::vector<int>(s.begin
 
 const std::vector<SegmentSpec>& segmentTable() { return kSegmentTable; }
 
-std::string PatientParams::validate() const {
-  std::ostringstream err;
-  if (!(mass_kg >= 20.0 && mass_kg <= 250.0)) err << "mass_kg must lie in [20, 250] kg (got " << mass_kg << "); ";
-  if (!(height_m >= 1.0 && height_m <= 2.3)) err << "height_m must lie in [1.0, 2.3] m (got " << height_m << "); ";
-  if (!(head_clearance_m >= 0.0 && head_clearance_m <= 1.0))
-    err << "head_clearance_m must lie in [0, 1] m (got " << head_clearance_m << "); ";
-  if (!(tissue_stiffness_pa_m >= 1e4 && tissue_stiffness_pa_m <= 1e8))
-    err << "tissue_stiffness_pa_m must lie in [1e4, 1e8] Pa/m (got " << tissue_stiffness_pa_m << "); ";
-  if (!(std::isfinite(lateral_offset_m) && std::abs(lateral_offset_m) <= 1.0))
-    err << "lateral_offset_m must lie in [-1, 1] m (got " << lateral_offset_m << "); ";
-  if (!(contact_resolution_m >= 0.002 && contact_resolution_m <= 0.05))
-    err << "contact_resolution_m must lie in [0.002, 0.05] m (got " << contact_resolution_m << "); ";
-  if (!(max_roll_rad > 0.0 && max_roll_rad <= 1.4))
-    err << "max_roll_rad must lie in (0, 1.4] rad (got " << max_roll_rad << "); ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+Status PatientParams::validate() const {
+  ErrorList errors;
+  errors.addIf(!(mass_kg >= 20.0 && mass_kg <= 250.0), "mass_kg must lie in [20, 250] kg (got ", mass_kg, ")");
+  errors.addIf(!(height_m >= 1.0 && height_m <= 2.3), "height_m must lie in [1.0, 2.3] m (got ", height_m, ")");
+  errors.addIf(!(head_clearance_m >= 0.0 && head_clearance_m <= 1.0), "head_clearance_m must lie in [0, 1] m (got ",
+               head_clearance_m, ")");
+  errors.addIf(!(tissue_stiffness_pa_m >= 1e4 && tissue_stiffness_pa_m <= 1e8),
+               "tissue_stiffness_pa_m must lie in [1e4, 1e8] Pa/m (got ", tissue_stiffness_pa_m, ")");
+  errors.addIf(!(std::isfinite(lateral_offset_m) && std::abs(lateral_offset_m) <= 1.0),
+               "lateral_offset_m must lie in [-1, 1] m (got ", lateral_offset_m, ")");
+  errors.addIf(!(contact_resolution_m >= 0.002 && contact_resolution_m <= 0.05),
+               "contact_resolution_m must lie in [0.002, 0.05] m (got ", contact_resolution_m, ")");
+  errors.addIf(!(max_roll_rad > 0.0 && max_roll_rad <= 1.4), "max_roll_rad must lie in (0, 1.4] rad (got ",
+               max_roll_rad, ")");
+  return errors.status();
 }
 
 int BodyModel::segmentIndex(const std::string& name) {
@@ -115,8 +114,8 @@ int BodyModel::segmentIndex(const std::string& name) {
 }
 
 BodyModel::BodyModel(const PatientParams& params, const BedGrid& grid) : params_(params), grid_(grid) {
-  const std::string error = params_.validate();
-  if (!error.empty()) throw std::invalid_argument("patient parameters: " + error);
+  const Status valid = params_.validate();
+  if (!valid.ok()) throw std::invalid_argument("patient parameters: " + valid.message());
   if (grid_.rows < 1 || grid_.cols < 1 || !(grid_.pitch_m > 0.0))
     throw std::invalid_argument("body model: the bed grid is empty");
   const double H = params_.height_m;

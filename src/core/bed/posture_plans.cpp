@@ -9,28 +9,30 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
 
-std::string PlanConfig::validate() const {
-  std::ostringstream err;
-  if (!(min_height_m >= 0.0 && max_height_m > min_height_m)) err << "need 0 <= min_height_m < max_height_m; ";
-  if (!(nominal_height_m >= min_height_m && nominal_height_m <= max_height_m))
-    err << "nominal_height_m must lie in [min_height_m, max_height_m]; ";
-  if (!(max_tilt_deg > 0.0 && max_tilt_deg <= kHardMaxTiltDeg)) err << "max_tilt_deg must lie in (0, 40]; ";
-  if (!(max_tilt_rate_deg_s > 0.0)) err << "max_tilt_rate_deg_s must be positive; ";
-  if (!(bed_tilt_rate_fraction > 0.0 && bed_tilt_rate_fraction <= 1.0)) err << "bed_tilt_rate_fraction must lie in (0, 1]; ";
-  if (!(turn_ramp_s > 0.0 && turn_dwell_s >= 0.0)) err << "turn_ramp_s must be positive, turn_dwell_s >= 0; ";
-  if (!(alternating_low_m >= min_height_m && alternating_high_m <= max_height_m && alternating_low_m < alternating_high_m))
-    err << "alternating heights must satisfy min <= low < high <= max; ";
-  if (!(alternating_transition_s > 0.0)) err << "alternating_transition_s must be positive; ";
-  if (!(alternating_period_s >= 6.0 * alternating_transition_s)) err << "alternating_period_s too short for the transition; ";
-  if (static_head_rows < 0) err << "static_head_rows must be >= 0; ";
-  if (!(max_inflate_timeout_s > 0.0)) err << "max_inflate_timeout_s must be positive; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+Status PlanConfig::validate() const {
+  ErrorList errors;
+  errors.addIf(!(min_height_m >= 0.0 && max_height_m > min_height_m), "need 0 <= min_height_m < max_height_m");
+  errors.addIf(!(nominal_height_m >= min_height_m && nominal_height_m <= max_height_m),
+               "nominal_height_m must lie in [min_height_m, max_height_m]");
+  errors.addIf(!(max_tilt_deg > 0.0 && max_tilt_deg <= kHardMaxTiltDeg), "max_tilt_deg must lie in (0, 40]");
+  errors.addIf(!(max_tilt_rate_deg_s > 0.0), "max_tilt_rate_deg_s must be positive");
+  errors.addIf(!(bed_tilt_rate_fraction > 0.0 && bed_tilt_rate_fraction <= 1.0),
+               "bed_tilt_rate_fraction must lie in (0, 1]");
+  errors.addIf(!(turn_ramp_s > 0.0 && turn_dwell_s >= 0.0), "turn_ramp_s must be positive, turn_dwell_s >= 0");
+  errors.addIf(!(alternating_low_m >= min_height_m && alternating_high_m <= max_height_m &&
+                 alternating_low_m < alternating_high_m),
+               "alternating heights must satisfy min <= low < high <= max");
+  errors.addIf(!(alternating_transition_s > 0.0), "alternating_transition_s must be positive");
+  errors.addIf(!(alternating_period_s >= 6.0 * alternating_transition_s),
+               "alternating_period_s too short for the transition");
+  errors.addIf(static_head_rows < 0, "static_head_rows must be >= 0");
+  errors.addIf(!(max_inflate_timeout_s > 0.0), "max_inflate_timeout_s must be positive");
+  return errors.status();
 }
 
 namespace {

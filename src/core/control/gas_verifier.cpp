@@ -5,23 +5,23 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
+
 namespace nursing_bed {
 
-std::string GasVerifierParams::validate() const {
-  std::ostringstream err;
-  if (!(resume_vent_s >= 0.0 && resume_vent_s <= 0.2))
-    err << "resume_vent_s must lie in [0, 0.2] s (a check, not a vent), got " << resume_vent_s << "; ";
-  if (!(reanchor_below_m >= 0.0 && std::isfinite(reanchor_below_m)))
-    err << "reanchor_below_m must be >= 0, got " << reanchor_below_m << "; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+Status GasVerifierParams::validate() const {
+  ErrorList errors;
+  errors.addIf(!(resume_vent_s >= 0.0 && resume_vent_s <= 0.2),
+               "resume_vent_s must lie in [0, 0.2] s (a check, not a vent), got ", resume_vent_s);
+  errors.addIf(!(reanchor_below_m >= 0.0 && std::isfinite(reanchor_below_m)), "reanchor_below_m must be >= 0, got ",
+               reanchor_below_m);
+  return errors.status();
 }
 
 namespace {
 const GasVerifierParams& validated(const GasVerifierParams& p) {
-  const std::string error = p.validate();
-  if (!error.empty()) throw std::invalid_argument("gas check parameters: " + error);
+  const Status valid = p.validate();
+  if (!valid.ok()) throw std::invalid_argument("gas check parameters: " + valid.message());
   return p;
 }
 }  // namespace

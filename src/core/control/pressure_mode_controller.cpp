@@ -5,22 +5,22 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
+
 namespace nursing_bed {
 
-std::string PressureModeParams::validate() const {
-  std::ostringstream err;
-  if (!(band_pa > 0.0 && std::isfinite(band_pa))) err << "band_pa must be positive, got " << band_pa << "; ";
-  if (!(tolerance_pa >= 0.0 && tolerance_pa < band_pa))
-    err << "tolerance_pa must lie in [0, band_pa), got " << tolerance_pa << "; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+Status PressureModeParams::validate() const {
+  ErrorList errors;
+  errors.addIf(!(band_pa > 0.0 && std::isfinite(band_pa)), "band_pa must be positive, got ", band_pa);
+  errors.addIf(!(tolerance_pa >= 0.0 && tolerance_pa < band_pa), "tolerance_pa must lie in [0, band_pa), got ",
+               tolerance_pa);
+  return errors.status();
 }
 
 namespace {
 const PressureModeParams& validated(const PressureModeParams& p) {
-  const std::string error = p.validate();
-  if (!error.empty()) throw std::invalid_argument("pressure mode parameters: " + error);
+  const Status valid = p.validate();
+  if (!valid.ok()) throw std::invalid_argument("pressure mode parameters: " + valid.message());
   return p;
 }
 }  // namespace

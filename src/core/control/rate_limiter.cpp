@@ -5,6 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
+
 namespace nursing_bed {
 namespace {
 
@@ -24,25 +26,23 @@ void slopeParts(const std::vector<double>& w, const std::vector<double>& previou
 
 }  // namespace
 
-std::string RateLimits::validate(std::size_t size) const {
-  std::ostringstream err;
-  if (!(max_rate_per_s > 0.0)) err << "max_rate_per_s must be positive (got " << max_rate_per_s << "); ";
-  if (!(max_angle_rate_rad_s > 0.0)) err << "max_angle_rate_rad_s must be positive (got " << max_angle_rate_rad_s << "); ";
-  if (!slope_weights.empty() && slope_weights.size() != size)
-    err << slope_weights.size() << " slope weights for " << size << " positions; ";
+Status RateLimits::validate(std::size_t size) const {
+  ErrorList errors;
+  errors.addIf(!(max_rate_per_s > 0.0), "max_rate_per_s must be positive (got ", max_rate_per_s, ")");
+  errors.addIf(!(max_angle_rate_rad_s > 0.0), "max_angle_rate_rad_s must be positive (got ", max_angle_rate_rad_s, ")");
+  errors.addIf(!slope_weights.empty() && slope_weights.size() != size, slope_weights.size(), " slope weights for ",
+               size, " positions");
   for (double w : slope_weights)
     if (!std::isfinite(w)) {
-      err << "slope weights must be finite; ";
+      errors.add("slope weights must be finite");
       break;
     }
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  return errors.status();
 }
 
 RateLimiter::RateLimiter(RateLimits limits, std::size_t size) : limits_(std::move(limits)), size_(size) {
-  const std::string error = limits_.validate(size);
-  if (!error.empty()) throw std::invalid_argument("rate limiter: " + error);
+  const Status valid = limits_.validate(size);
+  if (!valid.ok()) throw std::invalid_argument("rate limiter: " + valid.message());
 }
 
 double RateLimiter::angle(const std::vector<double>& x) const {

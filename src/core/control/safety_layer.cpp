@@ -5,23 +5,23 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
+
 namespace nursing_bed {
 
 std::string AirbagSafetyParams::validate() const {
-  std::ostringstream err;
-  if (!(relief_pressure_pa > 0.0 && std::isfinite(relief_pressure_pa))) err << "relief_pressure_pa must be positive; ";
-  if (!(relief_margin_pa >= 0.0 && relief_margin_pa < relief_pressure_pa))
-    err << "relief_margin_pa must lie in [0, relief_pressure_pa); ";
-  if (!(command_timeout_s >= 0.0)) err << "command_timeout_s must be >= 0; ";
-  if (!(sensor_pressure_max_pa > sensor_pressure_min_pa)) err << "sensor pressure range is empty; ";
-  if (!(sensor_height_max_m > sensor_height_min_m)) err << "sensor height range is empty; ";
-  if (!(sensor_fault_periods >= 1 && sensor_fault_periods <= 100)) err << "sensor_fault_periods must lie in 1..100; ";
-  if (!(max_load_n > 0.0 && std::isfinite(max_load_n))) err << "max_load_n must be a positive finite load; ";
-  if (!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)))
-    err << "max_height_rate_m_s must be a positive finite rate; ";
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  ErrorList errors;
+  errors.addIf(!(relief_pressure_pa > 0.0 && std::isfinite(relief_pressure_pa)), "relief_pressure_pa must be positive");
+  errors.addIf(!(relief_margin_pa >= 0.0 && relief_margin_pa < relief_pressure_pa),
+               "relief_margin_pa must lie in [0, relief_pressure_pa)");
+  errors.addIf(!(command_timeout_s >= 0.0), "command_timeout_s must be >= 0");
+  errors.addIf(!(sensor_pressure_max_pa > sensor_pressure_min_pa), "sensor pressure range is empty");
+  errors.addIf(!(sensor_height_max_m > sensor_height_min_m), "sensor height range is empty");
+  errors.addIf(!(sensor_fault_periods >= 1 && sensor_fault_periods <= 100), "sensor_fault_periods must lie in 1..100");
+  errors.addIf(!(max_load_n > 0.0 && std::isfinite(max_load_n)), "max_load_n must be a positive finite load");
+  errors.addIf(!(max_height_rate_m_s > 0.0 && std::isfinite(max_height_rate_m_s)),
+               "max_height_rate_m_s must be a positive finite rate");
+  return errors.text();
 }
 
 namespace {

@@ -7,8 +7,8 @@ namespace nursing_bed {
 namespace fe {
 
 Status FilmMaterial::validate() const {
-  const std::string yeoh_error = yeoh.validate();
-  if (!yeoh_error.empty()) return Status::error("material: " + yeoh_error);
+  const Status yeoh_valid = yeoh.validate();
+  if (!yeoh_valid.ok()) return Status::error("material: " + yeoh_valid.message());
   if (!(density_kg_m3 > 0.0) || !std::isfinite(density_kg_m3)) {
     std::ostringstream err;
     err << "density_kg_m3 must be positive and finite, got " << density_kg_m3;

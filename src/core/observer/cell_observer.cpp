@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
+
 namespace nursing_bed {
 namespace {
 
@@ -33,29 +35,23 @@ constexpr double kBoundStandardErrors = 4.0;
 constexpr double kNoisePriorReadings = 20.0;
 constexpr double kNoiseMemoryReadings = 24000.0;
 
-std::string joinErrors(const std::ostringstream& err) {
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
-}
-
 const CellParams& validModel(const CellParams& model, const CellObserverParams& params) {
-  std::string error = params.validate();
-  if (!error.empty()) throw std::invalid_argument("observer parameters: " + error);
-  error = model.validate();
+  const Status valid = params.validate();
+  if (!valid.ok()) throw std::invalid_argument("observer parameters: " + valid.message());
+  const std::string error = model.validate();
   if (!error.empty()) throw std::invalid_argument("observer model: " + error);
   return model;
 }
 
 }  // namespace
 
-std::string CellObserverParams::validate() const {
-  std::ostringstream err;
-  auto positive = [&err](const char* name, double v) {
-    if (!(v > 0.0 && std::isfinite(v))) err << name << " must be positive, got " << v << "; ";
+Status CellObserverParams::validate() const {
+  ErrorList errors;
+  auto positive = [&errors](const char* name, double v) {
+    errors.addIf(!(v > 0.0 && std::isfinite(v)), name, " must be positive, got ", v);
   };
-  auto non_negative = [&err](const char* name, double v) {
-    if (!(v >= 0.0 && std::isfinite(v))) err << name << " must be >= 0, got " << v << "; ";
+  auto non_negative = [&errors](const char* name, double v) {
+    errors.addIf(!(v >= 0.0 && std::isfinite(v)), name, " must be >= 0, got ", v);
   };
   positive("period_s", period_s);
   positive("pressure_noise_pa", pressure_noise_pa);
@@ -69,7 +65,7 @@ std::string CellObserverParams::validate() const {
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
   non_negative("weight_bound_window_s", weight_bound_window_s);
-  return joinErrors(err);
+  return errors.status();
 }
 
 CellObserver::CellObserver(const CellParams& model, const CellObserverParams& params,

@@ -4,23 +4,22 @@
 #include <cmath>
 #include <sstream>
 
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
 
-std::string BellowsParams::validate() const {
-  std::ostringstream err;
-  auto positive = [&err](const char* name, double value) {
-    if (!(value > 0.0) || !std::isfinite(value))
-      err << "bellows " << name << " must be a positive finite number, got " << value << "; ";
+Status BellowsParams::validate() const {
+  ErrorList errors;
+  auto positive = [&errors](const char* name, double value) {
+    errors.addIf(!(value > 0.0) || !std::isfinite(value), "bellows ", name, " must be a positive finite number, got ",
+                 value);
   };
   positive("area_m2", area_m2);
   positive("compliance_m3_pa", compliance_m3_pa);
   positive("dead_volume_m3", dead_volume_m3);
   positive("stroke_m", stroke_m);
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  return errors.status();
 }
 
 BellowsStructure::BellowsStructure(const BellowsParams& params)

@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/orifice.h"
 
 namespace nursing_bed {
@@ -18,9 +19,9 @@ constexpr double kRos2Gamma = 1.0 + 0.70710678118654752440;
 }  // namespace
 
 std::string CellParams::validate() const {
-  std::ostringstream err;
-  auto check = [&err](bool ok, const char* name, double value, const char* rule) {
-    if (!ok) err << name << " " << rule << ", got " << value << "; ";
+  ErrorList errors;
+  auto check = [&errors](bool ok, const char* name, double value, const char* rule) {
+    errors.addIf(!ok, name, " ", rule, ", got ", value);
   };
   auto positive = [&check](const char* name, double v) {
     check(v > 0.0 && std::isfinite(v), name, v, "must be a positive finite number");
@@ -28,19 +29,17 @@ std::string CellParams::validate() const {
   auto non_negative = [&check](const char* name, double v) {
     check(v >= 0.0 && std::isfinite(v), name, v, "must be >= 0 and finite");
   };
-  const std::string gas_error = gas.validate();
-  if (!gas_error.empty()) err << "gas: " << gas_error << "; ";
+  errors.addNested(gas.validate(), "gas: ");
   positive("ambient_pressure_pa", ambient_pressure_pa);
   positive("ambient_temperature_k", ambient_temperature_k);
   positive("supply_temperature_k", supply_temperature_k);
-  const std::string structure_error = structure.validate();
-  if (!structure_error.empty()) err << structure_error << "; ";
+  errors.addNested(structure.validate());
   if (structure_type != "pillow" && structure_type != "table" && structure_type != "bellows") {
-    err << "structure_type must be 'pillow', 'table' or 'bellows', got '" << structure_type << "'; ";
+    errors.add("structure_type must be 'pillow', 'table' or 'bellows', got '", structure_type, "'");
   } else if (structure_type == "table" && structure_table_file.empty()) {
-    err << "structure_table_file must be set when structure_type is 'table'; ";
-  } else if (structure_type == "bellows" && !bellows.validate().empty()) {
-    err << bellows.validate() << "; ";
+    errors.add("structure_table_file must be set when structure_type is 'table'");
+  } else if (structure_type == "bellows") {
+    errors.addNested(bellows.validate());
   }
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
@@ -63,9 +62,7 @@ std::string CellParams::validate() const {
         jacobian_refresh_steps, "must lie in 1..100");
   check(relative_tolerance >= 1e-10 && relative_tolerance <= 1e-1, "relative_tolerance",
         relative_tolerance, "must lie in [1e-10, 0.1]");
-  std::string s = err.str();
-  if (s.size() >= 2) s.resize(s.size() - 2);
-  return s;
+  return errors.text();
 }
 
 double CellParams::reliefOpening(double gauge_pressure_pa) const {

@@ -9,12 +9,12 @@ double GasProperties::criticalPressureRatio() const {
   return std::pow(2.0 / (g + 1.0), g / (g - 1.0));
 }
 
-std::string GasProperties::validate() const {
+Status GasProperties::validate() const {
   if (!(gas_constant_j_kg_k > 0.0) || !std::isfinite(gas_constant_j_kg_k))
-    return "gas_constant_j_kg_k must be a positive finite number";
+    return Status::error("gas_constant_j_kg_k must be a positive finite number");
   if (!(heat_capacity_ratio > 1.0) || !(heat_capacity_ratio < 2.0))
-    return "heat_capacity_ratio must lie in (1, 2)";
-  return "";
+    return Status::error("heat_capacity_ratio must lie in (1, 2)");
+  return Status::success();
 }
 
 }  // namespace nursing_bed

@@ -259,7 +259,7 @@ YeohFit fitYeoh(const TensileData& data, const YeohFitOptions& options) {
   fit.weighting = options.weighting;
   residualStatistics(data, a_mat, b, w_rel, c, &fit);
   standardErrors(qr, scale, a_w, b_w, c, &fit);
-  fit.validation = fit.material.validate();
+  fit.validation = fit.material.validate().message();
   return fit;
 }
 

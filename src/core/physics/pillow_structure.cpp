@@ -13,7 +13,7 @@ namespace {
 constexpr double kCornerAreaFactor = kPi * kPi / 4.0 - kPi / 2.0;
 }  // namespace
 
-std::string PillowParams::validate() const {
+Status PillowParams::validate() const {
   ErrorList errors;
   auto positive = [&errors](const char* name, double value) {
     errors.addIf(!(value > 0.0) || !std::isfinite(value), name, " must be a positive finite number, got ", value);
@@ -28,7 +28,7 @@ std::string PillowParams::validate() const {
                gusset_height_m);
   errors.addIf(chambers < 1 || chambers > 8, "chambers must be 1..8, got ", chambers);
   errors.addNested(material.validate(), "material: ");
-  return errors.text();
+  return errors.status();
 }
 
 PillowStructure::PillowStructure(const PillowParams& params) : params_(params) {

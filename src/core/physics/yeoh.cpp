@@ -3,6 +3,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "nursing_bed/core/io/errors.h"
+
 namespace nursing_bed {
 
 double YeohMaterial::energy(double i1) const {
@@ -48,25 +50,23 @@ double YeohMaterial::equibiaxialEnergySecondDerivative(double stretch) const {
   return energySecondDerivative(i1) * di1 * di1 + energyDerivative(i1) * d2i1;
 }
 
-std::string YeohMaterial::validate() const {
-  std::ostringstream err;
+Status YeohMaterial::validate() const {
+  ErrorList errors;
   if (!std::isfinite(c10_pa) || !std::isfinite(c20_pa) || !std::isfinite(c30_pa)) {
-    err << "Yeoh constants must be finite";
+    errors.add("Yeoh constants must be finite");
   } else if (!(c10_pa > 0.0)) {
-    err << "c10_pa must be positive (initial shear modulus 2*C10), got " << c10_pa;
+    errors.add("c10_pa must be positive (initial shear modulus 2*C10), got ", c10_pa);
   } else if (c30_pa < 0.0) {
-    err << "c30_pa must be >= 0 (else the film softens without bound at large stretch), got "
-        << c30_pa;
+    errors.add("c30_pa must be >= 0 (else the film softens without bound at large stretch), got ", c30_pa);
   } else if (c30_pa > 0.0) {
     // dW/dI1 = C10 + 2 C20 x + 3 C30 x^2 has its minimum at x = -C20/(3 C30).
     const double x_min = -c20_pa / (3.0 * c30_pa);
     if (x_min > 0.0 && energyDerivative(3.0 + x_min) <= 0.0)
-      err << "Yeoh constants give dW/dI1 <= 0 at I1 = " << 3.0 + x_min
-          << " (material instability); check c20_pa";
+      errors.add("Yeoh constants give dW/dI1 <= 0 at I1 = ", 3.0 + x_min, " (material instability); check c20_pa");
   } else if (c20_pa < 0.0) {
-    err << "with c30_pa = 0 a negative c20_pa makes dW/dI1 negative at large stretch";
+    errors.add("with c30_pa = 0 a negative c20_pa makes dW/dI1 negative at large stretch");
   }
-  return err.str();
+  return errors.status();
 }
 
 }  // namespace nursing_bed

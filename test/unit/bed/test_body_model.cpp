@@ -302,7 +302,7 @@ TEST(BodyModel, CoupledToHeldCellsTheFilteredLoadsSettle) {
 TEST(BodyModel, BadParametersAreRefusedWithAMessage) {
   nb::BedGrid g;
   auto refused = [&](nb::PatientParams p, const std::string& field) {
-    EXPECT_NE(p.validate().find(field), std::string::npos) << p.validate();
+    EXPECT_NE(p.validate().message().find(field), std::string::npos) << p.validate().message();
     try {
       nb::BodyModel body(p, g);
       ADD_FAILURE() << "accepted bad " << field;
@@ -311,7 +311,7 @@ TEST(BodyModel, BadParametersAreRefusedWithAMessage) {
     }
   };
   nb::PatientParams p;
-  EXPECT_EQ(p.validate(), "");
+  EXPECT_TRUE(p.validate().ok());
   p.mass_kg = -70.0;
   refused(p, "mass_kg");
   p = nb::PatientParams{};

@@ -143,9 +143,9 @@ TEST(PosturePlans, PlanKindsKeepTheirRequestNames) {
 
 TEST(PosturePlans, ConfigValidation) {
   nb::PlanConfig c;
-  EXPECT_TRUE(c.validate().empty());
+  EXPECT_TRUE(c.validate().ok());
   c.max_tilt_deg = 45.0;
-  EXPECT_NE(c.validate().find("max_tilt_deg"), std::string::npos);
+  EXPECT_NE(c.validate().message().find("max_tilt_deg"), std::string::npos);
 }
 
 }  // namespace

@@ -81,7 +81,7 @@ TEST(PressureModeController, OpensInProportionBeyondTheDeadband) {
   EXPECT_TRUE(std::isnan(pressure.setpoint()));
   nb::PressureModeParams bad;
   bad.tolerance_pa = 2000.0;
-  EXPECT_NE(bad.validate().find("tolerance_pa"), std::string::npos);
+  EXPECT_NE(bad.validate().message().find("tolerance_pa"), std::string::npos);
   EXPECT_THROW(nb::PressureModeController{bad}, std::invalid_argument);
 }
 

@@ -16,10 +16,10 @@ TEST(Gas, AirPropertiesAndCriticalRatio) {
   EXPECT_NEAR(kAir.cv(), 717.6, 0.1);
   EXPECT_NEAR(kAir.cp(), 1004.7, 0.1);
   EXPECT_NEAR(kAir.criticalPressureRatio(), 0.5283, 1e-4);
-  EXPECT_TRUE(kAir.validate().empty());
+  EXPECT_TRUE(kAir.validate().ok());
   nb::GasProperties bad;
   bad.heat_capacity_ratio = 0.9;
-  EXPECT_NE(bad.validate().find("heat_capacity_ratio"), std::string::npos);
+  EXPECT_NE(bad.validate().message().find("heat_capacity_ratio"), std::string::npos);
 }
 
 TEST(Gas, EnergyPressureTemperatureRoundTrip) {

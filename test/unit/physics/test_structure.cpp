@@ -114,10 +114,10 @@ TEST(PillowStructure, HeightAndPressureEquilibriaAreInverse) {
 
 TEST(PillowStructure, ParamsValidationNamesTheField) {
   nb::PillowParams p;
-  EXPECT_TRUE(p.validate().empty());
+  EXPECT_TRUE(p.validate().ok());
   p.film_thickness_m = 0.0;
   p.chambers = 0;
-  const std::string err = p.validate();
+  const std::string err = p.validate().message();
   EXPECT_NE(err.find("film_thickness_m"), std::string::npos);
   EXPECT_NE(err.find("chambers"), std::string::npos);
 }

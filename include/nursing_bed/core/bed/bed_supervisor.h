@@ -32,7 +32,8 @@ struct BedSupervisorParams {
   double max_height_rate_m_s = 0.02;
   PlanConfig plans;
   BodyFootprint body;
-  /// Empty when valid, else every problem; keys are named with `key_prefix` before them.
+  /// Empty when valid, else every problem; keys are named with `key_prefix` before them (a string,
+  /// not a Status, while BedManagerParams::validate() appends it to its own string).
   std::string validate(const std::string& key_prefix = "") const;
 };
 

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "nursing_bed/core/bed/bed_grid.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 
@@ -36,8 +37,8 @@ struct PatientParams {
   bool smooth_cover = true;
   double max_roll_rad = 1.0;             ///< a segment's roll is bounded to +-this (it would roll off) [rad]
 
-  /// Empty when valid, else every problem found, each naming the field.
-  std::string validate() const;
+  /// Success when valid, else an error with every problem found, each naming the field.
+  Status validate() const;
 };
 
 /// One line of the segment table: anthropometry (fractions of stature H or body mass) and the

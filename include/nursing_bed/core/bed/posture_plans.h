@@ -12,6 +12,7 @@
 
 #include "nursing_bed/core/bed/bed_grid.h"
 #include "nursing_bed/core/io/param_table.h"
+#include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
 
@@ -37,7 +38,8 @@ struct PlanConfig {
   double alternating_transition_s = 5.0; ///< the rising group gets this long before the next one lowers [s]
   int static_head_rows = 2;              ///< head rows that alternating leaves at the nominal height
   double max_inflate_timeout_s = 900.0;  ///< default time before max_inflate reverts [s]
-  std::string validate() const;
+  /// Success when valid, else an error with every problem found, separated by "; ".
+  Status validate() const;
 };
 
 /// Where the body lies, so that plans act under it (from the simulator's body model, or the

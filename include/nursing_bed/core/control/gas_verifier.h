@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/observer/cell_observer.h"
 #include "nursing_bed/core/physics/valve_openings.h"
 
@@ -23,8 +24,8 @@ struct GasVerifierParams {
   /// next rise; 0: never [m].
   double reanchor_below_m = 0.035;
 
-  /// Empty when valid, else every problem found, separated by "; ".
-  std::string validate() const;
+  /// Success when valid, else an error with every problem found, separated by "; ".
+  Status validate() const;
 };
 
 /// What the observer's gas is worth: known (a simulated plant reset with it, a height given, a

@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/physics/valve_openings.h"
 
 namespace nursing_bed {
@@ -12,8 +13,8 @@ namespace nursing_bed {
 struct PressureModeParams {
   double band_pa = 1000.0;      ///< pressure error at which a valve opens fully [Pa]
   double tolerance_pa = 50.0;   ///< deadband: both valves shut within it [Pa]
-  /// Empty when valid, else every problem found, separated by "; ".
-  std::string validate() const;
+  /// Success when valid, else an error with every problem found, separated by "; ".
+  Status validate() const;
 };
 
 class PressureModeController {

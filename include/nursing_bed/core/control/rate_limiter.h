@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/status.h"
+
 namespace nursing_bed {
 
 struct RateLimits {
@@ -18,8 +20,8 @@ struct RateLimits {
   /// Fastest change of atan(s) [rad/s]; infinity: no limit.
   double max_angle_rate_rad_s = std::numeric_limits<double>::infinity();
 
-  /// Empty when valid for `size` positions, else what is wrong.
-  std::string validate(std::size_t size) const;
+  /// Success when valid for `size` positions, else an error naming what is wrong.
+  Status validate(std::size_t size) const;
 };
 
 /**

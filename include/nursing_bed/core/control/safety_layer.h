@@ -24,6 +24,8 @@ struct AirbagSafetyParams {
   /// it sends with it, the airbag node ramps direct set_height calls with it [m/s] (the core
   /// cell takes targets as given).
   double max_height_rate_m_s = 0.02;
+  /// Empty when valid, else every problem found, separated by "; " (a string, not a Status, while
+  /// AirbagCellParams::validate() gathers it with other string checks).
   std::string validate() const;
 };
 

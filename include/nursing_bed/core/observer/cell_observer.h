@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/observer/observer_inputs.h"
 #include "nursing_bed/core/observer/reading_noise.h"
 #include "nursing_bed/core/observer/reanchor_detector.h"
@@ -41,8 +42,8 @@ struct CellObserverParams {
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
 
-  /// Empty when valid, else every problem found, separated by "; ".
-  std::string validate() const;
+  /// Success when valid, else an error with every problem found, separated by "; ".
+  Status validate() const;
 };
 
 /// What one step found, for the control side to act on (the counts in CellEstimate are for

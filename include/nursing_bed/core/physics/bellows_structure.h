@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/physics/cell_structure.h"
 
 namespace nursing_bed {
@@ -18,8 +19,8 @@ struct BellowsParams {
 
   /// Spring rate k = A^2 / C [N/m].
   double springRate() const { return area_m2 * area_m2 / compliance_m3_pa; }
-  /// Empty when valid, else what is wrong.
-  std::string validate() const;
+  /// Success when valid, else an error naming what is wrong.
+  Status validate() const;
 };
 
 /**

@@ -3,6 +3,8 @@
 
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
+
 namespace nursing_bed {
 
 /// Calorically perfect gas. Defaults: dry air (R = 287.05 J/(kg K), gamma = 1.40).
@@ -14,8 +16,8 @@ struct GasProperties {
   double cp() const { return heat_capacity_ratio * cv(); }
   /// Critical (choking) pressure ratio (2/(gamma+1))^(gamma/(gamma-1)), 0.528 for air.
   double criticalPressureRatio() const;
-  /// Empty string when valid, else what is wrong.
-  std::string validate() const;
+  /// Success when valid, else an error naming what is wrong.
+  Status validate() const;
 };
 
 /// Absolute pressure of gas with internal energy U in volume V: p = (gamma-1) U / V (eq. 16).

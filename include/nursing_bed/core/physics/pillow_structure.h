@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/physics/cell_structure.h"
 #include "nursing_bed/core/physics/yeoh.h"
 
@@ -21,8 +22,8 @@ struct PillowParams {
   double max_film_stretch = 2.0;       ///< largest equibiaxial stretch the film is trusted to (rupture margin)
   YeohMaterial material;               ///< film constitutive law (paper eq. 7)
 
-  /// Empty when valid, else what is wrong.
-  std::string validate() const;
+  /// Success when valid, else an error naming what is wrong.
+  Status validate() const;
 };
 
 /**

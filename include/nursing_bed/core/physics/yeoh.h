@@ -3,6 +3,8 @@
 
 #include <string>
 
+#include "nursing_bed/core/io/status.h"
+
 namespace nursing_bed {
 
 /**
@@ -38,9 +40,9 @@ struct YeohMaterial {
   /// Small-strain Young's modulus E = 6 C10 [Pa].
   double youngsModulus() const { return 6.0 * c10_pa; }
 
-  /// Empty when the constants give a positive initial modulus and dW/dI1 > 0 for all
-  /// I1 >= 3 (no material instability in tension); else what is wrong.
-  std::string validate() const;
+  /// Success when the constants give a positive initial modulus and dW/dI1 > 0 for all
+  /// I1 >= 3 (no material instability in tension); else an error naming what is wrong.
+  Status validate() const;
 };
 
 }  // namespace nursing_bed
