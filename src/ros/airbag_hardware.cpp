@@ -6,8 +6,8 @@
 #include <mutex>
 #include <sstream>
 
-#include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/control/airbag_params_io.h"
+#include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/ros/ros_params.h"
@@ -57,7 +57,8 @@ AirbagHardwareParams AirbagHardwareParams::load(const ros::NodeHandle& pnh, cons
   FlatParams values = layeredRosParams(pnh, defaults_ns, {"observer"});
   for (const char* text_key : {"observer/cell_params", "observer/effects"}) values.erase(text_key);
   values.erase("observer/force");
-  if (!pnh.getParam("observer/force", p.observer_force)) pnh.getParam(defaults_ns + "/observer/force", p.observer_force);
+  if (!pnh.getParam("observer/force", p.observer_force))
+    pnh.getParam(defaults_ns + "/observer/force", p.observer_force);
   applyObserverParams(values, "parameters of " + pnh.getNamespace(), &p.observer, &p.gas_check, "observer/");
   return p;
 }

@@ -2,8 +2,8 @@
 
 #include <sensor_msgs/FluidPressure.h>
 
-#include <boost/make_shared.hpp>
 #include <algorithm>
+#include <boost/make_shared.hpp>
 #include <cmath>
 #include <sstream>
 
@@ -47,13 +47,15 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("defaults_ns", p.defaults_ns, p.defaults_ns);
   pnh.param("robot_description_param", p.robot_description, p.robot_description);
   // The rate may come from the defaults namespace too (real_bed.launch runs the cells faster).
-  if (!pnh.getParam("update_rate_hz", p.update_rate_hz)) pnh.param(p.defaults_ns + "/update_rate_hz", p.update_rate_hz, p.update_rate_hz);
+  if (!pnh.getParam("update_rate_hz", p.update_rate_hz))
+    pnh.param(p.defaults_ns + "/update_rate_hz", p.update_rate_hz, p.update_rate_hz);
   pnh.param("publish_rate_hz", p.publish_rate_hz, p.publish_rate_hz);
   pnh.param("load_n", p.load_n, p.load_n);
   pnh.param("initial_height_m", p.initial_height_m, p.initial_height_m);
   pnh.param("supply_pressure_pa", p.supply_pressure_pa, p.supply_pressure_pa);
   pnh.param("effects", p.effects, p.effects);
-  if (!pnh.getParam("reconfigure", p.reconfigure)) pnh.param(p.defaults_ns + "/reconfigure", p.reconfigure, p.reconfigure);
+  if (!pnh.getParam("reconfigure", p.reconfigure))
+    pnh.param(p.defaults_ns + "/reconfigure", p.reconfigure, p.reconfigure);
   const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
   p.hardware = AirbagHardwareParams::load(pnh, p.defaults_ns);
@@ -85,8 +87,9 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     throw std::runtime_error("airbag " + names::airbagName(params_.row, params_.col) + ": " + valid.message());
 
   cell_ = makeCell();
-  if (!params_.effects.empty()) ROS_INFO("airbag %s: simulated with hidden effects: %s",
-                                         names::airbagName(params_.row, params_.col).c_str(), params_.effects.c_str());
+  if (!params_.effects.empty())
+    ROS_INFO("airbag %s: simulated with hidden effects: %s", names::airbagName(params_.row, params_.col).c_str(),
+             params_.effects.c_str());
   if (params_.initial_height_m > 0.0) {
     cell_->resetToHeight(params_.initial_height_m, params_.load_n);
   } else {
@@ -115,8 +118,8 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     ROS_WARN("%s: ~update_rate_hz %g ignored: this process's airbags tick at %g Hz (the first one's rate)",
              layout_.link_name.c_str(), params_.update_rate_hz, ticker.rateHz());
   params_.update_rate_hz = ticker.rateHz();
-  ticker_handle_ = ticker.add([this](const ros::Time& now) { update(now); },
-                              [this](const ros::Time& now) { publish(now); });
+  ticker_handle_ =
+      ticker.add([this](const ros::Time& now) { update(now); }, [this](const ros::Time& now) { publish(now); });
   if (params_.reconfigure)  // each server costs the start-up a few master calls per parameter
     reconfigure_ = std::make_unique<ReconfigureServer<AirbagCellConfig>>(
         private_nh_, airbagConfigFrom(params_), [this](AirbagCellConfig& config) { onReconfigure(config); });
@@ -172,8 +175,9 @@ void AirbagNode::update(const ros::Time& now) {
   // read(), and the cell integrates that mean over its own period (with the round's time a
   // cell late in the round would count a pulse as pulse x period / span; doc/real_bed.md).
   const double period_s = 1.0 / params_.update_rate_hz;
-  const double until_s = params_.hardware.simulated() ? std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s)
-                                                      : elapsed(ros::Time::now());
+  const double until_s = params_.hardware.simulated()
+                             ? std::min(elapsed(now), cell_->time() + kCatchUpPeriods * period_s)
+                             : elapsed(ros::Time::now());
   stepDirectRamp(until_s);
   cell_->advanceTo(until_s);
   reportGasSearch();
@@ -191,9 +195,10 @@ void AirbagNode::reportGasSearch() {
   }
   if (finding && !gas_search_warned_ && cell_->time() - gas_search_start_s_ > kGasSearchWarnS) {
     gas_search_warned_ = true;
-    ROS_WARN("%s: started over a cell holding gas (%.0f Pa now, no height sensor): venting it flat before it is "
-             "controlled; its height is unknown until then (height_sd_m inf)",
-             layout_.link_name.c_str(), cell_->measurement().gauge_pressure_pa);
+    ROS_WARN(
+        "%s: started over a cell holding gas (%.0f Pa now, no height sensor): venting it flat before it is "
+        "controlled; its height is unknown until then (height_sd_m inf)",
+        layout_.link_name.c_str(), cell_->measurement().gauge_pressure_pa);
   }
   if (!finding && finding_gas_ && gas_search_warned_) {
     ROS_INFO("%s: vented flat in %.1f s, its gas known again: controlled from here", layout_.link_name.c_str(),
@@ -211,8 +216,8 @@ void AirbagNode::reportGasSearch() {
 
 void AirbagNode::stepDirectRamp(double now_s) {
   if (!std::isfinite(direct_target_m_)) return;
-  direct_ramp_m_ = limitRate(direct_ramp_m_, direct_target_m_, params_.airbag.safety.max_height_rate_m_s,
-                             now_s - direct_ramp_at_s_);
+  direct_ramp_m_ =
+      limitRate(direct_ramp_m_, direct_target_m_, params_.airbag.safety.max_height_rate_m_s, now_s - direct_ramp_at_s_);
   direct_ramp_at_s_ = now_s;
   // A ramp point the cell refuses (CPR started meanwhile) ends the call.
   if (!cell_->requestHeight(direct_ramp_m_, now_s).empty() || direct_ramp_m_ == direct_target_m_)
@@ -364,8 +369,7 @@ bool AirbagNode::setPressure(SetPressure::Request& req, SetPressure::Response& r
   else if (ownedByManager(now))
     error = "cell " + std::to_string(layout_.id) + " (" + layout_.link_name +
             ") is run by the bed manager, whose height setpoints keep coming and would replace a pressure setpoint";
-  else
-    error = cell_->requestPressure(req.pressure_pa, elapsed(now));
+  else error = cell_->requestPressure(req.pressure_pa, elapsed(now));
   // A pressure setpoint ends a direct height call's ramp (it would take the cell back to height).
   if (error.empty()) direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
   res.success = error.empty();
@@ -427,7 +431,8 @@ void AirbagNode::onCpr(const std_msgs::Bool::ConstPtr& msg) {
   std::lock_guard<std::timed_mutex> lock(mutex_);
   if (msg->data == cell_->cpr()) return;
   direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
-  ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(), msg->data ? "on: venting, heights refused" : "off: holding");
+  ROS_DEBUG("%s: bed-wide CPR %s", layout_.link_name.c_str(),
+            msg->data ? "on: venting, heights refused" : "off: holding");
   cell_->setCpr(msg->data, elapsed(ros::Time::now()));
   takeSnapshot();
 }

@@ -92,8 +92,8 @@ urdf::ModelInterfaceSharedPtr parseBedUrdf(const std::string& urdf_xml) {
     }
   }
   if (!model->getLink(BedLayout::kBedLink)) {
-    fail("there is no link '" + std::string(BedLayout::kBedLink) + "' (the bed frame) in robot '" +
-         model->getName() + "'");
+    fail("there is no link '" + std::string(BedLayout::kBedLink) + "' (the bed frame) in robot '" + model->getName() +
+         "'");
   }
   return model;
 }
@@ -119,8 +119,8 @@ CellLayout cellOfJoint(const std::string& name, const urdf::Joint& joint, int ro
   const urdf::Vector3 axis = joint.parent_to_joint_origin_transform.rotation * joint.axis;
   if (std::abs(axis.x) > kAxisTolerance || std::abs(axis.y) > kAxisTolerance ||
       std::abs(axis.z - 1.0) > kAxisTolerance) {
-    fail("cell joint " + name + " moves along (" + formatM(axis.x) + ", " + formatM(axis.y) + ", " +
-         formatM(axis.z) + ") in bed_link, expected +z (0 0 1)");
+    fail("cell joint " + name + " moves along (" + formatM(axis.x) + ", " + formatM(axis.y) + ", " + formatM(axis.z) +
+         ") in bed_link, expected +z (0 0 1)");
   }
   CellLayout cell;
   cell.row = row;
@@ -236,9 +236,7 @@ const CellLayout* BedLayout::find(int row, int col) const {
   return &cells_[static_cast<size_t>(row * cols_ + col)];
 }
 
-const CellLayout* BedLayout::findId(uint32_t id) const {
-  return id < cells_.size() ? &cells_[id] : nullptr;
-}
+const CellLayout* BedLayout::findId(uint32_t id) const { return id < cells_.size() ? &cells_[id] : nullptr; }
 
 std::string BedLayout::describe() const {
   if (cells_.empty()) {

@@ -18,7 +18,8 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
     throw std::runtime_error("bed_manager: no bed description on parameter '" +
                              nh_.resolveName(params_.robot_description) + "'");
   layout_ = BedLayout::fromUrdf(urdf);
-  supervisor_ = std::make_unique<BedSupervisor>(params_.bed, bedGrid(layout_), bedCells(layout_), ros::Time::now().toSec());
+  supervisor_ =
+      std::make_unique<BedSupervisor>(params_.bed, bedGrid(layout_), bedCells(layout_), ros::Time::now().toSec());
   last_state_.resize(layout_.cells().size());
   std::string prefix = params_.cells_ns;
   if (prefix.empty() || prefix.back() != '/') prefix += '/';

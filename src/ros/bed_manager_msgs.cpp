@@ -41,8 +41,7 @@ std::vector<BedCell> bedCells(const BedLayout& layout) {
 }
 
 CellSnapshot cellSnapshot(const AirbagState& s, double seen_s) {
-  return CellSnapshot{s.cell_id,           s.height_m,        s.height_sd_m, s.faults,
-                      s.gauge_pressure_pa, s.external_load_n, seen_s};
+  return CellSnapshot{s.cell_id, s.height_m, s.height_sd_m, s.faults, s.gauge_pressure_pa, s.external_load_n, seen_s};
 }
 
 BedState bedStateMsg(const BedStatus& status, const ros::Time& stamp) {
@@ -62,8 +61,8 @@ BedState bedStateMsg(const BedStatus& status, const ros::Time& stamp) {
 }
 
 diagnostic_msgs::DiagnosticArray diagnosticsMsg(const BedReport& report, const BedLayout& layout,
-                                                const std::vector<AirbagState>& last,
-                                                const CellHealthWatcher& health, const ros::Time& stamp) {
+                                                const std::vector<AirbagState>& last, const CellHealthWatcher& health,
+                                                const ros::Time& stamp) {
   diagnostic_msgs::DiagnosticArray array;
   array.header.stamp = stamp;
   diagnostic_msgs::DiagnosticStatus bed;
@@ -106,8 +105,8 @@ sensor_msgs::JointState jointStatesMsg(const BedLayout& layout, const std::vecto
   return js;
 }
 
-BedHeights bedHeightsMsg(const BedLayout& layout, const std::vector<AirbagState>& last,
-                         const CellHealthWatcher& health, const ros::Time& stamp) {
+BedHeights bedHeightsMsg(const BedLayout& layout, const std::vector<AirbagState>& last, const CellHealthWatcher& health,
+                         const ros::Time& stamp) {
   BedHeights out;
   out.header.stamp = stamp;
   const std::size_t n = layout.cells().size();

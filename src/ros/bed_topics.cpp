@@ -32,8 +32,9 @@ int BedTopics::add(Handlers handlers) {
 
 void BedTopics::remove(int handle) {
   std::lock_guard<std::mutex> lock(mutex_);
-  entries_.erase(std::remove_if(entries_.begin(), entries_.end(), [handle](const auto& e) { return e.first == handle; }),
-                 entries_.end());
+  entries_.erase(
+      std::remove_if(entries_.begin(), entries_.end(), [handle](const auto& e) { return e.first == handle; }),
+      entries_.end());
 }
 
 void BedTopics::onLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {

@@ -33,8 +33,9 @@ int CellTicker::add(Tick advance, Tick publish) {
 
 void CellTicker::remove(int handle) {
   std::scoped_lock lock(advance_round_, publish_round_);  // waits for running rounds to finish
-  entries_.erase(std::remove_if(entries_.begin(), entries_.end(), [handle](const Entry& e) { return e.handle == handle; }),
-                 entries_.end());
+  entries_.erase(
+      std::remove_if(entries_.begin(), entries_.end(), [handle](const Entry& e) { return e.handle == handle; }),
+      entries_.end());
 }
 
 void CellTicker::run(Tick Entry::*which, std::mutex* round, bool reverse) {

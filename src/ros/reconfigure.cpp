@@ -110,7 +110,8 @@ bool requestWith(Config& config, Params* params, ReconfiguredKeys* changed, cons
     config = configFrom<Config>(*params, table);
     return false;
   }
-  for (const auto& [key, value] : differs) ROS_INFO("%s: dynamic_reconfigure set %s = %g", who.c_str(), key.c_str(), value);
+  for (const auto& [key, value] : differs)
+    ROS_INFO("%s: dynamic_reconfigure set %s = %g", who.c_str(), key.c_str(), value);
   *changed = differs;
   return !differs.empty();
 }

@@ -73,23 +73,23 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
   options.cell.noise_seed = params_.noise_seed;
   const RegisterMap map = loadRegisterMap(params_.register_map, static_cast<std::uint32_t>(params_.bed_cells));
   emulator_ = std::make_unique<RigEmulator>(map, options);
-  loads_sub_ = nh.subscribe(names::kCellLoads, 2, &RigEmulatorNode::onCellLoads, this, ros::TransportHints().tcpNoDelay());
+  loads_sub_ =
+      nh.subscribe(names::kCellLoads, 2, &RigEmulatorNode::onCellLoads, this, ros::TransportHints().tcpNoDelay());
   truth_pub_ = private_nh.advertise<RigTruth>("truth", 2);
   truth_timer_ = nh.createTimer(ros::Duration(1.0 / params_.truth_rate_hz), &RigEmulatorNode::publishTruth, this);
-  ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(), params_.register_map.c_str(),
-           params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
+  ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(),
+           params_.register_map.c_str(), params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
   if (emulator_->scheduling().refused)
     ROS_WARN("rig_emulator: the simulation runs at %s: on a loaded machine it pauses, and its sensors with it",
              emulator_->scheduling().text.c_str());
   for (const auto& server : emulator_->servers())
     if (server->scheduling().refused)
-      ROS_WARN("rig_emulator: terminal '%s' serves at %s: on a loaded machine it answers (and switches its valves) late",
-               server->map().name.c_str(), server->scheduling().text.c_str());
+      ROS_WARN(
+          "rig_emulator: terminal '%s' serves at %s: on a loaded machine it answers (and switches its valves) late",
+          server->map().name.c_str(), server->scheduling().text.c_str());
 }
 
-void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
-  emulator_->setLoads(msg->data);
-}
+void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) { emulator_->setLoads(msg->data); }
 
 void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
   std::chrono::steady_clock::time_point at;
@@ -97,7 +97,8 @@ void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
   RigTruth msg;
   // Stamped with the instant the state describes, not the publish time: the timer runs up to
   // tens of ms late on a loaded machine, and a cell filling from flat rises 130 mm/s.
-  msg.header.stamp = ros::Time::now() - ros::Duration(std::chrono::duration<double>(std::chrono::steady_clock::now() - at).count());
+  msg.header.stamp =
+      ros::Time::now() - ros::Duration(std::chrono::duration<double>(std::chrono::steady_clock::now() - at).count());
   std::uint32_t cells = 0;
   for (const CellTruth& t : truth) cells = std::max(cells, t.cell_id + 1);
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -116,8 +117,10 @@ void RigEmulatorNode::publishTruth(const ros::TimerEvent&) {
                     emulator_->mostPeriodsPerWake());
   if (emulator_->overruns() > reported_overruns_) {
     reported_overruns_ = emulator_->overruns();
-    ROS_WARN("rig_emulator: fell behind real time %ld times, %.3f s given up in all: the rig's cells received "
-             "less gas than their valves passed (machine overloaded)", reported_overruns_, emulator_->lostSeconds());
+    ROS_WARN(
+        "rig_emulator: fell behind real time %ld times, %.3f s given up in all: the rig's cells received "
+        "less gas than their valves passed (machine overloaded)",
+        reported_overruns_, emulator_->lostSeconds());
   }
 }
 

@@ -35,8 +35,7 @@ void flattenInto(XmlRpc::XmlRpcValue& value, const std::string& key, const std::
       (*out)[key] = v;
       break;
     }
-    default:
-      throw std::runtime_error(source + ": parameter '" + key + "' must be a number or a map of parameters");
+    default: throw std::runtime_error(source + ": parameter '" + key + "' must be a number or a map of parameters");
   }
 }
 
@@ -58,8 +57,8 @@ FlatParams layeredRosParams(const ros::NodeHandle& private_nh, const std::string
   FlatParams merged;
   for (const ros::NodeHandle* nh_ns : {static_cast<const ros::NodeHandle*>(nullptr), &private_nh}) {
     for (const std::string& section : sections) {
-      const FlatParams values = nh_ns ? flattenRosParams(*nh_ns, section)
-                                      : flattenRosParams(private_nh, defaults_ns + "/" + section);
+      const FlatParams values =
+          nh_ns ? flattenRosParams(*nh_ns, section) : flattenRosParams(private_nh, defaults_ns + "/" + section);
       for (const auto& [key, v] : values) merged[section + "/" + key] = v;
     }
   }

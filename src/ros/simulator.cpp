@@ -1,12 +1,12 @@
 #include "nursing_bed/ros/simulator.h"
 
+#include <XmlRpcValue.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <rosgraph_msgs/Clock.h>
 #include <std_msgs/Float64.h>
 #include <std_msgs/Float64MultiArray.h>
 #include <tf2/LinearMath/Quaternion.h>
 #include <tf2/LinearMath/Transform.h>
-#include <XmlRpcValue.h>
 
 #include <algorithm>
 #include <boost/make_shared.hpp>
@@ -27,9 +27,10 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The ~patient/ keys (PatientParams fields); anything else there is a typo and refused.
-const std::set<std::string> kPatientKeys = {"mass_kg",          "height_m",   "head_clearance_m",
-                                            "tissue_stiffness_pa_m", "lateral_offset_m",
-                                            "contact_resolution_m",  "smooth_cover", "max_roll_rad"};
+const std::set<std::string> kPatientKeys = {"mass_kg",          "height_m",
+                                            "head_clearance_m", "tissue_stiffness_pa_m",
+                                            "lateral_offset_m", "contact_resolution_m",
+                                            "smooth_cover",     "max_roll_rad"};
 
 /// Reads `key` when it is set; throws naming it when it has the wrong type.
 template <typename T>
@@ -68,9 +69,9 @@ tf2::Transform segmentFrame(const SegmentPose& s) {
   tf2::Quaternion q;
   q.setRPY(s.roll_rad, 0.0, 0.0);
   const double half = 0.5 * s.depth_m;
-  return tf2::Transform(q, tf2::Vector3(s.x_c_m, s.y_c_m - half * std::sin(s.roll_rad), s.z_m + half * std::cos(s.roll_rad)));
+  return tf2::Transform(
+      q, tf2::Vector3(s.x_c_m, s.y_c_m - half * std::sin(s.roll_rad), s.z_m + half * std::cos(s.roll_rad)));
 }
-
 
 /// A marker of the bed's markers array: stamped in bed_link, added, expiring soon after the
 /// simulator stops.
@@ -260,7 +261,8 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
   if (!valid.ok()) throw std::runtime_error("simulator: " + valid.message());
   std::string urdf;
   if (!nh_.getParam(params_.robot_description, urdf))
-    throw std::runtime_error("simulator: no bed description on parameter '" + nh_.resolveName(params_.robot_description) +
+    throw std::runtime_error("simulator: no bed description on parameter '" +
+                             nh_.resolveName(params_.robot_description) +
                              "' (load it from scripts/make_bed_urdf.py, as sim.launch does)");
   layout_ = BedLayout::fromUrdf(urdf);
   BedGrid grid;
@@ -272,8 +274,9 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
   for (const CellLayout& c : layout_.cells()) {
     if (std::abs(c.x_m - grid.x(c.row)) > 1e-3 || std::abs(c.y_m - grid.y(c.col)) > 1e-3) {
       std::ostringstream m;
-      m << "simulator: cell " << c.link_name << " is at (" << c.x_m << ", " << c.y_m << ") m in the URDF, not at the grid's ("
-        << grid.x(c.row) << ", " << grid.y(c.col) << ") m: the bed is not centred on bed_link";
+      m << "simulator: cell " << c.link_name << " is at (" << c.x_m << ", " << c.y_m
+        << ") m in the URDF, not at the grid's (" << grid.x(c.row) << ", " << grid.y(c.col)
+        << ") m: the bed is not centred on bed_link";
       throw std::runtime_error(m.str());
     }
   }
@@ -287,12 +290,15 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
   // against the softest cell (~1000 N/m, held gas at 120 mm under a light load).
   const double tissue_n_m = params_.patient.tissue_stiffness_pa_m * grid.cellAreaM2();
   if (tissue_n_m > 3000.0)
-    ROS_WARN("simulator: ~patient/tissue_stiffness_pa_m %g Pa/m makes a cell's tissue stiffness %.0f N/m, several times "
-             "the softest cells' (~1000 N/m): the load loop may ring; keep ~load_filter_time_s >= 0.1 s",
-             params_.patient.tissue_stiffness_pa_m, tissue_n_m);
+    ROS_WARN(
+        "simulator: ~patient/tissue_stiffness_pa_m %g Pa/m makes a cell's tissue stiffness %.0f N/m, several times "
+        "the softest cells' (~1000 N/m): the load loop may ring; keep ~load_filter_time_s >= 0.1 s",
+        params_.patient.tissue_stiffness_pa_m, tissue_n_m);
   if (params_.load_filter_time_s < 0.5 / params_.rate_hz)
-    ROS_WARN("simulator: ~load_filter_time_s %g s is shorter than half a step: the loads are not under-relaxed and the "
-             "loop through the cells may ring (doc/simulator.md)", params_.load_filter_time_s);
+    ROS_WARN(
+        "simulator: ~load_filter_time_s %g s is shorter than half a step: the loads are not under-relaxed and the "
+        "loop through the cells may ring (doc/simulator.md)",
+        params_.load_filter_time_s);
 
   const std::size_t n = layout_.cells().size();
   heights_m_.assign(n, grid.min_height_m);
@@ -318,8 +324,9 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
     bool sim_time = false;
     ros::param::get("/use_sim_time", sim_time);
     if (!sim_time)
-      ROS_WARN("simulator: ~publish_clock is true but /use_sim_time is not: the cells follow the wall clock, not this "
-               "/clock (set /use_sim_time true before any node starts)");
+      ROS_WARN(
+          "simulator: ~publish_clock is true but /use_sim_time is not: the cells follow the wall clock, not this "
+          "/clock (set /use_sim_time true before any node starts)");
     clock_pub_ = nh_.advertise<rosgraph_msgs::Clock>("/clock", 10);
     clock_thread_ = std::thread(&Simulator::clockLoop, this);
   } else {
@@ -533,7 +540,8 @@ void Simulator::publishTf(const BodyState& s, const ros::Time& now) {
     out.push_back(m);
   };
   add(BedLayout::kBedLink, sim_names::kBodyLink, body);
-  for (const SegmentPose& seg : s.segments) add(sim_names::kBodyLink, "body_" + seg.name + "_link", body_inv * segmentFrame(seg));
+  for (const SegmentPose& seg : s.segments)
+    add(sim_names::kBodyLink, "body_" + seg.name + "_link", body_inv * segmentFrame(seg));
   tf_->sendTransform(out);
 }
 

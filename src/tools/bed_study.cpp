@@ -19,9 +19,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/core/bed/posture_plans.h"
+#include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/physics/units.h"
 #include "tool_cli.h"
 
@@ -31,9 +31,9 @@ namespace {
 
 constexpr double kCapillaryClosingPa = 32.0 * nb::kPaPerMmHg;  // 4.27 kPa
 constexpr double kPlateWeightN = 0.6;
-constexpr double kBodyStepS = 0.02;       // the simulator node's rate (50 Hz)
-constexpr double kPlanStepS = 0.1;        // the bed manager's rate (10 Hz)
-constexpr double kLoadFilterS = 0.1;      // the simulator node's load filter
+constexpr double kBodyStepS = 0.02;   // the simulator node's rate (50 Hz)
+constexpr double kPlanStepS = 0.1;    // the bed manager's rate (10 Hz)
+constexpr double kLoadFilterS = 0.1;  // the simulator node's load filter
 
 // The bed: cells, body and the running plan, stepped together in simulated time.
 class Bed {
@@ -141,13 +141,14 @@ Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double suppl
   bed.start({"flat", {}, {}});
   bed.run(15.0);
   const nb::BodyState& s = bed.body();
-  std::printf("flat bed (%.2f m): peak point pressure sacrum %.1f, heels %.1f, occiput %.1f mmHg; "
-              "cell-averaged %.1f, %.1f, %.1f mmHg\n", config.nominal_height_m,
-              mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels), mmhg(s.peak_pressure_pa.occiput),
-              mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
-              mmhg(s.peak_cell_pressure_pa.occiput));
-  return {{"peak_mmhg", regions(mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels),
-                                mmhg(s.peak_pressure_pa.occiput))},
+  std::printf(
+      "flat bed (%.2f m): peak point pressure sacrum %.1f, heels %.1f, occiput %.1f mmHg; "
+      "cell-averaged %.1f, %.1f, %.1f mmHg\n",
+      config.nominal_height_m, mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels),
+      mmhg(s.peak_pressure_pa.occiput), mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
+      mmhg(s.peak_cell_pressure_pa.occiput));
+  return {{"peak_mmhg",
+           regions(mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels), mmhg(s.peak_pressure_pa.occiput))},
           {"cell_peak_mmhg", regions(mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
                                      mmhg(s.peak_cell_pressure_pa.occiput))}};
 }
@@ -186,7 +187,9 @@ Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
     share[k] = cells ? share[k] / cells : NAN;
   }
   std::printf("%s: share of time above 32 mmHg at the loaded tissue: sacrum %.0f %%, heels %.0f %%, occiput %.0f %%\n",
-              plan == "flat" ? "flat bed (0.12 m)" : ("alternating " + plan + ", period " + std::to_string(static_cast<int>(period_s)) + " s").c_str(),
+              plan == "flat"
+                  ? "flat bed (0.12 m)"
+                  : ("alternating " + plan + ", period " + std::to_string(static_cast<int>(period_s)) + " s").c_str(),
               100 * share[0], 100 * share[1], 100 * share[2]);
   return regions(share[0], share[1], share[2]);
 }
@@ -199,10 +202,13 @@ Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
     bed.start({"flat", {}, {}});
     bed.run(10.0);
     const double ramp = std::max(config.turn_ramp_s, angle / config.max_tilt_rate_deg_s);
-    bed.start({"lateral_turn", {{"side", "left"}, {"angle_deg", std::to_string(angle)}, {"ramp_s", std::to_string(ramp)}}, {}});
+    bed.start({"lateral_turn",
+               {{"side", "left"}, {"angle_deg", std::to_string(angle)}, {"ramp_s", std::to_string(ramp)}},
+               {}});
     bed.run(ramp + 10.0);
     const double roll_deg = bed.body().roll_rad * 180.0 / nb::kPi;
-    std::printf("lateral turn left %2d deg: body roll %.1f deg (after the %.0f s ramp + 10 s)\n", angle, roll_deg, ramp);
+    std::printf("lateral turn left %2d deg: body roll %.1f deg (after the %.0f s ramp + 10 s)\n", angle, roll_deg,
+                ramp);
     turns.push_back({{"requested_deg", angle}, {"body_roll_deg", number(roll_deg)}});
   }
   return turns;
@@ -259,7 +265,8 @@ int main(int argc, char** argv) {
   Json study;
   study["flat"] = flatBed(grid, config, supply_pa);
   Json& share = study["share_above_32mmhg"];
-  for (const std::string plan : {"flat", "1in2", "1in3"}) share[plan] = shareAbove32(grid, config, supply_pa, period_s, plan);
+  for (const std::string plan : {"flat", "1in2", "1in3"})
+    share[plan] = shareAbove32(grid, config, supply_pa, period_s, plan);
   study["lateral_turn"] = lateralTurns(grid, config, supply_pa);
   study["cpr_seconds"] = cprTimes(grid, config, supply_pa);
   std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << study.dump(2) << "\n";

@@ -128,14 +128,12 @@ void defineOptions(CLI::App& app, RawArgs* r) {
       ->check(tools::positiveNumber());
   app.add_option("--out", a.out, "output directory (created)")->type_name("DIR");
   app.add_option("--table", a.table, "structure table YAML (table: written; check: read)")->type_name("FILE");
-  app.add_option("--branch", a.branch, "the table's branch")
-      ->check(CLI::IsMember({"inflation", "flat", "equilibria"}));
+  app.add_option("--branch", a.branch, "the table's branch")->check(CLI::IsMember({"inflation", "flat", "equilibria"}));
   app.add_option("--loads", r->loads, "plate loads [N] (default 0.6,10.6,15.6,20.6)")->type_name("L1,L2,...");
   app.add_option("--load", a.load, "plate load of transient and reduced [N]")->type_name("L");
   app.add_option("--pressures-kpa", r->pressures_kpa, "gauge pressures (default 1,30,24)")->type_name("LO,HI,COUNT");
   app.add_option("--heights-mm", r->heights_mm, "table heights (default 10,130,13)")->type_name("LO,HI,COUNT");
-  app.add_option("--vtk-all", r->vtk_all, "1: a VTK file at every pressure (else the middle and last)")
-      ->type_name("1");
+  app.add_option("--vtk-all", r->vtk_all, "1: a VTK file at every pressure (else the middle and last)")->type_name("1");
   app.add_option("--inflow-mass-kg", a.inflow_mass_kg, "paper-shaped inflow carrying this mass (0: the valve)")
       ->type_name("M");
   app.add_option("--tolerance", a.tolerance, "relaxation tolerance");
@@ -195,11 +193,12 @@ void verify(const Args& a) {
       const int elements = sphere ? 20 << (2 * res) : 2 * res * 2;
       double worst = 0.0;
       for (const auto& p : pts) {
-        f << (sphere ? "sphere," : "tube,") << res << ',' << elements << ',' << p.stretch << ',' << p.fe_pressure_pa << ','
-          << p.exact_pressure_pa << ',' << p.relative_error << ',' << p.converged << '\n';
+        f << (sphere ? "sphere," : "tube,") << res << ',' << elements << ',' << p.stretch << ',' << p.fe_pressure_pa
+          << ',' << p.exact_pressure_pa << ',' << p.relative_error << ',' << p.converged << '\n';
         worst = std::max(worst, std::abs(p.relative_error));
       }
-      std::printf("%s resolution %d (%d triangles): max |error| %.3f %%\n", sphere ? "sphere" : "tube", res, elements, 100 * worst);
+      std::printf("%s resolution %d (%d triangles): max |error| %.3f %%\n", sphere ? "sphere" : "tube", res, elements,
+                  100 * worst);
     }
   }
 }
@@ -212,27 +211,32 @@ void heightVsPressure(const Args& a) {
     const auto start = std::chrono::steady_clock::now();
     bag.reset();
     std::vector<double> pressures;
-    for (int i = 0; i < a.p_count; ++i) pressures.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+    for (int i = 0; i < a.p_count; ++i)
+      pressures.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
     std::ostringstream name;
     name << a.out << "/hp_" << tag(a) << "_load_" << load << "N";
     std::ofstream f(name.str() + ".csv");
-    f << "p_gauge_pa,h_m,volume_m3,plate_force_n,max_stretch,wrinkled_fraction,rim_inset_m,converged,iterations,eq24_h_m\n";
+    f << "p_gauge_pa,h_m,volume_m3,plate_force_n,max_stretch,wrinkled_fraction,rim_inset_m,converged,iterations,eq24_h_"
+         "m\n";
     int k = 0;
     fe::heightVsPressure(&bag, load, pressures, [&](const fe::QuasiStaticPoint& p) {
-      f << p.gauge_pressure_pa << ',' << p.height_m << ',' << p.volume_m3 << ',' << p.plate_force_n << ',' << p.max_stretch
-        << ',' << p.wrinkled_fraction << ',' << p.rim_inset_m << ',' << p.converged << ',' << p.iterations << ','
-        << nb::paperEq24HeightM(p.gauge_pressure_pa) << '\n' << std::flush;
-      std::printf("  load %.1f N  p %5.1f kPa  h %6.1f mm  %s (%d it)\n", load, p.gauge_pressure_pa / 1e3, p.height_m * 1e3,
-                  p.converged ? "ok" : p.message.c_str(), p.iterations);
+      f << p.gauge_pressure_pa << ',' << p.height_m << ',' << p.volume_m3 << ',' << p.plate_force_n << ','
+        << p.max_stretch << ',' << p.wrinkled_fraction << ',' << p.rim_inset_m << ',' << p.converged << ','
+        << p.iterations << ',' << nb::paperEq24HeightM(p.gauge_pressure_pa) << '\n'
+        << std::flush;
+      std::printf("  load %.1f N  p %5.1f kPa  h %6.1f mm  %s (%d it)\n", load, p.gauge_pressure_pa / 1e3,
+                  p.height_m * 1e3, p.converged ? "ok" : p.message.c_str(), p.iterations);
       std::fflush(stdout);
       ++k;
       if (a.vtk_all || k == static_cast<int>(pressures.size()) || k == static_cast<int>(pressures.size()) / 2) {
-        fe::writeVtk(name.str() + "_p" + std::to_string(static_cast<int>(std::lround(p.gauge_pressure_pa / 100.0))) + "hPa.vtk", bag.model(),
-                     "FE airbag " + tag(a));
+        fe::writeVtk(
+            name.str() + "_p" + std::to_string(static_cast<int>(std::lround(p.gauge_pressure_pa / 100.0))) + "hPa.vtk",
+            bag.model(), "FE airbag " + tag(a));
       }
     });
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("h(p) load %.1f N: %zu pressures, wall %.1f s, peak memory %.0f MB\n", load, pressures.size(), wall, peakMemoryMb());
+    std::printf("h(p) load %.1f N: %zu pressures, wall %.1f s, peak memory %.0f MB\n", load, pressures.size(), wall,
+                peakMemoryMb());
   }
 }
 
@@ -253,19 +257,20 @@ void transient(const Args& a) {
     if (done >= next_vtk) {
       std::printf("  %3.0f %%  h %.1f mm\n", 100 * done, bag.model().plate().height_m * 1e3);
       std::fflush(stdout);
-      fe::writeVtk(name.str() + "_t" + std::to_string(static_cast<int>(std::lround(done * 11))) + ".vtk", bag.model(), "transient");
+      fe::writeVtk(name.str() + "_t" + std::to_string(static_cast<int>(std::lround(done * 11))) + ".vtk", bag.model(),
+                   "transient");
       next_vtk += 1.0 / 11.0;
     }
   });
   std::ofstream f(name.str() + ".csv");
   f << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3,mass_kg,t_gas_k,rim_inset_m\n";
   for (const auto& x : r.samples) {
-    f << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3 << ','
-      << x.mass_kg << ',' << x.temperature_k << ',' << x.rim_inset_m << '\n';
+    f << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3
+      << ',' << x.mass_kg << ',' << x.temperature_k << ',' << x.rim_inset_m << '\n';
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("transient %s: %s, %ld steps, wall %.1f s, peak memory %.0f MB\n", tag(a).c_str(), r.message.c_str(), r.steps, wall,
-              peakMemoryMb());
+  std::printf("transient %s: %s, %ld steps, wall %.1f s, peak memory %.0f MB\n", tag(a).c_str(), r.message.c_str(),
+              r.steps, wall, peakMemoryMb());
   if (!r.ok) throw std::runtime_error(r.message);
 }
 
@@ -294,8 +299,9 @@ std::vector<double> tableRoots(const nb::TabulatedStructure& cell, double p, dou
 // held at each of `pressures` in turn (ascending; the supply at that pressure, the inlet open)
 // until the plate rests. It follows its own branch through the snaps, as the FE's pressure
 // continuation does; NaN where it does not come to rest within 10 s.
-std::vector<double> runningCellHeights(const std::string& table_file, const std::shared_ptr<const nb::TabulatedStructure>& table,
-                                       double load, const std::vector<double>& pressures) {
+std::vector<double> runningCellHeights(const std::string& table_file,
+                                       const std::shared_ptr<const nb::TabulatedStructure>& table, double load,
+                                       const std::vector<double>& pressures) {
   nb::CellParams params;
   params.structure_type = "table";
   params.structure_table_file = table_file;  // named only: the loaded table is given, not read again per load
@@ -354,7 +360,8 @@ void check(const Args& a) {
       const nb::StructureEquilibrium eq = cell.equilibriumAtPressure(p, load);
       const std::vector<double> roots = tableRoots(cell, p, load);
       double nearest = NAN;
-      for (double r : roots) if (!(std::abs(r - h_fe) >= std::abs(nearest - h_fe))) nearest = r;
+      for (double r : roots)
+        if (!(std::abs(r - h_fe) >= std::abs(nearest - h_fe))) nearest = r;
       const double own = eq.converged ? eq.height_m : NAN;
       f << load << ',' << p << ',' << h_fe << ',' << own << ',' << nearest << ',' << roots.size() << ',' << running[k]
         << '\n';
@@ -365,13 +372,16 @@ void check(const Args& a) {
       if (std::isfinite(nearest)) worst_nearest = std::max(worst_nearest, std::abs(nearest - h_fe));
       if (std::isfinite(running[k])) worst_running = std::max(worst_running, std::abs(running[k] - h_fe));
       if (eq.converged) worst = std::max(worst, std::abs(eq.height_m - h_fe));
-      else std::printf("  load %.1f N p %.1f kPa: the table cell has no equilibrium (outside its heights)\n", load, p / 1e3);
+      else
+        std::printf("  load %.1f N p %.1f kPa: the table cell has no equilibrium (outside its heights)\n", load,
+                    p / 1e3);
     }
   }
-  std::printf("table cell vs FE h(p), within 2 mm of %d states: %d (cell's own root, max |dh| %.2f mm), %d (nearest of "
-              "the table's equilibria, %.2f mm), %d (the running cell, pressure held step by step, %.2f mm)\n",
-              within.states, within.own_root, worst * 1e3, within.nearest_root, worst_nearest * 1e3, within.running,
-              worst_running * 1e3);
+  std::printf(
+      "table cell vs FE h(p), within 2 mm of %d states: %d (cell's own root, max |dh| %.2f mm), %d (nearest of "
+      "the table's equilibria, %.2f mm), %d (the running cell, pressure held step by step, %.2f mm)\n",
+      within.states, within.own_root, worst * 1e3, within.nearest_root, worst_nearest * 1e3, within.running,
+      worst_running * 1e3);
 }
 
 // Today's reduced model (PillowStructure, config defaults) on the same axes: h(p) per load
@@ -407,7 +417,8 @@ void reduced(const Args& a) {
     std::ofstream t(name.str());
     t << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3\n";
     for (const auto& x : trace.samples) {
-      t << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3 << '\n';
+      t << x.time_s << ',' << x.inflow_kg_s << ',' << x.gauge_pressure_pa << ',' << x.height_m << ',' << x.volume_m3
+        << '\n';
     }
   }
 }
@@ -423,7 +434,8 @@ using BranchStates = std::vector<std::vector<BranchState>>;
 // Loads of the inflation branch [N]: 1.5-6 N apart (the table interpolates linearly between
 // two; 8 and 25 N, which `check --loads 8,25` tries, are not among them), and one lighter than
 // the plate (0.2 N) so that the plate-alone curve is not the table's edge.
-const std::vector<double> kBranchLoadsN{0.2, 0.6, 1.5, 3.0, 4.5, 6.0, 10.6, 13.0, 15.6, 18.0, 20.6, 23.0, 28.0, 33.0, 39.0, 45.0};
+const std::vector<double> kBranchLoadsN{0.2,  0.6,  1.5,  3.0,  4.5,  6.0,  10.6, 13.0,
+                                        15.6, 18.0, 20.6, 23.0, 28.0, 33.0, 39.0, 45.0};
 
 BranchStates inflationBranch(fe::AirbagFe* bag, const std::vector<double>& pressures) {
   BranchStates states(pressures.size());
@@ -475,11 +487,14 @@ void table(const Args& a) {
   fe::AirbagFe bag(bagOptions(a));
   fe::StructureTable t;
   t.description = bag.options().geometry.describe() + ", " + a.branch + " branch";
-  for (int i = 0; i < a.h_count; ++i) t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
-  for (int i = 0; i < a.p_count; ++i) t.pressures_pa.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+  for (int i = 0; i < a.h_count; ++i)
+    t.heights_m.push_back(1e-3 * (a.h_lo_mm + (a.h_hi_mm - a.h_lo_mm) * i / (a.h_count - 1)));
+  for (int i = 0; i < a.p_count; ++i)
+    t.pressures_pa.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
   int unconverged = 0, from_equilibria = 0;
   const auto start = std::chrono::steady_clock::now();
-  const BranchStates branch = a.branch == "flat" ? BranchStates(t.pressures_pa.size()) : inflationBranch(&bag, t.pressures_pa);
+  const BranchStates branch =
+      a.branch == "flat" ? BranchStates(t.pressures_pa.size()) : inflationBranch(&bag, t.pressures_pa);
   std::vector<std::vector<fe::LoadedState>> curves(t.pressures_pa.size());
   if (a.branch == "equilibria") {
     for (std::size_t j = 0; j < curves.size(); ++j) {
@@ -487,7 +502,8 @@ void table(const Args& a) {
       for (const BranchState& b : branch[j]) states.push_back(b.state);
       std::vector<std::string> left_out;
       curves[j] = fe::equilibriumCurve(states, &left_out);
-      for (const std::string& why : left_out) std::printf("  p %.1f kPa: %s, left out\n", t.pressures_pa[j] / 1e3, why.c_str());
+      for (const std::string& why : left_out)
+        std::printf("  p %.1f kPa: %s, left out\n", t.pressures_pa[j] / 1e3, why.c_str());
     }
   }
   for (double h : t.heights_m) {

@@ -56,10 +56,11 @@ struct Options {
 
 void defineOptions(CLI::App& app, Options* o) {
   tools::configureApp(app);
-  tools::takeAll(app.add_option(
-      "INPUT.csv", o->inputs,
-      "'#' comment lines, then a header with one of 'stretch' or 'strain' (engineering strain) and one of "
-      "'stress_pa' or 'stress_mpa' (engineering stress); other columns are ignored"))
+  tools::takeAll(
+      app.add_option(
+          "INPUT.csv", o->inputs,
+          "'#' comment lines, then a header with one of 'stretch' or 'strain' (engineering strain) and one of "
+          "'stress_pa' or 'stress_mpa' (engineering stress); other columns are ignored"))
       ->type_name("FILE");
   app.add_option("--out", o->out_dir, "output directory, created if missing")->type_name("DIR");
   app.add_flag("--no-plot", o->no_plot, std::string("do not run ") + kPlotScript);
@@ -83,17 +84,17 @@ const char* weightingName(nursing_bed::FitWeighting w) {
                                                    : "unweighted residuals [Pa]";
 }
 
-void writeYaml(const std::string& path, const nursing_bed::YeohFit& fit,
-               const std::string& source) {
+void writeYaml(const std::string& path, const nursing_bed::YeohFit& fit, const std::string& source) {
   const auto& m = fit.material;
   std::ostringstream valid;
   valid << std::setprecision(10) << "Valid for stretch " << fit.min_stretch << " to " << fit.max_stretch << " ("
         << fit.num_points << " points).";
   YAML::Emitter y;
   y.SetDoublePrecision(10);
-  y << YAML::Comment(std::string("Yeoh constants (paper eq. 7: W = C10 (I1-3) + C20 (I1-3)^2 + C30 (I1-3)^3) fitted by\n"
-                                 "fit_material by linear least squares to the uniaxial engineering stress (eq. 8-10),\n") +
-                     weightingName(fit.weighting) + ".\n" + valid.str() + "\nTensile data file the constants were fitted to.");
+  y << YAML::Comment(
+      std::string("Yeoh constants (paper eq. 7: W = C10 (I1-3) + C20 (I1-3)^2 + C30 (I1-3)^3) fitted by\n"
+                  "fit_material by linear least squares to the uniaxial engineering stress (eq. 8-10),\n") +
+      weightingName(fit.weighting) + ".\n" + valid.str() + "\nTensile data file the constants were fitted to.");
   y << YAML::BeginMap << YAML::Key << "source" << YAML::Value << YAML::DoubleQuoted << source;
   const struct {
     const char* comment;
@@ -160,26 +161,23 @@ std::string fmt(double v, int precision, bool fixed = true) {
 void printFit(const std::string& input, const nursing_bed::YeohFit& fit) {
   using nursing_bed::paToMpa;
   const auto& m = fit.material;
-  std::cout << "Yeoh fit (paper eq. 7-10) to " << input << ": " << fit.num_points
-            << " points, stretch " << fmt(fit.min_stretch, 3) << " to " << fmt(fit.max_stretch, 3)
-            << "\n  (" << weightingName(fit.weighting) << ")\n";
+  std::cout << "Yeoh fit (paper eq. 7-10) to " << input << ": " << fit.num_points << " points, stretch "
+            << fmt(fit.min_stretch, 3) << " to " << fmt(fit.max_stretch, 3) << "\n  (" << weightingName(fit.weighting)
+            << ")\n";
   const struct {
     const char* name;
     double value_pa, stderr_pa;
-  } rows[] = {{"C10", m.c10_pa, fit.c10_stderr_pa},
-              {"C20", m.c20_pa, fit.c20_stderr_pa},
-              {"C30", m.c30_pa, fit.c30_stderr_pa}};
+  } rows[] = {
+      {"C10", m.c10_pa, fit.c10_stderr_pa}, {"C20", m.c20_pa, fit.c20_stderr_pa}, {"C30", m.c30_pa, fit.c30_stderr_pa}};
   for (const auto& r : rows)
-    std::cout << "  " << r.name << " = " << std::setw(9) << fmt(paToMpa(r.value_pa), 5)
-              << " +/- " << fmt(paToMpa(r.stderr_pa), 5) << " MPa   (" << fmt(r.value_pa, 0)
-              << " +/- " << fmt(r.stderr_pa, 0) << " Pa)\n";
-  std::cout << "  R^2 = " << fmt(fit.r_squared, 6) << "\n  RMS residual = "
-            << fmt(fit.rms_residual_pa, 0) << " Pa (" << fmt(paToMpa(fit.rms_residual_pa), 4)
-            << " MPa), max |residual| = " << fmt(fit.max_abs_residual_pa, 0) << " Pa ("
-            << fmt(paToMpa(fit.max_abs_residual_pa), 4) << " MPa)\n  RMS relative residual = "
-            << fmt(100.0 * fit.rms_relative_residual, 2) << " %\n"
-            << "  small-strain Young's modulus E = 6 C10 = "
-            << fmt(paToMpa(m.youngsModulus()), 3) << " MPa\n";
+    std::cout << "  " << r.name << " = " << std::setw(9) << fmt(paToMpa(r.value_pa), 5) << " +/- "
+              << fmt(paToMpa(r.stderr_pa), 5) << " MPa   (" << fmt(r.value_pa, 0) << " +/- " << fmt(r.stderr_pa, 0)
+              << " Pa)\n";
+  std::cout << "  R^2 = " << fmt(fit.r_squared, 6) << "\n  RMS residual = " << fmt(fit.rms_residual_pa, 0) << " Pa ("
+            << fmt(paToMpa(fit.rms_residual_pa), 4) << " MPa), max |residual| = " << fmt(fit.max_abs_residual_pa, 0)
+            << " Pa (" << fmt(paToMpa(fit.max_abs_residual_pa), 4)
+            << " MPa)\n  RMS relative residual = " << fmt(100.0 * fit.rms_relative_residual, 2) << " %\n"
+            << "  small-strain Young's modulus E = 6 C10 = " << fmt(paToMpa(m.youngsModulus()), 3) << " MPa\n";
 }
 
 /// The plot of the fit; kExitOk, or kExitOutputFailed when the script failed.
@@ -187,15 +185,14 @@ int plotFit(const std::string& csv_path, const std::string& png_path, const nurs
   using nursing_bed::paToMpa;
   const auto& m = fit.material;
   const std::string title = "Yeoh fit: C10 = " + fmt(paToMpa(m.c10_pa), 3) +
-                            " MPa, C20 = " + fmt(paToMpa(m.c20_pa), 3) +
-                            " MPa, C30 = " + fmt(paToMpa(m.c30_pa), 4) +
+                            " MPa, C20 = " + fmt(paToMpa(m.c20_pa), 3) + " MPa, C30 = " + fmt(paToMpa(m.c30_pa), 4) +
                             " MPa, R$^2$ = " + fmt(fit.r_squared, 5);
   if (runPlot(csv_path, png_path, title)) {
     std::cout << "wrote " << png_path << "\n";
     return kExitOk;
   }
-  std::cerr << "fit_material: plotting with " << kPython << " " << kPlotScript
-            << " failed; no " << png_path << " (use --no-plot to skip)\n";
+  std::cerr << "fit_material: plotting with " << kPython << " " << kPlotScript << " failed; no " << png_path
+            << " (use --no-plot to skip)\n";
   return kExitOutputFailed;
 }
 
@@ -245,10 +242,9 @@ int main(int argc, char** argv) {
 
   const int rc = o.no_plot ? kExitOk : plotFit(csv_path, png_path, fit);
   if (!fit.validation.empty()) {
-    std::cerr << "fit_material: the fitted constants are not usable: " << fit.validation
-              << "\n  " << yaml_path << " not written"
-              << (std::filesystem::exists(yaml_path) ? " (the older one there is left as it was)"
-                                                     : "")
+    std::cerr << "fit_material: the fitted constants are not usable: " << fit.validation << "\n  " << yaml_path
+              << " not written"
+              << (std::filesystem::exists(yaml_path) ? " (the older one there is left as it was)" : "")
               << "; check the data and its stretch range\n";
     return kExitInvalidMaterial;
   }

@@ -20,7 +20,6 @@
 
 #include <glog/logging.h>
 
-#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/effects.h"
@@ -28,6 +27,7 @@
 #include "nursing_bed/core/gap/paper_study.h"
 #include "nursing_bed/core/gap/run_data.h"
 #include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/ros/bag_runs.h"
 #include "tool_cli.h"
@@ -98,8 +98,9 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
                                 "calibrate --help) or a key of the file, e.g. film_stiffness_scale=1.15, "
                                 "structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)"))
       ->type_name("NAME=VALUE");
-  sub.add_flag("--no-flow-meter", a->no_flow_meter,
-               "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (doc/formats/run_data.md)");
+  sub.add_flag(
+      "--no-flow-meter", a->no_flow_meter,
+      "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (doc/formats/run_data.md)");
   sub.add_flag("--no-height", a->no_height, "no height sensor: h_m left out");
   sub.footer("effects and their parameters:\n" + effectList());
 }
@@ -202,8 +203,8 @@ std::vector<nb::RunData> runsOfTopic(std::vector<nb::RunData> runs, const std::s
   if (kept.empty()) {
     std::string list;
     for (const auto& t : topics) list += " " + t;
-    throw std::runtime_error(dataset + ": no bag run has the topic '" + topic + "' (topics:" +
-                             (list.empty() ? std::string(" none, no bags") : list) + ")");
+    throw std::runtime_error(dataset + ": no bag run has the topic '" + topic +
+                             "' (topics:" + (list.empty() ? std::string(" none, no bags") : list) + ")");
   }
   return kept;
 }

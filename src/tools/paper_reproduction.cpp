@@ -36,7 +36,7 @@ constexpr const char* kSynopsis =
 struct Options {
   std::string out_dir;
   std::string params_file;  ///< empty: the package's config/airbag_tpu_double_100.yaml
-  std::string valve_text;  ///< --valve-pa as given; empty: the defaults below
+  std::string valve_text;   ///< --valve-pa as given; empty: the defaults below
   std::vector<double> valve_pa{20.0e3, 22.0e3, 25.0e3, 28.0e3};
   std::string inflow = "valve";
   bool paper_curve = false;
@@ -82,7 +82,8 @@ void checkOptions(Options* o) {
                               "'");
     }
     if (o->valve_pa.size() != nb::kPaperLoadsN.size())
-      throw tools::UsageError("--valve-pa: expected 4 values (one per load), got " + std::to_string(o->valve_pa.size()));
+      throw tools::UsageError("--valve-pa: expected 4 values (one per load), got " +
+                              std::to_string(o->valve_pa.size()));
   }
   if (o->inflow != "valve" && o->inflow != "paper_curve")
     throw tools::UsageError("--inflow: expected 'valve' or 'paper_curve', got '" + o->inflow + "'");
@@ -103,8 +104,8 @@ void writeTrace(const fs::path& path, const nb::InflationTrace& trace) {
   f << "t_s,inflow_kg_s,p_gauge_pa,h_m,volume_m3,mass_kg,t_gas_k\n";
   f << std::setprecision(9);
   for (const auto& s : trace.samples)
-    f << s.time_s << ',' << s.inflow_kg_s << ',' << s.gauge_pressure_pa << ',' << s.height_m << ','
-      << s.volume_m3 << ',' << s.mass_kg << ',' << s.temperature_k << '\n';
+    f << s.time_s << ',' << s.inflow_kg_s << ',' << s.gauge_pressure_pa << ',' << s.height_m << ',' << s.volume_m3
+      << ',' << s.mass_kg << ',' << s.temperature_k << '\n';
 }
 
 /// A number as the console table prints it (10 significant digits).

@@ -27,8 +27,8 @@ void BM_InflationPerCellSecond(benchmark::State& state) {
     benchmark::DoNotOptimize(model.variables().height_m);
   }
   // Seconds of wall time per simulated cell-second.
-  state.counters["wall_s_per_cell_s"] = benchmark::Counter(
-      5.5, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["wall_s_per_cell_s"] =
+      benchmark::Counter(5.5, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_InflationPerCellSecond)->Arg(0)->Arg(10)->Arg(20)->Unit(benchmark::kMillisecond);
 

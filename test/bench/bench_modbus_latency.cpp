@@ -52,9 +52,11 @@ void measure(nb::ValveOutput::Kind kind, int port) {
   }
   std::sort(latencies_ms.begin(), latencies_ms.end());
   const nb::TerminalStats s = term->stats();
-  std::printf("%-9s command to valve: median %.1f ms, worst %.1f ms (%zu commands); %.2f read and %.2f write requests per cycle\n",
-              map.terminals[0].name.c_str(), latencies_ms[latencies_ms.size() / 2], latencies_ms.back(), latencies_ms.size(),
-              static_cast<double>(s.read_requests) / s.cycles, static_cast<double>(s.write_requests) / s.cycles);
+  std::printf(
+      "%-9s command to valve: median %.1f ms, worst %.1f ms (%zu commands); %.2f read and %.2f write requests per "
+      "cycle\n",
+      map.terminals[0].name.c_str(), latencies_ms[latencies_ms.size() / 2], latencies_ms.back(), latencies_ms.size(),
+      static_cast<double>(s.read_requests) / s.cycles, static_cast<double>(s.write_requests) / s.cycles);
   std::printf("%-9s rig simulation: %.2f periods per wake-up (1: it kept the wall clock's pace), at most %ld\n",
               map.terminals[0].name.c_str(), rig.periodsPerWake(), rig.mostPeriodsPerWake());
 }

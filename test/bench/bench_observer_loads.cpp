@@ -35,16 +35,16 @@ namespace nb = nursing_bed;
 namespace {
 
 struct Options {
-  double cycle_s = 200.0;      ///< one alternating cycle (three groups) [s]
-  int group = 0;               ///< the cell's group (0..2): which third of the cycle it is low
+  double cycle_s = 200.0;  ///< one alternating cycle (three groups) [s]
+  int group = 0;           ///< the cell's group (0..2): which third of the cycle it is low
   bool pwm = true;
-  bool read_delay = true;      ///< readings one bus cycle old
-  bool sensor_noise = true;    ///< pressure noise (10 Pa) and ADC step (12.2 Pa)
-  bool report_driven = true;   ///< the terminal reports the pulses it drove
-  bool weight_bound = true;    ///< the observer's weight bound (weight_bound_window_s)
+  bool read_delay = true;               ///< readings one bus cycle old
+  bool sensor_noise = true;             ///< pressure noise (10 Pa) and ADC step (12.2 Pa)
+  bool report_driven = true;            ///< the terminal reports the pulses it drove
+  bool weight_bound = true;             ///< the observer's weight bound (weight_bound_window_s)
   double observer_dead_time_s = 0.015;  ///< the observer's valve_dead_time_s (config/observer.yaml)
   double rig_dead_time_s = 0.01;        ///< the rig's valve dead time (the emulator's default)
-  double trace_s = 0.0;        ///< > 0: print truth and estimate at this interval [s]
+  double trace_s = 0.0;                 ///< > 0: print truth and estimate at this interval [s]
   std::vector<double> loads{0.6, 2.0, 5.0, 10.6, 15.6, 20.6, 26.0, 31.0, 37.0};
 };
 
@@ -214,10 +214,13 @@ Result runOne(double load_n, const Options& o) {
     if (o.trace_s > 0.0 && std::fmod(t + 1e-9, o.trace_s) < dt) {
       const nb::CellVariables& tv = plant->variables();
       const nb::CellEstimate e = cell.observer()->estimate();
-      std::printf("t %7.2f tgt %5.1f | h %6.1f est %6.1f sd %5.1f | p %7.0f est %7.0f | m %.4e est %.4e | T %5.1f est %5.1f | W %5.1f est %5.1f ctl %5.1f | in %.2f vent %.2f | cum in %.4e est %.4e | vent %.4e est %.4e p %.1f\n",
-                  t, 1e3 * target, 1e3 * tv.height_m, 1e3 * e.height_m, 1e3 * e.height_sd_m, tv.gauge_pressure_pa,
-                  e.gauge_pressure_pa, plant->model().state()[nb::CellModel::kMass], e.mass_kg, tv.temperature_k,
-                  e.temperature_k, plant->load(), e.load_n, cell.loadEstimate(), cell.valves().inlet, cell.valves().vent, hw->true_inflow_kg, obs_inflow_kg, true_vent_kg, obs_vent_kg, cell.observer()->variables().gauge_pressure_pa);
+      std::printf(
+          "t %7.2f tgt %5.1f | h %6.1f est %6.1f sd %5.1f | p %7.0f est %7.0f | m %.4e est %.4e | T %5.1f est %5.1f | "
+          "W %5.1f est %5.1f ctl %5.1f | in %.2f vent %.2f | cum in %.4e est %.4e | vent %.4e est %.4e p %.1f\n",
+          t, 1e3 * target, 1e3 * tv.height_m, 1e3 * e.height_m, 1e3 * e.height_sd_m, tv.gauge_pressure_pa,
+          e.gauge_pressure_pa, plant->model().state()[nb::CellModel::kMass], e.mass_kg, tv.temperature_k,
+          e.temperature_k, plant->load(), e.load_n, cell.loadEstimate(), cell.valves().inlet, cell.valves().vent,
+          hw->true_inflow_kg, obs_inflow_kg, true_vent_kg, obs_vent_kg, cell.observer()->variables().gauge_pressure_pa);
     }
     if (t < 30.0) continue;  // the bench's settling time
     const double e = plant->variables().height_m - cell.measurement().height_m;
@@ -237,15 +240,17 @@ int main(int argc, char** argv) {
   if (!parse(argc, argv, &o)) {
     std::fprintf(stderr,
                  "usage: bench_observer_loads [--cycle-s S] [--loads a,b,c] [--group 0..2] [--trace S] [--no-pwm] "
-                 "[--duty-only] [--no-read-delay] [--no-noise] [--observer-dead-time S] [--rig-dead-time S] [--no-weight-bound]\n");
+                 "[--duty-only] [--no-read-delay] [--no-noise] [--observer-dead-time S] [--rig-dead-time S] "
+                 "[--no-weight-bound]\n");
     return 2;
   }
   nb::ObserverErrorStats total;
   std::printf("load_N  rms_mm  worst_mm  worst_at_s  final_truth_mm  final_est_mm  load_est_N\n");
   for (double load : o.loads) {
     const Result r = runOne(load, o);
-    std::printf("%6.1f  %6.2f  %8.2f  %10.1f  %14.1f  %12.1f  %10.2f\n", load, 1e3 * r.all.rmsM(), 1e3 * r.all.max_abs_m,
-                r.worst_at_s, 1e3 * r.final_truth_m, 1e3 * r.final_estimate_m, r.final_load_estimate_n);
+    std::printf("%6.1f  %6.2f  %8.2f  %10.1f  %14.1f  %12.1f  %10.2f\n", load, 1e3 * r.all.rmsM(),
+                1e3 * r.all.max_abs_m, r.worst_at_s, 1e3 * r.final_truth_m, 1e3 * r.final_estimate_m,
+                r.final_load_estimate_n);
     std::fflush(stdout);
     total.sum_sq_m2 += r.all.sum_sq_m2;
     total.samples += r.all.samples;

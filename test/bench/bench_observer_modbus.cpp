@@ -49,8 +49,8 @@
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/rig/rig_emulator.h"
 #include "nursing_bed/core/physics/basic_effects.h"
+#include "nursing_bed/core/rig/rig_emulator.h"
 
 namespace nb = nursing_bed;
 using Clock = std::chrono::steady_clock;
@@ -59,13 +59,13 @@ namespace {
 
 struct Options {
   bool proportional = false;
-  bool effects = false;  ///< leak 1e-8 m2 and heat 8 W/(m2 K) in the rig and the observer
+  bool effects = false;    ///< leak 1e-8 m2 and heat 8 W/(m2 K) in the rig and the observer
   bool alternate = false;  ///< the alternating plan's streamed moves instead of the programme
   double dead_time_s = 0.015;
   double load_n = 15.6;
   double noise_pa = 10.0, adc_pa = 12.2, rig_dead_time_s = 0.01, rig_period_s = 0.005;
-  double period_s = 0.005;  ///< the cell's control period [s]
-  double seed = -1.0;  ///< < 0: the emulator's default
+  double period_s = 0.005;     ///< the cell's control period [s]
+  double seed = -1.0;          ///< < 0: the emulator's default
   double load_guess_n = -1.0;  ///< < 0: the true load (the bed's nodes start from their load_n, 10.6 N)
   double load_swing_n = 0.0;   ///< sd of the load's sway about load_n [N]
   double swing_time_s = 0.1;   ///< its correlation time [s]
@@ -106,11 +106,11 @@ bool parse(int argc, char** argv, Options* o) {
       char* end = nullptr;
       const double v = std::strtod(argv[++i], &end);
       const double upper = a == "--load" || a == "--load-guess" || a == "--load-swing" ? 100.0
-                           : a == "--noise" || a == "--adc" ? 1000.0
-                           : a == "--seed" ? 1e9
-                           : a == "--hold" || a == "--land" ? 3600.0
-                           : a == "--swing-time" ? 10.0
-                                                 : 1.0;
+                           : a == "--noise" || a == "--adc"                            ? 1000.0
+                           : a == "--seed"                                             ? 1e9
+                           : a == "--hold" || a == "--land"                            ? 3600.0
+                           : a == "--swing-time"                                       ? 10.0
+                                                                                       : 1.0;
       // a period of 0 never ticks, a sway of correlation time 0 is no sway
       const double lower_exclusive = a == "--period" || a == "--swing-time" ? 0.0 : -1.0;
       if (*end != '\0' || !(v >= 0.0 && v > lower_exclusive && v <= upper)) {
@@ -129,13 +129,13 @@ bool parse(int argc, char** argv, Options* o) {
 
 std::string writeMap(bool proportional) {
   const std::string path = "/tmp/bench_observer_modbus_map.yaml";
-  const std::string valves = proportional
-                                 ? "inlet: {holding_register: 0, full_scale: 1000}, vent: {holding_register: 1, full_scale: 1000}"
-                                 : "inlet: {coil: 0}, vent: {coil: 1}";
+  const std::string valves =
+      proportional ? "inlet: {holding_register: 0, full_scale: 1000}, vent: {holding_register: 1, full_scale: 1000}"
+                   : "inlet: {coil: 0}, vent: {coil: 1}";
   std::ofstream(path) << "terminals:\n  - {name: bench, host: 127.0.0.1, port: 15790, cycle_s: 0.005,\n"
                          "     supply_pressure: {input_register: 10, scale_pa: 1.0, offset_pa: -10000},\n"
-                         "     cells: [{cell: 0, " << valves
-                      << ", pressure: {input_register: 0, scale_pa: 1.0, offset_pa: -10000}}]}\n";
+                         "     cells: [{cell: 0, "
+                      << valves << ", pressure: {input_register: 0, scale_pa: 1.0, offset_pa: -10000}}]}\n";
   return path;
 }
 
@@ -149,8 +149,8 @@ void traceRow(std::FILE* f, double t, const nb::CellTruth& truth, const nb::Airb
   const nb::CellObserver& obs = *cell.observer();
   const nb::CellEstimate e = obs.estimate();
   const nb::CellVariables& v = obs.variables();
-  std::fprintf(f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f\n", t, truth.height_m,
-               truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
+  std::fprintf(f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f\n", t,
+               truth.height_m, truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
                truth.vent_flow_kg_s, truth.inlet_opening, truth.vent_opening, e.height_m,
                cell.measurement().gauge_pressure_pa, e.mass_kg, e.temperature_k, v.inflow_kg_s, v.vent_flow_kg_s,
                obs.appliedInputs().valves.inlet, obs.appliedInputs().valves.vent, cell.controller().restingHeight());
@@ -218,10 +218,11 @@ int main(int argc, char** argv) {
   }
   if (trace) traceHeader(trace);
 
-  const std::vector<Target> plan = o.hold_s > 0.0 ? std::vector<Target>{{1, 0.091}}
-                                   : o.alternate ? std::vector<Target>{{1, 0.10}, {20, 0.03}, {40, 0.12}, {60, 0.03}, {80, 0.12}}
-                                                  : std::vector<Target>{{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1},
-                                                                        {21, 0.10}, {26, 0.05}, {31, 0.12}};
+  const std::vector<Target> plan =
+      o.hold_s > 0.0 ? std::vector<Target>{{1, 0.091}}
+      : o.alternate
+          ? std::vector<Target>{{1, 0.10}, {20, 0.03}, {40, 0.12}, {60, 0.03}, {80, 0.12}}
+          : std::vector<Target>{{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1}, {21, 0.10}, {26, 0.05}, {31, 0.12}};
   const double end_s = o.hold_s > 0.0 ? o.hold_s : o.alternate ? 100.0 : 36.0;
   double wanted_m = 0.0, streamed_m = 0.0, next_stream_s = 0.0;  // --alternate: the bed manager's stream
   LoadSway sway(o.load_n, o.load_swing_n, o.swing_time_s);
@@ -255,12 +256,11 @@ int main(int argc, char** argv) {
     if (now > 1.0) error.add(e);
     if (trace && cell.observer()) traceRow(trace, now, truth, cell);
     if (i % std::max(1L, std::lround(0.5 / o.period_s)) == 0)
-      std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true %.1f)\n", now,
-                  1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load(), o.load_n);
+      std::printf("%6.2f s  truth %6.1f mm  estimate %6.1f mm  error %+6.2f mm  load estimate %5.2f N (true %.1f)\n",
+                  now, 1e3 * truth.height_m, 1e3 * cell.measurement().height_m, 1e3 * e, cell.load(), o.load_n);
   }
   if (trace) std::fclose(trace);
   std::printf("%s valves, valve_dead_time_s %g: height error RMS %.2f mm, worst %.2f mm\n",
-              o.proportional ? "proportional" : "on/off", o.dead_time_s, 1e3 * error.rmsM(),
-              1e3 * error.max_abs_m);
+              o.proportional ? "proportional" : "on/off", o.dead_time_s, 1e3 * error.rmsM(), 1e3 * error.max_abs_m);
   return 0;
 }

@@ -121,7 +121,8 @@ TEST_F(BedFixture, TheBedsHeightsCarryEachCellsOwnStamp) {
     heights.push_back(*m);
   };
   ros::Subscriber sub = nh_.subscribe<BedHeights>("/bed_manager/heights", 50, on_heights);
-  ASSERT_TRUE(waitFor([&] { return published.size() == static_cast<std::size_t>(rows_ * cols_) && !heights.empty(); }, 10.0));
+  ASSERT_TRUE(
+      waitFor([&] { return published.size() == static_cast<std::size_t>(rows_ * cols_) && !heights.empty(); }, 10.0));
   std::vector<uint32_t> ids;
   for (uint32_t id = 0; id < static_cast<uint32_t>(rows_ * cols_); ++id) ids.push_back(id);
   ASSERT_TRUE(callBed(ids, std::vector<double>(ids.size(), 0.08)).success);
@@ -129,7 +130,7 @@ TEST_F(BedFixture, TheBedsHeightsCarryEachCellsOwnStamp) {
   waitFor([] { return false; }, 2.0);
   sub.shutdown();
   waitFor([] { return false; }, 0.5);  // the states those messages carried have arrived here too
-  ASSERT_GE(heights.size(), 30u);  // ~joint_state_rate_hz 30 Hz for 2 s
+  ASSERT_GE(heights.size(), 30u);      // ~joint_state_rate_hz 30 Hz for 2 s
   int moving = 0;
   for (const BedHeights& h : heights) {
     ASSERT_EQ(h.stamps.size(), ids.size());
@@ -158,7 +159,8 @@ TEST_F(BedFixture, DiagnosticsReportEveryCell) {
   ASSERT_TRUE(waitFor([&] { return !last.status.empty(); }, 10.0));
   ASSERT_EQ(last.status.size(), static_cast<std::size_t>(rows_ * cols_ + 1));
   EXPECT_EQ(last.status[0].name, "bed");
-  for (const auto& s : last.status) EXPECT_EQ(s.level, diagnostic_msgs::DiagnosticStatus::OK) << s.name << ": " << s.message;
+  for (const auto& s : last.status)
+    EXPECT_EQ(s.level, diagnostic_msgs::DiagnosticStatus::OK) << s.name << ": " << s.message;
   EXPECT_EQ(last.status[2].name, "bed/airbag_0_1");
 }
 

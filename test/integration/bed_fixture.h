@@ -5,16 +5,16 @@
 #include <ros/ros.h>
 
 #include <algorithm>
-#include <functional>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <string>
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/BedState.h"
-#include "nursing_bed/SetPosture.h"
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetHeights.h"
+#include "nursing_bed/SetPosture.h"
 
 namespace nursing_bed {
 namespace test {
@@ -131,8 +131,8 @@ class BedFixture : public ::testing::Test {
   std::map<uint32_t, ros::WallTime> arrived_;  ///< when each cell's last state arrived
   double max_gap_s_ = 0.0;                     ///< largest gap between two states of a cell [s]
   std::map<uint32_t, ros::Time> last_stamp_;
-  double max_stamp_gap_s_ = 0.0;      ///< largest step of a cell's state stamps [s]
-  double max_lag_s_ = 0.0;            ///< longest a state arrived after the time it describes [s]
+  double max_stamp_gap_s_ = 0.0;                      ///< largest step of a cell's state stamps [s]
+  double max_lag_s_ = 0.0;                            ///< longest a state arrived after the time it describes [s]
   long stamp_steps_ = 0, stamp_steps_over_60ms_ = 0;  ///< steps of the stamps, and those over 60 ms
   std::map<uint32_t, std::pair<ros::Time, double>> setpoint_anchor_;
   double max_setpoint_rate_m_s_ = 0.0;  ///< fastest setpoint change of any cell [m/s]

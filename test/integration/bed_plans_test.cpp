@@ -20,8 +20,9 @@ TEST_F(PlanFixture, AlternatingNeverLowersTwoAdjacentRowsAndKeepsItsPeriod) {
   const double low = 0.03, high = 0.12, mid = 0.5 * (low + high);
   ASSERT_TRUE(posture("flat", {"height_m"}, {"0.12"}).success);  // a supported patient first
   ASSERT_TRUE(settle(uniform(0.12), 2e-3, 0.3, 20.0));
-  ASSERT_TRUE(posture("alternating", {"pattern", "period_s", "static_head_rows"},
-                      {pattern, std::to_string(period), "1"}).success);
+  ASSERT_TRUE(
+      posture("alternating", {"pattern", "period_s", "static_head_rows"}, {pattern, std::to_string(period), "1"})
+          .success);
   const int watched_row = 2;  // a cycling row (row 0 is the static head row)
   std::vector<double> went_low;
   bool was_low = false;

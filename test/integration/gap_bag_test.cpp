@@ -29,10 +29,10 @@
 #include <memory>
 
 #include "bed_fixture.h"
-#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/gap/diagnosis.h"
-#include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/gap/synth.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/ros/bag_runs.h"
 
 namespace nursing_bed {
@@ -127,7 +127,8 @@ class GapBagFixture : public BedFixture {
     heartbeats_ = true;
     report(name + " end", height_m);
     for (uint32_t id = 0; id < 2; ++id)
-      EXPECT_TRUE(states_[id].faults & AirbagState::FAULT_COMMAND_TIMEOUT) << name << ": cell " << id << " was not sealed";
+      EXPECT_TRUE(states_[id].faults & AirbagState::FAULT_COMMAND_TIMEOUT)
+          << name << ": cell " << id << " was not sealed";
     return path;
   }
 
@@ -176,8 +177,8 @@ TEST_F(GapBagFixture, LeakyCellIsExplainedByALeakAndTheNominalCellByNothing) {
     ASSERT_EQ(runs.size(), 2u) << bag;
     for (RunData& run : runs) {
       run.role = role;
-      std::cout << run.name << ": " << run.size() << " samples, " << run.t_s.back() << " s, load " << run.load_n
-                << " N" << std::endl;
+      std::cout << run.name << ": " << run.size() << " samples, " << run.t_s.back() << " s, load " << run.load_n << " N"
+                << std::endl;
       datasets[run.meta.at("topic")].push_back(std::move(run));
     }
   }

@@ -27,12 +27,14 @@ std::string executable(const std::string& name) {
 class RealBedFixture : public BedFixture {
  protected:
   void SetUp() override {
-    truth_sub_ = nh_.subscribe<nursing_bed::RigTruth>(
-        "/rig_emulator/truth", 2, [this](const nursing_bed::RigTruth::ConstPtr& m) {
-          for (std::size_t id = 0; id < m->height_m.size(); ++id) truth_m_[id] = m->height_m[id];
-        });
+    truth_sub_ = nh_.subscribe<nursing_bed::RigTruth>("/rig_emulator/truth", 2,
+                                                      [this](const nursing_bed::RigTruth::ConstPtr& m) {
+                                                        for (std::size_t id = 0; id < m->height_m.size(); ++id)
+                                                          truth_m_[id] = m->height_m[id];
+                                                      });
     BedFixture::SetUp();
-    ASSERT_TRUE(waitFor([this] { return static_cast<int>(truth_m_.size()) == rows_ * cols_; }, 30.0)) << "no emulator truth";
+    ASSERT_TRUE(waitFor([this] { return static_cast<int>(truth_m_.size()) == rows_ * cols_; }, 30.0))
+        << "no emulator truth";
   }
   void TearDown() override {
     if (restarted_pid_ > 0) ::kill(restarted_pid_, SIGINT);
@@ -56,7 +58,8 @@ class RealBedFixture : public BedFixture {
 
   std::string truthText() {
     std::ostringstream s;
-    for (const auto& [id, h] : truth_m_) s << "cell " << id << ": truth " << h << " m, estimate " << states_[id].height_m << " m; ";
+    for (const auto& [id, h] : truth_m_)
+      s << "cell " << id << ": truth " << h << " m, estimate " << states_[id].height_m << " m; ";
     return s.str();
   }
 
@@ -84,7 +87,8 @@ class RealBedFixture : public BedFixture {
 
   /// Starts the emulator again under its name (its private parameters are still set).
   void restartEmulator() {
-    const ToolResult r = runCommand(executable("rig_emulator_node") + " __name:=rig_emulator >/dev/null 2>&1 & echo $!");
+    const ToolResult r =
+        runCommand(executable("rig_emulator_node") + " __name:=rig_emulator >/dev/null 2>&1 & echo $!");
     restarted_pid_ = std::atoi(r.output.c_str());
     ASSERT_GT(restarted_pid_, 0) << r.output;
   }
@@ -123,9 +127,9 @@ TEST_F(RealBedFixture, OneCellReachesItsHeightWithoutAHeightSensor) {
   EXPECT_TRUE(callPressure(0, 3000.0).success);
   EXPECT_TRUE(waitFor([this] { return states_[0].mode == AirbagState::MODE_PRESSURE; }, 5.0));
   EXPECT_NEAR(states_[0].pressure_setpoint_pa, 3000.0, 1e-9);
-  for (const auto& [id, pressure, fragment] : {std::make_tuple(0u, -5000.0, "outside [0"),
-                                               std::make_tuple(0u, 1e9, "outside [0"),
-                                               std::make_tuple(7u, 3000.0, "cell 7 is not served here")}) {
+  for (const auto& [id, pressure, fragment] :
+       {std::make_tuple(0u, -5000.0, "outside [0"), std::make_tuple(0u, 1e9, "outside [0"),
+        std::make_tuple(7u, 3000.0, "cell 7 is not served here")}) {
     const SetPressure::Response r = callPressure(id, pressure);
     EXPECT_FALSE(r.success) << pressure;
     EXPECT_NE(r.message.find(fragment), std::string::npos) << r.message;
@@ -155,7 +159,8 @@ TEST_F(RealBedFixture, EveryCellFlagsTheLostEmulatorAndResumesWhenItIsBack) {
   ASSERT_TRUE(waitFor([this] { return allFlagged(AirbagState::FAULT_COMMUNICATION, true); }, 5.0));
   // Within 0.5 s, give or take the state's publishing period.
   EXPECT_LE((ros::WallTime::now() - lost).toSec(), 0.5 + 0.04);
-  for (const auto& [id, s] : states_) EXPECT_NEAR(s.height_setpoint_m, 0.06, 1e-9) << "cell " << id << " keeps its setpoint";
+  for (const auto& [id, s] : states_)
+    EXPECT_NEAR(s.height_setpoint_m, 0.06, 1e-9) << "cell " << id << " keeps its setpoint";
   restartEmulator();
   ASSERT_TRUE(waitFor([this] { return allFlagged(AirbagState::FAULT_COMMUNICATION, false); }, 20.0));
   // The restarted rig's cells are flat: the observers re-anchor and the cells go back up (to
@@ -168,11 +173,12 @@ TEST(RealBedMaps, ABadRegisterMapIsRefusedNamingTheEntry) {
   std::string bad_map;
   ASSERT_TRUE(pnh.getParam("bad_map", bad_map));
   // The airbag node reads the map from /airbag_defaults/hardware/register_map (set by the launch).
-  const ToolResult airbag = runCommand("timeout 30 " + executable("airbag_node") + " __name:=probe_airbag _row:=0 _col:=1");
+  const ToolResult airbag =
+      runCommand("timeout 30 " + executable("airbag_node") + " __name:=probe_airbag _row:=0 _col:=1");
   EXPECT_EQ(airbag.code, 1) << airbag.output;
   expectContains(airbag.output, {"airbag_0_1", "cell 1 is missing from the register map"});
-  const ToolResult emulator = runCommand("timeout 30 " + executable("rig_emulator_node") + " __name:=probe_emulator _register_map:=" +
-                                         bad_map + " _bed_cells:=2");
+  const ToolResult emulator = runCommand("timeout 30 " + executable("rig_emulator_node") +
+                                         " __name:=probe_emulator _register_map:=" + bad_map + " _bed_cells:=2");
   EXPECT_EQ(emulator.code, 1) << emulator.output;
   expectContains(emulator.output, {bad_map, "cell 1 is missing"});
 }

@@ -55,8 +55,8 @@ class ReconfigureFixture : public PlanFixture {
 };
 
 TEST_F(ReconfigureFixture, ACellTakesAValidChangeAndActsOnIt) {
-  const Values answer = reconfigure("/airbag_0_0", {{"controller_height_tolerance_m", 0.0006},
-                                                    {"controller_hold_band_m", 0.0008}});
+  const Values answer =
+      reconfigure("/airbag_0_0", {{"controller_height_tolerance_m", 0.0006}, {"controller_hold_band_m", 0.0008}});
   EXPECT_DOUBLE_EQ(answer.at("controller_height_tolerance_m"), 0.0006);
   EXPECT_DOUBLE_EQ(answer.at("controller_hold_band_m"), 0.0008);
   // Saved where loadParams() reads it, so a restarted node keeps it.
@@ -68,7 +68,8 @@ TEST_F(ReconfigureFixture, ACellTakesAValidChangeAndActsOnIt) {
   ASSERT_TRUE(callCell("/airbag_0_0", id, 0.05).success);
   ASSERT_TRUE(settle({{id, 0.05}}, 2e-3, 0.5, 20.0)) << "the cell did not reach 50 mm";
   ASSERT_FALSE(overpressure(id));
-  const Values low = reconfigure("/airbag_0_0", {{"controller_max_pressure_pa", 500.0}, {"safety_relief_pressure_pa", 1000.0}});
+  const Values low =
+      reconfigure("/airbag_0_0", {{"controller_max_pressure_pa", 500.0}, {"safety_relief_pressure_pa", 1000.0}});
   EXPECT_DOUBLE_EQ(low.at("safety_relief_pressure_pa"), 1000.0);
   EXPECT_TRUE(waitFor([&] { return overpressure(id); }, 5.0)) << "the new relief pressure was not applied";
   reconfigure("/airbag_0_0", {{"controller_max_pressure_pa", 32000.0}, {"safety_relief_pressure_pa", 35000.0}});

@@ -50,11 +50,12 @@ class SafetyFixture : public PlanFixture {
         setpoints.push_back(nh_.advertise<std_msgs::Float64>(cellName(r, c) + "/height_setpoint", 50));
       }
     ros::Publisher array = nh_.advertise<std_msgs::Float64MultiArray>("/airbag_loads", 50);
-    waitFor([&] { return array.getNumSubscribers() >= static_cast<uint32_t>(cells()) && loads[0].getNumSubscribers() > 0; },
-            5.0);
+    waitFor(
+        [&] { return array.getNumSubscribers() >= static_cast<uint32_t>(cells()) && loads[0].getNumSubscribers() > 0; },
+        5.0);
     const std::vector<double> bad{kNaN, kInf, -kInf, 1e9, -1e9, -1.0, 3e3, 1e6, -1e-9, 1e300};
-    const std::vector<std::size_t> lengths{0, static_cast<std::size_t>(cells()) - 1, static_cast<std::size_t>(cells()) + 1,
-                                           179, 181, 100000};
+    const std::vector<std::size_t> lengths{
+        0, static_cast<std::size_t>(cells()) - 1, static_cast<std::size_t>(cells()) + 1, 179, 181, 100000};
     std::mt19937 rng(14);
     int sent = 0;
     for (; sent < count; ++sent) {
@@ -88,11 +89,21 @@ class SafetyFixture : public PlanFixture {
       if (!success && message.find(fragment) != std::string::npos) ++refused;
     };
     const std::vector<std::pair<std::vector<std::string>, std::string>> turn_values{
-        {{"left", "0x14"}, "must be a number"}, {{"left", "inf"}, "finite"},      {{"left", "nan"}, "finite"},
-        {{"left", " 20"}, "must be a number"},  {{"left", "20 "}, "must be a number"}, {{"left", "1e999"}, "finite"},
-        {{"left", "-5"}, "outside"},            {{"left", "45"}, "outside"},      {{"left", "35"}, "configured maximum"},
-        {{"left", "0"}, "positive"},            {{"up", "20"}, "side must be"},   {{"", "20"}, "side must be"},
-        {{"left", "20deg"}, "must be a number"}, {{"left", ""}, "must be a number"}, {{"LEFT", "20"}, "side must be"}};
+        {{"left", "0x14"}, "must be a number"},
+        {{"left", "inf"}, "finite"},
+        {{"left", "nan"}, "finite"},
+        {{"left", " 20"}, "must be a number"},
+        {{"left", "20 "}, "must be a number"},
+        {{"left", "1e999"}, "finite"},
+        {{"left", "-5"}, "outside"},
+        {{"left", "45"}, "outside"},
+        {{"left", "35"}, "configured maximum"},
+        {{"left", "0"}, "positive"},
+        {{"up", "20"}, "side must be"},
+        {{"", "20"}, "side must be"},
+        {{"left", "20deg"}, "must be a number"},
+        {{"left", ""}, "must be a number"},
+        {{"LEFT", "20"}, "side must be"}};
     for (const auto& [values, fragment] : turn_values) {
       const SetPosture::Response r = posture("lateral_turn", {"side", "angle_deg"}, values);
       expect_refused(r.success, r.message, fragment, "turn " + values[0] + " " + values[1]);
@@ -126,8 +137,9 @@ class SafetyFixture : public PlanFixture {
     }
     SetPosture custom;
     custom.request.plan = "custom";
-    for (const std::vector<double>& heights : {std::vector<double>(cells() - 1, 0.1), std::vector<double>(cells(), kNaN),
-                                               std::vector<double>(cells(), 0.01), std::vector<double>(cells() + 1, 0.1)}) {
+    for (const std::vector<double>& heights :
+         {std::vector<double>(cells() - 1, 0.1), std::vector<double>(cells(), kNaN), std::vector<double>(cells(), 0.01),
+          std::vector<double>(cells() + 1, 0.1)}) {
       custom.request.heights_m = heights;
       EXPECT_TRUE(ros::service::call("/bed_manager/set_posture", custom));
       expect_refused(custom.response.success, custom.response.message, "custom", "custom heights");
@@ -139,11 +151,22 @@ class SafetyFixture : public PlanFixture {
     expect_refused(flat_heights.response.success, flat_heights.response.message, "per-cell", "flat with heights");
     const uint32_t n = static_cast<uint32_t>(cells());
     const std::vector<std::tuple<std::vector<uint32_t>, std::vector<double>, std::string>> many{
-        {{0}, {0.01}, "outside"},   {{0}, {0.5}, "outside"},      {{0}, {-0.01}, "outside"},  {{0}, {kNaN}, "finite"},
-        {{0}, {kInf}, "finite"},    {{0}, {-kInf}, "finite"},     {{n}, {0.05}, "does not exist"},
-        {{999999}, {0.05}, "does not exist"}, {{0, 0}, {0.05, 0.06}, "twice"}, {{0, 1}, {0.05}, "heights"},
-        {{0}, {0.05, 0.06}, "heights"}, {{}, {}, "no cells"},      {{1, 2, 0}, {0.05, 0.05, 0.9}, "outside"},
-        {{1, 2, n + 5}, {0.05, 0.05, 0.05}, "does not exist"}, {{0}, {0.019}, "outside"}, {{0}, {0.151}, "outside"}};
+        {{0}, {0.01}, "outside"},
+        {{0}, {0.5}, "outside"},
+        {{0}, {-0.01}, "outside"},
+        {{0}, {kNaN}, "finite"},
+        {{0}, {kInf}, "finite"},
+        {{0}, {-kInf}, "finite"},
+        {{n}, {0.05}, "does not exist"},
+        {{999999}, {0.05}, "does not exist"},
+        {{0, 0}, {0.05, 0.06}, "twice"},
+        {{0, 1}, {0.05}, "heights"},
+        {{0}, {0.05, 0.06}, "heights"},
+        {{}, {}, "no cells"},
+        {{1, 2, 0}, {0.05, 0.05, 0.9}, "outside"},
+        {{1, 2, n + 5}, {0.05, 0.05, 0.05}, "does not exist"},
+        {{0}, {0.019}, "outside"},
+        {{0}, {0.151}, "outside"}};
     for (const auto& [ids, heights, fragment] : many) {
       const SetHeights::Response r = callBed(ids, heights);
       expect_refused(r.success, r.message, fragment, "set_airbag_heights");
@@ -223,10 +246,11 @@ TEST_F(SafetyFixture, CprToFlatCyclesEndFlatWithoutAFalseDeadCell) {
     worst_manager_gap = std::max(worst_manager_gap, bed_.largest_state_gap_s);
     flat_ends += flat && bed_.plan == "flat";
     false_dead += !bed_.dead_cells.empty() || bed_.plan == "safe_level";
-    std::printf("cycle %d: %s, plan %s, largest state gap %.0f ms (at the bed manager), %.0f ms (stamps), %.0f ms "
-                "(arrivals here); latest state %.0f ms after its stamp\n", i + 1, flat ? "flat" : "NOT flat",
-                bed_.plan.c_str(), 1e3 * bed_.largest_state_gap_s, 1e3 * max_stamp_gap_s_, 1e3 * max_gap_s_,
-                1e3 * max_lag_s_);
+    std::printf(
+        "cycle %d: %s, plan %s, largest state gap %.0f ms (at the bed manager), %.0f ms (stamps), %.0f ms "
+        "(arrivals here); latest state %.0f ms after its stamp\n",
+        i + 1, flat ? "flat" : "NOT flat", bed_.plan.c_str(), 1e3 * bed_.largest_state_gap_s, 1e3 * max_stamp_gap_s_,
+        1e3 * max_gap_s_, 1e3 * max_lag_s_);
     std::fflush(stdout);
   }
   EXPECT_EQ(flat_ends, cycles);
@@ -239,10 +263,12 @@ TEST_F(SafetyFixture, CprToFlatCyclesEndFlatWithoutAFalseDeadCell) {
   // 0.32-0.51 s; a healthy bed's worst is tens of ms, up to ~0.16 s when the host itself pauses
   // (doc/safety.md). 0.25 s, half the timeout, catches the stall without failing on such a pause.
   EXPECT_LE(worst_manager_gap, 0.250);
-  std::printf("CPR -> flat: %d of %d cycles ended flat, %d false dead cells; largest state gap %.0f ms (at the bed "
-              "manager), %.0f ms (stamps), %.0f ms (arrivals here); latest state %.0f ms after its stamp; flat within "
-              "%.1f s\n", flat_ends, cycles, false_dead, 1e3 * worst_manager_gap, 1e3 * worst_stamp_gap,
-              1e3 * worst_gap, 1e3 * worst_lag, worst_flat_s);
+  std::printf(
+      "CPR -> flat: %d of %d cycles ended flat, %d false dead cells; largest state gap %.0f ms (at the bed "
+      "manager), %.0f ms (stamps), %.0f ms (arrivals here); latest state %.0f ms after its stamp; flat within "
+      "%.1f s\n",
+      flat_ends, cycles, false_dead, 1e3 * worst_manager_gap, 1e3 * worst_stamp_gap, 1e3 * worst_gap, 1e3 * worst_lag,
+      worst_flat_s);
   RecordProperty("flat_ends", flat_ends);
   RecordProperty("largest_state_gap_ms", std::to_string(1e3 * worst_manager_gap));
   RecordProperty("largest_stamp_gap_ms", std::to_string(1e3 * worst_stamp_gap));
@@ -287,7 +313,8 @@ TEST_F(SafetyFixture, BodyRollRateIsLimitedThroughPlanSwitchesAndACellFault) {
   // The plan's ramp asks 1 deg/s; the bed slows its own slope to bed_tilt_rate_fraction of it.
   const double ramp = phase("turn left 20 deg", 45.0);
   EXPECT_NEAR(-roll_rad * 180.0 / M_PI, 20.0, 2.5);
-  ASSERT_TRUE(posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"right", "20", "20", "600"}).success);
+  ASSERT_TRUE(
+      posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"right", "20", "20", "600"}).success);
   const double to_other_side = phase("switched to turn right 20 deg", 18.0);
   ASSERT_TRUE(posture("lateral_turn", {"side", "angle_deg", "ramp_s", "dwell_s"}, {"left", "15", "15", "600"}).success);
   const double back = phase("switched back to turn left 15 deg", 18.0);
@@ -354,8 +381,8 @@ TEST_F(SafetyFixture, BedManagerKilledCellsHoldCprWorksAndTheRestartResumesThePl
   waitFor([] { return false; }, 2.0);
   const ros::WallTime killed_again = ros::WallTime::now();
   killBedManager();
-  EXPECT_TRUE(waitFor([&] { return bed_.header.stamp.toSec() > killed_again.toSec() && bed_.plan == "max_inflate"; },
-                      30.0))
+  EXPECT_TRUE(
+      waitFor([&] { return bed_.header.stamp.toSec() > killed_again.toSec() && bed_.plan == "max_inflate"; }, 30.0))
       << "plan after the second restart: " << bed_.plan;
   EXPECT_TRUE(waitFor([&] { return bed_.plan == "flat"; }, 30.0)) << "max_inflate did not go back: " << bed_.plan;
   EXPECT_EQ(bed_.parameters, "height_m=0.08");

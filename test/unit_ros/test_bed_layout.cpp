@@ -63,21 +63,19 @@ std::string cellXml(int row, int col, double x_m, double y_m, const std::string&
   const std::string cell = "airbag_" + std::to_string(row) + "_" + std::to_string(col);
   std::ostringstream out;
   out << "<joint name=\"" << cell << "_joint\" type=\"" << type << "\"><parent link=\"" << parent
-      << "\"/><child link=\"" << cell << "_link\"/><origin xyz=\"" << x_m << " " << y_m
-      << " 0\"/><axis xyz=\"" << axis << "\"/>" << limit << "</joint><link name=\"" << cell << "_link\"/>";
+      << "\"/><child link=\"" << cell << "_link\"/><origin xyz=\"" << x_m << " " << y_m << " 0\"/><axis xyz=\"" << axis
+      << "\"/>" << limit << "</joint><link name=\"" << cell << "_link\"/>";
   return out.str();
 }
 
 std::string robotXml(const std::string& body, const std::string& root_link = "bed_link") {
-  return "<?xml version=\"1.0\"?><robot name=\"nursing_bed\"><link name=\"" + root_link + "\"/>" + body +
-         "</robot>";
+  return "<?xml version=\"1.0\"?><robot name=\"nursing_bed\"><link name=\"" + root_link + "\"/>" + body + "</robot>";
 }
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
 TEST(BedLayout, SmallGeneratedGrid) {
-  const nb::BedLayout layout =
-      nb::BedLayout::fromUrdf(generate("--rows 3 --cols 2 --pitch 0.05 --max-height 0.12"));
+  const nb::BedLayout layout = nb::BedLayout::fromUrdf(generate("--rows 3 --cols 2 --pitch 0.05 --max-height 0.12"));
   EXPECT_EQ(layout.rows(), 3);
   EXPECT_EQ(layout.cols(), 2);
   EXPECT_NEAR(layout.pitchM(), 0.05, 1e-12);
@@ -206,20 +204,20 @@ TEST(BedLayoutErrors, CellJointWithoutLimits) {
 }
 
 TEST(BedLayoutErrors, CellJointNotAlongZOrNotOnBedLink) {
-  const std::string axis = layoutError(robotXml(cellXml(0, 0, 0.0, 0.0, "prismatic",
-      "<limit lower=\"0\" upper=\"0.1\" effort=\"1\" velocity=\"1\"/>", "1 0 0")));
+  const std::string axis = layoutError(robotXml(
+      cellXml(0, 0, 0.0, 0.0, "prismatic", "<limit lower=\"0\" upper=\"0.1\" effort=\"1\" velocity=\"1\"/>", "1 0 0")));
   EXPECT_TRUE(contains(axis, "airbag_0_0_joint moves along")) << axis;
-  const std::string parent = layoutError(robotXml(
-      "<link name=\"frame\"/><joint name=\"frame_joint\" type=\"fixed\"><parent link=\"bed_link\"/>"
-      "<child link=\"frame\"/></joint>" +
-      cellXml(0, 0, 0.0, 0.0, "prismatic", "<limit lower=\"0\" upper=\"0.1\" effort=\"1\" velocity=\"1\"/>",
-              "0 0 1", "frame")));
+  const std::string parent = layoutError(
+      robotXml("<link name=\"frame\"/><joint name=\"frame_joint\" type=\"fixed\"><parent link=\"bed_link\"/>"
+               "<child link=\"frame\"/></joint>" +
+               cellXml(0, 0, 0.0, 0.0, "prismatic", "<limit lower=\"0\" upper=\"0.1\" effort=\"1\" velocity=\"1\"/>",
+                       "0 0 1", "frame")));
   EXPECT_TRUE(contains(parent, "airbag_0_0_joint has parent frame")) << parent;
 }
 
 TEST(BedLayoutErrors, MissingCellIsNamed) {
-  const std::string error = layoutError(
-      robotXml(cellXml(0, 0, 0.05, -0.05) + cellXml(0, 1, 0.05, 0.05) + cellXml(1, 1, -0.05, 0.05)));
+  const std::string error =
+      layoutError(robotXml(cellXml(0, 0, 0.05, -0.05) + cellXml(0, 1, 0.05, 0.05) + cellXml(1, 1, -0.05, 0.05)));
   EXPECT_TRUE(contains(error, "2 x 2 grid")) << error;
   EXPECT_TRUE(contains(error, "airbag_1_0_joint) is missing")) << error;
 }
@@ -246,11 +244,20 @@ TEST(MakeBedUrdf, RefusesBadArguments) {
     const char* args;
     const char* named;
   } cases[] = {
-      {"--rows x", "--rows"},         {"--rows 2.5", "--rows"},      {"--rows 0", "--rows"},
-      {"--rows 101", "--rows"},       {"--cols -1", "--cols"},       {"--cols 101", "--cols"},
-      {"--pitch 0", "--pitch"},       {"--pitch -0.1", "--pitch"},   {"--pitch nan", "--pitch"},
-      {"--pitch inf", "--pitch"},     {"--pitch 1.5", "--pitch"},    {"--pitch abc", "--pitch"},
-      {"--max-height 0", "--max-height"}, {"--max-height inf", "--max-height"},
+      {"--rows x", "--rows"},
+      {"--rows 2.5", "--rows"},
+      {"--rows 0", "--rows"},
+      {"--rows 101", "--rows"},
+      {"--cols -1", "--cols"},
+      {"--cols 101", "--cols"},
+      {"--pitch 0", "--pitch"},
+      {"--pitch -0.1", "--pitch"},
+      {"--pitch nan", "--pitch"},
+      {"--pitch inf", "--pitch"},
+      {"--pitch 1.5", "--pitch"},
+      {"--pitch abc", "--pitch"},
+      {"--max-height 0", "--max-height"},
+      {"--max-height inf", "--max-height"},
       {"--max-height -0.1", "--max-height"},
   };
   for (const auto& c : cases) {

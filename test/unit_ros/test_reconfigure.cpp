@@ -98,8 +98,7 @@ TEST(ReconfigureKeys, AreTheYamlKeysWithTheSectionSlashWrittenAsAnUnderscore) {
 TEST(ReconfigureDefaults, AreTheParameterStructsDefaults) {
   // Also checks that every cfg parameter has a key in the parameter tables (else it throws).
   EXPECT_EQ(message(nb::airbagConfigFrom(nb::AirbagNodeParams{})), message(nb::AirbagCellConfig::__getDefault__()));
-  EXPECT_EQ(message(nb::bedManagerConfigFrom(nb::BedManagerParams{})),
-            message(nb::BedManagerConfig::__getDefault__()));
+  EXPECT_EQ(message(nb::bedManagerConfigFrom(nb::BedManagerParams{})), message(nb::BedManagerConfig::__getDefault__()));
 }
 
 TEST(AirbagReconfigure, AGoodConfigBecomesTheParamsAndNamesWhatChanged) {

@@ -16,8 +16,8 @@ namespace nursing_bed {
 struct AirbagHardwareParams {
   /// hardware/plugin: pluginlib name of the CellHardware; default the simulated cell.
   std::string plugin = "nursing_bed/SimulatedHardware";
-  std::string register_map;          ///< hardware/register_map: YAML path (modbus_tcp)
-  CellObserverParams observer;       ///< observer/<key>: tuning (observerParamFields)
+  std::string register_map;     ///< hardware/register_map: YAML path (modbus_tcp)
+  CellObserverParams observer;  ///< observer/<key>: tuning (observerParamFields)
   /// observer/resume_vent_s, observer/reanchor_below_m: the cell's checks of the observer's gas
   /// (gasVerifierParamFields).
   GasVerifierParams gas_check;
@@ -27,7 +27,7 @@ struct AirbagHardwareParams {
   /// observer/effects: effects the observer's model carries (a `gap diagnose` verdict, in the
   /// ~effects syntax); empty: the nominal model.
   std::string observer_effects;
-  bool observer_force = false;       ///< observer/force: use the estimate even with a height sensor
+  bool observer_force = false;  ///< observer/force: use the estimate even with a height sensor
 
   bool simulated() const { return plugin == "nursing_bed/SimulatedHardware"; }
   /// Success, or every problem found.

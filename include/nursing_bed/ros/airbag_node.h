@@ -11,6 +11,10 @@
 #include <mutex>
 #include <string>
 
+#include <std_msgs/Bool.h>
+#include <std_msgs/Empty.h>
+#include <std_msgs/Float64.h>
+#include <std_msgs/Float64MultiArray.h>
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/SetHeight.h"
 #include "nursing_bed/SetPressure.h"
@@ -18,10 +22,6 @@
 #include "nursing_bed/core/io/status.h"
 #include "nursing_bed/ros/airbag_hardware.h"
 #include "nursing_bed/ros/bed_layout.h"
-#include <std_msgs/Bool.h>
-#include <std_msgs/Empty.h>
-#include <std_msgs/Float64.h>
-#include <std_msgs/Float64MultiArray.h>
 
 namespace nursing_bed {
 
@@ -31,15 +31,15 @@ class ReconfigureServer;
 
 /// Everything the airbag node reads from the parameter server, validated in one place.
 struct AirbagNodeParams {
-  int row = -1;                       ///< ~row: the cell's row in the bed (required)
-  int col = -1;                       ///< ~col: the cell's column (required)
-  std::string defaults_ns = "/airbag_defaults";  ///< ~defaults_ns: shared parameters
+  int row = -1;                                         ///< ~row: the cell's row in the bed (required)
+  int col = -1;                                         ///< ~col: the cell's column (required)
+  std::string defaults_ns = "/airbag_defaults";         ///< ~defaults_ns: shared parameters
   std::string robot_description = "robot_description";  ///< ~robot_description_param
-  double update_rate_hz = 50.0;       ///< ~update_rate_hz: how often the simulation catches up with the clock
-  double publish_rate_hz = 50.0;      ///< ~publish_rate_hz: AirbagState rate
-  double load_n = 0.6;                ///< ~load_n: external load until a load topic says otherwise [N]
-  double initial_height_m = 0.0;      ///< ~initial_height_m: start at rest at this height [m]
-  double supply_pressure_pa = -1.0;   ///< ~supply_pressure_pa: regulator setting; < 0 keeps cell/supply/pressure_pa
+  double update_rate_hz = 50.0;      ///< ~update_rate_hz: how often the simulation catches up with the clock
+  double publish_rate_hz = 50.0;     ///< ~publish_rate_hz: AirbagState rate
+  double load_n = 0.6;               ///< ~load_n: external load until a load topic says otherwise [N]
+  double initial_height_m = 0.0;     ///< ~initial_height_m: start at rest at this height [m]
+  double supply_pressure_pa = -1.0;  ///< ~supply_pressure_pa: regulator setting; < 0 keeps cell/supply/pressure_pa
   /// ~effects: effects the simulated cell has and the nominal model leaves out, for sim-to-real
   /// tests of the gap diagnosis: "NAME[:param=value,...][;NAME...]" (core/gap/effects.h; parameters
   /// not given are drawn from the noise seed). Default "": the nominal cell.
@@ -47,8 +47,8 @@ struct AirbagNodeParams {
   /// ~reconfigure (else defaults_ns/reconfigure): serve ~set_parameters (dynamic_reconfigure);
   /// off, the cell starts faster.
   bool reconfigure = true;
-  AirbagCellParams airbag;            ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
-  AirbagHardwareParams hardware;      ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
+  AirbagCellParams airbag;        ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
+  AirbagHardwareParams hardware;  ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
   /// Success, or every problem found.
   Status validate() const;
@@ -122,10 +122,10 @@ class AirbagNode {
   AirbagNodeParams params_;
   CellLayout layout_;
   std::unique_ptr<AirbagCell> cell_;
-  std::timed_mutex mutex_;  // callbacks may run on several nodelet worker threads
+  std::timed_mutex mutex_;     // callbacks may run on several nodelet worker threads
   std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
   CellSnapshot snapshot_;
-  bool finding_gas_ = false;  ///< the cell was venting to find its gas at the last update
+  bool finding_gas_ = false;    ///< the cell was venting to find its gas at the last update
   bool anchoring_gas_ = false;  ///< the cell was venting flat to re-anchor its gas at the last update
   bool gas_search_warned_ = false;
   double gas_search_start_s_ = 0.0;
@@ -134,12 +134,13 @@ class AirbagNode {
   static constexpr double kCatchUpPeriods = 2.0;  ///< most update periods a cell advances per round
   std::atomic<double> pending_load_n_{kNoLoad};
   static constexpr double kNoHeartbeat = -1.0;
-  std::atomic<double> pending_heartbeat_s_{kNoHeartbeat};  ///< a heartbeat's time for the next update [s since start]  ///< a checked load for the next update (kNoLoad: none)
+  std::atomic<double> pending_heartbeat_s_{
+      kNoHeartbeat};  ///< a heartbeat's time for the next update [s since start]  ///< a checked load for the next update (kNoLoad: none)
   ros::Time start_, last_publish_, last_publish_wall_;
   double last_published_time_s_ = -1.0;  ///< the cell's simulated time at the last AirbagState
   /// Cells in the bed: the length /airbag_loads must have, and what a register map must serve.
   std::size_t bed_cells_ = 0;
-  ros::Time manager_setpoint_at_;        ///< last setpoint on the manager's topic
+  ros::Time manager_setpoint_at_;  ///< last setpoint on the manager's topic
   /// A direct set_height call's final height and the ramp towards it, moved at
   /// safety/max_height_rate_m_s (NaN: no direct call in progress). The manager's stream is
   /// limited by the manager, so only direct calls ramp here.

@@ -29,12 +29,12 @@ class ReconfigureServer;
 
 struct BedManagerParams {
   std::string robot_description = "robot_description";  ///< ~robot_description_param
-  std::string defaults_ns = "/airbag_defaults";          ///< ~defaults_ns: the cells' shared parameters
-  std::string cells_ns = "/";                            ///< ~cells_ns: where the airbag_<r>_<c> nodes live
-  double joint_state_rate_hz = 30.0;                     ///< ~joint_state_rate_hz
-  double plan_rate_hz = 10.0;                            ///< ~plan_rate_hz: plan evaluation and ~state rate
-  double diagnostics_rate_hz = 5.0;                      ///< ~diagnostics_rate_hz: /diagnostics rate
-  std::string initial_plan;                              ///< ~initial_plan: plan started at launch ("": none)
+  std::string defaults_ns = "/airbag_defaults";         ///< ~defaults_ns: the cells' shared parameters
+  std::string cells_ns = "/";                           ///< ~cells_ns: where the airbag_<r>_<c> nodes live
+  double joint_state_rate_hz = 30.0;                    ///< ~joint_state_rate_hz
+  double plan_rate_hz = 10.0;                           ///< ~plan_rate_hz: plan evaluation and ~state rate
+  double diagnostics_rate_hz = 5.0;                     ///< ~diagnostics_rate_hz: /diagnostics rate
+  std::string initial_plan;                             ///< ~initial_plan: plan started at launch ("": none)
   /// ~cell_timeout_s, ~resend_s, ~leak_alarm_error_m, ~leak_alarm_s, ~plans/..., ~body/..., and
   /// the cells' safety/max_height_rate_m_s (from ~defaults_ns).
   BedSupervisorParams bed;

@@ -28,14 +28,14 @@ BedState bedStateMsg(const BedStatus& status, const ros::Time& stamp);
 /// /diagnostics: the bed summary first, then one status per cell (with the values of its last
 /// state, `last` by id, where `health` has one).
 diagnostic_msgs::DiagnosticArray diagnosticsMsg(const BedReport& report, const BedLayout& layout,
-                                                const std::vector<AirbagState>& last,
-                                                const CellHealthWatcher& health, const ros::Time& stamp);
+                                                const std::vector<AirbagState>& last, const CellHealthWatcher& health,
+                                                const ros::Time& stamp);
 /// /joint_states: the reported heights clamped to the joints' ranges; cells never heard of are
 /// left out.
 sensor_msgs::JointState jointStatesMsg(const BedLayout& layout, const std::vector<AirbagState>& last,
                                        const CellHealthWatcher& health, const ros::Time& stamp);
 /// ~heights: the heights as the cells reported them (not clamped), each at its own stamp.
-BedHeights bedHeightsMsg(const BedLayout& layout, const std::vector<AirbagState>& last,
-                         const CellHealthWatcher& health, const ros::Time& stamp);
+BedHeights bedHeightsMsg(const BedLayout& layout, const std::vector<AirbagState>& last, const CellHealthWatcher& health,
+                         const ros::Time& stamp);
 
 }  // namespace nursing_bed

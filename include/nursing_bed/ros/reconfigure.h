@@ -6,8 +6,8 @@
 // and taken whole or refused whole. Interface: doc/airbag_node.md, doc/bed_manager.md.
 #pragma once
 
-#include <ros/node_handle.h>
 #include <dynamic_reconfigure/server.h>
+#include <ros/node_handle.h>
 
 #include <boost/thread/recursive_mutex.hpp>
 #include <functional>

@@ -17,19 +17,20 @@
 namespace nursing_bed {
 
 struct RigEmulatorNodeParams {
-  std::string register_map;            ///< ~register_map: the map YAML (required)
-  int bed_cells = 0;                   ///< ~bed_cells: cells the map must serve (0: not checked)
+  std::string register_map;                      ///< ~register_map: the map YAML (required)
+  int bed_cells = 0;                             ///< ~bed_cells: cells the map must serve (0: not checked)
   std::string defaults_ns = "/airbag_defaults";  ///< ~defaults_ns: cell/ and sensors/ of the airbags
-  double period_s = 0.005;             ///< ~period_s: simulation step [s]
-  double adc_step_pa = 12.2;           ///< ~adc_step_pa: pressure ADC step (12 bits over 50 kPa) [Pa]
-  double valve_dead_time_s = 0.01;     ///< ~valve_dead_time_s: command to valve [s]
-  double pressure_noise_pa = 10.0;     ///< ~pressure_noise_pa: sd of the pressure sensors [Pa]
-  std::string effects;                 ///< ~effects: hidden in every cell ("NAME[:p=v,...][;...]")
-  double load_n = 0.6;                 ///< ~load_n: load until /airbag_loads says otherwise [N]
-  double initial_height_m = 0.0;       ///< ~initial_height_m: cells start at rest at this height [m]
-  double truth_rate_hz = 50.0;         ///< ~truth_rate_hz: rate of ~truth
-  int simulation_realtime_priority = 20;  ///< ~simulation_realtime_priority: SCHED_FIFO priority of the simulation thread (0: normal)
-  std::uint32_t noise_seed = 1;        ///< ~noise_seed
+  double period_s = 0.005;                       ///< ~period_s: simulation step [s]
+  double adc_step_pa = 12.2;                     ///< ~adc_step_pa: pressure ADC step (12 bits over 50 kPa) [Pa]
+  double valve_dead_time_s = 0.01;               ///< ~valve_dead_time_s: command to valve [s]
+  double pressure_noise_pa = 10.0;               ///< ~pressure_noise_pa: sd of the pressure sensors [Pa]
+  std::string effects;                           ///< ~effects: hidden in every cell ("NAME[:p=v,...][;...]")
+  double load_n = 0.6;                           ///< ~load_n: load until /airbag_loads says otherwise [N]
+  double initial_height_m = 0.0;                 ///< ~initial_height_m: cells start at rest at this height [m]
+  double truth_rate_hz = 50.0;                   ///< ~truth_rate_hz: rate of ~truth
+  int simulation_realtime_priority =
+      20;  ///< ~simulation_realtime_priority: SCHED_FIFO priority of the simulation thread (0: normal)
+  std::uint32_t noise_seed = 1;  ///< ~noise_seed
 
   /// Success, or every problem found.
   Status validate() const;

@@ -26,26 +26,26 @@
 namespace nursing_bed {
 
 namespace sim_names {
-constexpr const char* kBedMarkers = "/bed_markers";              // visualization_msgs/MarkerArray, bed_link
-constexpr const char* kBodyRoll = "body_roll";                   // ~body_roll: std_msgs/Float64 [rad]
-constexpr const char* kInterfacePressure = "interface_pressure"; // ~interface_pressure: nursing_bed/InterfacePressure
-constexpr const char* kBodyLink = "body_link";                   // tf frame at the pelvis
+constexpr const char* kBedMarkers = "/bed_markers";               // visualization_msgs/MarkerArray, bed_link
+constexpr const char* kBodyRoll = "body_roll";                    // ~body_roll: std_msgs/Float64 [rad]
+constexpr const char* kInterfacePressure = "interface_pressure";  // ~interface_pressure: nursing_bed/InterfacePressure
+constexpr const char* kBodyLink = "body_link";                    // tf frame at the pelvis
 }  // namespace sim_names
 
 /// Everything the simulator reads from the parameter server, validated in one place.
 struct SimulatorParams {
-  PatientParams patient;                 ///< ~patient/...: mass_kg, height_m, head_clearance_m, ...
+  PatientParams patient;                                ///< ~patient/...: mass_kg, height_m, head_clearance_m, ...
   std::string robot_description = "robot_description";  ///< ~robot_description_param
-  std::string cells_ns = "/";            ///< ~cells_ns: where the airbag_<r>_<c> nodes live
-  double rate_hz = 50.0;                 ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
-  double load_filter_time_s = 0.1;       ///< ~load_filter_time_s: first-order filter on the published loads [s]
-  double plate_weight_n = 0.6;           ///< ~plate_weight_n: added to every cell's load [N]
-  double marker_rate_hz = 10.0;          ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
-  double cell_timeout_s = 1.0;           ///< ~cell_timeout_s: warn when a cell is silent this long [s]
-  double startup_wait_s = 5.0;           ///< ~startup_wait_s: wait this long for every cell's first state [s]
-  bool publish_clock = false;            ///< ~publish_clock: publish /clock (for use_sim_time runs)
-  double clock_speed = 1.0;              ///< ~clock_speed: simulated seconds per wall second
-  double clock_step_s = 0.005;           ///< ~clock_step_s: /clock increment [s]
+  std::string cells_ns = "/";                           ///< ~cells_ns: where the airbag_<r>_<c> nodes live
+  double rate_hz = 50.0;                                ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
+  double load_filter_time_s = 0.1;  ///< ~load_filter_time_s: first-order filter on the published loads [s]
+  double plate_weight_n = 0.6;      ///< ~plate_weight_n: added to every cell's load [N]
+  double marker_rate_hz = 10.0;     ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
+  double cell_timeout_s = 1.0;      ///< ~cell_timeout_s: warn when a cell is silent this long [s]
+  double startup_wait_s = 5.0;      ///< ~startup_wait_s: wait this long for every cell's first state [s]
+  bool publish_clock = false;       ///< ~publish_clock: publish /clock (for use_sim_time runs)
+  double clock_speed = 1.0;         ///< ~clock_speed: simulated seconds per wall second
+  double clock_step_s = 0.005;      ///< ~clock_step_s: /clock increment [s]
 
   /// Success when valid, else an error with every problem found.
   Status validate() const;

@@ -56,8 +56,7 @@ std::string BedSupervisorParams::validate(const std::string& key_prefix) const {
   return errors.text();
 }
 
-BedSupervisor::BedSupervisor(BedSupervisorParams params, const BedGrid& grid, std::vector<BedCell> cells,
-                             double now_s)
+BedSupervisor::BedSupervisor(BedSupervisorParams params, const BedGrid& grid, std::vector<BedCell> cells, double now_s)
     : params_(narrowed(std::move(params), grid)),
       health_(cells, params_.cell_timeout_s, params_.startup_grace_s, now_s),
       leaks_(cells.size(), params_.leak_alarm_error_m, params_.leak_alarm_s),
@@ -124,8 +123,7 @@ RequestResult BedSupervisor::resume(const std::optional<ResumeRecord>& record, d
   if (!record) return {false, "no saved plan"};
   std::vector<std::string> refused;
   const bool ok = runner_.resume(*record, now_s, &refused);
-  for (const std::string& r : refused)
-    log(BedEvent::Kind::kResumeRefused, Severity::kError, "restarted, but " + r);
+  for (const std::string& r : refused) log(BedEvent::Kind::kResumeRefused, Severity::kError, "restarted, but " + r);
   if (!ok) return {false, refused.front()};
   resumed_ = true;
   started();
@@ -225,7 +223,8 @@ BedStatus BedSupervisor::step(double now_s) {
     if (reverted) {
       saveResume();
       commander_.resendAll();
-      log(BedEvent::Kind::kPlanReverted, Severity::kOk, "max_inflate timed out, back to " + runner_.current().plan->name());
+      log(BedEvent::Kind::kPlanReverted, Severity::kOk,
+          "max_inflate timed out, back to " + runner_.current().plan->name());
     }
     const std::vector<CellCommand> commands = commander_.command(t, health_.heights(), dt_s, now_s);
     out_.commands.insert(out_.commands.end(), commands.begin(), commands.end());

@@ -18,11 +18,13 @@ namespace {
 constexpr double kReferenceStatureM = 1.70;
 
 // Segment indices (segmentTable() order).
+// clang-format off
 enum : int {
   kHeadNeck = 0, kThorax, kAbdomen, kPelvis,
   kRightUpperArm, kRightForearm, kRightHand, kLeftUpperArm, kLeftForearm, kLeftHand,
   kRightThigh, kRightLeg, kRightFoot, kLeftThigh, kLeftLeg, kLeftFoot, kSegmentCount
 };
+// clang-format on
 
 // Where the segment table's numbers come from.
 //
@@ -59,6 +61,7 @@ enum : int {
 // fall in the supine references on foam (sacrum 36-44, heels 46-59, occiput 43-63 mmHg;
 // doc/paper_targets.md): see doc/simulator.md for the values obtained. The heel's small effective
 // radius stands in for its thin, stiff tissue over the calcaneus.
+// clang-format off
 const std::vector<SegmentSpec> kSegmentTable = {
     // name             mass     length start  end    width  depth  lateral  R_x    R_y   parent       trunk
     {"head_neck",       0.081,   0.130, 0.000, 0.130, 0.091, 0.115,  0.000,  0.070, 0.040, kThorax,     false},
@@ -78,6 +81,7 @@ const std::vector<SegmentSpec> kSegmentTable = {
     {"left_leg",        0.0465,  0.246, 0.715, 0.941, 0.060, 0.060,  0.048,  1.000, 0.051, kLeftThigh,  false},
     {"left_foot",       0.0145,  0.152, 0.941, 1.000, 0.040, 0.130,  0.048,  0.012, 0.008, kLeftLeg,    false},
 };
+// clang-format on
 
 // Newton's tolerance: force within this fraction of the weight, moment within this times
 // weight x 1 m.
@@ -124,7 +128,7 @@ BodyModel::BodyModel(const PatientParams& params, const BedGrid& grid) : params_
   for (const SegmentSpec& spec : kSegmentTable) {
     Segment seg;
     seg.spec = spec;
-    seg.x0 = x_vertex - spec.end_fraction * H;  // foot end
+    seg.x0 = x_vertex - spec.end_fraction * H;    // foot end
     seg.x1 = x_vertex - spec.start_fraction * H;  // head end
     seg.x_c = 0.5 * (seg.x0 + seg.x1);
     seg.y_c = params_.lateral_offset_m + spec.lateral_fraction * H;

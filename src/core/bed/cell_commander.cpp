@@ -6,8 +6,11 @@
 namespace nursing_bed {
 
 CellCommander::CellCommander(std::vector<BedCell> cells, RateLimits limits, double resend_s)
-    : cells_(std::move(cells)), limiter_(std::move(limits), cells_.size()), limited_m_(cells_.size(), CellSnapshot::kNone),
-      sent_height_m_(cells_.size(), CellSnapshot::kNone), sent_at_s_(cells_.size(), CellSnapshot::kNone),
+    : cells_(std::move(cells)),
+      limiter_(std::move(limits), cells_.size()),
+      limited_m_(cells_.size(), CellSnapshot::kNone),
+      sent_height_m_(cells_.size(), CellSnapshot::kNone),
+      sent_at_s_(cells_.size(), CellSnapshot::kNone),
       resend_s_(resend_s) {}
 
 void CellCommander::resendAll() { std::fill(sent_at_s_.begin(), sent_at_s_.end(), CellSnapshot::kNone); }

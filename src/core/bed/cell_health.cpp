@@ -7,8 +7,13 @@ namespace nursing_bed {
 
 CellHealthWatcher::CellHealthWatcher(std::vector<BedCell> cells, double timeout_s, double startup_grace_s,
                                      double started_s)
-    : cells_(std::move(cells)), states_(cells_.size()), dead_(cells_.size(), false), faulty_(cells_.size(), false),
-      timeout_s_(timeout_s), startup_grace_s_(startup_grace_s), started_s_(started_s) {
+    : cells_(std::move(cells)),
+      states_(cells_.size()),
+      dead_(cells_.size(), false),
+      faulty_(cells_.size(), false),
+      timeout_s_(timeout_s),
+      startup_grace_s_(startup_grace_s),
+      started_s_(started_s) {
   for (std::size_t i = 0; i < cells_.size(); ++i) {
     if (cells_[i].id != i) throw std::invalid_argument("CellHealthWatcher: cells must be given by id");
     states_[i].id = cells_[i].id;

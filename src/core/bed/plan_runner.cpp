@@ -27,8 +27,7 @@ std::optional<RunningPlan> PlanRunner::restore(const SavedPlan& saved, double no
   // safe_level is the supervisor's own plan: not a request makePlan takes.
   if (planKindFromName(request.plan) == PlanKind::kSafeLevel && request.heights_m.size() == 1)
     plan = makeSafeLevelPlan(grid_, request.heights_m[0]);
-  else
-    plan = make(request, why);
+  else plan = make(request, why);
   if (plan && (!(saved.start_s > 0.0) || saved.start_s > now_s)) {
     *why = "bad start time " + std::to_string(saved.start_s);
     plan.reset();
@@ -66,8 +65,7 @@ PlanTargets PlanRunner::targets(double now_s, bool* reverted) {
   // Back to what max_inflate interrupted, where it left off: its clock stood still meanwhile.
   if (interrupted_.plan)
     running_ = RunningPlan{interrupted_.plan, interrupted_.start_s + elapsed_s, interrupted_.request};
-  else
-    running_ = safeLevel(config_.nominal_height_m, now_s);
+  else running_ = safeLevel(config_.nominal_height_m, now_s);
   interrupted_ = RunningPlan{};
   *reverted = true;
   return running_.plan->targets(now_s - running_.start_s);

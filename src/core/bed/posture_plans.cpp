@@ -1,10 +1,10 @@
 #include "nursing_bed/core/bed/posture_plans.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cctype>
-#include <cstdlib>
 #include <charconv>
+#include <cmath>
+#include <cstdlib>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -166,8 +166,14 @@ class LateralTurnPlan : public PosturePlan {
  public:
   LateralTurnPlan(const PlanConfig& c, const BedGrid& g, const BodyFootprint& b, double direction, double angle_deg,
                   double ramp_s, double dwell_s, bool back)
-      : config_(c), grid_(g), body_(b), direction_(direction), angle_deg_(angle_deg), ramp_s_(ramp_s),
-        dwell_s_(dwell_s), back_(back) {}
+      : config_(c),
+        grid_(g),
+        body_(b),
+        direction_(direction),
+        angle_deg_(angle_deg),
+        ramp_s_(ramp_s),
+        dwell_s_(dwell_s),
+        back_(back) {}
   PlanKind kind() const override { return PlanKind::kLateralTurn; }
   PlanTargets targets(double t) const override {
     PlanTargets out;
@@ -222,7 +228,12 @@ class AlternatingPlan : public PosturePlan {
  public:
   AlternatingPlan(const PlanConfig& c, const BedGrid& g, int groups, double period_s, double low_m, double high_m,
                   int head_rows)
-      : config_(c), grid_(g), groups_(groups), period_s_(period_s), low_m_(low_m), high_m_(high_m),
+      : config_(c),
+        grid_(g),
+        groups_(groups),
+        period_s_(period_s),
+        low_m_(low_m),
+        high_m_(high_m),
         head_rows_(head_rows) {}
   PlanKind kind() const override { return PlanKind::kAlternating; }
   PlanTargets targets(double t) const override {
@@ -308,14 +319,16 @@ const ParamTable<PlanConfig>& planConfigFields() {
       NB_FIELD("max_height_m", "highest height a plan commands [m]", p.max_height_m),
       NB_FIELD("max_tilt_deg", "configured maximum lateral turn (hard cap 40) [deg]", p.max_tilt_deg),
       NB_FIELD("max_tilt_rate_deg_s", "fastest change of the turn angle [deg/s]", p.max_tilt_rate_deg_s),
-      NB_FIELD("bed_tilt_rate_fraction", "fraction of max_tilt_rate_deg_s the bed's slope under the trunk changes at [-]",
+      NB_FIELD("bed_tilt_rate_fraction",
+               "fraction of max_tilt_rate_deg_s the bed's slope under the trunk changes at [-]",
                p.bed_tilt_rate_fraction),
       NB_FIELD("turn_ramp_s", "default ramp time of a turn [s]", p.turn_ramp_s),
       NB_FIELD("turn_dwell_s", "default dwell at the turned angle [s]", p.turn_dwell_s),
       NB_FIELD("alternating_period_s", "default alternating cycle [s]", p.alternating_period_s),
       NB_FIELD("alternating_low_m", "default height of the relieved cells [m]", p.alternating_low_m),
       NB_FIELD("alternating_high_m", "default height of the supporting cells [m]", p.alternating_high_m),
-      NB_FIELD("alternating_transition_s", "time the rising group gets before the next one lowers [s]", p.alternating_transition_s),
+      NB_FIELD("alternating_transition_s", "time the rising group gets before the next one lowers [s]",
+               p.alternating_transition_s),
       integerField<P>("static_head_rows", "head rows that alternating leaves at the nominal height [-]",
                       [](P& p) -> int& { return p.static_head_rows; }),
       NB_FIELD("max_inflate_timeout_s", "default time before max_inflate reverts [s]", p.max_inflate_timeout_s),
@@ -370,8 +383,8 @@ std::unique_ptr<PosturePlan> makeLateralTurn(const PlanConfig& config, const Bed
   const double ramp = args.number("ramp_s", std::max(config.turn_ramp_s, min_ramp), 0.0, 3600.0);
   if (ramp < min_ramp) {
     std::ostringstream m;
-    m << "ramp_s = " << ramp << " turns faster than " << config.max_tilt_rate_deg_s << " deg/s (at least "
-      << min_ramp << " s for " << angle << " deg)";
+    m << "ramp_s = " << ramp << " turns faster than " << config.max_tilt_rate_deg_s << " deg/s (at least " << min_ramp
+      << " s for " << angle << " deg)";
     args.fail(m.str());
   }
   const double dwell = args.number("dwell_s", config.turn_dwell_s, 0.0, 7200.0);
@@ -437,7 +450,8 @@ std::unique_ptr<PosturePlan> makePlan(const PlanRequest& req, const PlanConfig& 
     switch (kind) {
       case PlanKind::kFlat:
         plan = std::make_unique<UniformPlan>(
-            kind, grid, args.number("height_m", config.nominal_height_m, config.min_height_m, config.max_height_m), 0.0);
+            kind, grid, args.number("height_m", config.nominal_height_m, config.min_height_m, config.max_height_m),
+            0.0);
         break;
       case PlanKind::kMaxInflate:
         plan = std::make_unique<UniformPlan>(kind, grid, config.max_height_m,

@@ -52,8 +52,8 @@ std::string checkCellHeights(const std::vector<std::uint32_t>& ids, const std::v
 }
 
 bool postureRequest(const std::string& plan, const std::vector<std::string>& keys,
-                    const std::vector<std::string>& values, const std::vector<double>& heights_m,
-                    PlanRequest* request, std::string* error) {
+                    const std::vector<std::string>& values, const std::vector<double>& heights_m, PlanRequest* request,
+                    std::string* error) {
   if (keys.size() != values.size()) {
     *error = std::to_string(keys.size()) + " keys but " + std::to_string(values.size()) + " values";
     return false;

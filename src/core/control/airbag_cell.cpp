@@ -397,15 +397,11 @@ bool AirbagCell::checkSensorsAndWatchdog(double now_s, double gauge_pressure_pa,
 
 ValveOpenings AirbagCell::modeValves(const ValveOpenings& wanted, double gauge_pressure_pa) const {
   switch (mode_) {
-    case AirbagMode::kHeight:
-      return wanted;
-    case AirbagMode::kVent:
-      return ValveOpenings{0.0, 1.0};
-    case AirbagMode::kPressure:
-      return pressure_.update(gauge_pressure_pa);
+    case AirbagMode::kHeight: return wanted;
+    case AirbagMode::kVent: return ValveOpenings{0.0, 1.0};
+    case AirbagMode::kPressure: return pressure_.update(gauge_pressure_pa);
     case AirbagMode::kIdle:
-    case AirbagMode::kSafe:
-      break;
+    case AirbagMode::kSafe: break;
   }
   return ValveOpenings{};
 }
@@ -417,11 +413,8 @@ void AirbagCell::applyRelief(double gauge_pressure_pa) {
       valves_.inlet = 0.0;
       valves_.vent = 1.0;
       break;
-    case ReliefVerdict::kClear:
-      faults_ &= ~kFaultOverpressure;
-      break;
-    case ReliefVerdict::kKeep:
-      break;
+    case ReliefVerdict::kClear: faults_ &= ~kFaultOverpressure; break;
+    case ReliefVerdict::kKeep: break;
   }
 }
 

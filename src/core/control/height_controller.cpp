@@ -25,7 +25,8 @@ std::string HeightControllerParams::validate() const {
   check(integral_limit_m >= 0.0, "integral_limit_m must be >= 0");
   check(move_threshold_m > 0.0, "move_threshold_m must be positive");
   check(damping_band_m > 0.0, "damping_band_m must be positive");
-  check(hold_band_m >= height_tolerance_m && hold_band_m < 0.01, "hold_band_m must lie in [height_tolerance_m, 0.01) m");
+  check(hold_band_m >= height_tolerance_m && hold_band_m < 0.01,
+        "hold_band_m must lie in [height_tolerance_m, 0.01) m");
   std::string s = err.str();
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
@@ -59,8 +60,8 @@ std::string HeightController::checkSetpoint(double height_m) const {
   if (!std::isfinite(height_m)) {
     msg << "height setpoint is not a finite number";
   } else if (height_m < params_.min_height_m || height_m > params_.max_height_m) {
-    msg << "height setpoint " << height_m << " m is outside [" << params_.min_height_m << ", "
-        << params_.max_height_m << "] m";
+    msg << "height setpoint " << height_m << " m is outside [" << params_.min_height_m << ", " << params_.max_height_m
+        << "] m";
   }
   return msg.str();
 }
@@ -77,9 +78,7 @@ void HeightController::clearTarget() {
   holding_ = false;
 }
 
-double HeightController::targetPressure() const {
-  return characteristic_->pressureAt(target_m_, load_.load());
-}
+double HeightController::targetPressure() const { return characteristic_->pressureAt(target_m_, load_.load()); }
 
 bool HeightController::targetOutOfReach() const {
   const double p = targetPressure();
@@ -101,7 +100,8 @@ double HeightController::fullFlowRestRate(int direction, double gauge_pressure_p
   const double k_rate = characteristic_->invariantRate(volume_m3, flow, cell.supply_temperature_k);
   const double dk = 1e-3 * invariant;
   const double dh_dk = (characteristic_->restingHeight(invariant + dk, load_.load()) -
-                        characteristic_->restingHeight(invariant - dk, load_.load())) / (2.0 * dk);
+                        characteristic_->restingHeight(invariant - dk, load_.load())) /
+                       (2.0 * dk);
   return std::fabs(dh_dk * k_rate);
 }
 

@@ -81,7 +81,8 @@ QuasiStaticPoint AirbagFe::solve(double gauge_pressure_pa) {
 
 QuasiStaticPoint AirbagFe::solveWithPlate(PlateState::Mode mode, double value, double gauge_pressure_pa) {
   if (!(value > 0.0) || !std::isfinite(gauge_pressure_pa)) {
-    throw std::invalid_argument(std::string("AirbagFe: ") + (mode == PlateState::Mode::kLoaded ? "load_n" : "height_m") +
+    throw std::invalid_argument(std::string("AirbagFe: ") +
+                                (mode == PlateState::Mode::kLoaded ? "load_n" : "height_m") +
                                 " must be positive and the pressure finite");
   }
   PlateState& plate = model_->plate();

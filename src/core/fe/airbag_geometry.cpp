@@ -26,7 +26,8 @@ Status AirbagGeometry::validate() const {
     err << "gusset_height_m must be in [0, face_side_m], got " << gusset_height_m;
   else if (elements_per_side < 4 || elements_per_side > 200 || elements_per_side % 2 != 0)
     err << "elements_per_side must be even and in 4..200, got " << elements_per_side;
-  else if (chambers > 1 && !(connection_side_m >= 2.0 * elementSize() && connection_side_m <= face_side_m - 4.0 * elementSize()))
+  else if (chambers > 1 &&
+           !(connection_side_m >= 2.0 * elementSize() && connection_side_m <= face_side_m - 4.0 * elementSize()))
     err << "connection_side_m must span at least 2 elements and leave 2 free on each side, got " << connection_side_m;
   return Status::fromMessage(err.str());
 }
@@ -51,12 +52,12 @@ int patchCells(const AirbagGeometry& g) {
 }
 
 struct FaceSpec {
-  double base_z = 0.0;   // height of the rim
-  double direction = 1;  // +1: bulges up from the rim (a top face), -1: down
+  double base_z = 0.0;         // height of the rim
+  double direction = 1;        // +1: bulges up from the rim (a top face), -1: down
   bool ramp_to_patch = false;  // rises to the patch (faces at a connection)
   bool skip_patch = false;     // the neighbour chamber's face owns the patch
   bool owns_patch = false;
-  bool top = false;            // normal points up
+  bool top = false;  // normal points up
 };
 
 MembraneMesh facePanel(const AirbagGeometry& g, const FaceSpec& f) {
@@ -70,9 +71,7 @@ MembraneMesh facePanel(const AirbagGeometry& g, const FaceSpec& f) {
     if (f.ramp_to_patch) return std::min(1.0, static_cast<double>(edge) / lo);
     return std::min(1.0, edge / 2.0);
   };
-  auto place = [&](int i, int j) {
-    return Eigen::Vector3d(i * h, j * h, f.base_z + f.direction * gap * ramp(i, j));
-  };
+  auto place = [&](int i, int j) { return Eigen::Vector3d(i * h, j * h, f.base_z + f.direction * gap * ramp(i, j)); };
   auto flat = [&](int i, int j) { return Eigen::Vector3d(i * h, j * h, 0.0); };
   MembraneMesh m = gridPanel(n, n, place, flat, g.film_thickness_m, f.top ? kTopFace : kBottomFace, !f.top);
   (void)a;

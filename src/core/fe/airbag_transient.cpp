@@ -68,11 +68,13 @@ TransientResult runTransient(AirbagFe* bag, const TransientSetup& setup, const s
     double t_in = 0.0;
     const double inflow = inflowAt(setup, t, p_abs, t_gas, &t_in);
     const double leak = orificeFlow(c.gas, c.leak_area_m2, p_abs, t_gas, c.ambient_pressure_pa, c.ambient_temperature_k,
-                                    c.orifice_linear_band_pa).mass_flow_kg_s;
+                                    c.orifice_linear_band_pa)
+                            .mass_flow_kg_s;
     model.computeForces(p_abs - c.ambient_pressure_pa);
     if (t >= next_sample - 1e-12) {
       QuasiStaticPoint s = bag->snapshot(p_abs - c.ambient_pressure_pa);
-      result.samples.push_back({t, inflow, p_abs - c.ambient_pressure_pa, s.height_m, volume, gas.mass_kg, t_gas, s.rim_inset_m});
+      result.samples.push_back(
+          {t, inflow, p_abs - c.ambient_pressure_pa, s.height_m, volume, gas.mass_kg, t_gas, s.rim_inset_m});
       next_sample += setup.sample_s;
       if (progress) progress(t / setup.duration_s);
     }

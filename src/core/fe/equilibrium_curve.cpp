@@ -7,15 +7,16 @@ namespace nursing_bed {
 namespace fe {
 
 std::vector<LoadedState> equilibriumCurve(std::vector<LoadedState> states, std::vector<std::string>* left_out) {
-  std::sort(states.begin(), states.end(), [](const LoadedState& x, const LoadedState& y) { return x.load_n < y.load_n; });
+  std::sort(states.begin(), states.end(),
+            [](const LoadedState& x, const LoadedState& y) { return x.load_n < y.load_n; });
   std::vector<LoadedState> curve;
   for (const LoadedState& s : states) {
     if (curve.empty() || s.height_m < curve.back().height_m - 1e-4) {
       curve.push_back(s);
     } else if (left_out) {
       char text[160];
-      std::snprintf(text, sizeof(text), "the %.1f N state (h %.1f mm) is not below the %.1f N one (h %.1f mm)", s.load_n,
-                    s.height_m * 1e3, curve.back().load_n, curve.back().height_m * 1e3);
+      std::snprintf(text, sizeof(text), "the %.1f N state (h %.1f mm) is not below the %.1f N one (h %.1f mm)",
+                    s.load_n, s.height_m * 1e3, curve.back().load_n, curve.back().height_m * 1e3);
       left_out->push_back(text);
     }
   }

@@ -29,8 +29,10 @@ void writeVtk(const std::string& path, const MembraneModel& model, const std::st
   for (int j = 0; j < n; ++j) f << x(0, j) << ' ' << x(1, j) << ' ' << x(2, j) << '\n';
   if (plate) {
     const double lo = x.row(0).minCoeff() - 0.01, hi = x.row(0).maxCoeff() + 0.01, h = model.plate().height_m;
-    f << lo << ' ' << lo << ' ' << h << '\n' << hi << ' ' << lo << ' ' << h << '\n'
-      << hi << ' ' << hi << ' ' << h << '\n' << lo << ' ' << hi << ' ' << h << '\n';
+    f << lo << ' ' << lo << ' ' << h << '\n'
+      << hi << ' ' << lo << ' ' << h << '\n'
+      << hi << ' ' << hi << ' ' << h << '\n'
+      << lo << ' ' << hi << ' ' << h << '\n';
   }
   const std::size_t cells = tris.size() + (plate ? 1 : 0);
   f << "POLYGONS " << cells << ' ' << tris.size() * 4 + (plate ? 5 : 0) << '\n';
@@ -54,7 +56,8 @@ void writeStructureTable(const std::string& path, const StructureTable& t) {
   e << YAML::BeginMap << YAML::Key << "description" << YAML::Value << YAML::DoubleQuoted << t.description;
   e << YAML::Key << "heights_m" << YAML::Value << YAML::Flow << t.heights_m;
   e << YAML::Key << "pressures_pa" << YAML::Value << YAML::Flow << t.pressures_pa;
-  for (const auto& [name, grid] : {std::make_pair("volume_m3", &t.volume_m3), std::make_pair("plate_force_n", &t.plate_force_n)}) {
+  for (const auto& [name, grid] :
+       {std::make_pair("volume_m3", &t.volume_m3), std::make_pair("plate_force_n", &t.plate_force_n)}) {
     e << YAML::Key << name << YAML::Value << YAML::BeginSeq;
     for (const auto& row : *grid) e << YAML::Flow << row;
     e << YAML::EndSeq;

@@ -17,8 +17,8 @@ Status FilmMaterial::validate() const {
   return Status::success();
 }
 
-TriangleReference triangleReference(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
-                                    const Eigen::Vector3d& x2, double thickness_m) {
+TriangleReference triangleReference(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1, const Eigen::Vector3d& x2,
+                                    double thickness_m) {
   TriangleReference ref;
   const Eigen::Vector3d e1 = x1 - x0, e2 = x2 - x0;
   const double area = 0.5 * e1.cross(e2).norm();
@@ -54,9 +54,8 @@ void symmetricEigen2(const Eigen::Matrix2d& c, double* big, double* small, Eigen
 
 }  // namespace
 
-TriangleResponse triangleResponse(const FilmMaterial& material, const TriangleReference& ref,
-                                  const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
-                                  const Eigen::Vector3d& x2) {
+TriangleResponse triangleResponse(const FilmMaterial& material, const TriangleReference& ref, const Eigen::Vector3d& x0,
+                                  const Eigen::Vector3d& x1, const Eigen::Vector3d& x2) {
   TriangleResponse r;
   for (auto& f : r.force) f.setZero();
   Eigen::Matrix<double, 3, 2> ds;

@@ -79,8 +79,8 @@ void appendMesh(MembraneMesh* mesh, const MembraneMesh& other, double merge_tol_
           const auto it = existing.find(key(p, dx, dy, dz));
           if (it == existing.end()) continue;
           for (int id : it->second) {
-            const Eigen::Vector3d q = id < mesh->nodeCount() ? Eigen::Vector3d(mesh->initial.col(id))
-                                                             : Eigen::Vector3d(p);
+            const Eigen::Vector3d q =
+                id < mesh->nodeCount() ? Eigen::Vector3d(mesh->initial.col(id)) : Eigen::Vector3d(p);
             if ((q - p).norm() < 0.5 * merge_tol_m) return id;
           }
         }

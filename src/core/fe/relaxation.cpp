@@ -83,8 +83,8 @@ RelaxResult relax(MembraneModel* model, const PressureControl& control, const Re
   }
   if (!result.converged && result.message.empty()) {
     std::ostringstream msg;
-    msg << "not converged after " << result.iterations << " iterations (residual " << result.residual
-        << " > tolerance " << options.tolerance << ")";
+    msg << "not converged after " << result.iterations << " iterations (residual " << result.residual << " > tolerance "
+        << options.tolerance << ")";
     result.message = msg.str();
   }
   plate.mass_kg = physical_plate_mass;

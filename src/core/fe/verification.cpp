@@ -35,11 +35,11 @@ MembraneMesh icosphereMesh(double radius_m, int subdivisions, double thickness_m
   if (!(radius_m > 0.0)) throw std::invalid_argument("icosphereMesh: radius_m must be positive");
   if (subdivisions < 0 || subdivisions > 6) throw std::invalid_argument("icosphereMesh: subdivisions must be 0..6");
   const double g = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Eigen::Vector3d> v = {{-1, g, 0}, {1, g, 0},   {-1, -g, 0}, {1, -g, 0}, {0, -1, g},  {0, 1, g},
+  std::vector<Eigen::Vector3d> v = {{-1, g, 0},  {1, g, 0},  {-1, -g, 0}, {1, -g, 0}, {0, -1, g},  {0, 1, g},
                                     {0, -1, -g}, {0, 1, -g}, {g, 0, -1},  {g, 0, 1},  {-g, 0, -1}, {-g, 0, 1}};
-  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9},  {5, 11, 4},
-                                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6},  {3, 6, 8},
-                                    {3, 8, 9},  {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  std::vector<Eigen::Vector3i> f = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                    {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+                                    {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
   for (auto& p : v) p.normalize();
   for (int s = 0; s < subdivisions; ++s) {
     std::map<std::pair<int, int>, int> mid;
@@ -63,7 +63,8 @@ MembraneMesh icosphereMesh(double radius_m, int subdivisions, double thickness_m
 }
 
 MembraneMesh tubeMesh(double radius_m, double length_m, int around, int along, double thickness_m) {
-  if (!(radius_m > 0.0) || !(length_m > 0.0)) throw std::invalid_argument("tubeMesh: radius_m and length_m must be positive");
+  if (!(radius_m > 0.0) || !(length_m > 0.0))
+    throw std::invalid_argument("tubeMesh: radius_m and length_m must be positive");
   if (around < 6 || along < 1) throw std::invalid_argument("tubeMesh: need around >= 6 and along >= 1");
   Eigen::Matrix3Xd nodes(3, around * (along + 1));
   for (int j = 0; j <= along; ++j) {
@@ -116,7 +117,7 @@ std::vector<VerificationPoint> runVerification(const VerificationCase& c, const 
   MembraneMesh mesh = sphere ? icosphereMesh(c.radius_m, c.resolution, c.thickness_m)
                              : tubeMesh(c.radius_m, c.tube_length_m, std::max(6, c.resolution), 2, c.thickness_m);
   MembraneOptions options;
-  options.threads = 1;  // small meshes: one thread (the machine is shared)
+  options.threads = 1;              // small meshes: one thread (the machine is shared)
   options.stiffening_factor = 4.0;  // stretches up to 2.2
   options.bed_contact = false;
   MembraneModel model(mesh, material, options);

@@ -21,9 +21,8 @@ void setFilmScale(CellParams* p, double s) {
   p->structure.material.c30_pa *= s;
 }
 
-#define NB_CAL_ACCESS(expr)                                        \
-  [](const CellParams& p) -> double { return p.expr; },            \
-      [](CellParams* p, double v) { p->expr = v; }
+#define NB_CAL_ACCESS(expr) \
+  [](const CellParams& p) -> double { return p.expr; }, [](CellParams* p, double v) { p->expr = v; }
 
 std::vector<CalibrationParamDef> makeCatalog() {
   return {
@@ -149,8 +148,8 @@ std::string calibratedParamsYaml(const CellParams& params, const CalibrationSumm
     << "# A complete parameter file (every key, SI units): sim.launch cell_params:=FILE, the nodes and\n"
     << "# gap diagnose read it as they read config/airbag_tpu_double_100.yaml.\n";
   for (const auto& p : summary.parameters)
-    y << "# " << p.name << ": " << (p.moved ? "calibrated " : "kept at nominal ") << gap::fmt(p.value, 6) << " [" << p.unit
-      << "] (nominal " << gap::fmt(p.nominal, 6) << ", fitted " << gap::fmt(p.fitted, 6) << " +- "
+    y << "# " << p.name << ": " << (p.moved ? "calibrated " : "kept at nominal ") << gap::fmt(p.value, 6) << " ["
+      << p.unit << "] (nominal " << gap::fmt(p.nominal, 6) << ", fitted " << gap::fmt(p.fitted, 6) << " +- "
       << gap::fmt(p.std_error, 2) << ")\n";
   y << "# film_stiffness_scale multiplies material/c10_pa, c20_pa, c30_pa below (film thickness is kept: the\n"
     << "# model sees only their product).\n";

@@ -94,8 +94,9 @@ void profileMoves(const NoiseModel& noise, const DiagnosisOptions& options, Cali
         p.moved = false;
         p.value = p.nominal;
       }
-    c->summary.notes.push_back(name + ": fitted " + fmt(values.at(name), 4) + ", but holding it at nominal costs chi2 " +
-                               fmt(gain, 3) + " only (ln n + " + fmt(options.significant_bic_drop) + " needed): kept");
+    c->summary.notes.push_back(name + ": fitted " + fmt(values.at(name), 4) +
+                               ", but holding it at nominal costs chi2 " + fmt(gain, 3) + " only (ln n + " +
+                               fmt(options.significant_bic_drop) + " needed): kept");
   }
 }
 
@@ -156,7 +157,8 @@ CalibrationSummary judgeCalibration(const NoiseModel& noise, const ModelFit& f, 
 }
 
 CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::string>& names,
-                              const DiagnosisOptions& options, const std::function<void(const std::string&)>& progress) {
+                              const DiagnosisOptions& options,
+                              const std::function<void(const std::string&)>& progress) {
   CalibrationFit c;
   c.fit.model = makeModelSpec({}, calibrationAxes(names, noise.fit.params));
   std::vector<double> start;
@@ -258,9 +260,13 @@ bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFi
     const double held = withheldChi2(noise, {}, buildEffects(f.model, values));
     const double held_gain = (cal_held - held) * noise.heldResidualCount();
     if (!(bic < cal_bic) || !(held_gain >= options.min_withheld_gain)) continue;
-    c->summary.notes.push_back(joinNames(f.model.effects) + " alone, on the nominal cell, fits the runs better than the "
-                               "calibration (BIC " + fmt(bic - cal_bic) + " against it) and the withheld runs too "
-                               "(chi2/n " + fmt(held) + " against " + fmt(cal_held) +
+    c->summary.notes.push_back(joinNames(f.model.effects) +
+                               " alone, on the nominal cell, fits the runs better than the "
+                               "calibration (BIC " +
+                               fmt(bic - cal_bic) +
+                               " against it) and the withheld runs too "
+                               "(chi2/n " +
+                               fmt(held) + " against " + fmt(cal_held) +
                                "): the calibration imitated an effect, its moves are not kept");
     for (auto& p : c->summary.parameters) {
       p.moved = false;
@@ -315,8 +321,8 @@ std::vector<int> jointRefitOrder(const std::vector<ModelFit>& fits, std::size_t 
 
 JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
                              std::size_t effects, int pool, const DiagnosisOptions& options,
-                             const std::function<void(const std::string&)>& progress,
-                             const std::set<std::string>& also, const std::vector<ModelFit>& uncalibrated) {
+                             const std::function<void(const std::string&)>& progress, const std::set<std::string>& also,
+                             const std::vector<ModelFit>& uncalibrated) {
   const int n = noise.fitResidualCount();
   const double log_n = std::log(static_cast<double>(n));
   // Each fit's counterpart on the nominal cell, if it was fitted there.
@@ -352,10 +358,9 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
   std::vector<CalibrationFit> joint(order.size());
   if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, start_from[order[0]]);
   if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
-  parallelFor(static_cast<int>(order.size()) - 1, options.threads,
-              [&](int k) {
-                joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, start_from[order[k + 1]]);
-              });
+  parallelFor(static_cast<int>(order.size()) - 1, options.threads, [&](int k) {
+    joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, start_from[order[k + 1]]);
+  });
   JointRefits out;
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelFit& f = (*fits)[order[k]];
@@ -384,16 +389,20 @@ void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& opt
   if (!cal.done) return;
   for (const auto& p : cal.parameters)
     rep->reasons.push_back("calibration: " + p.name + " fitted " + fmt(p.fitted, 4) + " +- " + fmt(p.std_error, 2) +
-                           " (nominal " + fmt(p.nominal, 4) + "): " + (p.moved ? "moved" : "not significant, nominal kept"));
+                           " (nominal " + fmt(p.nominal, 4) +
+                           "): " + (p.moved ? "moved" : "not significant, nominal kept"));
   if (!cal.anyMoved() || rep->status != "none") return;
   const int n_held = noise.heldResidualCount();
   const double before = noise.withheld_chi2_per_sample, after = noise.baseline_withheld_chi2_per_sample;
-  const bool within = after <= options.withheld_chi2 || after - 1.0 <= (1.0 - options.withheld_gap_removed) * (before - 1.0);
+  const bool within =
+      after <= options.withheld_chi2 || after - 1.0 <= (1.0 - options.withheld_gap_removed) * (before - 1.0);
   if (n_held == 0 || (within && (before - after) * n_held >= options.min_withheld_gain)) {
     rep->status = "calibrated";
-    rep->reasons.push_back("the calibrated model fits within the noise" +
-                           (n_held ? " and holds up on the withheld runs (chi2/n " + fmt(before) + " -> " + fmt(after) + ")"
-                                   : std::string()) + ": calibration alone removes the gap, no effect is needed");
+    rep->reasons.push_back(
+        "the calibrated model fits within the noise" +
+        (n_held ? " and holds up on the withheld runs (chi2/n " + fmt(before) + " -> " + fmt(after) + ")"
+                : std::string()) +
+        ": calibration alone removes the gap, no effect is needed");
     return;
   }
   rep->reasons.push_back("the calibrated model does not hold up on the withheld runs (chi2/n " + fmt(before) + " -> " +

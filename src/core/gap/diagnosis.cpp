@@ -110,15 +110,16 @@ double nominalNrmse(const PreparedRuns& prepared, const std::vector<Replay>& nom
 void nominalReasons(const DiagnosisReport& rep, const PreparedRuns& prepared, const DiagnosisOptions& options,
                     bool withheld_residuals, std::vector<std::string>* reasons) {
   std::ostringstream why;
-  why << "nominal model: chi2/n = " << fmt(rep.nominal_chi2_per_sample) << " in noise-floor units (within the noise up to "
-      << fmt(options.within_noise_chi2) << ")"
+  why << "nominal model: chi2/n = " << fmt(rep.nominal_chi2_per_sample)
+      << " in noise-floor units (within the noise up to " << fmt(options.within_noise_chi2) << ")"
       << (!withheld_residuals ? "" : ", " + fmt(rep.nominal_withheld_chi2_per_sample) + " on the withheld runs")
       << "; fit-run nrmse " << fmt(rep.nominal_fit_nrmse);
   reasons->push_back(why.str());
   if (rep.pressure_only)
-    reasons->push_back("no run has a height reading: the diagnosis works on pressure alone; effects whose "
-                       "signature lies in the height (plate_friction, membrane_viscoelasticity's creep) and the "
-                       "gusset height against the film's stiffness are then far harder to tell apart");
+    reasons->push_back(
+        "no run has a height reading: the diagnosis works on pressure alone; effects whose "
+        "signature lies in the height (plate_friction, membrane_viscoelasticity's creep) and the "
+        "gusset height against the film's stiffness are then far harder to tell apart");
   if (prepared.gated_runs > 0)
     reasons->push_back("in " + std::to_string(prepared.gated_runs) + " of " + std::to_string(prepared.runs.size()) +
                        " runs the flow meter read noise around zero while the inlet was closed; the replay "
@@ -186,8 +187,8 @@ std::vector<std::string> candidateList(const DiagnosisOptions& options) {
 
 // ---- stage 2: the nominal replay ----------------------------------------------------------------
 
-std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams& params, const DiagnosisOptions& options,
-                                  DiagnosisReport* report) {
+std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams& params,
+                                  const DiagnosisOptions& options, DiagnosisReport* report) {
   const std::vector<RunData>& runs = prepared.runs;
   std::vector<Replay> nominal(runs.size());
   parallelFor(static_cast<int>(runs.size()), options.threads,
@@ -231,8 +232,9 @@ NoiseModel buildNoiseModel(const PreparedRuns& prepared, const CellParams& param
                                      options.fit_sample_hz);
     auto f = std::find(prepared.fit.begin(), prepared.fit.end(), static_cast<std::size_t>(k));
     if (f != prepared.fit.end()) m.fit.runs[f - prepared.fit.begin()] = std::move(run);
-    else m.held.runs[std::find(prepared.withheld.begin(), prepared.withheld.end(), static_cast<std::size_t>(k)) -
-                     prepared.withheld.begin()] = std::move(run);
+    else
+      m.held.runs[std::find(prepared.withheld.begin(), prepared.withheld.end(), static_cast<std::size_t>(k)) -
+                  prepared.withheld.begin()] = std::move(run);
   });
   const int n_held = m.held.informativeCount();
   std::vector<double> r_held(m.held.residualCount());
@@ -511,7 +513,8 @@ DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& param
   nominalReasons(rep, s.prepared, options, s.noise.heldResidualCount() > 0, &rep.reasons);
   rep.status = s.noise.baseline_chi2 / s.noise.fitResidualCount() <= options.within_noise_chi2 ? "none" : "unexplained";
   settleCalibratedStatus(s.noise, options, &rep);
-  if (rep.status == "unexplained") rep.reasons.push_back("calibration alone leaves a significant gap: run gap diagnose");
+  if (rep.status == "unexplained")
+    rep.reasons.push_back("calibration alone leaves a significant gap: run gap diagnose");
   shrinkage(s.prepared, params, rep.calibration.movedValues(), {}, s.nominal, options, &rep);
   calibratedOutcome(s.prepared, s.noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
@@ -542,9 +545,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
       // the nominal cell ranks it for, and starts, the joint refit.
       DiagnosisOptions singles = options;
       singles.pair_pool = 0;
-      uncalibrated = fitCandidates(noise, candidateList(options), singles, [&](const std::string& line) {
-        say(line + " (nominal cell)");
-      });
+      uncalibrated = fitCandidates(noise, candidateList(options), singles,
+                                   [&](const std::string& line) { say(line + " (nominal cell)"); });
       if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
     }
     rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
@@ -560,13 +562,16 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     joint.insert(more.summaries.begin(), more.summaries.end());
     if (effects == 1) moved_calibration = more.moved_calibration;
   };
-  std::vector<ModelFit> fits =
-      fitCandidates(noise, candidateList(options), options, say, [&](std::vector<ModelFit>* singles) {
+  std::vector<ModelFit> fits = fitCandidates(
+      noise, candidateList(options), options, say,
+      [&](std::vector<ModelFit>* singles) {
         if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
-      }, baseline_nominal ? uncalibrated : std::vector<ModelFit>{});
+      },
+      baseline_nominal ? uncalibrated : std::vector<ModelFit>{});
   // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
   const bool single_within = std::any_of(fits.begin(), fits.end(), [&](const ModelFit& f) {
-    return f.outcome.ok && f.model.effects.size() == 1 && f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;
+    return f.outcome.ok && f.model.effects.size() == 1 &&
+           f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;
   });
   if (!s.calibrated.empty() && !single_within) settle(&fits, 2, 1);
   const std::vector<ScoredCandidate> scored = scoreCandidates(fits, prepared, noise, params, options);
@@ -593,8 +598,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   calibratedOutcome(prepared, noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   say("verdict: " + rep.status + (verdict.winner >= 0 ? " by " + joinNames(rep.verdict_effects) : std::string()) +
-      "; withheld nrmse " + fmt(rep.withheld_before) + " -> " + fmt(rep.withheld_after) + " (" +
-      fmt(rep.elapsed_s) + " s)");
+      "; withheld nrmse " + fmt(rep.withheld_before) + " -> " + fmt(rep.withheld_after) + " (" + fmt(rep.elapsed_s) +
+      " s)");
   return rep;
 }
 

@@ -159,12 +159,14 @@ bool fitResiduals(const FitData& fit, const std::vector<CellEffectPtr>& effects,
   return fitResiduals(fit, fit.params, effects, out);
 }
 
-bool fitResiduals(const FitData& fit, const CellParams& params, const std::vector<CellEffectPtr>& effects, double* out) {
+bool fitResiduals(const FitData& fit, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                  double* out) {
   const int runs = static_cast<int>(fit.runs.size());
   std::vector<int> offset(runs + 1, 0);
   for (int r = 0; r < runs; ++r) offset[r + 1] = offset[r] + 2 * static_cast<int>(fit.runs[r].index.size());
   std::vector<char> run_ok(runs, 1);
-  parallelFor(runs, fit.threads, [&](int r) { run_ok[r] = runResiduals(fit.runs[r], params, effects, out + offset[r]); });
+  parallelFor(runs, fit.threads,
+              [&](int r) { run_ok[r] = runResiduals(fit.runs[r], params, effects, out + offset[r]); });
   return std::all_of(run_ok.begin(), run_ok.end(), [](char ok) { return ok != 0; });
 }
 
@@ -235,8 +237,8 @@ std::vector<std::vector<double>> gridStarts(const ModelSpec& m) {
   std::vector<std::vector<double>> out{{}};
   for (int j = 0; j < k; ++j) {
     // A log-scale parameter also starts near off (its lower bound, 3 decades below the range).
-    std::vector<double> levels = k == 1 ? std::vector<double>{0.0, 0.25, 0.5, 0.75, 1.0}
-                                        : std::vector<double>{0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0};
+    std::vector<double> levels =
+        k == 1 ? std::vector<double>{0.0, 0.25, 0.5, 0.75, 1.0} : std::vector<double>{0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0};
     if (m.axes[j].spec.log_scale) levels.insert(levels.begin(), m.axes[j].u_min);
     std::vector<std::vector<double>> next;
     for (const auto& prefix : out)

@@ -47,7 +47,8 @@ void massSensitivity(const RunData& run, const CellParams& params, const Replay&
   double injected = 0.0;
   for (std::size_t i = 1; i < run.size(); ++i) {
     const double q0 = run.mdot_in_kg_s[i - 1], q1 = run.mdot_in_kg_s[i];
-    if (std::isfinite(q0) && std::isfinite(q1)) injected += 0.5 * std::max(0.0, q0 + q1) * (run.t_s[i] - run.t_s[i - 1]);
+    if (std::isfinite(q0) && std::isfinite(q1))
+      injected += 0.5 * std::max(0.0, q0 + q1) * (run.t_s[i] - run.t_s[i - 1]);
   }
   dp_dm->assign(run.size(), 0.0);
   dh_dm->assign(run.size(), 0.0);
@@ -76,9 +77,7 @@ ErrorMode startMode(const RunData& run, const CellParams& params, const Replay& 
   return mode;
 }
 
-RunNoise runNoise(const RunData& run) {
-  return {estimateNoise(run.p_gauge_pa), estimateNoise(run.h_m)};
-}
+RunNoise runNoise(const RunData& run) { return {estimateNoise(run.p_gauge_pa), estimateNoise(run.h_m)}; }
 
 /// Running median of `r` over kTrendSamples samples either side.
 std::vector<double> runningMedian(const std::vector<double>& r) {
@@ -172,14 +171,16 @@ Eigen::MatrixXd correlationCholesky(const FitData::Run& r, const std::vector<dou
       for (int a = 0; a < 2; ++a)
         for (int b = 0; b < 2; ++b) {
           double c = gj[a] * gl[b] * v;
-          if (j == l && a == b) c += (a == 0 ? white_p[j] / std::pow(r.sigma_p_pa[j], 2) : white_h[j] / std::pow(r.sigma_h_m[j], 2));
+          if (j == l && a == b)
+            c += (a == 0 ? white_p[j] / std::pow(r.sigma_p_pa[j], 2) : white_h[j] / std::pow(r.sigma_h_m[j], 2));
           cov(2 * j + a, 2 * l + b) = c;
           cov(2 * l + b, 2 * j + a) = c;
         }
     }
   for (const Eigen::VectorXd& v : scaled) cov.noalias() += v * v.transpose();
   Eigen::LLT<Eigen::MatrixXd> llt(cov);
-  if (llt.info() != Eigen::Success) throw std::invalid_argument(r.data->name + ": the noise model is not positive definite");
+  if (llt.info() != Eigen::Success)
+    throw std::invalid_argument(r.data->name + ": the noise model is not positive definite");
   return llt.matrixL();
 }
 
@@ -224,12 +225,13 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
     walk.push_back(walk_var);
     white_p.push_back(std::pow(noise.p_pa, 2) + std::pow(kModelAccuracyShare * range.range_p_pa, 2) + timing.var_p[i]);
     // No height sensor: its slots are uncorrelated unit noise whose residual is 0.
-    white_h.push_back(r.has_height
-                          ? std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) + timing.var_h[i]
-                          : 1.0);
+    white_h.push_back(r.has_height ? std::pow(noise.h_m, 2) + std::pow(kModelAccuracyShare * range.range_h_m, 2) +
+                                         timing.var_h[i]
+                                   : 1.0);
     gain_p.push_back(dp_dm[i]);
     gain_h.push_back(r.has_height ? dh_dm[i] : 0.0);
-    double var_p = white_p.back() + dp_dm[i] * dp_dm[i] * walk_var, var_h = white_h.back() + gain_h.back() * gain_h.back() * walk_var;
+    double var_p = white_p.back() + dp_dm[i] * dp_dm[i] * walk_var,
+           var_h = white_h.back() + gain_h.back() * gain_h.back() * walk_var;
     for (const ErrorMode& mode : modes) {
       if (mode.variance <= 0.0) continue;
       var_p += mode.p[i] * mode.p[i] * mode.variance;

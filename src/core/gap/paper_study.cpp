@@ -2,9 +2,9 @@
 
 #include <cmath>
 #include <functional>
+#include <iomanip>
 #include <limits>
 #include <sstream>
-#include <iomanip>
 
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/replay.h"
@@ -201,15 +201,16 @@ std::string paperStudyMarkdown(const PaperCurveStudy& s) {
   for (double h : s.line_height_m) reached += std::isfinite(h) ? 1 : 0;
   m << "\nThe paper-shaped 5.5 s inflation (" << std::setprecision(2) << s.dynamic_mass_kg * 1e3
     << " g, resting at eq. 24's top): the nominal model's pressure "
-    << (std::isfinite(s.dynamic_nominal_rms_m) ? "gives an RMS of " + std::to_string(s.dynamic_nominal_rms_m * 1e3) + " mm"
-                                               : std::string("never reaches 10 kPa"))
+    << (std::isfinite(s.dynamic_nominal_rms_m)
+            ? "gives an RMS of " + std::to_string(s.dynamic_nominal_rms_m * 1e3) + " mm"
+            : std::string("never reaches 10 kPa"))
     << "; with a supply line (volume " << std::setprecision(0) << s.line_volume_m3 * 1e6
     << " mL) whose restriction is fitted, pressure read upstream of it: Cd*A = " << std::setprecision(2)
-    << s.line_area_m2 * 1e6 << " mm^2, RMS " << std::setprecision(1) << s.line_rms_m * 1e3 << " mm (the reading reaches "
-    << reached << " of the " << s.line_height_m.size() << " pressures; a pressure never reached counts as a 300 mm miss).\n";
-  m << "\nGuide friction that would shift the model onto eq. 24 (an extra load while rising): "
-    << std::setprecision(0) << s.friction_needed_n << " N, leaving " << std::setprecision(1)
-    << s.friction_rms_m * 1e3 << " mm RMS.\n";
+    << s.line_area_m2 * 1e6 << " mm^2, RMS " << std::setprecision(1) << s.line_rms_m * 1e3
+    << " mm (the reading reaches " << reached << " of the " << s.line_height_m.size()
+    << " pressures; a pressure never reached counts as a 300 mm miss).\n";
+  m << "\nGuide friction that would shift the model onto eq. 24 (an extra load while rising): " << std::setprecision(0)
+    << s.friction_needed_n << " N, leaving " << std::setprecision(1) << s.friction_rms_m * 1e3 << " mm RMS.\n";
   return m.str();
 }
 

@@ -276,7 +276,8 @@ std::vector<double> meterNoise(const RunData& run, const std::vector<double>& fl
   if (steady.empty()) {
     for (std::size_t i = 1; i + 1 < n; ++i) d[i] = flow[i + 1] - 2.0 * flow[i] + flow[i - 1];
     steady.assign(d.begin() + 1, d.end() - 1);
-    steady.erase(std::remove_if(steady.begin(), steady.end(), [](double v) { return !std::isfinite(v); }), steady.end());
+    steady.erase(std::remove_if(steady.begin(), steady.end(), [](double v) { return !std::isfinite(v); }),
+                 steady.end());
   }
   const double whole_run = noiseOfSecondDifferences(steady);
   std::vector<double> out(n, whole_run);
@@ -455,7 +456,8 @@ std::vector<GapShare> localizeGap(const std::vector<RunData>& runs, const std::v
       for (int s = 0; s < 2; ++s) {
         const double e2 = s == 0 ? ep * ep : eh * eh;
         if (!std::isfinite(e2)) continue;
-        const Key key{s == 0 ? "pressure" : "height", phaseName(rep.phases[i]), std::round(run.loadAt(i) * 10.0) / 10.0};
+        const Key key{s == 0 ? "pressure" : "height", phaseName(rep.phases[i]),
+                      std::round(run.loadAt(i) * 10.0) / 10.0};
         auto [it, fresh] = cells.try_emplace(key);
         GapShare& g = it->second;
         if (fresh) {

@@ -65,16 +65,18 @@ std::string paramsText(const std::map<std::string, double>& params) {
   return s;
 }
 
-double shrinkPercent(double before, double after) {
-  return before > 0.0 ? 100.0 * (1.0 - after / before) : NAN;
-}
+double shrinkPercent(double before, double after) { return before > 0.0 ? 100.0 * (1.0 - after / before) : NAN; }
 
 /// The `calibration` block of report.json (doc/formats/gap_report.md).
 Json calibrationJson(const CalibrationSummary& c) {
   Json parameters = Json::array();
   for (const CalibratedParam& p : c.parameters)
-    parameters.push_back({{"name", p.name}, {"nominal", number(p.nominal)}, {"value", number(p.value)},
-                          {"fitted", number(p.fitted)}, {"std_error", number(p.std_error)}, {"moved", p.moved}});
+    parameters.push_back({{"name", p.name},
+                          {"nominal", number(p.nominal)},
+                          {"value", number(p.value)},
+                          {"fitted", number(p.fitted)},
+                          {"std_error", number(p.std_error)},
+                          {"moved", p.moved}});
   Json matrix = Json::array();
   for (Eigen::Index a = 0; a < c.correlation.rows(); ++a) {
     Json row = Json::array();
@@ -94,16 +96,23 @@ Json calibrationJson(const CalibrationSummary& c) {
 Json localizationJson(const std::vector<GapShare>& localization) {
   Json out = Json::array();
   for (const GapShare& g : localization)
-    out.push_back({{"signal", g.signal}, {"phase", g.phase}, {"load_n", number(g.load_n)}, {"share", number(g.share)},
-                   {"t_start_s", number(g.t_start_s)}, {"t_end_s", number(g.t_end_s)}});
+    out.push_back({{"signal", g.signal},
+                   {"phase", g.phase},
+                   {"load_n", number(g.load_n)},
+                   {"share", number(g.share)},
+                   {"t_start_s", number(g.t_start_s)},
+                   {"t_end_s", number(g.t_end_s)}});
   return out;
 }
 
 Json candidatesJson(const std::vector<CandidateFit>& candidates) {
   Json out = Json::array();
   for (const CandidateFit& c : candidates)
-    out.push_back({{"effects", c.effects}, {"params", numbers(c.params)}, {"bic_delta", number(c.bic_delta)},
-                   {"fit_nrmse", number(c.fit_nrmse)}, {"withheld_nrmse", number(c.withheld_nrmse)}});
+    out.push_back({{"effects", c.effects},
+                   {"params", numbers(c.params)},
+                   {"bic_delta", number(c.bic_delta)},
+                   {"fit_nrmse", number(c.fit_nrmse)},
+                   {"withheld_nrmse", number(c.withheld_nrmse)}});
   return out;
 }
 
@@ -119,12 +128,11 @@ std::string reportJson(const DiagnosisReport& r) {
   j["candidates"] = candidatesJson(r.candidates);
   if (r.calibration.done) j["calibration"] = calibrationJson(r.calibration);
   j["verdict"] = {{"effects", r.verdict_effects}, {"status", r.status}};
-  j["shrinkage"] = {
-      {"withheld_nrmse_before", number(r.withheld_before)},
-      {"withheld_nrmse_after", number(r.withheld_after)},
-      {"by_signal",
-       {{"pressure", {number(r.withheld_p_before), number(r.withheld_p_after)}},
-        {"height", {number(r.withheld_h_before), number(r.withheld_h_after)}}}}};
+  j["shrinkage"] = {{"withheld_nrmse_before", number(r.withheld_before)},
+                    {"withheld_nrmse_after", number(r.withheld_after)},
+                    {"by_signal",
+                     {{"pressure", {number(r.withheld_p_before), number(r.withheld_p_after)}},
+                      {"height", {number(r.withheld_h_before), number(r.withheld_h_after)}}}}};
   // Bytes that are not UTF-8 (a path from another system) are replaced, not an exception.
   return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
@@ -184,9 +192,9 @@ void verdictSection(std::ostream& m, const DiagnosisReport& r) {
       << " % smaller).\n\n";
   } else if (r.status == "calibrated") {
     m << "**Calibrated: the model's own parameters were off; no missing physics is needed.** Recalibrating "
-      << calibrationText(r.calibration) << " removes the gap; the calibrated parameter file is `"
-      << r.calibration.file << "`. On the withheld runs the normalised RMS residual falls from "
-      << fixed(r.withheld_before, 3) << " to " << fixed(r.withheld_after, 3) << ".\n\n";
+      << calibrationText(r.calibration) << " removes the gap; the calibrated parameter file is `" << r.calibration.file
+      << "`. On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
+      << fixed(r.withheld_after, 3) << ".\n\n";
   } else if (r.status == "none") {
     m << "**No significant gap.** The nominal model already fits the runs within the noise, and no candidate "
          "effect improves the fit by more than its extra parameters cost.\n\n";
@@ -221,7 +229,8 @@ void whereSection(std::ostream& m, const DiagnosisReport& r) {
 /// report.md: answer 2: the candidates' fits.
 void whichEffectSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## 2. Which effect\n\n";
-  m << "Every candidate (and the best one paired with each other, unless it fits within the noise alone) was fitted to the fit runs by Ceres (Levenberg-Marquardt "
+  m << "Every candidate (and the best one paired with each other, unless it fits within the noise alone) was fitted to "
+       "the fit runs by Ceres (Levenberg-Marquardt "
        "on whole replays, started from a grid over the plausible range). BIC Δ < 0 means better than the "
        "nominal model after paying for the parameters; a candidate is significant below −"
     << general(r.options.significant_bic_drop)

@@ -155,7 +155,8 @@ class RunCsvReader {
     if (l != run_.meta.end()) {
       double value = 0.0;
       if (parseNumber(l->second, &value) != ParseResult::kOk || !std::isfinite(value))
-        throw fail(meta_line_["load_n"], "metadata load_n: expected a finite number of newtons, got '" + l->second + "'");
+        throw fail(meta_line_["load_n"],
+                   "metadata load_n: expected a finite number of newtons, got '" + l->second + "'");
       run_.load_n = value;
     }
     const auto a = run_.meta.find("airbag");
@@ -198,12 +199,13 @@ class RunCsvReader {
       if (!seen.count(required)) throw fail(line_no_, std::string("missing required column '") + required + "'");
     const bool supply = seen.count(kSupplyKey) || run_.meta.count(kSupplyKey);
     if (!seen.count("mdot_in_kg_s") && !(seen.count("valve_cmd") && supply))
-      throw fail(line_no_, "missing required column 'mdot_in_kg_s' (a run without a flow meter needs the columns "
-                           "valve_cmd and p_supply_gauge_pa, or a '# p_supply_gauge_pa:' metadata key)");
+      throw fail(line_no_,
+                 "missing required column 'mdot_in_kg_s' (a run without a flow meter needs the columns "
+                 "valve_cmd and p_supply_gauge_pa, or a '# p_supply_gauge_pa:' metadata key)");
     if (!seen.count("p_supply_gauge_pa") && run_.meta.count(kSupplyKey) &&
         parseNumber(run_.meta[kSupplyKey], &supply_) != ParseResult::kOk)
-      throw fail(meta_line_[kSupplyKey], "metadata p_supply_gauge_pa: expected a number of pascals, got '" +
-                                             run_.meta[kSupplyKey] + "'");
+      throw fail(meta_line_[kSupplyKey],
+                 "metadata p_supply_gauge_pa: expected a number of pascals, got '" + run_.meta[kSupplyKey] + "'");
     if (std::isnan(run_.load_n) && !seen.count("load_n"))
       throw fail(line_no_, "missing load_n: give '# load_n: <N>' before the header or a load_n column");
   }

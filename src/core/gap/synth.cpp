@@ -12,8 +12,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
+#include <nlohmann/json.hpp>
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/effects.h"
@@ -256,7 +256,8 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
   for (long i = 0; i <= n_total; ++i) {
     const double t = static_cast<double>(i) / hz;
     double command = 0.0;
-    if (protocol.valve_driven) command = i > 0 ? advanceValveDriven(&model, protocol, t, opening, target_mass, &in) : 0.0;
+    if (protocol.valve_driven)
+      command = i > 0 ? advanceValveDriven(&model, protocol, t, opening, target_mass, &in) : 0.0;
     else if (i > 0) command = advanceMetered(&model, protocol, t, inflow, &in);
     else command = 1.0;
     const Readings m = model.measure();
@@ -325,9 +326,9 @@ void sayRun(const SynthOptions& o, const SynthResult& result, std::size_t k, con
     p_max = std::max(p_max, run.p_gauge_pa[i]);
   }
   *o.progress << "  [" << k + 1 << "/" << result.protocol.runs.size() << "] " << plan.name << ": load " << plan.load_n
-              << " N, " << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, max height " << std::setprecision(4)
-              << h_max * 1e3 << " mm, max pressure " << std::setprecision(5) << p_max / 1e3 << " kPa (" << plan.role
-              << ")\n";
+              << " N, " << std::setprecision(4) << plan.inflow_mass_kg * 1e3 << " g, max height "
+              << std::setprecision(4) << h_max * 1e3 << " mm, max pressure " << std::setprecision(5) << p_max / 1e3
+              << " kPa (" << plan.role << ")\n";
 }
 
 void writeDatasetYaml(const SynthOptions& o, const SynthResult& result, const fs::path& dir) {
@@ -346,8 +347,8 @@ void writeDatasetYaml(const SynthOptions& o, const SynthResult& result, const fs
 using Json = nlohmann::ordered_json;  // keys in a fixed order: same seed, same file
 
 Json noiseJson(const SensorNoise& n) {
-  return {{"pressure_sd_pa", n.pressure_sd_pa}, {"pressure_step_pa", n.pressure_step_pa},
-          {"height_sd_m", n.height_sd_m},       {"height_step_m", n.height_step_m},
+  return {{"pressure_sd_pa", n.pressure_sd_pa},     {"pressure_step_pa", n.pressure_step_pa},
+          {"height_sd_m", n.height_sd_m},           {"height_step_m", n.height_step_m},
           {"flow_relative_sd", n.flow_relative_sd}, {"flow_sd_kg_s", n.flow_sd_kg_s},
           {"flow_step_kg_s", n.flow_step_kg_s}};
 }
@@ -370,8 +371,12 @@ Json effectsJson(const SynthResult& result) {
 Json runsJson(const SynthProtocol& protocol) {
   Json j = Json::array();
   for (const SynthRunPlan& r : protocol.runs)
-    j.push_back({{"file", r.name}, {"load_n", r.load_n}, {"flow", r.flow}, {"target_height_m", r.target_height_m},
-                 {"inflow_mass_kg", r.inflow_mass_kg}, {"role", r.role}});
+    j.push_back({{"file", r.name},
+                 {"load_n", r.load_n},
+                 {"flow", r.flow},
+                 {"target_height_m", r.target_height_m},
+                 {"inflow_mass_kg", r.inflow_mass_kg},
+                 {"role", r.role}});
   return j;
 }
 
@@ -390,7 +395,10 @@ void writeTruthJson(const SynthOptions& o, const SynthResult& result, const Sens
   j["flow_meter"] = o.flow_meter;
   j["height_sensor"] = o.height_sensor;
   j["runs"] = runsJson(p);
-  j["timing"] = {{"inflate_s", p.inflate_s}, {"peak_s", p.peak_s}, {"hold_s", p.hold_s}, {"vent_s", p.vent_s},
+  j["timing"] = {{"inflate_s", p.inflate_s},
+                 {"peak_s", p.peak_s},
+                 {"hold_s", p.hold_s},
+                 {"vent_s", p.vent_s},
                  {"sample_hz", p.sample_hz}};
   std::ofstream out(dir / "truth.json");
   out << j.dump(2, ' ', false, Json::error_handler_t::replace) << "\n";

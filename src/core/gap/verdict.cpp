@@ -15,8 +15,12 @@ using gap::joinNames;
 /// The tests a candidate must pass, against the nominal model's score.
 class VerdictRules {
  public:
-  VerdictRules(const std::vector<CandidateFit>& candidates, const NominalScore& nominal, const DiagnosisOptions& options)
-      : candidates_(candidates), nominal_(nominal), options_(options), n_(nominal.fit_residuals),
+  VerdictRules(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
+               const DiagnosisOptions& options)
+      : candidates_(candidates),
+        nominal_(nominal),
+        options_(options),
+        n_(nominal.fit_residuals),
         held_before_(nominal.withheld_residuals > 0 ? nominal.withheld_chi2_per_sample
                                                     : std::numeric_limits<double>::quiet_NaN()) {}
 
@@ -65,7 +69,8 @@ class VerdictRules {
     return true;
   }
   bool pairWithinNoiseWhereSingleIsNot(const CandidateFit& single, const CandidateFit& pair) const {
-    const double held_gain = (single.withheld_chi2_per_sample - pair.withheld_chi2_per_sample) * nominal_.withheld_residuals;
+    const double held_gain =
+        (single.withheld_chi2_per_sample - pair.withheld_chi2_per_sample) * nominal_.withheld_residuals;
     const double single_n = single.chi2 / n_, pair_n = pair.chi2 / n_;
     const bool takes_the_rest = pair_n <= options_.explained_chi2 ||
                                 pair_n - 1.0 <= (1.0 - options_.explained_excess_removed) * (single_n - 1.0);
@@ -101,9 +106,9 @@ std::string candidateInWords(const CandidateFit& c, const VerdictRules& rules, c
   std::ostringstream e;
   e << joinNames(c.effects) << ": BIC " << fmt(c.bic_delta, 4) << ", chi2/n " << fmt(c.chi2 / n) << " on the fit runs";
   if (rules.anythingWithheld())
-    e << ", " << fmt(c.withheld_chi2_per_sample) << " on the withheld runs (chi2 " << fmt(rules.heldBefore() * n_held, 5)
-      << " -> " << fmt(c.withheld_chi2_per_sample * n_held, 5) << ", nrmse " << fmt(nominal.withheld_nrmse) << " -> "
-      << fmt(c.withheld_nrmse) << ")";
+    e << ", " << fmt(c.withheld_chi2_per_sample) << " on the withheld runs (chi2 "
+      << fmt(rules.heldBefore() * n_held, 5) << " -> " << fmt(c.withheld_chi2_per_sample * n_held, 5) << ", nrmse "
+      << fmt(nominal.withheld_nrmse) << " -> " << fmt(c.withheld_nrmse) << ")";
   const bool fit_ok = rules.fitsFitRuns(c), held_ok = rules.fitsWithheld(c);
   e << (fit_ok && held_ok ? ": explains the gap"
         : !fit_ok         ? ": leaves too much on the fit runs"
@@ -150,9 +155,10 @@ int settleNearTies(const std::vector<CandidateFit>& candidates, int winner, cons
       reasons->push_back(e.str());
       return static_cast<int>(i);
     }
-    e << ": " << (gain <= -options.min_withheld_gain ? "the withheld runs confirm " + joinNames(w.effects)
-                                                      : "the withheld runs do not tell them apart either; " +
-                                                            joinNames(w.effects) + " by BIC");
+    e << ": "
+      << (gain <= -options.min_withheld_gain
+              ? "the withheld runs confirm " + joinNames(w.effects)
+              : "the withheld runs do not tell them apart either; " + joinNames(w.effects) + " by BIC");
     reasons->push_back(e.str());
   }
   return winner;
@@ -171,8 +177,9 @@ Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const Nominal
     v.status = "explained";
   } else if (rules.chi2nNominal() <= options.within_noise_chi2) {
     v.status = "none";
-    v.reasons.push_back("the nominal model fits within the noise, and no candidate both improves it significantly "
-                        "and holds up on the withheld runs");
+    v.reasons.push_back(
+        "the nominal model fits within the noise, and no candidate both improves it significantly "
+        "and holds up on the withheld runs");
   } else {
     v.status = "unexplained";
     v.reasons.push_back("a significant gap that no candidate accounts for");

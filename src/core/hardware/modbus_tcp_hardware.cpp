@@ -21,17 +21,16 @@ int maxAddress(const std::vector<int>& addresses) {
 
 bool transientModbusError(int error_number) {
   switch (error_number) {
-    case ETIMEDOUT:    // no reply within response_timeout_s
-    case EMBBADDATA:   // a reply that is not this request's (a late one) or malformed
+    case ETIMEDOUT:   // no reply within response_timeout_s
+    case EMBBADDATA:  // a reply that is not this request's (a late one) or malformed
     case EMBBADEXC:
     case EMBUNKEXC:
     case EMBBADCRC:
     case EMBBADSLAVE:
-    case EMBXSBUSY:    // the terminal asks for a retry
-    case EMBXGTAR:     // a gateway's target did not answer: a timeout behind the gateway
+    case EMBXSBUSY:  // the terminal asks for a retry
+    case EMBXGTAR:   // a gateway's target did not answer: a timeout behind the gateway
       return true;
-    default:
-      return false;
+    default: return false;
   }
 }
 
@@ -183,7 +182,8 @@ void ModbusTerminal::run() {
   Clock::time_point next = Clock::now();
   Clock::time_point next_connect = next;
   const auto cycle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.cycle_s));
-  const auto retry = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.reconnect_interval_s));
+  const auto retry =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(map_.reconnect_interval_s));
   while (!stop_) {
     const bool up = linkUp();
     if (up) {
@@ -303,7 +303,8 @@ void ModbusTerminal::fillOutputs() {
       if (out[k]->kind == ValveOutput::kCoil) {
         coils_[out[k]->address] = pwm_[2 * s + k].next(duty[k], phase, pwm_steps_) ? 1 : 0;
       } else {
-        holding_[out[k]->address] = static_cast<std::uint16_t>(std::lround(std::clamp(duty[k], 0.0, 1.0) * out[k]->full_scale));
+        holding_[out[k]->address] =
+            static_cast<std::uint16_t>(std::lround(std::clamp(duty[k], 0.0, 1.0) * out[k]->full_scale));
       }
     }
   }
@@ -346,8 +347,8 @@ bool ModbusTerminal::requestFailed(int error_number, const char* what, const Add
     dropLink(why);
   } else if (silent_s >= map_.link_loss_after_s) {
     std::ostringstream s;
-    s << "no bus cycle completed for " << std::lround(silent_s * 1000.0) << " ms (link_loss_after_s " << map_.link_loss_after_s
-      << "), last: " << why;
+    s << "no bus cycle completed for " << std::lround(silent_s * 1000.0) << " ms (link_loss_after_s "
+      << map_.link_loss_after_s << "), last: " << why;
     dropLink(s.str());
   } else {
     retryNextCycle(why);
@@ -402,8 +403,8 @@ void ModbusTcpCellHardware::configure(const HardwareConfig& config) {
   const RegisterMap map = cachedMap(config.register_map_path, config.bed_cells);
   std::size_t terminal = 0;
   if (!map.find(config.cell_id, &terminal, &slot_))
-    throw std::runtime_error("modbus_tcp hardware: cell " + std::to_string(config.cell_id) + " is not in the register map " +
-                             config.register_map_path);
+    throw std::runtime_error("modbus_tcp hardware: cell " + std::to_string(config.cell_id) +
+                             " is not in the register map " + config.register_map_path);
   registers_ = map.terminals[terminal].cells[slot_];
   terminal_ = ModbusTerminal::shared(map.terminals[terminal], config.control_period_s);
 }

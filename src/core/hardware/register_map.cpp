@@ -16,7 +16,9 @@
 namespace nursing_bed {
 namespace {
 
-[[noreturn]] void fail(const std::string& where, const std::string& what) { throw std::runtime_error(where + ": " + what); }
+[[noreturn]] void fail(const std::string& where, const std::string& what) {
+  throw std::runtime_error(where + ": " + what);
+}
 
 void checkKeys(const YAML::Node& node, const std::set<std::string>& allowed, const std::string& where) {
   if (!node.IsMap()) fail(where, "must be a map");
@@ -84,14 +86,16 @@ CellRegisters readCell(const YAML::Node& node, const std::string& where) {
 
 /// cell_block: `count` cells from `first_cell`, consecutive addresses from each `*_start`.
 std::vector<CellRegisters> readBlock(const YAML::Node& node, const std::string& where) {
-  checkKeys(node, {"first_cell", "count", "valves", "inlet_start", "vent_start", "valve_full_scale", "pressure_start",
-                   "pressure_scale_pa", "pressure_offset_pa", "height_start", "height_scale_m", "height_offset_m"},
+  checkKeys(node,
+            {"first_cell", "count", "valves", "inlet_start", "vent_start", "valve_full_scale", "pressure_start",
+             "pressure_scale_pa", "pressure_offset_pa", "height_start", "height_scale_m", "height_offset_m"},
             where);
   const auto first = require<std::uint32_t>(node, "first_cell", where);
   const int count = require<int>(node, "count", where);
   if (count < 1 || count > 10000) fail(where + ".count", "must lie in 1..10000");
   const std::string kind = get<std::string>(node, "valves", where, "coil");
-  if (kind != "coil" && kind != "holding_register") fail(where + ".valves", "must be 'coil' or 'holding_register', got '" + kind + "'");
+  if (kind != "coil" && kind != "holding_register")
+    fail(where + ".valves", "must be 'coil' or 'holding_register', got '" + kind + "'");
   CellRegisters proto;
   proto.inlet.kind = proto.vent.kind = kind == "coil" ? ValveOutput::kCoil : ValveOutput::kHoldingRegister;
   proto.inlet.full_scale = proto.vent.full_scale = get<double>(node, "valve_full_scale", where, 1000.0);
@@ -116,8 +120,9 @@ std::vector<CellRegisters> readBlock(const YAML::Node& node, const std::string& 
 }
 
 TerminalMap readTerminal(const YAML::Node& node, const std::string& where) {
-  checkKeys(node, {"name", "host", "port", "unit_id", "response_timeout_s", "link_loss_after_s", "reconnect_interval_s",
-                   "watchdog_s", "cycle_s", "stale_after_s", "realtime_priority", "supply_pressure", "cell_block", "cells"},
+  checkKeys(node,
+            {"name", "host", "port", "unit_id", "response_timeout_s", "link_loss_after_s", "reconnect_interval_s",
+             "watchdog_s", "cycle_s", "stale_after_s", "realtime_priority", "supply_pressure", "cell_block", "cells"},
             where);
   TerminalMap t;
   t.name = get<std::string>(node, "name", where, where);
@@ -167,7 +172,8 @@ void checkTerminalValues(const TerminalMap& t, ErrorList& err) {
   if (t.host.empty()) err.add(at, ": host is empty");
   if (t.port < 1 || t.port > 65535) err.add(at, ": port ", t.port, " not in 1..65535");
   if (t.unit_id < 0 || t.unit_id > 247) err.add(at, ": unit_id ", t.unit_id, " not in 0..247");
-  if (!(t.response_timeout_s > 0.0 && t.response_timeout_s <= 1.0)) err.add(at, ": response_timeout_s must lie in (0, 1] s");
+  if (!(t.response_timeout_s > 0.0 && t.response_timeout_s <= 1.0))
+    err.add(at, ": response_timeout_s must lie in (0, 1] s");
   if (!(t.reconnect_interval_s > 0.0)) err.add(at, ": reconnect_interval_s must be > 0");
   if (!(t.cycle_s > 0.0 && t.cycle_s <= 0.1)) err.add(at, ": cycle_s must lie in (0, 0.1] s");
   if (!(t.stale_after_s > t.cycle_s)) err.add(at, ": stale_after_s must exceed cycle_s");
@@ -212,7 +218,8 @@ class AddressBook {
 void checkTerminalCells(const TerminalMap& t, ErrorList& err) {
   AddressBook coils, holding, inputs;
   auto output = [&](const ValveOutput& v, const std::string& who) {
-    (v.kind == ValveOutput::kCoil ? coils : holding).use(v.address, who + " (" + (v.kind == ValveOutput::kCoil ? "coil" : "holding register") + ")", err);
+    (v.kind == ValveOutput::kCoil ? coils : holding)
+        .use(v.address, who + " (" + (v.kind == ValveOutput::kCoil ? "coil" : "holding register") + ")", err);
   };
   if (t.supply_pressure_pa.present()) {
     checkInput(t.supply_pressure_pa, "terminal '" + t.name + "' supply_pressure", err);

@@ -143,7 +143,8 @@ void SimulatedCellHardware::sense() {
 
 std::string SimulatedCellHardware::describe() const {
   std::ostringstream s;
-  s << "simulated cell " << config_.cell_id << " (" << (model_ ? model_->structure().describe() : "unconfigured") << ")";
+  s << "simulated cell " << config_.cell_id << " (" << (model_ ? model_->structure().describe() : "unconfigured")
+    << ")";
   if (rig_.adc_step_pa > 0.0) s << ", ADC step " << rig_.adc_step_pa << " Pa";
   if (rig_.valve_dead_time_s > 0.0) s << ", valve dead time " << rig_.valve_dead_time_s << " s";
   return s.str();

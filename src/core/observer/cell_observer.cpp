@@ -129,9 +129,7 @@ CellInputs CellObserver::modelInputs(const ObserverInputs& in, double flow_gauge
   return c;
 }
 
-void CellObserver::refresh(const CellInputs& in) {
-  model_.rate(time_, x_, in, &vars_);
-}
+void CellObserver::refresh(const CellInputs& in) { model_.rate(time_, x_, in, &vars_); }
 
 void CellObserver::integrateFlows(const CellInputs& in, double dt_s) {
   // The model's rates at the estimate: the gas's mass and energy change by the flows and heat
@@ -233,7 +231,8 @@ double CellObserver::topHeight(double gauge_pressure_pa) const {
   const CellStructure& structure = model_.structure();
   const double unstretched = unstretched_top_m_;
   if (x_[CellModel::kHeight] < 0.9 * unstretched) return unstretched;
-  const auto q = structure.relaxedShape(std::min(x_[CellModel::kHeight], unstretched), gauge_pressure_pa, &x_[CellModel::kShape]);
+  const auto q =
+      structure.relaxedShape(std::min(x_[CellModel::kHeight], unstretched), gauge_pressure_pa, &x_[CellModel::kShape]);
   return std::max(unstretched, structure.heightLimit(q.data()));
 }
 
@@ -241,7 +240,8 @@ bool CellObserver::invertVolume(double gauge_pressure_pa, double dt_s) {
   // The height whose volume, with the film relaxed to the pressure, holds the gas at it.
   const CellStructure& structure = model_.structure();
   const int nq = structure.shapeDofs();
-  const double target = (gamma_ - 1.0) * x_[CellModel::kEnergy] / (model_.params().ambient_pressure_pa + gauge_pressure_pa);
+  const double target =
+      (gamma_ - 1.0) * x_[CellModel::kEnergy] / (model_.params().ambient_pressure_pa + gauge_pressure_pa);
   double shape[kMaxShapeDofs];
   for (int i = 0; i < nq; ++i) shape[i] = x_[CellModel::kShape + i];
   auto volume_at = [&](double h) {
@@ -358,8 +358,9 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   last_pressure_pa_ = p_new;
   refresh(modelInputs(applied_, p_new));
   // The height's sd from the energy's: dV = (gamma - 1) dU / p over the slope dV/dh.
-  height_sd_m_ = lifted ? (gamma_ - 1.0) * std::sqrt(std::max(0.0, p_(1, 1))) / (pa + p_new) / std::max(volume_slope_m2_, 1e-5)
-                        : 0.0;
+  height_sd_m_ =
+      lifted ? (gamma_ - 1.0) * std::sqrt(std::max(0.0, p_(1, 1))) / (pa + p_new) / std::max(volume_slope_m2_, 1e-5)
+             : 0.0;
   if (std::isfinite(readings.height_m)) fuseHeight(readings.height_m);
   updateLoad(p_new, lifted, dt);
   events.reanchored = checkReanchor(readings);

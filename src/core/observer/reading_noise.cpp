@@ -18,7 +18,8 @@ ReadingNoise::ReadingNoise(double configured_sd, double prior_readings, double m
       block_readings_(block_readings) {
   if (!(configured_sd > 0.0) || !(prior_readings > 0.0) || !(memory_readings > prior_readings) || block_readings < 2)
     throw std::invalid_argument(
-        "ReadingNoise: the sd and the prior must be > 0, the memory longer than the prior, a block at least 2 readings");
+        "ReadingNoise: the sd and the prior must be > 0, the memory longer than the prior, a block at least 2 "
+        "readings");
 }
 
 void ReadingNoise::interrupt() {
@@ -76,7 +77,8 @@ void ReadingNoise::addToBlock(double reading) {
 
 double ReadingNoise::meanInflation() const {
   const double white_block_var = sd() * sd() / block_readings_;
-  const double block_var = (white_block_var * kInflationPriorBlocks + sum_block_var_) / (kInflationPriorBlocks + block_differences_);
+  const double block_var =
+      (white_block_var * kInflationPriorBlocks + sum_block_var_) / (kInflationPriorBlocks + block_differences_);
   return std::max(1.0, block_var / white_block_var);
 }
 

@@ -29,7 +29,8 @@ bool ReanchorDetector::update(double now_s, const ObserverInputs& applied, doubl
   // Below ambient only while the cell tests for a flat cell (expectFlatUntil): a vented flat
   // cell's plate may settle a little below it, while a lifted one keeps its load's pressure.
   // Taken always, light cells resting lifted near ambient would be re-anchored flat.
-  const bool low = now_s < sub_ambient_flat_until_s_ ? mean_pa_ < flat_pressure_pa_ : std::fabs(mean_pa_) < flat_pressure_pa_;
+  const bool low =
+      now_s < sub_ambient_flat_until_s_ ? mean_pa_ < flat_pressure_pa_ : std::fabs(mean_pa_) < flat_pressure_pa_;
   if (now_s - flat_since_s_ + 1e-9 >= reanchor_time_s_ && low) {
     *mean_pa = mean_pa_;
     flat_since_s_ = now_s;

@@ -20,7 +20,7 @@ ObserverInputs ValveDelayLine::delayed(const ObserverInputs& in, double dt) {
     pending_.pop_front();
   }
   ObserverInputs out = in;
-  out.valves.inlet = out.valves.vent = 0.0;  // before the first command: shut
+  out.valves.inlet = out.valves.vent = 0.0;    // before the first command: shut
   const double from = pending_s_ - dead - dt;  // the acting span's start, from the queue's start
   double start = 0.0;
   for (const Held& h : pending_) {

@@ -19,7 +19,7 @@ void WeightBound::tabulate(const CellStructure& structure, double plate_weight_n
     const StructureEquilibrium e = structure.equilibriumAtHeight(h, plate_weight_n);
     h_m_.push_back(h);
     p_pa_.push_back(e.converged && e.gauge_pressure_pa > 0.0 ? e.gauge_pressure_pa
-                                                              : std::numeric_limits<double>::quiet_NaN());
+                                                             : std::numeric_limits<double>::quiet_NaN());
   }
 }
 

@@ -99,8 +99,8 @@ double CellCharacteristic::plateStiffness(double height_m, double load_n) const 
   auto force = [&](double h) {
     double p = p0, s = stretch;
     for (int i = 0; i < 30; ++i) {
-      const double p_new = k_inv / std::pow(relaxedVolume(h, p, &s), params_.gas.heat_capacity_ratio) -
-                           params_.ambient_pressure_pa;
+      const double p_new =
+          k_inv / std::pow(relaxedVolume(h, p, &s), params_.gas.heat_capacity_ratio) - params_.ambient_pressure_pa;
       if (std::fabs(p_new - p) < 1e-6) break;
       p = p_new;
     }

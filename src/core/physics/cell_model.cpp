@@ -58,17 +58,17 @@ std::string CellParams::validate() const {
   check(relief_critical_ratio >= 0.0 && relief_critical_ratio < 1.0, "relief_critical_ratio", relief_critical_ratio,
         "must lie in [0, 1)");
   check(time_step_s > 0.0 && time_step_s <= 0.05, "time_step_s", time_step_s, "must lie in (0, 0.05] s");
-  check(jacobian_refresh_steps >= 1 && jacobian_refresh_steps <= 100, "jacobian_refresh_steps",
-        jacobian_refresh_steps, "must lie in 1..100");
-  check(relative_tolerance >= 1e-10 && relative_tolerance <= 1e-1, "relative_tolerance",
-        relative_tolerance, "must lie in [1e-10, 0.1]");
+  check(jacobian_refresh_steps >= 1 && jacobian_refresh_steps <= 100, "jacobian_refresh_steps", jacobian_refresh_steps,
+        "must lie in 1..100");
+  check(relative_tolerance >= 1e-10 && relative_tolerance <= 1e-1, "relative_tolerance", relative_tolerance,
+        "must lie in [1e-10, 0.1]");
   return errors.text();
 }
 
 double CellParams::reliefOpening(double gauge_pressure_pa) const {
-  return std::clamp((gauge_pressure_pa - relief_cracking_pressure_pa) /
-                        (relief_full_open_pressure_pa - relief_cracking_pressure_pa),
-                    0.0, 1.0);
+  return std::clamp(
+      (gauge_pressure_pa - relief_cracking_pressure_pa) / (relief_full_open_pressure_pa - relief_cracking_pressure_pa),
+      0.0, 1.0);
 }
 
 std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params) {
@@ -110,8 +110,7 @@ void CellModel::reset(double load_n) {
   const auto rest = structure_->restShape();
   for (int i = 0; i < shape_dofs_; ++i) state_[kShape + i] = rest[i];
   const double volume = structure_->evaluate(0.0, rest.data()).volume_m3;
-  const double mass = massFromState(params_.gas, params_.ambient_pressure_pa,
-                                    params_.ambient_temperature_k, volume);
+  const double mass = massFromState(params_.gas, params_.ambient_pressure_pa, params_.ambient_temperature_k, volume);
   state_[kMass] = mass;
   state_[kEnergy] = mass * params_.gas.cv() * params_.ambient_temperature_k;
   // A bottomed-out plate rests on the contact spring.
@@ -160,8 +159,8 @@ using StateVector = CellModel::StateVector;
 // into the CellVariables (read by the later steps and by the effects); none allocates.
 
 /// The variables the state gives directly: gas, plate, regulator, film shape and structure.
-inline void stateVariables(const CellParams& params, const CellStructure& structure, int shape_dofs,
-                           double time_s, const StateVector& x, const CellInputs& in, CellVariables* out) {
+inline void stateVariables(const CellParams& params, const CellStructure& structure, int shape_dofs, double time_s,
+                           const StateVector& x, const CellInputs& in, CellVariables* out) {
   const GasProperties& gas = params.gas;
   CellVariables& v = *out;
   v.time_s = time_s;
@@ -169,10 +168,10 @@ inline void stateVariables(const CellParams& params, const CellStructure& struct
   v.internal_energy_j = std::max(x[CellModel::kEnergy], 1e-9);
   v.height_m = x[CellModel::kHeight];
   v.velocity_m_s = x[CellModel::kVelocity];
-  v.regulator_pressure_pa = params.regulator_time_constant_s > 0.0 ? x[CellModel::kRegulator]
-                                                                   : (std::isnan(in.supply_pressure_pa)
-                                                                          ? params.supply_pressure_pa
-                                                                          : in.supply_pressure_pa);
+  v.regulator_pressure_pa =
+      params.regulator_time_constant_s > 0.0
+          ? x[CellModel::kRegulator]
+          : (std::isnan(in.supply_pressure_pa) ? params.supply_pressure_pa : in.supply_pressure_pa);
   for (int i = 0; i < shape_dofs; ++i) v.shape[i] = x[CellModel::kShape + i];
   v.structure = structure.evaluate(v.height_m, v.shape.data());
   v.pressure_pa = pressureFromEnergy(gas, v.internal_energy_j, v.structure.volume_m3);
@@ -203,9 +202,9 @@ inline double inletFlow(const CellParams& params, const CellInputs& in, double f
   }
   v.inflow_prescribed = 0.0;
   const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
-  const OrificeFlow f = orificeFlow(params.gas, opening * params.inlet_area_m2,
-                                    params.ambient_pressure_pa + v.regulator_pressure_pa, params.supply_temperature_k,
-                                    flow_pressure_pa, v.temperature_k, params.orifice_linear_band_pa);
+  const OrificeFlow f =
+      orificeFlow(params.gas, opening * params.inlet_area_m2, params.ambient_pressure_pa + v.regulator_pressure_pa,
+                  params.supply_temperature_k, flow_pressure_pa, v.temperature_k, params.orifice_linear_band_pa);
   v.inflow_kg_s = f.mass_flow_kg_s;
   v.metered_inflow_kg_s = v.inflow_kg_s;
   return v.inflow_kg_s * cp * f.upstream_temperature_k;
@@ -220,8 +219,7 @@ struct Outflows {
 
 /// Vent valve and leakage (eq. 17-23 with the choked branch) and the relief valve (ISO 6358).
 /// Sets the vent and leak flow variables.
-inline Outflows outflows(const CellParams& params, const CellInputs& in, double flow_pressure_pa,
-                         CellVariables* out) {
+inline Outflows outflows(const CellParams& params, const CellInputs& in, double flow_pressure_pa, CellVariables* out) {
   CellVariables& v = *out;
   Outflows o;
   o.vent = orificeFlow(params.gas, std::clamp(in.vent_opening, 0.0, 1.0) * params.vent_area_m2, flow_pressure_pa,
@@ -230,11 +228,11 @@ inline Outflows outflows(const CellParams& params, const CellInputs& in, double 
   o.leak = orificeFlow(params.gas, params.leak_area_m2, flow_pressure_pa, v.temperature_k, params.ambient_pressure_pa,
                        params.ambient_temperature_k, params.orifice_linear_band_pa);
   const double relief_opening = params.reliefOpening(flow_pressure_pa - params.ambient_pressure_pa);
-  o.relief_kg_s = relief_opening > 0.0
-                      ? relief_opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa,
-                                                         params.relief_critical_ratio, flow_pressure_pa,
-                                                         v.temperature_k, params.ambient_pressure_pa)
-                      : 0.0;
+  o.relief_kg_s =
+      relief_opening > 0.0
+          ? relief_opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa, params.relief_critical_ratio,
+                                             flow_pressure_pa, v.temperature_k, params.ambient_pressure_pa)
+          : 0.0;
   v.vent_flow_kg_s = o.vent.mass_flow_kg_s;
   v.leak_flow_kg_s = o.leak.mass_flow_kg_s;
   return o;
@@ -269,8 +267,7 @@ inline void gasRates(const CellParams& params, int shape_dofs, double inflow_ent
   const double outflow_enthalpy_w = o.vent.mass_flow_kg_s * cp * o.vent.upstream_temperature_k +
                                     o.leak.mass_flow_kg_s * cp * o.leak.upstream_temperature_k +
                                     o.relief_kg_s * cp * v.temperature_k;
-  dx[CellModel::kMass] =
-      v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - o.relief_kg_s + terms.mass_flow_kg_s;
+  dx[CellModel::kMass] = v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - o.relief_kg_s + terms.mass_flow_kg_s;
   double volume_rate = s.effective_area_m2 * v.velocity_m_s;
   for (int i = 0; i < shape_dofs; ++i) {
     const double imbalance = s.elastic_force[i] + terms.shape_force[i] - v.gauge_pressure_pa * s.dvolume_dshape[i];
@@ -278,8 +275,8 @@ inline void gasRates(const CellParams& params, int shape_dofs, double inflow_ent
     volume_rate += s.dvolume_dshape[i] * dx[CellModel::kShape + i];
   }
   v.volume_rate_m3_s = volume_rate;
-  dx[CellModel::kEnergy] = inflow_enthalpy_w - outflow_enthalpy_w + terms.enthalpy_flow_w + terms.heat_flow_w -
-                           v.pressure_pa * volume_rate;
+  dx[CellModel::kEnergy] =
+      inflow_enthalpy_w - outflow_enthalpy_w + terms.enthalpy_flow_w + terms.heat_flow_w - v.pressure_pa * volume_rate;
 }
 
 /// Plate: gas force on the effective area against load, guide damping and the bed. Sets the
@@ -289,12 +286,12 @@ inline void plateRates(const CellParams& params, const CellInputs& in, const Eff
   CellVariables& v = *out;
   v.bed_contact_force_n = 0.0;
   if (v.height_m < 0.0) {
-    v.bed_contact_force_n = std::max(0.0, -params.bed_contact_stiffness_n_m * v.height_m -
-                                              params.bed_contact_damping_n_s_m * v.velocity_m_s);
+    v.bed_contact_force_n = std::max(
+        0.0, -params.bed_contact_stiffness_n_m * v.height_m - params.bed_contact_damping_n_s_m * v.velocity_m_s);
   }
   const double net_force = v.gauge_pressure_pa * v.structure.effective_area_m2 - in.load_n -
-                           params.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n +
-                           terms.plate_force_n + v.structure.plate_force_n;
+                           params.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n + terms.plate_force_n +
+                           v.structure.plate_force_n;
   (*rates)[CellModel::kHeight] = v.velocity_m_s;
   (*rates)[CellModel::kVelocity] = net_force / v.moving_mass_kg;
 }
@@ -447,10 +444,9 @@ void CellModel::refreshVariables(const CellInputs& in) { rate_at_state_ = rate(t
 bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
   auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };
   return same(a.inlet_opening, b.inlet_opening) && same(a.vent_opening, b.vent_opening) &&
-         same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) &&
-         same(a.load_n, b.load_n) && same(a.supply_pressure_pa, b.supply_pressure_pa) &&
-         a.prescribed_inflow == b.prescribed_inflow && same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) &&
-         a.inlet_closed == b.inlet_closed;
+         same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) && same(a.load_n, b.load_n) &&
+         same(a.supply_pressure_pa, b.supply_pressure_pa) && a.prescribed_inflow == b.prescribed_inflow &&
+         same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) && a.inlet_closed == b.inlet_closed;
 }
 
 Readings CellModel::measure() const {

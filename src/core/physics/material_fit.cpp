@@ -37,8 +37,7 @@ std::vector<std::string> splitCsv(const std::string& line) {
 
 std::string headerName(const std::string& field) {
   std::string name = field;
-  if (name.size() >= 2 && name.front() == '"' && name.back() == '"')
-    name = trim(name.substr(1, name.size() - 2));
+  if (name.size() >= 2 && name.front() == '"' && name.back() == '"') name = trim(name.substr(1, name.size() - 2));
   std::transform(name.begin(), name.end(), name.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return name;
@@ -63,10 +62,8 @@ int findColumn(const std::vector<std::string>& names, const std::string& a, cons
     if (names[i] != a && names[i] != b) continue;
     if (found >= 0) {
       const std::string& first = names[static_cast<std::size_t>(found)];
-      if (first == names[i])
-        throw std::runtime_error(where + ": column '" + first + "' appears twice in the header");
-      throw std::runtime_error(where + ": both '" + first + "' and '" + names[i] +
-                               "' columns in the header; keep one");
+      if (first == names[i]) throw std::runtime_error(where + ": column '" + first + "' appears twice in the header");
+      throw std::runtime_error(where + ": both '" + first + "' and '" + names[i] + "' columns in the header; keep one");
     }
     found = static_cast<int>(i);
   }
@@ -103,32 +100,32 @@ TensileData readTensileCsv(const std::string& path) {
       std::string found;
       for (const auto& n : names) found += (found.empty() ? "" : ", ") + ("'" + n + "'");
       if (stretch_col < 0)
-        throw std::runtime_error(where + ": header has no 'stretch' or 'strain' column (found " +
-                                 found + ")");
+        throw std::runtime_error(where + ": header has no 'stretch' or 'strain' column (found " + found + ")");
       if (stress_col < 0)
-        throw std::runtime_error(where + ": header has no 'stress_pa' or 'stress_mpa' column "
-                                 "(found " + found + ")");
+        throw std::runtime_error(where +
+                                 ": header has no 'stress_pa' or 'stress_mpa' column "
+                                 "(found " +
+                                 found + ")");
       strain_given = names[static_cast<std::size_t>(stretch_col)] == "strain";
       if (names[static_cast<std::size_t>(stress_col)] == "stress_mpa") stress_scale = mpaToPa(1.0);
       continue;
     }
 
     if (fields.size() != names.size())
-      throw std::runtime_error(where + ": " + std::to_string(fields.size()) +
-                               " fields, but the header has " + std::to_string(names.size()));
+      throw std::runtime_error(where + ": " + std::to_string(fields.size()) + " fields, but the header has " +
+                               std::to_string(names.size()));
     double values[2] = {0.0, 0.0};
     const int cols[2] = {stretch_col, stress_col};
     for (int k = 0; k < 2; ++k) {
       const auto c = static_cast<std::size_t>(cols[k]);
       if (!parseNumber(fields[c], &values[k]))
-        throw std::runtime_error(where + ": column '" + names[c] + "': '" + fields[c] +
-                                 "' is not a finite number");
+        throw std::runtime_error(where + ": column '" + names[c] + "': '" + fields[c] + "' is not a finite number");
     }
     const double stretch = strain_given ? 1.0 + values[0] : values[0];
     if (!(stretch > 0.0)) {
       std::ostringstream msg;
-      msg << where << ": column '" << names[static_cast<std::size_t>(stretch_col)]
-          << "': stretch must be > 0, got " << stretch;
+      msg << where << ": column '" << names[static_cast<std::size_t>(stretch_col)] << "': stretch must be > 0, got "
+          << stretch;
       if (strain_given) msg << " (strain " << values[0] << ")";
       throw std::runtime_error(msg.str());
     }
@@ -163,9 +160,8 @@ void yeohDesign(const TensileData& data, Eigen::MatrixXd* a_mat, Eigen::VectorXd
     const double l = data.stretch[i];
     const double s = data.stress_pa[i];
     if (!std::isfinite(l) || !std::isfinite(s) || !(l > 0.0))
-      throw std::invalid_argument("fitYeoh: point " + std::to_string(i) +
-                                  " has a non-finite value or stretch <= 0");
-    const double x = l * l + 2.0 / l - 3.0;     // I1 - 3
+      throw std::invalid_argument("fitYeoh: point " + std::to_string(i) + " has a non-finite value or stretch <= 0");
+    const double x = l * l + 2.0 / l - 3.0;      // I1 - 3
     const double a = 2.0 * (l - 1.0 / (l * l));  // dI1/dl
     const auto r = static_cast<Eigen::Index>(i);
     (*a_mat)(r, 0) = a;
@@ -183,8 +179,7 @@ Eigen::VectorXd relativeWeights(const Eigen::VectorXd& b, const YeohFitOptions& 
   const double floor_pa = options.relative_floor * b.cwiseAbs().maxCoeff();
   Eigen::VectorXd w_rel = Eigen::VectorXd::Ones(b.size());
   if (floor_pa > 0.0)
-    for (Eigen::Index i = 0; i < w_rel.size(); ++i)
-      w_rel(i) = 1.0 / std::max(std::abs(b(i)), floor_pa);
+    for (Eigen::Index i = 0; i < w_rel.size(); ++i) w_rel(i) = 1.0 / std::max(std::abs(b(i)), floor_pa);
   return w_rel;
 }
 
@@ -223,32 +218,29 @@ void standardErrors(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qr, const
 
 YeohFit fitYeoh(const TensileData& data, const YeohFitOptions& options) {
   const std::size_t n = data.stretch.size();
-  if (data.stress_pa.size() != n)
-    throw std::invalid_argument("fitYeoh: stretch and stress_pa differ in length");
-  if (n < 4)
-    throw std::invalid_argument("fitYeoh: need at least 4 points, got " + std::to_string(n));
+  if (data.stress_pa.size() != n) throw std::invalid_argument("fitYeoh: stretch and stress_pa differ in length");
+  if (n < 4) throw std::invalid_argument("fitYeoh: need at least 4 points, got " + std::to_string(n));
 
   Eigen::MatrixXd a_mat;
   Eigen::VectorXd b;
   yeohDesign(data, &a_mat, &b);
   // Row weights: residuals relative to the measured stress, or plain Pa.
   const Eigen::VectorXd w_rel = relativeWeights(b, options);
-  const Eigen::VectorXd w = options.weighting == FitWeighting::kRelative
-                                ? w_rel
-                                : Eigen::VectorXd::Ones(static_cast<Eigen::Index>(n));
+  const Eigen::VectorXd w =
+      options.weighting == FitWeighting::kRelative ? w_rel : Eigen::VectorXd::Ones(static_cast<Eigen::Index>(n));
   const Eigen::MatrixXd a_w = w.asDiagonal() * a_mat;
   const Eigen::VectorXd b_w = w.asDiagonal() * b;
 
   // Scale columns to unit norm: the x^2 column is ~1e3 times the first at l = 5.
   Eigen::Vector3d scale = a_w.colwise().norm().transpose();
   for (int j = 0; j < 3; ++j)
-    if (!(scale(j) > 0.0))
-      throw std::invalid_argument("fitYeoh: no point with stretch != 1; nothing to fit");
+    if (!(scale(j) > 0.0)) throw std::invalid_argument("fitYeoh: no point with stretch != 1; nothing to fit");
   const Eigen::MatrixXd a_scaled = a_w * scale.cwiseInverse().asDiagonal();
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a_scaled);
   if (qr.rank() < 3)
-    throw std::invalid_argument("fitYeoh: the data cannot determine three constants (need at "
-                                "least 3 distinct values of I1 = l^2 + 2/l other than 3)");
+    throw std::invalid_argument(
+        "fitYeoh: the data cannot determine three constants (need at "
+        "least 3 distinct values of I1 = l^2 + 2/l other than 3)");
   const Eigen::Vector3d c = qr.solve(b_w).cwiseQuotient(scale);
 
   YeohFit fit;
@@ -268,8 +260,8 @@ void writeYeohFitCsv(const std::string& path, const TensileData& data, const Yeo
   if (!out) throw std::runtime_error(path + ": cannot open for writing");
   out << "stretch,stress_pa_measured,stress_pa_fitted\n" << std::setprecision(10);
   for (std::size_t i = 0; i < data.stretch.size() && i < data.stress_pa.size(); ++i)
-    out << data.stretch[i] << ',' << data.stress_pa[i] << ','
-        << fit.material.uniaxialNominalStress(data.stretch[i]) << '\n';
+    out << data.stretch[i] << ',' << data.stress_pa[i] << ',' << fit.material.uniaxialNominalStress(data.stretch[i])
+        << '\n';
   out.flush();
   if (!out) throw std::runtime_error(path + ": write failed");
 }

@@ -13,8 +13,7 @@ struct SubsonicEdge {
   double d_flow_d_pup;
 };
 
-SubsonicEdge subsonicWithSlope(const GasProperties& gas, double area, double p_up, double t_up,
-                               double p_down) {
+SubsonicEdge subsonicWithSlope(const GasProperties& gas, double area, double p_up, double t_up, double p_down) {
   const double g = gas.heat_capacity_ratio;
   const double k = area * std::sqrt(2.0 * g / ((g - 1.0) * gas.gas_constant_j_kg_k * t_up));
   // Phi = p_up^2 (r^(2/g) - r^((g+1)/g)), r = p_down/p_up.
@@ -30,8 +29,8 @@ SubsonicEdge subsonicWithSlope(const GasProperties& gas, double area, double p_u
 
 }  // namespace
 
-double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa,
-                          double t_up_k, double p_down_pa) {
+double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa, double t_up_k,
+                          double p_down_pa) {
   if (effective_area_m2 <= 0.0 || p_up_pa <= 0.0 || p_down_pa >= p_up_pa) return 0.0;
   const double g = gas.heat_capacity_ratio;
   const double r = std::max(p_down_pa, 0.0) / p_up_pa;
@@ -43,8 +42,7 @@ double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, do
 }
 
 OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, double pressure_a_pa,
-                        double temperature_a_k, double pressure_b_pa, double temperature_b_k,
-                        double linear_band_pa) {
+                        double temperature_a_k, double pressure_b_pa, double temperature_b_k, double linear_band_pa) {
   OrificeFlow out;
   const double dp = pressure_a_pa - pressure_b_pa;
   const double sign = dp >= 0.0 ? 1.0 : -1.0;
@@ -56,13 +54,12 @@ OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, doub
   const double adp = std::fabs(dp);
   if (adp >= linear_band_pa || linear_band_pa <= 0.0) {
     out.choked = p_down / p_up <= gas.criticalPressureRatio();
-    out.mass_flow_kg_s =
-        sign * isentropicMassFlow(gas, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
+    out.mass_flow_kg_s = sign * isentropicMassFlow(gas, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
     return out;
   }
   // Inside the band: odd cubic matching the isentropic value M and slope S at |dp| = band.
-  const SubsonicEdge edge = subsonicWithSlope(gas, effective_area_m2, p_down + linear_band_pa,
-                                              out.upstream_temperature_k, p_down);
+  const SubsonicEdge edge =
+      subsonicWithSlope(gas, effective_area_m2, p_down + linear_band_pa, out.upstream_temperature_k, p_down);
   const double x = adp / linear_band_pa;
   const double slope_x = edge.d_flow_d_pup * linear_band_pa;
   const double a = 0.5 * (3.0 * edge.flow - slope_x);

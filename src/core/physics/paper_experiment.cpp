@@ -58,8 +58,8 @@ InflationTrace runInflation(const CellParams& params, const InflationSetup& setu
   in.prescribed_inflow = setup.prescribed_inflow;
   auto record = [&]() {
     const CellVariables& v = model.variables();
-    trace.samples.push_back({v.time_s, v.inflow_kg_s, v.gauge_pressure_pa, v.height_m,
-                             v.structure.volume_m3, v.mass_kg, v.temperature_k});
+    trace.samples.push_back(
+        {v.time_s, v.inflow_kg_s, v.gauge_pressure_pa, v.height_m, v.structure.volume_m3, v.mass_kg, v.temperature_k});
   };
   record();
   const int n = static_cast<int>(std::lround(setup.duration_s / setup.sample_s));

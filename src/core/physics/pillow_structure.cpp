@@ -51,7 +51,7 @@ StructureEval PillowStructure::evaluate(double height_m, const double* shape) co
   const int n = params_.chambers;
   const double c = std::max(height_m, 0.0) / n;  // chamber height
   const double half_loop = 0.5 * stretch * loop_length_m_;
-  const double w = half_loop - 0.5 * kPi * c;     // contact flat width
+  const double w = half_loop - 0.5 * kPi * c;  // contact flat width
 
   StructureEval e;
   const double chamber_volume = w * w * c + 0.5 * kPi * w * c * c + kPi / 6.0 * c * c * c;
@@ -85,10 +85,10 @@ double PillowStructure::heightLimit(const double* shape) const {
 
 std::string PillowStructure::describe() const {
   std::ostringstream s;
-  s << "pillow cell: " << params_.chambers << " chambers, face " << mToMm(params_.face_side_m)
-    << " mm, gusset " << mToMm(params_.gusset_height_m) << " mm, film "
-    << mToMm(params_.film_thickness_m) << " mm Yeoh(" << paToMpa(params_.material.c10_pa) << ", "
-    << paToMpa(params_.material.c20_pa) << ", " << paToMpa(params_.material.c30_pa) << ") MPa";
+  s << "pillow cell: " << params_.chambers << " chambers, face " << mToMm(params_.face_side_m) << " mm, gusset "
+    << mToMm(params_.gusset_height_m) << " mm, film " << mToMm(params_.film_thickness_m) << " mm Yeoh("
+    << paToMpa(params_.material.c10_pa) << ", " << paToMpa(params_.material.c20_pa) << ", "
+    << paToMpa(params_.material.c30_pa) << ") MPa";
   return s.str();
 }
 

@@ -46,7 +46,8 @@ constexpr double kShapeUnitPa = 1.0e4;
 }  // namespace
 
 Status StructureTableData::validate() const {
-  if (!increasingPositive(heights_m)) return Status::error("heights_m must have >= 2 positive, strictly increasing values");
+  if (!increasingPositive(heights_m))
+    return Status::error("heights_m must have >= 2 positive, strictly increasing values");
   if (!increasingPositive(pressures_pa))
     return Status::error("pressures_pa must have >= 2 positive, strictly increasing values");
   const Status volume = checkGrid("volume_m3", volume_m3, heights_m.size(), pressures_pa.size(), true);
@@ -58,10 +59,12 @@ TabulatedStructure::TabulatedStructure(StructureTableData table, double film_rel
     : table_(std::move(table)), relaxation_time_s_(film_relaxation_time_s), dead_volume_m3_(dead_volume_m3) {
   const Status valid = table_.validate();
   if (!valid) throw std::invalid_argument("TabulatedStructure: " + valid.message());
-  if (!(relaxation_time_s_ > 0.0)) throw std::invalid_argument("TabulatedStructure: film_relaxation_time_s must be positive");
+  if (!(relaxation_time_s_ > 0.0))
+    throw std::invalid_argument("TabulatedStructure: film_relaxation_time_s must be positive");
   if (!(dead_volume_m3_ > 0.0 && std::isfinite(dead_volume_m3_)))
     throw std::invalid_argument("TabulatedStructure: dead_volume_m3 must be positive");
-  if (table_.heights_m.size() < 2) throw std::invalid_argument("TabulatedStructure: heights_m needs at least 2 heights");
+  if (table_.heights_m.size() < 2)
+    throw std::invalid_argument("TabulatedStructure: heights_m needs at least 2 heights");
 }
 
 StructureTableData TabulatedStructure::load(const std::string& path) {
@@ -117,7 +120,8 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   (void)b;
   const double dp = table_.pressures_pa[j + 1] - table_.pressures_pa[j];
   const double dvdq = (interpolate(table_.volume_m3, height_m, table_.pressures_pa[j + 1]) -
-                       interpolate(table_.volume_m3, height_m, table_.pressures_pa[j])) / dp;
+                       interpolate(table_.volume_m3, height_m, table_.pressures_pa[j])) /
+                      dp;
   const double dvdp = std::max(dvdq, 1e-3 * e.volume_m3 / table_.pressures_pa.back());
   e.dvolume_dshape[0] = dvdp * kShapeUnitPa;
   e.elastic_force[0] = shape[0] * kShapeUnitPa * e.dvolume_dshape[0];  // balance at q = p
@@ -137,8 +141,8 @@ bool TabulatedStructure::withinLimits(double height_m, const double* shape) cons
 
 std::string TabulatedStructure::describe() const {
   std::ostringstream s;
-  s << "FE table (" << table_.heights_m.size() << " heights x " << table_.pressures_pa.size() << " pressures): "
-    << table_.description;
+  s << "FE table (" << table_.heights_m.size() << " heights x " << table_.pressures_pa.size()
+    << " pressures): " << table_.description;
   return s.str();
 }
 

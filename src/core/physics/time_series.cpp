@@ -16,8 +16,7 @@ TimeSeries::TimeSeries(std::vector<double> times_s, std::vector<double> values)
     if (!std::isfinite(times_[i]) || !std::isfinite(values_[i]))
       throw std::invalid_argument("time series: sample " + std::to_string(i) + " is not finite");
     if (i > 0 && !(times_[i] > times_[i - 1]))
-      throw std::invalid_argument("time series: time not strictly increasing at sample " +
-                                  std::to_string(i));
+      throw std::invalid_argument("time series: time not strictly increasing at sample " + std::to_string(i));
   }
 }
 
@@ -28,8 +27,7 @@ double TimeSeries::at(double time_s) const {
   if (time_s >= times_.back()) return values_.back();
   if (cursor_ >= n - 1 || times_[cursor_] > time_s || times_[cursor_ + 1] < time_s) {
     // Jump by bisection; monotone queries then step one sample at a time.
-    cursor_ = static_cast<std::size_t>(std::upper_bound(times_.begin(), times_.end(), time_s) -
-                                       times_.begin()) - 1;
+    cursor_ = static_cast<std::size_t>(std::upper_bound(times_.begin(), times_.end(), time_s) - times_.begin()) - 1;
   }
   const double t0 = times_[cursor_], t1 = times_[cursor_ + 1];
   const double f = (time_s - t0) / (t1 - t0);

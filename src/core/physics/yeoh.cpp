@@ -17,9 +17,7 @@ double YeohMaterial::energyDerivative(double i1) const {
   return c10_pa + x * (2.0 * c20_pa + 3.0 * x * c30_pa);
 }
 
-double YeohMaterial::energySecondDerivative(double i1) const {
-  return 2.0 * c20_pa + 6.0 * (i1 - 3.0) * c30_pa;
-}
+double YeohMaterial::energySecondDerivative(double i1) const { return 2.0 * c20_pa + 6.0 * (i1 - 3.0) * c30_pa; }
 
 double YeohMaterial::uniaxialNominalStress(double stretch) const {
   const double l = stretch;

@@ -44,11 +44,14 @@ int noDelay(int fd) {
 
 }  // namespace
 
-RigTerminalServer::RigTerminalServer(const TerminalMap& map) : map_(map), last_answer_(std::chrono::steady_clock::now()) {
+RigTerminalServer::RigTerminalServer(const TerminalMap& map)
+    : map_(map), last_answer_(std::chrono::steady_clock::now()) {
   if (map.host != "127.0.0.1")
-    throw std::runtime_error("rig emulator: terminal '" + map.name + "' must listen on 127.0.0.1 (loopback only), not " + map.host);
+    throw std::runtime_error("rig emulator: terminal '" + map.name +
+                             "' must listen on 127.0.0.1 (loopback only), not " + map.host);
   ctx_ = modbus_new_tcp("127.0.0.1", map.port);
-  mapping_ = modbus_mapping_new(mappingSize(map, true, false), 0, mappingSize(map, false, true), mappingSize(map, false, false));
+  mapping_ = modbus_mapping_new(mappingSize(map, true, false), 0, mappingSize(map, false, true),
+                                mappingSize(map, false, false));
   if (!ctx_ || !mapping_) throw std::runtime_error("rig emulator: cannot allocate the Modbus server for " + map.name);
   modbus_set_slave(ctx_, map.unit_id);
   listen_fd_ = modbus_tcp_listen(ctx_, 8);
@@ -104,7 +107,8 @@ void RigTerminalServer::checkWatchdog() {
 }
 
 std::chrono::steady_clock::time_point RigTerminalServer::watchdogTrip() const {
-  return last_answer_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(map_.watchdog_s));
+  return last_answer_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(map_.watchdog_s));
 }
 
 void RigTerminalServer::serveClient(int fd) {
@@ -252,7 +256,8 @@ void RigEmulator::applyOutputs(RigTerminalServer& server, const std::vector<doub
   // opening as a mean); a proportional valve its register's setting.
   server.withRegisters([&](modbus_mapping_t* m) {
     auto opening = [&](const ValveOutput& v) {
-      return v.kind == ValveOutput::kCoil ? coil_duty[v.address] : std::min(1.0, m->tab_registers[v.address] / v.full_scale);
+      return v.kind == ValveOutput::kCoil ? coil_duty[v.address]
+                                          : std::min(1.0, m->tab_registers[v.address] / v.full_scale);
     };
     cell.hardware->write({opening(cell.registers.inlet), opening(cell.registers.vent), false}, 0.0);
   });
@@ -266,7 +271,8 @@ void RigEmulator::publishInputs(RigTerminalServer& server, const Cell& cell) {
     if (r.height_m.present()) map->tab_input_registers[r.height_m.address] = r.height_m.toCount(m.height_m);
     if (r.inflow_kg_s.present()) map->tab_input_registers[r.inflow_kg_s.address] = r.inflow_kg_s.toCount(m.inflow_kg_s);
     const AnalogInput& supply = server.map().supply_pressure_pa;
-    if (supply.present()) map->tab_input_registers[supply.address] = supply.toCount(cell.hardware->variables().regulator_pressure_pa);
+    if (supply.present())
+      map->tab_input_registers[supply.address] = supply.toCount(cell.hardware->variables().regulator_pressure_pa);
   });
 }
 
@@ -293,7 +299,8 @@ void RigEmulator::run() {
   // max_catch_up_s is given up, and counted.
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.period_s));
-  const auto give_up = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.max_catch_up_s));
+  const auto give_up =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.max_catch_up_s));
   Clock::time_point next = Clock::now() + period;
   while (!stop_) {
     std::this_thread::sleep_until(next);

@@ -43,8 +43,12 @@ std::vector<nb::BedCell> cellsOf(const nb::BedGrid& g) {
 class Bed {
  public:
   explicit Bed(nb::BedSupervisorParams params = {})
-      : grid_(grid2x3()), sup(params, grid_, cellsOf(grid_), kStartS), heights(grid_.cells(), 0.10),
-        silent(grid_.cells(), false), faults(grid_.cells(), 0), connected(grid_.cells(), true) {}
+      : grid_(grid2x3()),
+        sup(params, grid_, cellsOf(grid_), kStartS),
+        heights(grid_.cells(), 0.10),
+        silent(grid_.cells(), false),
+        faults(grid_.cells(), 0),
+        connected(grid_.cells(), true) {}
 
   /// Every cell that is not silent reports its height and faults now.
   void report() {

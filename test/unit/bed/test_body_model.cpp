@@ -9,9 +9,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/control/airbag_params_io.h"
-#include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nb = nursing_bed;

@@ -44,7 +44,8 @@ TEST(PosturePlans, BadRequestsAreRefusedWithTheReason) {
   expectRefused("lateral_turn", {{"side", "left"}, {"angle_deg", "20"}, {"ramp_s", "5"}}, "turns faster than");
   expectRefused("alternating", {}, "needs pattern");
   expectRefused("alternating", {{"pattern", "1in4"}}, "pattern must be one of 1in2|1in3");
-  expectRefused("alternating", {{"pattern", "1in2"}, {"low_m", "0.12"}, {"high_m", "0.05"}}, "low_m must be below high_m");
+  expectRefused("alternating", {{"pattern", "1in2"}, {"low_m", "0.12"}, {"high_m", "0.05"}},
+                "low_m must be below high_m");
   expectRefused("alternating", {{"pattern", "1in3"}, {"period_s", "5"}}, "period_s");
   expectRefused("max_inflate", {{"timeout_s", "-1"}}, "outside");
   expectRefused("cpr", {{"now", "yes"}}, "does not take 'now'");
@@ -79,7 +80,8 @@ TEST(PosturePlans, LateralTurnTiltsTheCellsUnderTheBody) {
   EXPECT_NEAR(full.tilt_deg, 20.0, 1e-9);
   // Across the body's midline the heights follow the tilt plane, lower on the left (+y).
   const int row = 8;
-  const double slope = (full.heights_m[kGrid.id(row, 5)] - full.heights_m[kGrid.id(row, 3)]) / (kGrid.y(5) - kGrid.y(3));
+  const double slope =
+      (full.heights_m[kGrid.id(row, 5)] - full.heights_m[kGrid.id(row, 3)]) / (kGrid.y(5) - kGrid.y(3));
   EXPECT_NEAR(slope, -std::tan(20.0 * M_PI / 180.0), 1e-9);
   for (double h : full.heights_m) {
     EXPECT_GE(h, kConfig.min_height_m);
@@ -117,16 +119,19 @@ TEST(PosturePlans, AlternatingNeverLowersTwoAdjacentRows) {
     }
     // Every cycling row is low once per period, for one slot minus the transition.
     for (int r = kConfig.static_head_rows; r < kGrid.rows; ++r)
-      EXPECT_NEAR(low_time[r], 2.0 * (60.0 / groups - kConfig.alternating_transition_s), 0.2) << pattern << " row " << r;
+      EXPECT_NEAR(low_time[r], 2.0 * (60.0 / groups - kConfig.alternating_transition_s), 0.2)
+          << pattern << " row " << r;
   }
 }
 
 TEST(PosturePlans, PlanKindsKeepTheirRequestNames) {
-  const std::vector<std::pair<nb::PlanKind, std::string>> names = {
-      {nb::PlanKind::kFlat, "flat"},           {nb::PlanKind::kLateralTurn, "lateral_turn"},
-      {nb::PlanKind::kAlternating, "alternating"}, {nb::PlanKind::kMaxInflate, "max_inflate"},
-      {nb::PlanKind::kCpr, "cpr"},             {nb::PlanKind::kCustom, "custom"},
-      {nb::PlanKind::kSafeLevel, "safe_level"}};
+  const std::vector<std::pair<nb::PlanKind, std::string>> names = {{nb::PlanKind::kFlat, "flat"},
+                                                                   {nb::PlanKind::kLateralTurn, "lateral_turn"},
+                                                                   {nb::PlanKind::kAlternating, "alternating"},
+                                                                   {nb::PlanKind::kMaxInflate, "max_inflate"},
+                                                                   {nb::PlanKind::kCpr, "cpr"},
+                                                                   {nb::PlanKind::kCustom, "custom"},
+                                                                   {nb::PlanKind::kSafeLevel, "safe_level"}};
   for (const auto& [kind, name] : names) {
     EXPECT_EQ(nb::planKindName(kind), name);
     EXPECT_EQ(nb::planKindFromName(name), kind) << name;

@@ -42,7 +42,8 @@ std::string counts(const std::string& output, const std::string& name) {
 /// `n` one-line methods named prefix0..; `n` data members named prefix0_...
 std::string methods(int n, const std::string& prefix = "m") {
   std::string s;
-  for (int i = 0; i < n; ++i) s += "  int " + prefix + std::to_string(i) + "() const { return " + std::to_string(i) + "; }\n";
+  for (int i = 0; i < n; ++i)
+    s += "  int " + prefix + std::to_string(i) + "() const { return " + std::to_string(i) + "; }\n";
   return s;
 }
 std::string members(int n, const std::string& prefix = "d") {
@@ -116,7 +117,8 @@ TEST(ClassSizes, AReasonRightAboveTheClassExcusesItsSize) {
   const fs::path dir = freshTestDir("class_sizes", "good");
   writeFile(dir / "a.h",
             "/// Integrates the cell.\n// size: one state per physical quantity of the cell\nclass Cell {\n" +
-                members(20) + "};\n"
+                members(20) +
+                "};\n"
                 "// size: the doc comment may follow\n/// Template too.\ntemplate <typename T>\nclass Tpl {\n" +
                 methods(30) + "};\n");
   const ToolResult r = classSizes(dir);
@@ -138,9 +140,9 @@ TEST(ClassSizes, AReasonElsewhereOrEmptyDoesNotCount) {
 TEST(ClassSizes, AParamsStructWithOnlyValidateIsExempt) {
   const fs::path dir = freshTestDir("class_sizes", "params");
   writeFile(dir / "a.h", "struct PumpParams {\n" + members(20, "k") + "  std::string validate() const;\n};\n" +
-                             "struct FitOptions {\n" + members(16, "k") + "};\n" +
-                             "struct LoopConfig {\n" + members(16, "k") + "  double gain() const;\n};\n" +
-                             "struct Settings {\n" + members(16, "k") + "};\n");
+                             "struct FitOptions {\n" + members(16, "k") + "};\n" + "struct LoopConfig {\n" +
+                             members(16, "k") + "  double gain() const;\n};\n" + "struct Settings {\n" +
+                             members(16, "k") + "};\n");
   const ToolResult r = classSizes(dir);
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_NE(lineOf(r.output, "PumpParams").find("exempt"), std::string::npos) << r.output;

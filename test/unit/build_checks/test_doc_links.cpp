@@ -14,8 +14,9 @@ using namespace nursing_bed::test;  // runCommand, shellQuote, writeFile, freshT
 namespace {
 
 ToolResult checkLinks(const fs::path& root) {
-  return runCommand("/usr/bin/python3 " + shellQuote(std::string(NURSING_BED_SOURCE_DIR) + "/scripts/check_doc_links.py") +
-                    " --root " + shellQuote(root.string()));
+  return runCommand("/usr/bin/python3 " +
+                    shellQuote(std::string(NURSING_BED_SOURCE_DIR) + "/scripts/check_doc_links.py") + " --root " +
+                    shellQuote(root.string()));
 }
 
 fs::path smallTree(const std::string& name, const std::string& readme) {
@@ -72,8 +73,8 @@ TEST(DocLinks, CommentReferencesToExistingPagesAndAnchorsPass) {
 }
 
 TEST(DocLinks, ACommentNamingAMissingPageIsNamedWithFileAndLine) {
-  const ToolResult r = checkLinks(treeWith("comment_missing", "include/y.h",
-                                           "#pragma once\n/* first line\n   see doc/b.md */\nint y;  // fine\n"));
+  const ToolResult r = checkLinks(
+      treeWith("comment_missing", "include/y.h", "#pragma once\n/* first line\n   see doc/b.md */\nint y;  // fine\n"));
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_TRUE(mentions(r, "include/y.h:3: mention of doc/b.md: no such file")) << r.output;
 }
@@ -112,7 +113,8 @@ TEST(DocLinks, AFileOutsideTheRepositoryIsFlaggedInCommentsAndPages) {
 }
 
 TEST(DocLinks, ABareMarkdownNameThatIsNoPageOfTheRepositoryIsFlagged) {
-  const ToolResult r = checkLinks(treeWith("bare", "src/w.cpp", "// a.md is fine; the format of run-format.md is not here\n"));
+  const ToolResult r =
+      checkLinks(treeWith("bare", "src/w.cpp", "// a.md is fine; the format of run-format.md is not here\n"));
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_TRUE(mentions(r, "src/w.cpp:1: mention of run-format.md: no such page in the repository")) << r.output;
   EXPECT_FALSE(mentions(r, "mention of a.md")) << r.output;

@@ -50,7 +50,8 @@ TEST(FunctionLengths, ALongFunctionIsFoundAndNamed) {
 TEST(FunctionLengths, AnAllowedLongFunctionIsListedButDoesNotFail) {
   const fs::path dir = freshTestDir("function_lengths", "allowed");
   writeFile(dir / "a.cpp", shortAndLong());
-  for (const std::string& rule : {std::string("longOne"), std::string("a.cpp:longOne"), (dir / "a.cpp:longOne").string()}) {
+  for (const std::string& rule :
+       {std::string("longOne"), std::string("a.cpp:longOne"), (dir / "a.cpp:longOne").string()}) {
     const ToolResult r = longFunctions(dir, 10, {rule});
     EXPECT_EQ(r.code, 0) << rule << ": " << r.output;
     EXPECT_NE(r.output.find("longOne  (allowed)"), std::string::npos) << rule << ": " << r.output;

@@ -15,8 +15,8 @@ namespace nb = nursing_bed;
 namespace {
 
 /// A simulated rig without a height sensor, with the pressure input's noise and quantisation.
-std::shared_ptr<nb::SimulatedCellHardware> rigWithoutHeightSensor(const nb::AirbagCellParams& p, double height_m, double load_n,
-                                                                   double valve_dead_time_s = 0.0) {
+std::shared_ptr<nb::SimulatedCellHardware> rigWithoutHeightSensor(const nb::AirbagCellParams& p, double height_m,
+                                                                  double load_n, double valve_dead_time_s = 0.0) {
   nb::RigImperfections rig;
   rig.height_sensor = false;
   rig.adc_step_pa = 12.2;
@@ -114,7 +114,8 @@ struct CuttableCell {
   }
   /// Runs the cell's periods up to `end_s`, calling `each()` after every one.
   template <typename Each = void (*)()>
-  void runTo(double end_s, Each each = [] {}) {
+  void runTo(
+      double end_s, Each each = [] {}) {
     for (; t < end_s - 1e-9; t += 0.01) {
       cell->advanceTo(t);
       each();
@@ -230,8 +231,8 @@ TEST(AirbagOnHardware, AHeavyCellHoldsQuietlyBehindTheValvesDeadTime) {
     ++n;
   }
   const double mean = sum / n, sd = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
-  std::cout << "[airbag] 36 N held at 91 mm, valves 40 ms late: " << openings / 20.0 << " valve openings/s, "
-            << open_s << " s of full opening in 20 s, plate " << 1e3 * mean << " mm, sd " << 1e3 * sd << " mm\n";
+  std::cout << "[airbag] 36 N held at 91 mm, valves 40 ms late: " << openings / 20.0 << " valve openings/s, " << open_s
+            << " s of full opening in 20 s, plate " << 1e3 * mean << " mm, sd " << 1e3 * sd << " mm\n";
   EXPECT_LT(openings / 20.0, 1.0);
   EXPECT_LT(open_s, 0.5);
   EXPECT_LT(sd, 1e-3);
@@ -310,7 +311,8 @@ TEST(AirbagOnHardware, ACellEmptiedWhileTheLinkWasDownIsFoundFlatAndRefilled) {
     double worst_m = 0.0, flat_pa = 0.0;
     const double checked_m = heightAfterALostLink(load_n, true, 0.05, &worst_m, &flat_pa);
     std::cout << "[airbag] " << load_n << " N, emptied while the link was down (flat at " << flat_pa
-              << " Pa): true height 6 s later " << 1e3 * checked_m << " mm, worst " << 1e3 * worst_m << " mm off over the last 5 s\n";
+              << " Pa): true height 6 s later " << 1e3 * checked_m << " mm, worst " << 1e3 * worst_m
+              << " mm off over the last 5 s\n";
     EXPECT_GE(flat_pa, 200.0) << load_n << " N: the case must be a flat cell holding pressure";
     EXPECT_NEAR(checked_m, 0.015, 0.003) << load_n << " N";
     EXPECT_LE(worst_m, 0.004) << load_n << " N";
@@ -384,10 +386,10 @@ double heightAfterARestart(double height_m, double load_n, double command_s, dou
   rig.runTo(command_s, watch);
   EXPECT_EQ(rig.cell->requestHeight(0.08, command_s), "");
   rig.runTo(60.0, watch);
-  std::cout << "[airbag] restarted over " << load_n << " N at " << 1e3 * height_m << " mm, commanded after " << command_s
-            << " s: " << (*vented ? "vented flat, " : "") << "true " << 1e3 * rig.plant->variables().height_m
-            << " mm after 60 s (estimate " << 1e3 * rig.cell->observer()->estimate().height_m << "), highest "
-            << 1e3 * *highest_m << " mm\n";
+  std::cout << "[airbag] restarted over " << load_n << " N at " << 1e3 * height_m << " mm, commanded after "
+            << command_s << " s: " << (*vented ? "vented flat, " : "") << "true "
+            << 1e3 * rig.plant->variables().height_m << " mm after 60 s (estimate "
+            << 1e3 * rig.cell->observer()->estimate().height_m << "), highest " << 1e3 * *highest_m << " mm\n";
   return rig.plant->variables().height_m;
 }
 
@@ -419,11 +421,11 @@ TEST(AirbagOnHardware, ANodeRestartedOverAnInflatedCellVentsItFlatBeforeControll
 namespace {
 
 struct CycleResult {
-  double top_error_m = 0.0;   ///< true minus estimated height, back at the top and held
-  double lowest_m = 1.0;      ///< lowest true height over the cycle
-  double low_error_m = 0.0;   ///< true minus estimated height in the low hold
-  double low_m = 0.0;         ///< true height in the low hold
-  int reanchors = 0;          ///< the observer's re-anchors over the cycle
+  double top_error_m = 0.0;  ///< true minus estimated height, back at the top and held
+  double lowest_m = 1.0;     ///< lowest true height over the cycle
+  double low_error_m = 0.0;  ///< true minus estimated height in the low hold
+  double low_m = 0.0;        ///< true height in the low hold
+  int reanchors = 0;         ///< the observer's re-anchors over the cycle
 };
 
 /// A light cell without a height sensor at 120 mm whose observer vents 3 % more gas than the
@@ -447,9 +449,10 @@ CycleResult lowAndBack(double low_m, double band_m) {
   rig.runTo(100.0, watch);
   r.top_error_m = error();
   r.reanchors = rig.cell->observer()->estimate().reanchors - anchors_before;
-  std::cout << "[airbag] 120 -> " << 1e3 * low_m << " -> 120 mm under 0.6 N, vent counted 3 % high, band " << 1e3 * band_m
-            << " mm: lowest " << 1e3 * r.lowest_m << " mm, re-anchors " << r.reanchors << ", low hold at " << 1e3 * r.low_m
-            << " mm (error " << 1e3 * r.low_error_m << " mm), back at the top error " << 1e3 * r.top_error_m << " mm\n";
+  std::cout << "[airbag] 120 -> " << 1e3 * low_m << " -> 120 mm under 0.6 N, vent counted 3 % high, band "
+            << 1e3 * band_m << " mm: lowest " << 1e3 * r.lowest_m << " mm, re-anchors " << r.reanchors
+            << ", low hold at " << 1e3 * r.low_m << " mm (error " << 1e3 * r.low_error_m
+            << " mm), back at the top error " << 1e3 * r.top_error_m << " mm\n";
   return r;
 }
 

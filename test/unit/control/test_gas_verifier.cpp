@@ -83,7 +83,7 @@ TEST(GasVerifier, OnlyACellLoweredIntoTheLowBandFromAboveItAnchors) {
   EXPECT_FALSE(gas.anchoringGas());
   gas.heightRequested(0.05, 0.10);  // above the band
   EXPECT_FALSE(gas.anchoringGas());
-  gas.note(reanchored());           // an earlier re-anchor does not end the next anchoring
+  gas.note(reanchored());  // an earlier re-anchor does not end the next anchoring
   gas.heightRequested(0.03, 0.10);
   EXPECT_TRUE(gas.anchoringGas());
   nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
@@ -92,9 +92,9 @@ TEST(GasVerifier, OnlyACellLoweredIntoTheLowBandFromAboveItAnchors) {
   gas.heightRequested(0.08, 0.05);  // raised out of the band before it was found flat
   EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
   gas.heightRequested(0.03, 0.10);
-  gas.pressureRequested();          // a pressure is held from where the cell is
+  gas.pressureRequested();  // a pressure is held from where the cell is
   EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
-  p.reanchor_below_m = 0.0;         // never
+  p.reanchor_below_m = 0.0;  // never
   nb::GasVerifier never(p);
   never.heightRequested(0.0, 0.10);
   EXPECT_FALSE(never.anchoringGas());
@@ -117,7 +117,8 @@ TEST(GasVerifier, AfterALostLinkItVentsBrieflyThenHoldsForTheReanchorTest) {
   }
   // Both valves shut for the test: from the vent's last period, one period, the dead time and
   // twice the re-anchor time.
-  const double until = 2 * kPeriod + kPeriod + observer.params().valve_dead_time_s + 2.0 * observer.params().reanchor_time_s;
+  const double until =
+      2 * kPeriod + kPeriod + observer.params().valve_dead_time_s + 2.0 * observer.params().reanchor_time_s;
   for (; t < until - 1e-9; t += kPeriod) {
     const nb::ValveOpenings v = gas.linkCheckValves(t, kPeriod, 500.0, &observer, kWanted);
     EXPECT_EQ(v.inlet + v.vent, 0.0) << "at " << t;

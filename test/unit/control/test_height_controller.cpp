@@ -15,8 +15,8 @@ namespace nb = nursing_bed;
 namespace {
 
 struct StepResult {
-  double settle_s;      // last time outside +-1 mm of the target
-  double overshoot_m;   // largest excursion beyond the target in the direction of travel
+  double settle_s;     // last time outside +-1 mm of the target
+  double overshoot_m;  // largest excursion beyond the target in the direction of travel
   double final_m;
 };
 
@@ -402,7 +402,8 @@ TEST(AirbagCellSafety, ReliefValveHoldsSuddenOutsideLoads) {
 // under 15.6 N it read the load as 26 N and filled on to 94 mm.
 TEST(HeightController, OnTheFeTableCellReachesAndHoldsItsTarget) {
   nb::AirbagCellParams p;
-  p.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", p.cell);
+  p.cell =
+      nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", p.cell);
   p.cell.supply_pressure_pa = 30000.0;
   struct Case {
     double load_n, target_m;
@@ -423,22 +424,23 @@ TEST(HeightController, OnTheFeTableCellReachesAndHoldsItsTarget) {
   }
 }
 
-
 // A load taken off a lifted plate. Near the FE table's top the cell is stiff (one period of
 // inflow adds kPa), the plate chatters after the drop, and a load estimate that learned only at
 // rest would keep the old load for good (from 10.6 N to 0.6 N the cell would hunt at 110-112 mm
 // for a 100 mm target). The force balance learns while it moves.
 TEST(HeightController, AfterALoadDropTheCellComesBackToItsTarget) {
   nb::AirbagCellParams fe;
-  fe.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", fe.cell);
+  fe.cell =
+      nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml", fe.cell);
   fe.cell.supply_pressure_pa = 30000.0;
   struct Case {
     const char* cell;
     nb::AirbagCellParams params;
     double from_n, to_n;
   };
-  for (const Case& c : {Case{"fe", fe, 10.6, 0.6}, Case{"fe", fe, 20.6, 0.6}, Case{"fe", fe, 0.6, 10.6},
-                        Case{"pillow", nb::AirbagCellParams{}, 10.6, 0.6}, Case{"pillow", nb::AirbagCellParams{}, 20.6, 0.6}}) {
+  for (const Case& c :
+       {Case{"fe", fe, 10.6, 0.6}, Case{"fe", fe, 20.6, 0.6}, Case{"fe", fe, 0.6, 10.6},
+        Case{"pillow", nb::AirbagCellParams{}, 10.6, 0.6}, Case{"pillow", nb::AirbagCellParams{}, 20.6, 0.6}}) {
     SCOPED_TRACE(testing::Message() << c.cell << " cell, " << c.from_n << " N -> " << c.to_n << " N at 0.10 m");
     nb::AirbagCell cell(c.params);
     cell.reset(c.from_n);

@@ -26,18 +26,21 @@ TEST(CellParamsIo, EveryFieldRoundTripsThroughYaml) {
   p.supply_pressure_pa = 23456.0;
   p.structure.chambers = 3;
   const nb::CellParams back = nb::parseCellParamsYaml(nb::cellParamsToYaml(p), "roundtrip");
-  for (const auto& f : nb::cellParamFields()) EXPECT_NEAR(f.get(back), f.get(p), 1e-9 * std::abs(f.get(p)) + 1e-15) << f.key;
+  for (const auto& f : nb::cellParamFields())
+    EXPECT_NEAR(f.get(back), f.get(p), 1e-9 * std::abs(f.get(p)) + 1e-15) << f.key;
 }
 
 TEST(CellParamsIo, WrittenNumbersAreNumbersToYaml11Readers) {
   // rosparam reads with PyYAML (YAML 1.1): a float needs a '.', "5e-06" is a string there, and
   // sim.launch refused a calibrated file for it. Its resolver's patterns for int and float:
   const std::regex yaml11_int(R"([-+]?(0|[1-9][0-9_]*))");
-  const std::regex yaml11_float(R"([-+]?([0-9][0-9_]*)?\.[0-9.]*([eE][-+][0-9]+)?|[-+]?\.(inf|Inf|INF)|\.(nan|NaN|NAN))");
-  for (double v : {5e-6, 1.5e-5, -2e-8, 1e21, 0.079, 30000.0, 0.0, -1.0,
-                   std::numeric_limits<double>::infinity(), std::numeric_limits<double>::quiet_NaN()}) {
+  const std::regex yaml11_float(
+      R"([-+]?([0-9][0-9_]*)?\.[0-9.]*([eE][-+][0-9]+)?|[-+]?\.(inf|Inf|INF)|\.(nan|NaN|NAN))");
+  for (double v : {5e-6, 1.5e-5, -2e-8, 1e21, 0.079, 30000.0, 0.0, -1.0, std::numeric_limits<double>::infinity(),
+                   std::numeric_limits<double>::quiet_NaN()}) {
     const std::string text = nb::formatParamValue(v);
-    EXPECT_TRUE(std::regex_match(text, yaml11_int) || std::regex_match(text, yaml11_float)) << v << " written as " << text;
+    EXPECT_TRUE(std::regex_match(text, yaml11_int) || std::regex_match(text, yaml11_float))
+        << v << " written as " << text;
   }
   const nb::CellParams back = nb::parseCellParamsYaml(nb::cellParamsToYaml(nb::CellParams{}), "written");
   EXPECT_DOUBLE_EQ(back.structure.dead_volume_m3, nb::CellParams{}.structure.dead_volume_m3);
@@ -114,7 +117,8 @@ TEST(AirbagParamsIo, StructureSelectionFromTheParameterServerResolvesAgainstConf
     nb::airbagParamsFrom(nb::flattenYamlText("cell:\n  structure:\n    type: balloon\n", "node.yaml"), "node.yaml");
     FAIL() << "an unknown structure type was accepted";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("structure_type must be 'pillow', 'table' or 'bellows', got 'balloon'"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("structure_type must be 'pillow', 'table' or 'bellows', got 'balloon'"),
+              std::string::npos)
         << e.what();
   }
 }

@@ -28,8 +28,8 @@ TEST(EquilibriumCurve, AHeavierLoadWhosePlateRestsHigherIsLeftOutAndNamed) {
   // Through a snap the 15 N plate has jumped up (90 mm) while the 10 N one has not (60 mm):
   // taken as it is, the force between 60 and 90 mm would be two-valued.
   std::vector<std::string> left_out;
-  const std::vector<fe::LoadedState> curve =
-      fe::equilibriumCurve({{10.0, 0.060, 3e-4}, {15.0, 0.090, 4.5e-4}, {20.0, 0.040, 2e-4}, {25.0, 0.040, 2e-4}}, &left_out);
+  const std::vector<fe::LoadedState> curve = fe::equilibriumCurve(
+      {{10.0, 0.060, 3e-4}, {15.0, 0.090, 4.5e-4}, {20.0, 0.040, 2e-4}, {25.0, 0.040, 2e-4}}, &left_out);
   ASSERT_EQ(curve.size(), 2u);
   EXPECT_EQ(curve[0].load_n, 10.0);
   EXPECT_EQ(curve[1].load_n, 20.0);

@@ -37,7 +37,7 @@ TEST(FeFilm, CompressionCarriesNoStress) {
   EXPECT_DOUBLE_EQ(stretched(0.9, 0.8).force[1].norm(), 0.0);
   const TriangleResponse w = stretched(1.3, 0.7);  // tension along x, compressed across: wrinkles
   EXPECT_EQ(w.state, FilmState::kWrinkled);
-  EXPECT_NEAR(w.force[2].y(), 0.0, 1e-12);        // nothing across the wrinkles
+  EXPECT_NEAR(w.force[2].y(), 0.0, 1e-12);  // nothing across the wrinkles
   EXPECT_EQ(stretched(1.2, 1.1).state, FilmState::kTaut);
 }
 
@@ -50,7 +50,8 @@ TEST(FeFilm, ForcesAreTheEnergyGradient) {
     for (int c = 0; c < 3; ++c) {
       Eigen::Vector3d d = Eigen::Vector3d::Zero();
       d[c] = 1e-8;
-      const double de = triangleResponse(m, ref, kX0, x1 + d, x2).energy_j - triangleResponse(m, ref, kX0, x1 - d, x2).energy_j;
+      const double de =
+          triangleResponse(m, ref, kX0, x1 + d, x2).energy_j - triangleResponse(m, ref, kX0, x1 - d, x2).energy_j;
       EXPECT_NEAR(-de / 2e-8, r.force[1][c], 1e-5 * (1.0 + r.force[1].norm()));
     }
   }

@@ -61,16 +61,18 @@ TEST(TabulatedStructure, BelowItsLowestHeightTheVolumeFollowsTheRowsSlopeDownToT
   fe::StructureTable t = syntheticTable();  // V = 0.01 h + 1e-8 p, lowest row at 15 mm
   for (double& f : t.plate_force_n[0]) f *= 5.0;
   const TabulatedStructure s(TabulatedStructure::load([&] {
-    const std::string path = tmpDir() + "/contact.yaml";
-    fe::writeStructureTable(path, t);
-    return path;
-  }()), 2e-3, 4e-6);
+                               const std::string path = tmpDir() + "/contact.yaml";
+                               fe::writeStructureTable(path, t);
+                               return path;
+                             }()),
+                             2e-3, 4e-6);
   const double q = 0.1;  // 1 kPa
   EXPECT_NEAR(s.evaluate(0.010, &q).volume_m3, 0.01 * 0.010 + 1e-5, 1e-12);
   EXPECT_NEAR(s.evaluate(0.0, &q).volume_m3, 1e-5, 1e-12) << "the row's slope carried to the bed";
   EXPECT_NEAR(s.evaluate(-0.01, &q).volume_m3, 1e-5, 1e-12) << "pressed into the bed: the flat volume";
   // A steeper slope than the flat volume allows stops at the dead volume.
-  for (auto& row : t.volume_m3) for (double& v : row) v -= 1e-5;
+  for (auto& row : t.volume_m3)
+    for (double& v : row) v -= 1e-5;
   const std::string steep = tmpDir() + "/steep.yaml";
   fe::writeStructureTable(steep, t);
   EXPECT_NEAR(TabulatedStructure(TabulatedStructure::load(steep), 2e-3, 4e-6).evaluate(0.0, &q).volume_m3, 4e-6, 1e-15);
@@ -134,7 +136,8 @@ namespace nursing_bed {
 // The shipped FE cell: its YAML loads, and a cell inflated on it settles where its own
 // quasi-static h(p) says (the same table, two solvers: the dynamic cell and the equilibrium).
 TEST(TabulatedStructure, ShippedFeCellRunsAndSettlesOnItsCharacteristic) {
-  const CellParams params = loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
+  const CellParams params =
+      loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
   ASSERT_EQ(params.structure_type, "table");
   CellModel cell(params);
   CellInputs in;
@@ -154,7 +157,8 @@ TEST(TabulatedStructure, AFlatCellUnderAHeavyLoadStartsAtAmbientPressure) {
   // The plate pressed into the bed squeezes the bed, not the flat bag: extrapolating the table's
   // volume below h = 0 crushed the gas (206 kPa at 20.6 N, 218 MPa at 40 N; the simulated
   // hardware then reset the cell every period).
-  const CellParams params = loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
+  const CellParams params =
+      loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
   for (double load : {0.6, 20.6, 40.0}) {
     CellModel cell(params);
     cell.reset(load);
@@ -169,7 +173,8 @@ TEST(TabulatedStructure, AFlatCellUnderAHeavyLoadStartsAtAmbientPressure) {
 }
 
 TEST(TabulatedStructure, NoEquilibriumIsTakenFromBeyondTheTablesPressures) {
-  const CellParams params = loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
+  const CellParams params =
+      loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml");
   const CellModel cell(params);
   const auto& table = dynamic_cast<const TabulatedStructure&>(cell.structure()).table();
   const double p_max = table.pressures_pa.back();

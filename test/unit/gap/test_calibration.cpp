@@ -64,9 +64,9 @@ const nb::CalibratedParam& param(const nb::CalibrationSummary& s, const std::str
 
 TEST(GapCalibrationCatalog, ParametersMapOntoTheCellAndBadNamesAreRefused) {
   const nb::CellParams nominal;
-  const std::vector<std::string> names = {"film_stiffness_scale", "gusset_height_m", "dead_volume_m3",
-                                          "plate_mass_kg",        "inlet_area_m2",   "vent_area_m2",
-                                          "regulator_time_constant_s"};
+  const std::vector<std::string> names = {
+      "film_stiffness_scale", "gusset_height_m", "dead_volume_m3",           "plate_mass_kg",
+      "inlet_area_m2",        "vent_area_m2",    "regulator_time_constant_s"};
   const auto axes = nb::calibrationAxes(names, nominal);
   ASSERT_EQ(axes.size(), names.size());
   for (const auto& a : axes) {
@@ -89,11 +89,14 @@ TEST(GapCalibrationCatalog, ParametersMapOntoTheCellAndBadNamesAreRefused) {
   EXPECT_DOUBLE_EQ(c.vent_area_m2, nominal.vent_area_m2);
 
   expectThrowsWith<std::invalid_argument>([&] { nb::calibrationAxes({"film_stiffnes"}, nominal); },
-                                                    {"unknown calibration parameter 'film_stiffnes'",
-                                                     "film_stiffness_scale"});
+                                          {"unknown calibration parameter 'film_stiffnes'", "film_stiffness_scale"});
   expectThrowsWith<std::invalid_argument>(
-      [&] { nb::calibrationAxes({"plate_mass_kg", "plate_mass_kg"}, nominal); }, {"given twice"});
-  EXPECT_EQ(nb::structurallyUnidentifiable()[0], (std::vector<std::string>{"film_stiffness_scale", "film_thickness_m"}));
+      [&] {
+        nb::calibrationAxes({"plate_mass_kg", "plate_mass_kg"}, nominal);
+      },
+      {"given twice"});
+  EXPECT_EQ(nb::structurallyUnidentifiable()[0],
+            (std::vector<std::string>{"film_stiffness_scale", "film_thickness_m"}));
 }
 
 TEST(GapCalibrationCatalog, DefaultsFollowTheRunsAndValveParametersNeedValveDrivenRuns) {
@@ -103,9 +106,8 @@ TEST(GapCalibrationCatalog, DefaultsFollowTheRunsAndValveParametersNeedValveDriv
             (std::vector<std::string>{"film_stiffness_scale", "gusset_height_m", "dead_volume_m3", "plate_mass_kg"}));
   EXPECT_EQ(nb::defaultCalibrationParams(valve).size(), 7u);
   EXPECT_NO_THROW(nb::checkCalibrationParams({"inlet_area_m2"}, valve));
-  expectThrowsWith<std::invalid_argument>(
-      [&] { nb::checkCalibrationParams({"inlet_area_m2"}, metered); },
-      {"inlet_area_m2", "valve_cmd and p_supply_gauge_pa", "flow-metered"});
+  expectThrowsWith<std::invalid_argument>([&] { nb::checkCalibrationParams({"inlet_area_m2"}, metered); },
+                                          {"inlet_area_m2", "valve_cmd and p_supply_gauge_pa", "flow-metered"});
 }
 
 TEST(GapCalibrationStage, AStifferFilmIsCalibratedAndNothingElseMoves) {
@@ -126,14 +128,13 @@ TEST(GapCalibrationStage, AStifferFilmIsCalibratedAndNothingElseMoves) {
     }
   const int n = noise.fitResidualCount();
   EXPECT_GT(noise.chi2_nominal / n, 5.0);  // the film is far outside the noise ...
-  EXPECT_LT(c.moved_chi2 / n, 1.2);         // ... and calibration removes it
+  EXPECT_LT(c.moved_chi2 / n, 1.2);        // ... and calibration removes it
   EXPECT_LT(c.summary.bic_delta, -1000.0);
   // The correlation matrix: unit diagonal, symmetric; the film's thickness named with its scale.
   ASSERT_EQ(c.summary.correlation.rows(), 4);
   for (int i = 0; i < 4; ++i) EXPECT_DOUBLE_EQ(c.summary.correlation(i, i), 1.0);
   EXPECT_NEAR(c.summary.correlation(0, 1), c.summary.correlation(1, 0), 1e-12);
-  EXPECT_EQ(c.summary.unidentifiable.back(),
-            (std::vector<std::string>{"film_stiffness_scale", "film_thickness_m"}));
+  EXPECT_EQ(c.summary.unidentifiable.back(), (std::vector<std::string>{"film_stiffness_scale", "film_thickness_m"}));
 }
 
 TEST(GapCalibrationStage, CleanRunsMoveNothing) {
@@ -183,7 +184,8 @@ TEST(GapCalibrationStage, ACalibrationThatImitatesAnEffectIsDroppedForIt) {
   ASSERT_TRUE(c.calibration.summary.anyMoved()) << "the dead volume did not imitate heat transfer here";
   EXPECT_TRUE(gs::dropCalibrationForEffect(c.noise, c.singles, nb::DiagnosisOptions{}, &c.calibration));
   EXPECT_FALSE(c.calibration.summary.anyMoved());
-  EXPECT_EQ(param(c.calibration.summary, "dead_volume_m3").value, param(c.calibration.summary, "dead_volume_m3").nominal);
+  EXPECT_EQ(param(c.calibration.summary, "dead_volume_m3").value,
+            param(c.calibration.summary, "dead_volume_m3").nominal);
   EXPECT_EQ(c.calibration.moved_chi2, c.noise.chi2_nominal);
   ASSERT_FALSE(c.calibration.summary.notes.empty());
   nb::test::expectContains(c.calibration.summary.notes.back(), {"heat_transfer", "imitated an effect"});
@@ -222,10 +224,12 @@ TEST(GapSynthRig, TheRigDiffersByKnownNamesOnly) {
   const nb::CellParams rig = nb::rigAirbag({}, {{"structure/film_thickness_m", 0.55e-3}, {"plate_mass_kg", 0.07}});
   EXPECT_DOUBLE_EQ(rig.structure.film_thickness_m, 0.55e-3);
   EXPECT_DOUBLE_EQ(rig.plate_mass_kg, 0.07);
-  expectThrowsWith<std::invalid_argument>([] { nb::rigAirbag({}, {{"film_thicknes", 1.0}}); },
-                                                    {"film_thicknes", "neither"});
-  expectThrowsWith<std::invalid_argument>([] { nb::rigAirbag({}, {{"gusset_height_m", -0.01}}); },
-                                                    {"invalid"});
+  expectThrowsWith<std::invalid_argument>(
+      [] {
+        nb::rigAirbag({}, {{"film_thicknes", 1.0}});
+      },
+      {"film_thicknes", "neither"});
+  expectThrowsWith<std::invalid_argument>([] { nb::rigAirbag({}, {{"gusset_height_m", -0.01}}); }, {"invalid"});
 }
 
 TEST(GapValveDriven, AValveDrivenRunReplaysThroughTheModelsValvesAndPressureAloneCounts) {
@@ -266,12 +270,14 @@ TEST(GapValveDriven, RunsWithoutAFlowMeterReadBackAndNeedValveAndSupply) {
   EXPECT_TRUE(nb::runIsValveDriven(back));
   EXPECT_EQ(back.p_supply_gauge_pa, runs[0].p_supply_gauge_pa);
   // Supply pressure as metadata; no mdot and no valve: a clear error.
-  nb::test::writeFile(dir / "meta.csv", "# nursing_bed_run: 1\n# load_n: 1\n# p_supply_gauge_pa: 20000\n"
-                                        "t_s,p_gauge_pa,h_m,valve_cmd\n0,0,0,0\n0.1,0,,1\n");
+  nb::test::writeFile(dir / "meta.csv",
+                      "# nursing_bed_run: 1\n# load_n: 1\n# p_supply_gauge_pa: 20000\n"
+                      "t_s,p_gauge_pa,h_m,valve_cmd\n0,0,0,0\n0.1,0,,1\n");
   const nb::RunData meta = nb::readRunCsv((dir / "meta.csv").string());
   EXPECT_EQ(meta.p_supply_gauge_pa, (std::vector<double>{20000.0, 20000.0}));
   EXPECT_TRUE(nb::runIsValveDriven(meta));
-  nb::test::writeFile(dir / "bad.csv", "# nursing_bed_run: 1\n# load_n: 1\nt_s,p_gauge_pa,h_m,valve_cmd\n0,0,0,0\n1,0,0,1\n");
+  nb::test::writeFile(dir / "bad.csv",
+                      "# nursing_bed_run: 1\n# load_n: 1\nt_s,p_gauge_pa,h_m,valve_cmd\n0,0,0,0\n1,0,0,1\n");
   expectThrowsWith<std::runtime_error>([&] { nb::readRunCsv((dir / "bad.csv").string()); },
-                                                 {"bad.csv:3:", "mdot_in_kg_s", "valve_cmd and p_supply_gauge_pa"});
+                                       {"bad.csv:3:", "mdot_in_kg_s", "valve_cmd and p_supply_gauge_pa"});
 }

@@ -7,8 +7,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "nursing_bed/core/gap/diagnosis.h"
-#include "nursing_bed/core/gap/synth.h"
 #include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/gap/synth.h"
 
 #include "../../test_helpers.h"
 
@@ -30,7 +30,6 @@ namespace fs = std::filesystem;
 using namespace nursing_bed::test;  // expectContains, runCommand, shellQuote, slurp, writeFile
 
 namespace {
-
 
 fs::path tmpDir(const std::string& name, bool create = true) {
   return nursing_bed::test::freshTestDir("gap_diagnose", name, create);
@@ -63,8 +62,7 @@ class GapDiagnoseCli : public ::testing::Test {
     nb::CellParams params;
     const nb::SynthProtocol protocol = nb::synthProtocol("small", params);
     for (std::size_t k = 0; k < 2; ++k) {
-      const nb::RunData run =
-          nb::simulateSynthRun(params, {}, protocol, protocol.runs[k], nb::SensorNoise{}, nullptr);
+      const nb::RunData run = nb::simulateSynthRun(params, {}, protocol, protocol.runs[k], nb::SensorNoise{}, nullptr);
       nb::writeRunCsv((*valid_dir_ / protocol.runs[k].name).string(), run);
       run_names_.push_back(protocol.runs[k].name);
     }
@@ -207,9 +205,9 @@ TEST_F(GapDiagnoseCli, UnknownSubcommandAndHelp) {
 TEST_F(GapDiagnoseCli, HelpListsEveryOptionOfTheSubcommand) {
   const ToolResult synth = runGap({"synth", "--help"});
   EXPECT_EQ(synth.code, 0) << synth.output;
-  expectContains(synth.output, {"usage: gap synth --out DIR", "--out", "--effect", "--seed", "--noise-scale",
-                                "--protocol", "--airbag-param", "--no-flow-meter", "--no-height",
-                                "effects and their parameters:", "leak:"});
+  expectContains(synth.output,
+                 {"usage: gap synth --out DIR", "--out", "--effect", "--seed", "--noise-scale", "--protocol",
+                  "--airbag-param", "--no-flow-meter", "--no-height", "effects and their parameters:", "leak:"});
   const ToolResult calibrate = runGap({"calibrate", "--help"});
   EXPECT_EQ(calibrate.code, 0) << calibrate.output;
   expectContains(calibrate.output, {"usage: gap calibrate DATASET --out DIR", "--params", "--airbag", "--topic",
@@ -285,8 +283,7 @@ TEST_F(GapDiagnoseCli, BadRolesAndTooFewRunsExitWith1) {
   {
     SCOPED_TRACE("role for a run that does not exist");
     const fs::path dir = datasetWith("ghost_role", 2);
-    writeFile(dir / "dataset.yaml",
-              "runs:\n  " + run_names_[0] + ": fit\n  ghost.csv: withheld\n");
+    writeFile(dir / "dataset.yaml", "runs:\n  " + run_names_[0] + ": fit\n  ghost.csv: withheld\n");
     expectDataError(dir, {"dataset.yaml", "ghost.csv", "not a run"});
   }
   {
@@ -297,8 +294,7 @@ TEST_F(GapDiagnoseCli, BadRolesAndTooFewRunsExitWith1) {
   {
     SCOPED_TRACE("role train");
     const fs::path dir = datasetWith("train_role", 2);
-    writeFile(dir / "dataset.yaml",
-              "runs:\n  " + run_names_[0] + ": train\n  " + run_names_[1] + ": withheld\n");
+    writeFile(dir / "dataset.yaml", "runs:\n  " + run_names_[0] + ": train\n  " + run_names_[1] + ": withheld\n");
     expectDataError(dir, {"dataset.yaml", run_names_[0], "'train'"});
   }
 }
@@ -426,7 +422,11 @@ std::vector<nb::CandidateFit> byBic(std::vector<nb::CandidateFit> c) {
 std::string named(const nb::Verdict& v, const std::vector<nb::CandidateFit>& c) {
   std::string all;
   for (const auto& r : v.reasons) all += "\n  " + r;
-  return v.status + (v.winner >= 0 ? " " + c[v.winner].effects[0] + (c[v.winner].effects.size() > 1 ? "+" + c[v.winner].effects[1] : "") : "") + all;
+  return v.status +
+         (v.winner >= 0
+              ? " " + c[v.winner].effects[0] + (c[v.winner].effects.size() > 1 ? "+" + c[v.winner].effects[1] : "")
+              : "") +
+         all;
 }
 
 TEST(GapDecision, AClearEffectIsNamed) {
@@ -556,8 +556,8 @@ TEST(GapDiagnoseReport, JsonHasExactlyTheSpecifiedKeysNullForNaNAndEscapes) {
   const fs::path dir = tmpDir("json");
   writeFile(dir / "report.json", json);
   writeFile(dir / "check.py", kJsonCheck);
-  const ToolResult r =
-      runCommand("/usr/bin/python3 " + shellQuote((dir / "check.py").string()) + " " + shellQuote((dir / "report.json").string()));
+  const ToolResult r = runCommand("/usr/bin/python3 " + shellQuote((dir / "check.py").string()) + " " +
+                                  shellQuote((dir / "report.json").string()));
   EXPECT_EQ(r.code, 0) << r.output << "\n" << json;
   EXPECT_NE(r.output.find("report.json ok"), std::string::npos) << r.output;
 }
@@ -593,7 +593,8 @@ TEST(GapDiagnoseReport, EveryRunGetsItsOwnTraceFileEvenFromOneBag) {
     t.name = name;
     t.role = "fit";
     t.t_s = {0.0, 0.1};
-    t.mdot_in_kg_s = t.p_meas_pa = t.h_meas_m = t.p_nominal_pa = t.h_nominal_m = t.p_after_pa = t.h_after_m = {0.0, 1.0};
+    t.mdot_in_kg_s = t.p_meas_pa = t.h_meas_m = t.p_nominal_pa = t.h_nominal_m = t.p_after_pa =
+        t.h_after_m = {0.0, 1.0};
     t.phases = {nb::RunPhase::kDeploy, nb::RunPhase::kHold};
     report.traces.push_back(t);
   }
@@ -606,7 +607,8 @@ TEST(GapDiagnoseReport, EveryRunGetsItsOwnTraceFileEvenFromOneBag) {
     const std::string text = slurp(dir / "traces" / file);
     EXPECT_NE(text.find("# run: "), std::string::npos) << file << " missing or empty";
   }
-  EXPECT_NE(slurp(dir / "traces" / "run_b_airbag_0_0_state.csv").find("# run: run_b/airbag_0_0/state"), std::string::npos);
+  EXPECT_NE(slurp(dir / "traces" / "run_b_airbag_0_0_state.csv").find("# run: run_b/airbag_0_0/state"),
+            std::string::npos);
 }
 
 // -------------------------------------------------------------------------------------------

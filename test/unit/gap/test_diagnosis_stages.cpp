@@ -90,8 +90,8 @@ class DiagnosisStagesOnALeak : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     const nb::CellParams params;
-    state_ = new State{gs::prepareRuns(smallRuns({nb::makeEffect("leak", {{"leak_area_m2", 1e-8}})}, 7, true)), params,
-                       {}, {}};
+    state_ = new State{
+        gs::prepareRuns(smallRuns({nb::makeEffect("leak", {{"leak_area_m2", 1e-8}})}, 7, true)), params, {}, {}};
     state_->nominal = gs::replayNominal(state_->prepared, params, leakOnly(), &state_->report);
   }
   static void TearDownTestSuite() {
@@ -183,11 +183,11 @@ TEST(DiagnosisStages, JointRefitsTakeTheBestPairAndEveryPairOfASingleThatMovedTh
   // joint refit moved the calibration, so its pairs are refitted too, however badly they ranked
   // on the bent calibration (the right one, with the friction, ranked last).
   const std::vector<gs::ModelFit> fits = {
-      rankedFit({"membrane_viscoelasticity"}, 3000.0),            // 0: a single, never a pair's refit
-      rankedFit({"heat_transfer", "plate_friction"}, 1800.0),     // 1: the best pair
-      rankedFit({"leak", "membrane_viscoelasticity"}, 4900.0),    // 2
-      rankedFit({"membrane_viscoelasticity", "plate_friction"}, 5500.0),  // 3
-      rankedFit({"leak", "plate_friction"}, 3200.0),              // 4
+      rankedFit({"membrane_viscoelasticity"}, 3000.0),                         // 0: a single, never a pair's refit
+      rankedFit({"heat_transfer", "plate_friction"}, 1800.0),                  // 1: the best pair
+      rankedFit({"leak", "membrane_viscoelasticity"}, 4900.0),                 // 2
+      rankedFit({"membrane_viscoelasticity", "plate_friction"}, 5500.0),       // 3
+      rankedFit({"leak", "plate_friction"}, 3200.0),                           // 4
       rankedFit({"heat_transfer", "membrane_viscoelasticity"}, 100.0, false),  // 5: failed
   };
   const double log_n = std::log(1716.0);

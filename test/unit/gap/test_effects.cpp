@@ -6,8 +6,8 @@
 #include <random>
 #include <set>
 
-#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
 
 namespace nb = nursing_bed;

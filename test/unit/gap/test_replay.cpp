@@ -107,8 +107,8 @@ TEST(GapReplay, ClosedInletNoiseIsZeroedButAMeterOffsetIsKept) {
       if (before.t_s[i] > 10.0 && before.t_s[i] < 30.0) zero_in_hold += noisy.mdot_in_kg_s[i] == 0.0;
       if (before.t_s[i] < 2.0) inflow_changed += noisy.mdot_in_kg_s[i] != before.mdot_in_kg_s[i];
     }
-    EXPECT_GT(zero_in_hold, 900);      // the hold (50 Hz, 20 s) is zero
-    EXPECT_EQ(inflow_changed, 0);      // the inflation is untouched
+    EXPECT_GT(zero_in_hold, 900);                            // the hold (50 Hz, 20 s) is zero
+    EXPECT_EQ(inflow_changed, 0);                            // the inflation is untouched
     nb::RunData offset = holdWithMeterReading(3e-6, valve);  // 3e-6 kg/s: ~40 standard errors
     const nb::RunData kept = offset;
     EXPECT_EQ(nb::zeroClosedInletFlow(&offset), 0);

@@ -64,7 +64,8 @@ TEST(RegisterMap, ParsesCellsWithTheirValvesAndInputs) {
 }
 
 TEST(RegisterMap, TheShippedMapServesTheWholeBedOnThreeTerminals) {
-  const nb::RegisterMap map = nb::loadRegisterMap(std::string(NURSING_BED_SOURCE_DIR) + "/config/real_bed_register_map.yaml", 180);
+  const nb::RegisterMap map =
+      nb::loadRegisterMap(std::string(NURSING_BED_SOURCE_DIR) + "/config/real_bed_register_map.yaml", 180);
   ASSERT_EQ(map.terminals.size(), 3u);
   for (const auto& t : map.terminals) EXPECT_EQ(t.cells.size(), 60u) << t.name;
   EXPECT_EQ(map.terminals[2].cells[59].cell_id, 179u);
@@ -82,7 +83,8 @@ TEST(RegisterMap, RefusesOverlappingAddressesNamingBothEntries) {
 TEST(RegisterMap, RefusesAMissingCellAZeroScaleAndUnknownKeys) {
   expectContains(parseError(kGoodMap, 3), {"cell 2 is missing"});
   expectContains(parseError(replaced(kGoodMap, "scale_pa: 2.0}", "scale_pa: 0.0}")), {"cell 1 pressure", "scale 0"});
-  expectContains(parseError(replaced(kGoodMap, "port: 15600", "port: 15600\n    speed: 3")), {"terminals[0]", "unknown key 'speed'"});
+  expectContains(parseError(replaced(kGoodMap, "port: 15600", "port: 15600\n    speed: 3")),
+                 {"terminals[0]", "unknown key 'speed'"});
   expectContains(parseError(replaced(kGoodMap, "        vent: {coil: 1}\n", "")), {"cell 0", "'vent'"});
   expectContains(parseError(replaced(kGoodMap, "port: 15600", "port: 70000")), {"terminal 't0'", "port 70000"});
   expectContains(parseError("terminals: 3"), {"'terminals' must be a list"});
@@ -91,18 +93,22 @@ TEST(RegisterMap, RefusesAMissingCellAZeroScaleAndUnknownKeys) {
 TEST(RegisterMap, TakesLinkLossAfterSWithinItsBoundsAndRefusesItOutside) {
   auto with = [](const std::string& keys) { return replaced(kGoodMap, "port: 15600", "port: 15600\n" + keys); };
   EXPECT_DOUBLE_EQ(nb::parseRegisterMap(kGoodMap, "map.yaml", 2).terminals[0].link_loss_after_s, 0.2) << "default";
-  EXPECT_DOUBLE_EQ(nb::parseRegisterMap(with("    link_loss_after_s: 0.3"), "map.yaml", 2).terminals[0].link_loss_after_s, 0.3);
-  const std::pair<const char*, const char*> out_of_range[] = {{"0", "0"}, {"-0.1", "-0.1"}, {"1.0", "1"}, {"0.41", "0.41"}};
+  EXPECT_DOUBLE_EQ(
+      nb::parseRegisterMap(with("    link_loss_after_s: 0.3"), "map.yaml", 2).terminals[0].link_loss_after_s, 0.3);
+  const std::pair<const char*, const char*> out_of_range[] = {
+      {"0", "0"}, {"-0.1", "-0.1"}, {"1.0", "1"}, {"0.41", "0.41"}};
   for (const auto& [yaml, shown] : out_of_range)
-    expectContains(parseError(with(std::string("    link_loss_after_s: ") + yaml)),
-                   {"map.yaml", "terminal 't0'", std::string("link_loss_after_s ") + shown + " must lie in (0, 0.4] s"});
+    expectContains(
+        parseError(with(std::string("    link_loss_after_s: ") + yaml)),
+        {"map.yaml", "terminal 't0'", std::string("link_loss_after_s ") + shown + " must lie in (0, 0.4] s"});
   // Not above one request (response timeout 0.05 s + cycle 0.005 s): a single timeout would drop the link.
   expectContains(parseError(with("    link_loss_after_s: 0.05")),
                  {"terminal 't0'", "link_loss_after_s 0.05", "must exceed response_timeout_s + cycle_s"});
   // A silent terminal must be reported within 0.5 s: 0.35 + 0.2 + 0.005 is too late.
   expectContains(parseError(with("    response_timeout_s: 0.2\n    link_loss_after_s: 0.35")),
                  {"terminal 't0'", "link_loss_after_s + response_timeout_s + cycle_s", "0.5 s"});
-  expectContains(parseError(with("    link_loss_after_s: soon")), {"terminals[0]", "link_loss_after_s", "not a valid value"});
+  expectContains(parseError(with("    link_loss_after_s: soon")),
+                 {"terminals[0]", "link_loss_after_s", "not a valid value"});
 }
 
 TEST(RegisterMap, TakesTheTerminalsWatchdogAndRefusesOneShorterThanACycle) {
@@ -110,8 +116,9 @@ TEST(RegisterMap, TakesTheTerminalsWatchdogAndRefusesOneShorterThanACycle) {
   EXPECT_DOUBLE_EQ(nb::parseRegisterMap(kGoodMap, "map.yaml", 2).terminals[0].watchdog_s, 0.1) << "default";
   EXPECT_DOUBLE_EQ(nb::parseRegisterMap(with("    watchdog_s: 1.5"), "map.yaml", 2).terminals[0].watchdog_s, 1.5);
   for (const char* bad : {"0", "0.004", "-1", "61"})
-    expectContains(parseError(with(std::string("    watchdog_s: ") + bad)),
-                   {"map.yaml", "terminal 't0'", std::string("watchdog_s ") + bad, "must exceed cycle_s and be at most 60 s"});
+    expectContains(
+        parseError(with(std::string("    watchdog_s: ") + bad)),
+        {"map.yaml", "terminal 't0'", std::string("watchdog_s ") + bad, "must exceed cycle_s and be at most 60 s"});
 }
 
 TEST(RegisterMap, TakesTheBusThreadsRealtimePriorityAndRefusesOneOutOfRange) {
@@ -121,7 +128,8 @@ TEST(RegisterMap, TakesTheBusThreadsRealtimePriorityAndRefusesOneOutOfRange) {
   for (const char* bad : {"-1", "100"})
     expectContains(parseError(with(std::string("    realtime_priority: ") + bad)),
                    {"map.yaml", "terminal 't0'", std::string("realtime_priority ") + bad, "not in 0..99"});
-  expectContains(parseError(with("    realtime_priority: high")), {"terminals[0]", "realtime_priority", "not a valid value"});
+  expectContains(parseError(with("    realtime_priority: high")),
+                 {"terminals[0]", "realtime_priority", "not a valid value"});
 }
 
 TEST(RegisterMap, RefusesACellMappedTwiceAndTwoTerminalsOnOneEndpoint) {

@@ -25,9 +25,15 @@ struct Phase {
 /// at 17-20 kPa), where its volume hardly grows with height.
 std::vector<Phase> programme(double load_n, bool to_the_top = false) {
   const double half_fill_s = to_the_top ? 1.0 : 0.4, refill_s = to_the_top ? 1.5 : 0.6;
-  return {{to_the_top ? 1.2 : 0.7, 1.0, 0.0, load_n},       {2.5, 0.0, 0.0, load_n},      {0.3, 0.0, 1.0, load_n},
-          {2.0, 0.0, 0.0, load_n},       {2.0, 0.0, 0.0, load_n + 10}, {half_fill_s, 0.5, 0.0, load_n + 10},
-          {2.5, 0.0, 0.0, load_n + 10},  {6.0, 0.0, 1.0, load_n},      {refill_s, 1.0, 0.0, load_n},
+  return {{to_the_top ? 1.2 : 0.7, 1.0, 0.0, load_n},
+          {2.5, 0.0, 0.0, load_n},
+          {0.3, 0.0, 1.0, load_n},
+          {2.0, 0.0, 0.0, load_n},
+          {2.0, 0.0, 0.0, load_n + 10},
+          {half_fill_s, 0.5, 0.0, load_n + 10},
+          {2.5, 0.0, 0.0, load_n + 10},
+          {6.0, 0.0, 1.0, load_n},
+          {refill_s, 1.0, 0.0, load_n},
           {3.0, 0.0, 0.0, load_n}};
 }
 
@@ -37,18 +43,18 @@ struct RunOptions {
   std::vector<nb::CellEffectPtr> plant_effects, observer_effects;
   bool height_sensor = false;
   double pressure_noise_pa = 10.0;
-  double adc_step_pa = 12.2;        // 12 bits over 50 kPa
-  double dead_time_s = 0.0;         // of the plant's valves
+  double adc_step_pa = 12.2;  // 12 bits over 50 kPa
+  double dead_time_s = 0.0;   // of the plant's valves
   double observer_dead_time_s = 0.0;
-  bool pwm = false;                 // on/off valves: each period fully open or shut, the duty's mean kept
-  int reading_delay_periods = 0;    // readings this many periods old (a bus's cycle)
+  bool pwm = false;               // on/off valves: each period fully open or shut, the duty's mean kept
+  int reading_delay_periods = 0;  // readings this many periods old (a bus's cycle)
   bool reanchor = true;
-  bool to_the_top = false;          // the programme fills on to the bag's top
-  double flat_before_s = 0.0;       // the flat cell sealed this long before the programme
+  bool to_the_top = false;     // the programme fills on to the bag's top
+  double flat_before_s = 0.0;  // the flat cell sealed this long before the programme
 };
 
 struct RunResult {
-  nb::ObserverErrorStats error;     // whole run
+  nb::ObserverErrorStats error;       // whole run
   nb::ObserverErrorStats after_flat;  // refill and hold after the flat vent (last two phases)
   nb::CellEstimate last;
   std::vector<nb::CellEstimate> phase_end;  // the estimate at the end of each phase
@@ -104,7 +110,8 @@ RunResult run(const RunOptions& o, const std::string& label) {
       acting.load_n = load;
       plant.advance(op.period_s, acting);
       nb::Readings z;
-      reading_line.push_back(adc(plant.variables().gauge_pressure_pa + o.pressure_noise_pa * noise(rng), o.adc_step_pa));
+      reading_line.push_back(
+          adc(plant.variables().gauge_pressure_pa + o.pressure_noise_pa * noise(rng), o.adc_step_pa));
       z.gauge_pressure_pa = reading_line.front();
       if (reading_line.size() > static_cast<std::size_t>(o.reading_delay_periods)) reading_line.pop_front();
       if (o.height_sensor) z.height_m = plant.variables().height_m + 2e-4 * noise(rng);
@@ -120,11 +127,10 @@ RunResult run(const RunOptions& o, const std::string& label) {
   r.last_true_height_m = plant.variables().height_m;
   r.last_true_load_n = o.load_n;
   std::cout << "[observer] " << label << ": height error RMS " << 1e3 * r.error.rmsM() << " mm (after the flat vent "
-            << 1e3 * r.after_flat.rmsM() << "), max "
-            << 1e3 * r.error.max_abs_m << " mm; load " << r.last.load_n << " +- " << r.last.load_sd_n
-            << " N; height sd " << 1e3 * r.last.height_sd_m << " mm; re-anchored " << r.last.reanchors << "x; at the end "
-            << 1e3 * r.last_true_height_m << " mm (estimate " << 1e3 * r.last.height_m << ") at "
-            << plant.variables().gauge_pressure_pa << " Pa\n";
+            << 1e3 * r.after_flat.rmsM() << "), max " << 1e3 * r.error.max_abs_m << " mm; load " << r.last.load_n
+            << " +- " << r.last.load_sd_n << " N; height sd " << 1e3 * r.last.height_sd_m << " mm; re-anchored "
+            << r.last.reanchors << "x; at the end " << 1e3 * r.last_true_height_m << " mm (estimate "
+            << 1e3 * r.last.height_m << ") at " << plant.variables().gauge_pressure_pa << " Pa\n";
   return r;
 }
 
@@ -265,7 +271,8 @@ TEST(CellObserver, TakesALightPlatesVentStepAsItComes) {
   const double plant_m0 = plant.variables().mass_kg, observer_m0 = observer.estimate().mass_kg;
   const double sealed_p = plant.variables().gauge_pressure_pa;
   advance(1.0, 0.2);
-  const double plant_out = plant_m0 - plant.variables().mass_kg, observer_out = observer_m0 - observer.estimate().mass_kg;
+  const double plant_out = plant_m0 - plant.variables().mass_kg,
+               observer_out = observer_m0 - observer.estimate().mass_kg;
   ASSERT_GT(sealed_p - plant.variables().gauge_pressure_pa, 25.0);  // the step is there
   EXPECT_NEAR(observer_out, plant_out, 0.015 * plant_out);
   std::cout << "[observer] light plate's vent step " << sealed_p << " -> " << plant.variables().gauge_pressure_pa
@@ -296,7 +303,8 @@ TEST(CellObserver, DelaysTheValvesInTimeNotInTicks) {
   const double at_once = gained(0.0), late = gained(0.015);
   ASSERT_GT(at_once, 0.0);
   EXPECT_NEAR(late, at_once, 0.02 * at_once);
-  std::cout << "[observer] inlet pulsed on irregular ticks: " << at_once << " kg at once, " << late << " kg 15 ms late\n";
+  std::cout << "[observer] inlet pulsed on irregular ticks: " << at_once << " kg at once, " << late
+            << " kg 15 ms late\n";
 }
 
 TEST(CellObserver, RefusesBadParametersNamingThem) {
@@ -312,7 +320,8 @@ TEST(CellObserver, RefusesBadParametersNamingThem) {
     EXPECT_NE(what.find("load_filter_time_s"), std::string::npos) << what;
   }
   // Each value of one key refused, the message naming it.
-  auto expectRefused = [](const char* key, double nb::CellObserverParams::*field, std::initializer_list<double> values) {
+  auto expectRefused = [](const char* key, double nb::CellObserverParams::*field,
+                          std::initializer_list<double> values) {
     for (const double v : values) {
       nb::CellObserverParams q;
       q.*field = v;
@@ -371,15 +380,16 @@ BoundRun fillAndHold(double load_n, double fill_s, double inlet_gain, double hol
     z.gauge_pressure_pa = reading;
     observer.step({{inlet, 0.0}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
     if (t > fill_s + 1.0)
-      r.worst_below_truth_m = std::max(r.worst_below_truth_m, plant.variables().height_m - observer.estimate().height_m);
+      r.worst_below_truth_m =
+          std::max(r.worst_below_truth_m, plant.variables().height_m - observer.estimate().height_m);
   }
   r.true_height_m = plant.variables().height_m;
   r.estimate_m = observer.estimate().height_m;
   r.bounds = observer.estimate().weight_bounds;
-  std::cout << "[observer] load " << load_n << " N, inlet passing " << inlet_gain << " of the modelled flow, weight bound "
-            << (window_s > 0.0 ? "on" : "off") << ": truth " << 1e3 * r.true_height_m << " mm, estimate "
-            << 1e3 * r.estimate_m << " mm, bounded " << r.bounds << "x, worst below the truth "
-            << 1e3 * r.worst_below_truth_m << " mm\n";
+  std::cout << "[observer] load " << load_n << " N, inlet passing " << inlet_gain
+            << " of the modelled flow, weight bound " << (window_s > 0.0 ? "on" : "off") << ": truth "
+            << 1e3 * r.true_height_m << " mm, estimate " << 1e3 * r.estimate_m << " mm, bounded " << r.bounds
+            << "x, worst below the truth " << 1e3 * r.worst_below_truth_m << " mm\n";
   return r;
 }
 
@@ -545,8 +555,8 @@ TEST(CellObserver, MeasuresItsReadingsNoiseAndTakesItsBiasOffALightPlatesDescent
   const double clean = lightDescent(15.0, 0.0, 0.0, 1, 1.0, &clean_measured_pa);
   const double noisy = sum / runs;
   std::cout << "[observer] a light plate's descent: readings' noise " << truth_sd << " Pa (told 15), measured "
-            << measured_sum / runs << " Pa; counted " << 100.0 * noisy << " % off over " << runs
-            << " noise sequences, " << 100.0 * clean << " % from clean readings\n";
+            << measured_sum / runs << " Pa; counted " << 100.0 * noisy << " % off over " << runs << " noise sequences, "
+            << 100.0 * clean << " % from clean readings\n";
   EXPECT_NEAR(measured_sum / runs, truth_sd, 0.05 * truth_sd);
   EXPECT_NEAR(noisy, clean, 0.001) << "the noise's bias taken off";
 }

@@ -42,8 +42,8 @@ TensileData syntheticCurve(const YeohMaterial& m, double noise, unsigned seed) {
 double relErr(double value, double truth) { return std::abs(value / truth - 1.0); }
 
 double maxRelErr(const YeohMaterial& fit, const YeohMaterial& truth) {
-  return std::max({relErr(fit.c10_pa, truth.c10_pa), relErr(fit.c20_pa, truth.c20_pa),
-                   relErr(fit.c30_pa, truth.c30_pa)});
+  return std::max(
+      {relErr(fit.c10_pa, truth.c10_pa), relErr(fit.c20_pa, truth.c20_pa), relErr(fit.c30_pa, truth.c30_pa)});
 }
 
 std::filesystem::path tmpDir() {
@@ -198,9 +198,9 @@ TEST(MaterialFit, ShippedTpuDataFits) {
 // ---------------------------------------------------------------------------------------------
 
 TEST(TensileCsv, ReadsCommentsExtraColumnsAnyOrderAndCrlf) {
-  const std::string path = writeTemp(
-      "good", "# synthetic\r\n#  more\r\n\r\ntime_s, Stress_Pa ,force_n,stretch\r\n"
-              "0,0,0,1.0\r\n1,3.1e6,5,1.5\r\n2,3.6e6,6,2.0\r\n3,2.2e7,7,3.0\r\n");
+  const std::string path = writeTemp("good",
+                                     "# synthetic\r\n#  more\r\n\r\ntime_s, Stress_Pa ,force_n,stretch\r\n"
+                                     "0,0,0,1.0\r\n1,3.1e6,5,1.5\r\n2,3.6e6,6,2.0\r\n3,2.2e7,7,3.0\r\n");
   const TensileData d = readTensileCsv(path);
   ASSERT_EQ(d.stretch.size(), 4u);
   EXPECT_DOUBLE_EQ(d.stretch[1], 1.5);
@@ -210,8 +210,7 @@ TEST(TensileCsv, ReadsCommentsExtraColumnsAnyOrderAndCrlf) {
 }
 
 TEST(TensileCsv, StrainColumnAccepted) {
-  const TensileData d = readTensileCsv(
-      writeTemp("strain", "strain,stress_pa\n0,0\n0.5,3.1e6\n1.0,3.6e6\n2.0,2.2e7\n"));
+  const TensileData d = readTensileCsv(writeTemp("strain", "strain,stress_pa\n0,0\n0.5,3.1e6\n1.0,3.6e6\n2.0,2.2e7\n"));
   ASSERT_EQ(d.stretch.size(), 4u);
   EXPECT_DOUBLE_EQ(d.stretch[0], 1.0);
   EXPECT_DOUBLE_EQ(d.stretch[1], 1.5);
@@ -219,8 +218,7 @@ TEST(TensileCsv, StrainColumnAccepted) {
 }
 
 TEST(TensileCsv, MpaColumnAccepted) {
-  const TensileData d = readTensileCsv(
-      writeTemp("mpa", "stress_mpa,stretch\n0,1.0\n3.1,1.5\n3.6,2.0\n22,3.0\n"));
+  const TensileData d = readTensileCsv(writeTemp("mpa", "stress_mpa,stretch\n0,1.0\n3.1,1.5\n3.6,2.0\n22,3.0\n"));
   ASSERT_EQ(d.stress_pa.size(), 4u);
   EXPECT_DOUBLE_EQ(d.stress_pa[1], 3.1e6);
   EXPECT_DOUBLE_EQ(d.stress_pa[3], 22e6);
@@ -235,8 +233,8 @@ TEST(TensileCsv, MissingColumnNamed) {
 }
 
 TEST(TensileCsv, NonNumericFieldNamedWithLine) {
-  const std::string msg = readError(
-      "non_numeric", "# comment\nstretch,stress_pa\n1.0,0\n1.5,3.1e6\n2.0,3.6x6\n3.0,2.2e7\n");
+  const std::string msg =
+      readError("non_numeric", "# comment\nstretch,stress_pa\n1.0,0\n1.5,3.1e6\n2.0,3.6x6\n3.0,2.2e7\n");
   expectMentions(msg, {"material_fit_non_numeric.csv:5", "'stress_pa'", "'3.6x6'"});
   expectMentions(readError("empty_field", "stretch,stress_pa,note\n1.0,0,a\n1.5,,b\n"),
                  {"material_fit_empty_field.csv:3", "'stress_pa'", "not a finite number"});
@@ -249,8 +247,7 @@ TEST(TensileCsv, TooFewRows) {
                  {"material_fit_few.csv", "3 data rows", "at least 4"});
   expectMentions(readError("header_only", "# nothing\nstretch,stress_pa\n"),
                  {"material_fit_header_only.csv", "0 data rows"});
-  expectMentions(readError("empty", "# only comments\n"),
-                 {"material_fit_empty.csv", "no header"});
+  expectMentions(readError("empty", "# only comments\n"), {"material_fit_empty.csv", "no header"});
 }
 
 TEST(TensileCsv, StretchRules) {

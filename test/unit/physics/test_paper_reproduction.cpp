@@ -28,11 +28,11 @@ TEST(PaperReproduction, UnloadedInflationMatchesThePaper) {
     peak = std::max(peak, s.inflow_kg_s);
   }
   ASSERT_NE(at_end, nullptr);
-  EXPECT_NEAR(at_end->height_m, 0.150, 0.03 * 0.150);                          // 150 mm +- 3 %
+  EXPECT_NEAR(at_end->height_m, 0.150, 0.03 * 0.150);  // 150 mm +- 3 %
   EXPECT_NEAR(trace.maxPressurePa(), setup.valve_pressure_pa, 0.05 * setup.valve_pressure_pa);
-  EXPECT_NEAR(trace.peakInflowTimeS(), 1.0, 0.4);                                // peak near 1 s
-  EXPECT_LT(at_end->inflow_kg_s, 0.02 * peak);                                   // spent by 5.5 s
-  EXPECT_EQ(trace.samples.back().inflow_kg_s, 0.0);                              // closed after
+  EXPECT_NEAR(trace.peakInflowTimeS(), 1.0, 0.4);    // peak near 1 s
+  EXPECT_LT(at_end->inflow_kg_s, 0.02 * peak);       // spent by 5.5 s
+  EXPECT_EQ(trace.samples.back().inflow_kg_s, 0.0);  // closed after
   // Height and pressure both rise over the inflation (to within the plate's jitter).
   const nb::InflationSample* prev = &trace.samples.front();
   for (const auto& s : trace.samples) {
@@ -87,7 +87,8 @@ TEST(PaperReproduction, PolyfitRecoversAQuartic) {
     y.push_back(nb::polyval({nb::kPaperQuarticMmVsBar.begin(), nb::kPaperQuarticMmVsBar.end()}, x.back()));
   }
   const std::vector<double> c = nb::polyfit(x, y, 4);
-  for (int k = 0; k < 5; ++k) EXPECT_NEAR(c[k], nb::kPaperQuarticMmVsBar[k], 1e-5 * std::abs(nb::kPaperQuarticMmVsBar[k]));
+  for (int k = 0; k < 5; ++k)
+    EXPECT_NEAR(c[k], nb::kPaperQuarticMmVsBar[k], 1e-5 * std::abs(nb::kPaperQuarticMmVsBar[k]));
   EXPECT_THROW(nb::polyfit({1.0, 2.0}, {1.0, 2.0}, 4), std::invalid_argument);
 }
 

@@ -99,7 +99,8 @@ class ModbusLoopback : public ::testing::Test {
     auto terminal = terminalA();
     const nb::TerminalStats s0 = terminal->stats();
     fault();
-    ASSERT_TRUE(waitFor([&] { return terminal->stats().failed_exchanges > s0.failed_exchanges; }, 2.0)) << "no failure seen";
+    ASSERT_TRUE(waitFor([&] { return terminal->stats().failed_exchanges > s0.failed_exchanges; }, 2.0))
+        << "no failure seen";
     const long cycles = terminal->stats().cycles;
     ASSERT_TRUE(waitFor([&] { return terminal->stats().cycles >= cycles + 20; }, 2.0)) << "exchanges go on";
     const nb::TerminalStats s1 = terminal->stats();
@@ -317,7 +318,8 @@ TEST_F(ModbusLoopback, OverALostLinkTheOutputsHeldUntilTheTerminalsWatchdogAreRe
     if (r.inlet_driven.present()) open_s += r.inlet_driven.value * std::chrono::duration<double>(now - last).count();
     last = now;
   }
-  std::printf("[          ] inlet reported open %.3f s after the terminal fell silent (watchdog %.2f s)\n", open_s, watchdog_s);
+  std::printf("[          ] inlet reported open %.3f s after the terminal fell silent (watchdog %.2f s)\n", open_s,
+              watchdog_s);
   EXPECT_TRUE(went_down);
   EXPECT_NEAR(open_s, watchdog_s, 0.03) << "open until the watchdog, shut after";
   EXPECT_EQ(truth(0).inlet_opening, 0.0) << "the emulator's watchdog shut it";
@@ -334,10 +336,8 @@ TEST_F(ModbusLoopback, TheRigsSimulationRunsAtTheRealtimePriorityAskedFor) {
   options_.realtime_priority = 15;
   startEmulator();
   const nb::ThreadScheduling& s = emulator_->scheduling();
-  if (s.refused)
-    EXPECT_EQ(s.text.rfind("normal (SCHED_FIFO 15 refused: ", 0), 0u) << s.text;
-  else
-    EXPECT_EQ(s.text, "SCHED_FIFO 15");
+  if (s.refused) EXPECT_EQ(s.text.rfind("normal (SCHED_FIFO 15 refused: ", 0), 0u) << s.text;
+  else EXPECT_EQ(s.text, "SCHED_FIFO 15");
   // Whether it keeps the wall clock's pace is a benchmark's figure (bench_modbus_latency).
   EXPECT_TRUE(waitFor([this] { return emulator_->mostPeriodsPerWake() >= 1; }, 2.0)) << "the simulation runs";
 }

@@ -10,9 +10,9 @@ namespace nursing_bed {
 struct BedGrid {
   int rows = 20;
   int cols = 9;
-  double pitch_m = 0.1;      ///< cell pitch [m]; a cell's face is pitch x pitch
-  double min_height_m = 0.0; ///< lowest cell height [m]
-  double max_height_m = 0.15;///< highest cell height [m]
+  double pitch_m = 0.1;        ///< cell pitch [m]; a cell's face is pitch x pitch
+  double min_height_m = 0.0;   ///< lowest cell height [m]
+  double max_height_m = 0.15;  ///< highest cell height [m]
 
   int cells() const { return rows * cols; }
   std::uint32_t id(int row, int col) const { return static_cast<std::uint32_t>(row * cols + col); }

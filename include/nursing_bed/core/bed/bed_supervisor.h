@@ -47,14 +47,14 @@ struct BedEvent {
 
 /// What the supervisor is doing (the bed manager's ~state).
 struct BedStatus {
-  std::optional<PlanKind> plan;        ///< nullopt: no plan runs
-  std::string phase;                   ///< the last targets' phase
-  std::string parameters;              ///< the plan's parameters after defaults
-  double elapsed_s = 0.0;              ///< since the plan started [s]
-  double tilt_deg = 0.0;               ///< lateral turn commanded now [deg]
+  std::optional<PlanKind> plan;          ///< nullopt: no plan runs
+  std::string phase;                     ///< the last targets' phase
+  std::string parameters;                ///< the plan's parameters after defaults
+  double elapsed_s = 0.0;                ///< since the plan started [s]
+  double tilt_deg = 0.0;                 ///< lateral turn commanded now [deg]
   std::vector<double> target_heights_m;  ///< by cell id; NaN where none (venting)
   std::vector<std::uint32_t> dead_cells, faulty_cells;
-  double largest_state_gap_s = 0.0;    ///< longest wait between two states of one cell since the plan started [s]
+  double largest_state_gap_s = 0.0;  ///< longest wait between two states of one cell since the plan started [s]
   std::vector<std::string> alarms;
 };
 
@@ -63,7 +63,7 @@ struct BedReport {
   Severity severity = Severity::kOk;  ///< error when a cell is not reporting, warn on faults or alarms
   std::string message;                ///< "N cells, D not reporting, F with faults[; first alarm]"
   std::vector<std::string> alarms;
-  std::string plan;                   ///< "plan (phase)[, resumed ...]"; "" when no plan runs
+  std::string plan;  ///< "plan (phase)[, resumed ...]"; "" when no plan runs
   std::vector<CellReport> cells;
 };
 
@@ -95,8 +95,7 @@ class BedSupervisor {
   RequestResult resume(const std::optional<ResumeRecord>& record, double now_s);
   /// Starts a plan: `keys`/`values` its arguments, `heights_m` a custom plan's heights.
   RequestResult setPosture(const std::string& plan, const std::vector<std::string>& keys,
-                           const std::vector<std::string>& values, const std::vector<double>& heights_m,
-                           double now_s);
+                           const std::vector<std::string>& values, const std::vector<double>& heights_m, double now_s);
   /// Sets cells' heights, all or nothing, as a custom plan (the other cells keep their
   /// targets). `connected` by cell id: something listens to the cell's setpoints.
   RequestResult setHeights(const std::vector<std::uint32_t>& ids, const std::vector<double>& heights_m,

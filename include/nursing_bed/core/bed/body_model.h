@@ -20,14 +20,14 @@ namespace nursing_bed {
 
 /// The patient and the contact model.
 struct PatientParams {
-  double mass_kg = 70.0;                 ///< body mass [kg]
-  double height_m = 1.70;                ///< stature [m]
-  double head_clearance_m = 0.05;        ///< top of the head to the bed's head edge [m]
+  double mass_kg = 70.0;           ///< body mass [kg]
+  double height_m = 1.70;          ///< stature [m]
+  double head_clearance_m = 0.05;  ///< top of the head to the bed's head edge [m]
   /// Winkler modulus of the soft tissue and the mattress cover in series: contact pressure per
   /// unit penetration [Pa/m]. 1.5e5 Pa/m: ~30-47 mm immersion at the bony prominences, the
   /// sacrum/heel/occiput peaks of doc/paper_targets.md with the underside radii of the segment table.
   double tissue_stiffness_pa_m = 1.5e5;
-  double lateral_offset_m = 0.0;         ///< body midline across the bed, + to the patient's left [m]
+  double lateral_offset_m = 0.0;  ///< body midline across the bed, + to the patient's left [m]
   /// Spacing of the contact sub-points over each segment's footprint [m] (<= 1/4 of a cell, so
   /// that point peaks are resolved inside a cell).
   double contact_resolution_m = 0.01;
@@ -35,7 +35,7 @@ struct PatientParams {
   /// interpolation of the cell heights between cell centres (a plane of cells stays a plane).
   /// false: bare flat plates, each point on the plate of the cell under it (a staircase).
   bool smooth_cover = true;
-  double max_roll_rad = 1.0;             ///< a segment's roll is bounded to +-this (it would roll off) [rad]
+  double max_roll_rad = 1.0;  ///< a segment's roll is bounded to +-this (it would roll off) [rad]
 
   /// Success when valid, else an error with every problem found, each naming the field.
   Status validate() const;
@@ -44,18 +44,18 @@ struct PatientParams {
 /// One line of the segment table: anthropometry (fractions of stature H or body mass) and the
 /// contact shape. Positions are along the body from the vertex (top of the head), supine.
 struct SegmentSpec {
-  const char* name;           ///< e.g. "pelvis", "left_foot"
-  double mass_fraction;       ///< of body mass (Dempster via Winter, Table 4.1)
-  double length_fraction;     ///< anatomical segment length, of H (Winter Fig. 4.1; trunk: chosen)
-  double start_fraction;      ///< contact footprint from this distance from the vertex, of H
-  double end_fraction;        ///< ... to this one, of H
-  double width_fraction;      ///< footprint width across the bed, of H
-  double depth_fraction;      ///< thickness above the bed (drawing only), of H
-  double lateral_fraction;    ///< footprint centre from the body midline, + to the patient's left, of H
-  double radius_x_m;          ///< underside radius along the body, for H = 1.70 m (scales with H) [m]
-  double radius_y_m;          ///< underside radius across the body, for H = 1.70 m [m]
-  int parent;                 ///< index of the proximal segment (-1: pelvis, the root)
-  bool trunk;                 ///< thorax, abdomen, pelvis: their roll is the body's roll
+  const char* name;         ///< e.g. "pelvis", "left_foot"
+  double mass_fraction;     ///< of body mass (Dempster via Winter, Table 4.1)
+  double length_fraction;   ///< anatomical segment length, of H (Winter Fig. 4.1; trunk: chosen)
+  double start_fraction;    ///< contact footprint from this distance from the vertex, of H
+  double end_fraction;      ///< ... to this one, of H
+  double width_fraction;    ///< footprint width across the bed, of H
+  double depth_fraction;    ///< thickness above the bed (drawing only), of H
+  double lateral_fraction;  ///< footprint centre from the body midline, + to the patient's left, of H
+  double radius_x_m;        ///< underside radius along the body, for H = 1.70 m (scales with H) [m]
+  double radius_y_m;        ///< underside radius across the body, for H = 1.70 m [m]
+  int parent;               ///< index of the proximal segment (-1: pelvis, the root)
+  bool trunk;               ///< thorax, abdomen, pelvis: their roll is the body's roll
 };
 
 /// The 16 segments: head+neck, thorax, abdomen, pelvis, and per side (right first) upper arm,
@@ -66,20 +66,20 @@ const std::vector<SegmentSpec>& segmentTable();
 // size: a plain record of one segment's pose, size and support for the simulator's outputs
 struct SegmentPose {
   std::string name;
-  double x_c_m = 0.0;         ///< apex of the underside (footprint centre) along the bed [m]
-  double y_c_m = 0.0;         ///< across the bed; the segment's long axis [m]
-  double z_m = 0.0;           ///< underside apex height above the bed surface [m]
-  double roll_rad = 0.0;      ///< about the long axis (+x); + lowers the patient's right side [rad]
+  double x_c_m = 0.0;     ///< apex of the underside (footprint centre) along the bed [m]
+  double y_c_m = 0.0;     ///< across the bed; the segment's long axis [m]
+  double z_m = 0.0;       ///< underside apex height above the bed surface [m]
+  double roll_rad = 0.0;  ///< about the long axis (+x); + lowers the patient's right side [rad]
   double mass_kg = 0.0;
-  double length_m = 0.0;      ///< anatomical length [m]
-  double width_m = 0.0;       ///< footprint width [m]
+  double length_m = 0.0;            ///< anatomical length [m]
+  double width_m = 0.0;             ///< footprint width [m]
   double footprint_length_m = 0.0;  ///< footprint length along the bed [m]
-  double depth_m = 0.0;       ///< thickness (drawing) [m]
-  double support_n = 0.0;     ///< force the cells push up with (own weight + unsupported children) [N]
+  double depth_m = 0.0;             ///< thickness (drawing) [m]
+  double support_n = 0.0;           ///< force the cells push up with (own weight + unsupported children) [N]
   double moment_residual_nm = 0.0;  ///< sum F (y - y_c) left over (0 at equilibrium; not 0 when at max roll) [N m]
   double peak_pressure_pa = 0.0;    ///< highest point pressure under the segment [Pa]
-  bool on_bed = true;         ///< false: footprint off the bed; its weight went to its parent
-  bool at_roll_limit = false; ///< the roll hit +-max_roll_rad (unbalanced: it would roll off)
+  bool on_bed = true;               ///< false: footprint off the bed; its weight went to its parent
+  bool at_roll_limit = false;       ///< the roll hit +-max_roll_rad (unbalanced: it would roll off)
   /// Cells this segment loads (by id) and how much [N].
   std::vector<std::pair<std::uint32_t, double>> cell_loads_n;
 };
@@ -102,9 +102,9 @@ struct BodyState {
   RegionPressures peak_pressure_pa;
   /// Peaks of the cell-averaged pressure (load / 100 mm face) over the cells of each region.
   RegionPressures peak_cell_pressure_pa;
-  double total_load_n = 0.0;                  ///< sum of cell_load_n (= m g) [N]
-  bool converged = true;                      ///< every segment's equilibrium met the tolerance
-  int iterations = 0;                         ///< Newton iterations, all segments
+  double total_load_n = 0.0;  ///< sum of cell_load_n (= m g) [N]
+  bool converged = true;      ///< every segment's equilibrium met the tolerance
+  int iterations = 0;         ///< Newton iterations, all segments
 };
 
 /**
@@ -155,22 +155,22 @@ class BodyModel {
 
  private:
   struct SubPoint {
-    double u = 0.0;            // y - y_c [m]
-    double q = 0.0;            // (y - y_c)^2 / 2R_y + (x - x_c)^2 / 2R_x [m]
-    double area = 0.0;         // [m^2]
+    double u = 0.0;                        // y - y_c [m]
+    double q = 0.0;                        // (y - y_c)^2 / 2R_y + (x - x_c)^2 / 2R_x [m]
+    double area = 0.0;                     // [m^2]
     std::uint32_t cell[4] = {0, 0, 0, 0};  // cells whose heights make the surface here
     double weight[4] = {0.0, 0.0, 0.0, 0.0};
-    std::uint32_t face_cell = 0;           // the cell under this point
+    std::uint32_t face_cell = 0;  // the cell under this point
   };
   // size: a plain record of one segment's footprint, sub-points and warm-started pose
   struct Segment {
     SegmentSpec spec;
     double x_c = 0.0, y_c = 0.0, x0 = 0.0, x1 = 0.0, y0 = 0.0, y1 = 0.0;
     double mass_kg = 0.0, radius_x = 0.0, radius_y = 0.0;
-    double carried_n = 0.0;    // own weight + that of children off the bed [N]
+    double carried_n = 0.0;  // own weight + that of children off the bed [N]
     bool on_bed = true;
     std::vector<SubPoint> points;
-    double z = 0.0, t = 0.0;   // pose: apex height and tan(roll)
+    double z = 0.0, t = 0.0;  // pose: apex height and tan(roll)
     bool warm = false;
   };
   struct Evaluation {

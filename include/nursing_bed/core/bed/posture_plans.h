@@ -21,23 +21,23 @@ constexpr double kHardMaxTiltDeg = 40.0;
 
 /// Plan configuration (config/bed_manager.yaml, `plans/...`).
 struct PlanConfig {
-  double nominal_height_m = 0.10;        ///< flat bed height [m]
-  double min_height_m = 0.02;            ///< lowest height a plan commands (CPR vents instead) [m]
-  double max_height_m = 0.15;            ///< highest height a plan commands [m]
-  double max_tilt_deg = 30.0;            ///< configured maximum lateral turn [deg] (<= 40)
-  double max_tilt_rate_deg_s = 1.0;      ///< fastest change of the turn angle [deg/s]
+  double nominal_height_m = 0.10;    ///< flat bed height [m]
+  double min_height_m = 0.02;        ///< lowest height a plan commands (CPR vents instead) [m]
+  double max_height_m = 0.15;        ///< highest height a plan commands [m]
+  double max_tilt_deg = 30.0;        ///< configured maximum lateral turn [deg] (<= 40)
+  double max_tilt_rate_deg_s = 1.0;  ///< fastest change of the turn angle [deg/s]
   /// Fraction of max_tilt_rate_deg_s at which the bed's own slope under the trunk may change:
   /// the patient rolls faster than the bed's slope (he follows the cells' lag and shifting
   /// contact; measured up to 1.83 times at a plan switch, doc/safety.md) [-].
   double bed_tilt_rate_fraction = 0.5;
-  double turn_ramp_s = 60.0;             ///< default ramp time of a turn [s]
-  double turn_dwell_s = 600.0;           ///< default dwell at the turned angle [s]
-  double alternating_period_s = 600.0;   ///< default alternating cycle [s]
-  double alternating_low_m = 0.03;       ///< default height of the relieved (low) cells [m]
-  double alternating_high_m = 0.12;      ///< default height of the supporting cells [m]
-  double alternating_transition_s = 5.0; ///< the rising group gets this long before the next one lowers [s]
-  int static_head_rows = 2;              ///< head rows that alternating leaves at the nominal height
-  double max_inflate_timeout_s = 900.0;  ///< default time before max_inflate reverts [s]
+  double turn_ramp_s = 60.0;              ///< default ramp time of a turn [s]
+  double turn_dwell_s = 600.0;            ///< default dwell at the turned angle [s]
+  double alternating_period_s = 600.0;    ///< default alternating cycle [s]
+  double alternating_low_m = 0.03;        ///< default height of the relieved (low) cells [m]
+  double alternating_high_m = 0.12;       ///< default height of the supporting cells [m]
+  double alternating_transition_s = 5.0;  ///< the rising group gets this long before the next one lowers [s]
+  int static_head_rows = 2;               ///< head rows that alternating leaves at the nominal height
+  double max_inflate_timeout_s = 900.0;   ///< default time before max_inflate reverts [s]
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
 };
@@ -106,7 +106,8 @@ std::unique_ptr<PosturePlan> makeCustomPlan(std::vector<double> heights_m);
 /// midline): sum w_i h_i is that slope, atan of it the roll the patient's trunk follows (what the
 /// rate limiter bounds). Outer columns are left out: a turn clamps them at the height limits, so
 /// a slope over the whole width would understate the tilt under the body.
-std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body, double support_half_width_m = 0.25);
+std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body,
+                                     double support_half_width_m = 0.25);
 
 /// Longest number text a plan argument may be (a double needs far fewer characters).
 constexpr std::size_t kMaxNumberChars = 64;

@@ -23,7 +23,7 @@ std::string checkCellHeights(const std::vector<std::uint32_t>& ids, const std::v
 /// `values`, and per-cell `heights_m`. False, with why in *error, when keys and values differ in
 /// number or a key is given twice.
 bool postureRequest(const std::string& plan, const std::vector<std::string>& keys,
-                    const std::vector<std::string>& values, const std::vector<double>& heights_m,
-                    PlanRequest* request, std::string* error);
+                    const std::vector<std::string>& values, const std::vector<double>& heights_m, PlanRequest* request,
+                    std::string* error);
 
 }  // namespace nursing_bed

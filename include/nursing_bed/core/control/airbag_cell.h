@@ -22,12 +22,12 @@ struct AirbagCellParams {
   CellParams cell;
   HeightControllerParams controller;
   AirbagSafetyParams safety;
-  double control_period_s = 0.005;        ///< controller and safety period [s]
+  double control_period_s = 0.005;  ///< controller and safety period [s]
   /// Gauge pressure the vents see while venting for CPR (vent mode): a vacuum source empties a
   /// cell that carries only its plate in seconds instead of half a minute; 0: vent to ambient.
   double cpr_vacuum_pa = -5000.0;
-  double pressure_noise_pa = 0.0;         ///< sd of the pressure sensor's noise [Pa]
-  double height_noise_m = 0.0;            ///< sd of the height sensor's noise [m]
+  double pressure_noise_pa = 0.0;  ///< sd of the pressure sensor's noise [Pa]
+  double height_noise_m = 0.0;     ///< sd of the height sensor's noise [m]
   std::uint32_t noise_seed = 1;
   std::string validate() const;
 };
@@ -141,7 +141,9 @@ class AirbagCell {
   const ValveOpenings& valves() const { return valves_; }
   AirbagMode mode() const { return mode_; }
   std::uint32_t faults() const { return faults_; }
-  double setpoint() const { return controller_.hasTarget() ? controller_.target() : std::numeric_limits<double>::quiet_NaN(); }
+  double setpoint() const {
+    return controller_.hasTarget() ? controller_.target() : std::numeric_limits<double>::quiet_NaN();
+  }
   /// Gauge pressure setpoint in pressure mode [Pa] (NaN otherwise).
   double pressureSetpoint() const { return pressure_.setpoint(); }
   double loadEstimate() const { return controller_.loadEstimate(); }
@@ -205,7 +207,7 @@ class AirbagCell {
   CellHardwarePtr hardware_;
   SimulatedCellHardware* sim_ = nullptr;  ///< hardware_ when it is the simulated plant
   std::unique_ptr<CellObserver> observer_;
-  bool use_estimate_ = false;             ///< the reported height is the observer's
+  bool use_estimate_ = false;  ///< the reported height is the observer's
   AirbagMode mode_before_link_loss_ = AirbagMode::kIdle;
   HeightController controller_;
   double time_s_ = 0.0;
@@ -224,8 +226,8 @@ class AirbagCell {
   Readings measurement_{0.0, 0.0, 0.0, 0.0};  ///< zeros until the first reading
   bool cpr_ = false;
   HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
-  SafetyLayer safety_;    ///< sensor range, command watchdog, relief
-  GasVerifier gas_;       ///< what the observer's gas is worth, and its checks
+  SafetyLayer safety_;                 ///< sensor range, command watchdog, relief
+  GasVerifier gas_;                    ///< what the observer's gas is worth, and its checks
 };
 
 }  // namespace nursing_bed

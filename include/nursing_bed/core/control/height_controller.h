@@ -15,18 +15,19 @@
 namespace nursing_bed {
 
 struct HeightControllerParams {
-  double min_height_m = 0.0;              ///< lowest setpoint accepted [m]
-  double max_height_m = 0.150;            ///< highest setpoint accepted [m]
-  double height_tolerance_m = 0.0004;     ///< deadband: no valve action within it [m]
-  double approach_band_m = 0.004;         ///< predicted error over which a valve goes from shut to fully open [m]
-  double max_pressure_pa = 32000.0;       ///< never fill above this gauge pressure (below the relief) [Pa]
-  double load_filter_time_s = 0.3;        ///< time constant of the load estimate's filter (PlateLoadEstimator) [s]
-  double settled_speed_m_s = 0.003;       ///< plate speed under which the cell counts as at rest [m/s]
-  double integral_rate_per_s = 2.0;       ///< rate at which a resting height error is integrated out [1/s]
-  double integral_limit_m = 0.02;         ///< bound of that correction [m]
-  double move_threshold_m = 0.003;        ///< predicted error above which a move uses the shaped full-flow law [m]
-  double damping_band_m = 0.01;           ///< plate swing about its rest height that opens a valve fully (active damping) [m]
-  double hold_band_m = 0.0004;            ///< once on target, the valves stay shut until the predicted or resting error leaves this [m]
+  double min_height_m = 0.0;           ///< lowest setpoint accepted [m]
+  double max_height_m = 0.150;         ///< highest setpoint accepted [m]
+  double height_tolerance_m = 0.0004;  ///< deadband: no valve action within it [m]
+  double approach_band_m = 0.004;      ///< predicted error over which a valve goes from shut to fully open [m]
+  double max_pressure_pa = 32000.0;    ///< never fill above this gauge pressure (below the relief) [Pa]
+  double load_filter_time_s = 0.3;     ///< time constant of the load estimate's filter (PlateLoadEstimator) [s]
+  double settled_speed_m_s = 0.003;    ///< plate speed under which the cell counts as at rest [m/s]
+  double integral_rate_per_s = 2.0;    ///< rate at which a resting height error is integrated out [1/s]
+  double integral_limit_m = 0.02;      ///< bound of that correction [m]
+  double move_threshold_m = 0.003;     ///< predicted error above which a move uses the shaped full-flow law [m]
+  double damping_band_m = 0.01;  ///< plate swing about its rest height that opens a valve fully (active damping) [m]
+  double hold_band_m =
+      0.0004;  ///< once on target, the valves stay shut until the predicted or resting error leaves this [m]
 
   /// Empty when valid, else every problem found.
   std::string validate() const;
@@ -116,12 +117,12 @@ class HeightController {
   /// One period's readings and what follows from them, passed between update()'s parts.
   struct Period {
     double dt_s = 0.0, gauge_pressure_pa = 0.0, height_m = 0.0;
-    bool resting = false;             ///< the plate's speed is under settled_speed_m_s
-    double volume_m3 = 0.0;           ///< gas volume, film relaxed to the pressure
-    double invariant = 0.0;           ///< K = p V^gamma of the present gas
-    double error_m = 0.0;             ///< target - measured height
-    double predicted_error_m = 0.0;   ///< predictedError() after the integral's update
-    bool lowest = false;              ///< the target is the lowest setpoint: vent fully
+    bool resting = false;            ///< the plate's speed is under settled_speed_m_s
+    double volume_m3 = 0.0;          ///< gas volume, film relaxed to the pressure
+    double invariant = 0.0;          ///< K = p V^gamma of the present gas
+    double error_m = 0.0;            ///< target - measured height
+    double predicted_error_m = 0.0;  ///< predictedError() after the integral's update
+    bool lowest = false;             ///< the target is the lowest setpoint: vent fully
   };
   /// The plate's speed, the load estimate, the rest height and the commands in flight's shift
   /// of it, from the period's readings.
@@ -149,11 +150,11 @@ class HeightController {
   double resting_height_m_ = 0.0;
   double last_height_m_ = 0.0;
   bool has_last_ = false;
-  bool holding_ = false;  ///< on target: valves shut until an error leaves hold_band_m
-  CommandsInFlight in_flight_;       ///< commands of the last dead time, not yet acting
-  double in_flight_shift_m_ = 0.0;   ///< rest height they still add (this period's)
+  bool holding_ = false;            ///< on target: valves shut until an error leaves hold_band_m
+  CommandsInFlight in_flight_;      ///< commands of the last dead time, not yet acting
+  double in_flight_shift_m_ = 0.0;  ///< rest height they still add (this period's)
   double stretch_guess_ = 1.0;
-  ShapedMove move_;                  ///< the shaped full-flow move under way, if any
+  ShapedMove move_;  ///< the shaped full-flow move under way, if any
   double supply_pressure_pa_ = 0.0;
   /// Half period cached for (target, load) because it costs a few solves.
   struct HalfPeriodCache {

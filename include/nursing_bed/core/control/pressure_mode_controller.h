@@ -11,8 +11,8 @@
 namespace nursing_bed {
 
 struct PressureModeParams {
-  double band_pa = 1000.0;      ///< pressure error at which a valve opens fully [Pa]
-  double tolerance_pa = 50.0;   ///< deadband: both valves shut within it [Pa]
+  double band_pa = 1000.0;     ///< pressure error at which a valve opens fully [Pa]
+  double tolerance_pa = 50.0;  ///< deadband: both valves shut within it [Pa]
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
 };

@@ -7,13 +7,13 @@
 namespace nursing_bed {
 
 struct AirbagSafetyParams {
-  double relief_pressure_pa = 35000.0;    ///< gauge pressure never exceeded: inlet shut, vent open [Pa]
-  double relief_margin_pa = 500.0;        ///< act this far below it, ahead of the next period's rise [Pa]
-  double command_timeout_s = 0.0;         ///< hold and flag when no command/heartbeat for this long; 0 = off [s]
+  double relief_pressure_pa = 35000.0;       ///< gauge pressure never exceeded: inlet shut, vent open [Pa]
+  double relief_margin_pa = 500.0;           ///< act this far below it, ahead of the next period's rise [Pa]
+  double command_timeout_s = 0.0;            ///< hold and flag when no command/heartbeat for this long; 0 = off [s]
   double sensor_pressure_min_pa = -50000.0;  ///< readings outside [min, max] are a sensor fault [Pa]
   double sensor_pressure_max_pa = 150000.0;
-  double sensor_height_min_m = -0.02;     ///< [m]
-  double sensor_height_max_m = 0.40;      ///< [m]
+  double sensor_height_min_m = -0.02;  ///< [m]
+  double sensor_height_max_m = 0.40;   ///< [m]
   /// Consecutive control periods a reading must stay out of range to be a sensor fault [-]
   /// (meanwhile the valves hold the gas).
   int sensor_fault_periods = 10;
@@ -74,9 +74,9 @@ class SafetyLayer {
 
  private:
   AirbagSafetyParams params_;
-  int bad_readings_ = 0;          ///< consecutive periods with an out-of-range reading
-  double last_command_s_ = 0.0;   ///< the last command or heartbeat [s]
-  double last_pressure_pa_ = 0.0; ///< the last period's pressure [Pa]
+  int bad_readings_ = 0;           ///< consecutive periods with an out-of-range reading
+  double last_command_s_ = 0.0;    ///< the last command or heartbeat [s]
+  double last_pressure_pa_ = 0.0;  ///< the last period's pressure [Pa]
 };
 
 }  // namespace nursing_bed

@@ -49,10 +49,10 @@ class ShapedMove {
 
   int direction_ = 0;
   MovePhase phase_ = MovePhase::kNone;
-  double time_s_ = 0.0;              ///< since the move started [s]
-  double lead_duration_s_ = 0.0;     ///< how long the lead lasted [s]
-  double tail_start_s_ = 0.0;        ///< when the tail began [s]
-  double initial_remaining_m_ = 0.0; ///< the rest height to go at the start [m]
+  double time_s_ = 0.0;               ///< since the move started [s]
+  double lead_duration_s_ = 0.0;      ///< how long the lead lasted [s]
+  double tail_start_s_ = 0.0;         ///< when the tail began [s]
+  double initial_remaining_m_ = 0.0;  ///< the rest height to go at the start [m]
 };
 
 }  // namespace nursing_bed

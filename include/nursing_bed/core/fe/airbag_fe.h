@@ -30,7 +30,7 @@ inline RelaxOptions airbagRelaxDefaults() {
 struct AirbagFeOptions {
   AirbagGeometry geometry;
   FilmMaterial material;
-  MembraneOptions membrane;   ///< self_contact_radius_m is set to the geometry's layer gap
+  MembraneOptions membrane;  ///< self_contact_radius_m is set to the geometry's layer gap
   RelaxOptions relax = airbagRelaxDefaults();
 
   /// Success, or what is wrong (names the field).
@@ -43,10 +43,10 @@ struct QuasiStaticPoint {
   std::string message;
   int iterations = 0;
   double gauge_pressure_pa = 0.0;
-  double load_n = 0.0;             ///< load on the plate (NaN for a fixed plate)
-  double height_m = 0.0;           ///< plate height
-  double volume_m3 = 0.0;          ///< eq. 11
-  double plate_force_n = 0.0;      ///< film on plate
+  double load_n = 0.0;         ///< load on the plate (NaN for a fixed plate)
+  double height_m = 0.0;       ///< plate height
+  double volume_m3 = 0.0;      ///< eq. 11
+  double plate_force_n = 0.0;  ///< film on plate
   double max_stretch = 1.0;
   double wrinkled_fraction = 0.0;  ///< share of wrinkled or slack triangles
   double rim_inset_m = 0.0;        ///< widest film half-width minus the rim's: > 0 when the edge is folded in
@@ -75,7 +75,7 @@ class AirbagFe {
   QuasiStaticPoint solveWithPlate(PlateState::Mode mode, double load_or_height, double gauge_pressure_pa);
   AirbagFeOptions options_;
   std::unique_ptr<MembraneModel> model_;
-  std::vector<int> rim_nodes_;   // welded rim of the lowest chamber, mid-edge
+  std::vector<int> rim_nodes_;  // welded rim of the lowest chamber, mid-edge
 };
 
 /// Quasi-static h(p) under one load by continuation in pressure (each state starts from the
@@ -88,12 +88,12 @@ std::vector<QuasiStaticPoint> heightVsPressure(AirbagFe* bag, double load_n, con
 /// (eq. 11); inflow either a prescribed curve (the paper's way) or the inlet valve from the
 /// regulator (CellParams), leak through leak_area_m2 (eq. 17-23 via the orifice law).
 struct TransientSetup {
-  CellParams cell;                         ///< gas, ambient, supply, valves, plate damping
+  CellParams cell;  ///< gas, ambient, supply, valves, plate damping
   double load_n = 0.6;
   double duration_s = 5.5;
-  const TimeSeries* prescribed_inflow = nullptr;   ///< kg/s vs s; null: valve model
-  double inflation_end_s = 5.5;            ///< inlet closes (valve model)
-  double film_damping_per_s = 30.0;        ///< mass-proportional film damping (air drag, TPU losses) [1/s]
+  const TimeSeries* prescribed_inflow = nullptr;  ///< kg/s vs s; null: valve model
+  double inflation_end_s = 5.5;                   ///< inlet closes (valve model)
+  double film_damping_per_s = 30.0;               ///< mass-proportional film damping (air drag, TPU losses) [1/s]
   double sample_s = 0.01;
 
   /// Success, or what is wrong (names the field).

@@ -14,16 +14,16 @@ namespace fe {
 enum AirbagPart { kBottomFace = 0, kTopFace = 1, kGusset = 2, kConnection = 3 };
 
 struct AirbagGeometry {
-  double face_side_m = 0.100;        ///< side of the square faces (paper: 100 x 100 mm)
-  int chambers = 2;                  ///< stacked chambers, one gas volume (paper: two)
+  double face_side_m = 0.100;  ///< side of the square faces (paper: 100 x 100 mm)
+  int chambers = 2;            ///< stacked chambers, one gas volume (paper: two)
   /// Side of the square welded patch joining neighbouring chambers in the middle; the gas
   /// passes through a hole in it (not modelled: one uniform pressure). Paper: size not given.
   double connection_side_m = 0.030;
   /// Side-gusset height per chamber; 0 = flat pillow (two squares welded at the rim). The
   /// reduced model's gussets are 0.079 m (PillowParams).
   double gusset_height_m = 0.0;
-  double film_thickness_m = 0.50e-3; ///< TPU film (PillowParams default)
-  int elements_per_side = 12;        ///< grid cells along a face side (default mesh)
+  double film_thickness_m = 0.50e-3;  ///< TPU film (PillowParams default)
+  int elements_per_side = 12;         ///< grid cells along a face side (default mesh)
   /// Hold the centre of the bottom face (the inlet fitting on the bed) and of the top face
   /// (stuck to the plate by friction) horizontally: without it the frictionless bag slides or
   /// tips under the plate (the gusseted bag tipped over in a transient).

@@ -22,7 +22,8 @@ struct LoadedState {
 /// down: a heavier load is kept only where its plate rests lower than the last one kept (a load
 /// whose plate has not snapped up while a lighter one's has would make F(h) two-valued); each
 /// one left out is named in `*left_out` (if given).
-std::vector<LoadedState> equilibriumCurve(std::vector<LoadedState> states, std::vector<std::string>* left_out = nullptr);
+std::vector<LoadedState> equilibriumCurve(std::vector<LoadedState> states,
+                                          std::vector<std::string>* left_out = nullptr);
 
 /// Plate force [N] and volume [m^3] at height h on the curve (linear in h between its loads);
 /// false outside its heights (above the lightest load's plate, below the heaviest's).

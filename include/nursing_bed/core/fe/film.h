@@ -14,8 +14,8 @@ namespace fe {
 
 /// Film material: the fitted Yeoh constants (doc/material.md) and a density for the dynamics.
 struct FilmMaterial {
-  YeohMaterial yeoh;                 ///< paper eq. 7, fitted constants by default
-  double density_kg_m3 = 1200.0;     ///< TPU 1.1-1.25 g/cm3 (doc/paper_targets.md)
+  YeohMaterial yeoh;              ///< paper eq. 7, fitted constants by default
+  double density_kg_m3 = 1200.0;  ///< TPU 1.1-1.25 g/cm3 (doc/paper_targets.md)
 
   /// Success, or what is wrong (names the field).
   Status validate() const;
@@ -32,8 +32,8 @@ struct TriangleReference {
 };
 
 /// Builds the reference of the triangle (X0, X1, X2) [m]; area 0 when degenerate.
-TriangleReference triangleReference(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
-                                    const Eigen::Vector3d& x2, double thickness_m);
+TriangleReference triangleReference(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1, const Eigen::Vector3d& x2,
+                                    double thickness_m);
 
 /// Response of one triangle at its current nodes.
 struct TriangleResponse {
@@ -53,9 +53,8 @@ struct TriangleResponse {
  * W = W(l1^2 + 2/l1)) if l2 <= l1^-1/2 < 1 < l1, and slack (W = 0) if l1 <= 1. The relaxed
  * energy is C1 across the boundaries.
  */
-TriangleResponse triangleResponse(const FilmMaterial& material, const TriangleReference& ref,
-                                  const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
-                                  const Eigen::Vector3d& x2);
+TriangleResponse triangleResponse(const FilmMaterial& material, const TriangleReference& ref, const Eigen::Vector3d& x0,
+                                  const Eigen::Vector3d& x1, const Eigen::Vector3d& x2);
 
 }  // namespace fe
 }  // namespace nursing_bed

@@ -18,17 +18,17 @@ namespace fe {
 
 /// Numerical options of the membrane model.
 struct MembraneOptions {
-  double cfl = 0.5;                         ///< fraction of the stable explicit step [-]
+  double cfl = 0.5;  ///< fraction of the stable explicit step [-]
   /// Tangent modulus bound for the explicit step, times the initial 6 C10: 2 covers the Yeoh
   /// stiffening up to stretch ~1.6, 4 up to ~2.2 [-]
   double stiffening_factor = 2.0;
-  double contact_stiffness_scale = 0.2;     ///< penalty k = scale * m_node / dt^2 (so k dt^2/m is fixed) [-]
-  double contact_damping_ratio = 0.5;       ///< damping of penetrating nodes, fraction of critical [-]
-  bool bed_contact = true;                  ///< rigid bed at z = bed_height_m
+  double contact_stiffness_scale = 0.2;  ///< penalty k = scale * m_node / dt^2 (so k dt^2/m is fixed) [-]
+  double contact_damping_ratio = 0.5;    ///< damping of penetrating nodes, fraction of critical [-]
+  bool bed_contact = true;               ///< rigid bed at z = bed_height_m
   double bed_height_m = 0.0;
-  double self_contact_radius_m = 0.0;       ///< node-node contact distance between layers; 0: off [m]
-  int self_contact_exclusion_rings = 2;     ///< nodes this close in the mesh graph never touch [-]
-  int threads = 2;                          ///< OpenMP threads (the machine has two cores)
+  double self_contact_radius_m = 0.0;    ///< node-node contact distance between layers; 0: off [m]
+  int self_contact_exclusion_rings = 2;  ///< nodes this close in the mesh graph never touch [-]
+  int threads = 2;                       ///< OpenMP threads (the machine has two cores)
 
   /// Success, or what is wrong (names the field).
   Status validate() const;
@@ -38,20 +38,20 @@ struct MembraneOptions {
 struct PlateState {
   enum class Mode { kNone, kLoaded, kFixed };
   Mode mode = Mode::kNone;
-  double height_m = 0.0;            ///< plane height
+  double height_m = 0.0;  ///< plane height
   double velocity_m_s = 0.0;
-  double load_n = 0.6;              ///< downward force, plate weight included (kLoaded)
-  double mass_kg = 0.06;            ///< moving mass (kLoaded)
-  double damping_n_s_m = 0.0;       ///< viscous damping of the plate guide
-  double contact_force_n = 0.0;     ///< upward force of the film on the plate (last evaluation)
+  double load_n = 0.6;           ///< downward force, plate weight included (kLoaded)
+  double mass_kg = 0.06;         ///< moving mass (kLoaded)
+  double damping_n_s_m = 0.0;    ///< viscous damping of the plate guide
+  double contact_force_n = 0.0;  ///< upward force of the film on the plate (last evaluation)
 };
 
 /// Forces of one evaluation.
 struct ForceSummary {
   double elastic_energy_j = 0.0;
-  double plate_force_n = 0.0;       ///< film on plate, upward
-  double bed_force_n = 0.0;         ///< film on bed, downward
-  int wrinkled = 0, slack = 0;      ///< triangles in each state
+  double plate_force_n = 0.0;   ///< film on plate, upward
+  double bed_force_n = 0.0;     ///< film on bed, downward
+  int wrinkled = 0, slack = 0;  ///< triangles in each state
   double max_stretch = 1.0;
 };
 

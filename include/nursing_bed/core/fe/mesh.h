@@ -15,17 +15,17 @@ namespace fe {
 /// A membrane of constant-strain triangles. Triangles are oriented so that their normal
 /// ((x1-x0) x (x2-x0)) points out of the gas.
 struct MembraneMesh {
-  Eigen::Matrix3Xd initial;                 ///< node positions at the start of a solve [m]
-  std::vector<Eigen::Vector3i> triangles;   ///< node indices
+  Eigen::Matrix3Xd initial;                ///< node positions at the start of a solve [m]
+  std::vector<Eigen::Vector3i> triangles;  ///< node indices
   /// Per triangle: its corners as made, flat and stress-free [m] (any frame: only the shape
   /// counts, so panels that meet at a seam keep their own flat patterns).
   std::vector<std::array<Eigen::Vector3d, 3>> rest;
-  std::vector<double> thickness_m;          ///< reference film thickness per triangle [m]
+  std::vector<double> thickness_m;  ///< reference film thickness per triangle [m]
   /// Per triangle: 1 if the gas presses on it and it bounds the gas volume; 0 for a film
   /// inside the gas (the welded middle connection, gas on both sides).
   std::vector<char> pressurised;
-  std::vector<int> part;                    ///< label per triangle (face id, for output)
-  std::vector<std::array<bool, 3>> fixed;   ///< per node: x, y, z held at the initial position
+  std::vector<int> part;                   ///< label per triangle (face id, for output)
+  std::vector<std::array<bool, 3>> fixed;  ///< per node: x, y, z held at the initial position
 
   int nodeCount() const { return static_cast<int>(initial.cols()); }
   int triangleCount() const { return static_cast<int>(triangles.size()); }

@@ -19,7 +19,7 @@ namespace fe {
 struct PressureControl {
   double gauge_pressure_pa = 0.0;
   double target_volume_m3 = std::numeric_limits<double>::quiet_NaN();
-  double volume_stiffness_pa = 0.0;                          ///< K
+  double volume_stiffness_pa = 0.0;                              ///< K
   Eigen::Vector3d volume_axes = Eigen::Vector3d(1.0, 0.0, 0.0);  ///< enclosedVolume weights
 
   bool volumeControlled() const { return std::isfinite(target_volume_m3); }
@@ -27,8 +27,8 @@ struct PressureControl {
 };
 
 struct RelaxOptions {
-  double tolerance = 2.0e-4;        ///< RMS nodal residual / (p_scale * mean nodal area) [-]
-  double pressure_floor_pa = 500.0; ///< p_scale = max(|p|, this) [Pa]
+  double tolerance = 2.0e-4;         ///< RMS nodal residual / (p_scale * mean nodal area) [-]
+  double pressure_floor_pa = 500.0;  ///< p_scale = max(|p|, this) [Pa]
   int max_iterations = 200000;
   int min_iterations = 100;
   /// Plate mass during the relaxation, times the film mass (a fictitious mass: only the
@@ -44,13 +44,13 @@ struct RelaxOptions {
 
 struct RelaxResult {
   bool converged = false;
-  std::string message;              ///< why it stopped (always set)
+  std::string message;  ///< why it stopped (always set)
   int iterations = 0;
   double gauge_pressure_pa = 0.0;
   double volume_m3 = 0.0;
   double plate_height_m = 0.0;
-  double plate_force_n = 0.0;       ///< film on plate
-  double residual = 0.0;            ///< final relative residual
+  double plate_force_n = 0.0;  ///< film on plate
+  double residual = 0.0;       ///< final relative residual
   ForceSummary forces;
 };
 

@@ -25,7 +25,7 @@ double spherePressureExact(const YeohMaterial& m, double thickness_m, double rad
 double tubePressureExact(const YeohMaterial& m, double thickness_m, double radius_m, double stretch);
 
 struct VerificationPoint {
-  double stretch = 1.0;            ///< FE stretch from the volume (sphere: (V/V0)^1/3, tube: (V/V0)^1/2)
+  double stretch = 1.0;  ///< FE stretch from the volume (sphere: (V/V0)^1/3, tube: (V/V0)^1/2)
   double fe_pressure_pa = 0.0;
   double exact_pressure_pa = 0.0;  ///< closed form at the FE stretch
   double relative_error = 0.0;
@@ -40,8 +40,8 @@ struct VerificationCase {
   double radius_m = 0.05;
   double thickness_m = 0.5e-3;
   double tube_length_m = 0.02;
-  int resolution = 3;              ///< sphere: subdivisions; tube: cells around (along: 2)
-  std::vector<double> stretches;   ///< volume-controlled targets
+  int resolution = 3;             ///< sphere: subdivisions; tube: cells around (along: 2)
+  std::vector<double> stretches;  ///< volume-controlled targets
 
   /// Success, or what is wrong (names the field).
   Status validate() const;

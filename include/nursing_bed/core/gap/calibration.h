@@ -76,17 +76,17 @@ struct CalibratedParam {
 
 /// What calibration found, for report.json's `calibration` block (doc/formats/gap_report.md).
 struct CalibrationSummary {
-  bool done = false;                       ///< calibration ran
+  bool done = false;                        ///< calibration ran
   std::vector<CalibratedParam> parameters;  ///< every parameter fitted
   std::vector<std::string> correlation_names;
-  Eigen::MatrixXd correlation;              ///< of the fitted values
+  Eigen::MatrixXd correlation;  ///< of the fitted values
   std::vector<std::vector<std::string>> unidentifiable;
-  double chi2 = NAN;                         ///< fit runs, the calibrated model (moved parameters only)
-  double bic_delta = 0.0;                    ///< against the nominal model (0 when nothing moved)
-  double withheld_chi2_per_sample = NAN;     ///< calibrated model, whitened, withheld runs
+  double chi2 = NAN;                             ///< fit runs, the calibrated model (moved parameters only)
+  double bic_delta = 0.0;                        ///< against the nominal model (0 when nothing moved)
+  double withheld_chi2_per_sample = NAN;         ///< calibrated model, whitened, withheld runs
   double fit_nrmse = NAN, withheld_nrmse = NAN;  ///< calibrated model alone
   std::string file = "calibrated_airbag.yaml";
-  std::vector<std::string> notes;            ///< what the runs cannot tell, in words
+  std::vector<std::string> notes;  ///< what the runs cannot tell, in words
   std::map<std::string, double> movedValues() const;
   bool anyMoved() const { return !movedValues().empty(); }
 };

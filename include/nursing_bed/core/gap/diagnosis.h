@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/replay.h"
 #include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/physics/cell_model.h"
 
 namespace nursing_bed {
 
@@ -89,8 +89,8 @@ struct DiagnosisOptions {
 
 /// One fitted model: nominal plus `effects`.
 struct CandidateFit {
-  std::vector<std::string> effects;       ///< canonical names, catalogue order
-  std::map<std::string, double> params;   ///< fitted parameters (SI, catalogue keys)
+  std::vector<std::string> effects;      ///< canonical names, catalogue order
+  std::map<std::string, double> params;  ///< fitted parameters (SI, catalogue keys)
   /// Calibrated cell parameters this model was fitted with (moved ones; calibration.h names).
   std::map<std::string, double> calibration;
   bool joint = false;                     ///< refitted with the calibrated parameters free
@@ -131,18 +131,18 @@ struct DiagnosisReport {
   bool roles_chosen = false;  ///< true: no roles were given, the diagnosis chose them
   double noise_p_pa = 0.0, noise_h_m = 0.0;
   std::vector<GapShare> localization;
-  double nominal_chi2_per_sample = 0.0;   ///< fit runs, in noise-floor units
+  double nominal_chi2_per_sample = 0.0;  ///< fit runs, in noise-floor units
   double nominal_fit_nrmse = 0.0;
   double nominal_withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs (NaN: none)
-  int fit_samples = 0;                    ///< residuals in the fits (both signals)
-  std::vector<CandidateFit> candidates;   ///< best (lowest BIC) first
-  CalibrationSummary calibration;          ///< the verdict model's calibration
-  std::string calibrated_yaml;            ///< the complete calibrated parameter file (calibration.file)
-  bool pressure_only = false;             ///< no run has a height reading
-  std::string status;                     ///< none, calibrated, explained, unexplained
+  int fit_samples = 0;                            ///< residuals in the fits (both signals)
+  std::vector<CandidateFit> candidates;           ///< best (lowest BIC) first
+  CalibrationSummary calibration;                 ///< the verdict model's calibration
+  std::string calibrated_yaml;                    ///< the complete calibrated parameter file (calibration.file)
+  bool pressure_only = false;                     ///< no run has a height reading
+  std::string status;                             ///< none, calibrated, explained, unexplained
   std::vector<std::string> verdict_effects;
   std::map<std::string, double> verdict_params;
-  std::vector<std::string> reasons;       ///< the decision in words, one line each
+  std::vector<std::string> reasons;  ///< the decision in words, one line each
   // Shrinkage on the withheld runs: nominal vs verdict model (equal when nothing is named).
   double withheld_before = 0.0, withheld_after = 0.0;
   double withheld_p_before = 0.0, withheld_p_after = 0.0, withheld_h_before = 0.0, withheld_h_after = 0.0;

@@ -51,14 +51,14 @@ std::vector<std::string> candidateList(const DiagnosisOptions& options);
 
 /// The nominal replay of every run; fills `report`'s runs (before), noise and localization.
 /// Throws std::invalid_argument with the replay's message when one fails.
-std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams& params, const DiagnosisOptions& options,
-                                  DiagnosisReport* report);
+std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams& params,
+                                  const DiagnosisOptions& options, DiagnosisReport* report);
 
 /// Fit and withheld runs prepared for the fits, and the nominal model's score on them.
 struct NoiseModel {
-  FitData fit, held;     ///< fit.params: the cell with the fit's integration settings
-  double chi2_nominal = 0.0;                  ///< fit runs, whitened, summed
-  double withheld_chi2_per_sample = NAN;      ///< NaN: nothing withheld
+  FitData fit, held;                      ///< fit.params: the cell with the fit's integration settings
+  double chi2_nominal = 0.0;              ///< fit runs, whitened, summed
+  double withheld_chi2_per_sample = NAN;  ///< NaN: nothing withheld
   /// The model the candidates are compared with: the nominal one, or after rebaseNoiseModel()
   /// the calibrated one (these calibrated values, its chi2 on the fit and withheld runs).
   std::map<std::string, double> baseline_calibration;
@@ -106,11 +106,11 @@ std::vector<std::pair<int, int>> pairsToFit(const std::vector<ModelFit>& fits, c
 /// A model fitted with calibrated cell parameters (alone, or with effects) and the judgement of
 /// each calibrated parameter.
 struct CalibrationFit {
-  ModelFit fit;                  ///< every requested parameter free
-  CalibrationSummary summary;    ///< moved parameters at their values, the others nominal
-  ModelSpec moved_model;         ///< the moved calibration parameters (and the effects) only
-  std::vector<double> moved_u;   ///< their fit (equals fit when every parameter moved)
-  double moved_chi2 = NAN;       ///< fit runs, whitened, summed: the calibrated model
+  ModelFit fit;                 ///< every requested parameter free
+  CalibrationSummary summary;   ///< moved parameters at their values, the others nominal
+  ModelSpec moved_model;        ///< the moved calibration parameters (and the effects) only
+  std::vector<double> moved_u;  ///< their fit (equals fit when every parameter moved)
+  double moved_chi2 = NAN;      ///< fit runs, whitened, summed: the calibrated model
 };
 
 /// Standard errors (Ceres covariance, scaled by chi2/n where above 1), correlations, the groups
@@ -178,8 +178,7 @@ struct JointRefits {
 JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
                              std::size_t effects, int pool, const DiagnosisOptions& options,
                              const std::function<void(const std::string&)>& progress,
-                             const std::set<std::string>& also = {},
-                             const std::vector<ModelFit>& uncalibrated = {});
+                             const std::set<std::string>& also = {}, const std::vector<ModelFit>& uncalibrated = {});
 
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
 /// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,

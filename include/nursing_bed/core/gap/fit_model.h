@@ -66,15 +66,15 @@ std::string joinNames(const std::vector<std::string>& names, const char* sep = "
 struct FitData {
   struct Run {
     const RunData* data = nullptr;
-    std::vector<std::size_t> index;   ///< samples used
-    std::vector<double> sigma_p_pa;   ///< noise floor at those samples (its diagonal)
+    std::vector<std::size_t> index;  ///< samples used
+    std::vector<double> sigma_p_pa;  ///< noise floor at those samples (its diagonal)
     std::vector<double> sigma_h_m;
     /// Cholesky factor of the correlation of the floor-scaled residuals [p0, h0, p1, h1, ...]:
     /// the integrated flow-meter noise is one random walk of the gas mass, shared by all
     /// samples after it, so those residuals are correlated; the fit whitens them with it.
     Eigen::MatrixXd correlation_cholesky;
-    long max_substeps = 0;            ///< integration budget of one replay (see replayRun)
-    bool has_height = true;           ///< false: no height sensor; its residual slots stay 0
+    long max_substeps = 0;   ///< integration budget of one replay (see replayRun)
+    bool has_height = true;  ///< false: no height sensor; its residual slots stay 0
   };
   std::vector<Run> runs;
   CellParams params;  ///< with the fit's integration settings
@@ -106,7 +106,7 @@ struct FitOutcome {
   std::vector<double> u;  ///< best fit coordinates
   double chi2 = NAN;      ///< whitened, summed, at u
   bool ok = false;
-  int evaluations = 0;    ///< replays of the fit-run set
+  int evaluations = 0;  ///< replays of the fit-run set
   std::string message;
 };
 

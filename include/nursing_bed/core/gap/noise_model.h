@@ -22,8 +22,7 @@ RunNoise runNoise(const RunData& run);
 /// shaped): (replay of `changed` - `nominal`) / `unit` per sample (0 where either is not
 /// finite); false (and zeros) when the replay fails.
 bool replayResponse(const RunData& changed, const CellParams& params, const Replay& nominal, double unit,
-                    std::vector<double>* dp, std::vector<double>* dh,
-                    IntervalShape shape = IntervalShape::kSpread);
+                    std::vector<double>* dp, std::vector<double>* dh, IntervalShape shape = IntervalShape::kSpread);
 
 /// The model's sensitivity of the readings to a mass error made at the start: replays the run
 /// with a little more gas injected in its first sample interval.

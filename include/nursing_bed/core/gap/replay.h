@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/physics/cell_model.h"
 
 namespace nursing_bed {
 
@@ -33,8 +33,8 @@ struct Replay {
   std::vector<double> p_gauge_pa;  ///< simulated pressure reading (sensor effects applied) [Pa]
   std::vector<double> h_m;         ///< simulated height reading [m]
   std::vector<RunPhase> phases;
-  bool ok = true;                  ///< false: the model failed (the message says why)
-  long substeps = 0;               ///< integration sub-steps spent
+  bool ok = true;     ///< false: the model failed (the message says why)
+  long substeps = 0;  ///< integration sub-steps spent
   std::string message;
 };
 

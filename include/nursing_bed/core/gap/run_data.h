@@ -33,7 +33,7 @@ struct RunData {
   /// undone) [kg/s]
   std::vector<double> mdot_uncorrected_kg_s;
   std::vector<double> p_setpoint_gauge_pa;  ///< the pressure controller's target, gauge [Pa]
-  std::string role;                       ///< "fit", "withheld" or "" (not assigned)
+  std::string role;                         ///< "fit", "withheld" or "" (not assigned)
   /// true: mdot_in_kg_s[i] is the mean flow over the interval that ends at sample i, as a
   /// bed's AirbagState reports it (metadata "mdot_sampling: interval_mean"); a valve that
   /// opens for a few ms between samples then still moves the right gas in the right interval.

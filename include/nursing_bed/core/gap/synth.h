@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/gap/run_data.h"
+#include "nursing_bed/core/physics/cell_model.h"
 
 namespace nursing_bed {
 
@@ -95,7 +95,7 @@ struct SynthOptions {
   std::uint32_t seed = 1;
   double noise_scale = 1.0;
   std::string protocol = "standard";
-  CellParams params;                                       ///< the model's airbag (the parameter file)
+  CellParams params;  ///< the model's airbag (the parameter file)
   /// The rig's airbag differs from `params` by these (calibration names, calibration.h, or keys
   /// of the parameter table such as "structure/film_thickness_m"); recorded in truth.json.
   std::map<std::string, double> airbag_params;

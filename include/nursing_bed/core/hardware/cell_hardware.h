@@ -47,7 +47,7 @@ struct CellReadings {
   /// watchdog shuts them, so the gas kept flowing for that long (absent: taken as shut).
   StampedReading inlet_driven, vent_driven;
   LinkState link = LinkState::kOk;
-  std::string link_error;             ///< why the link is down (empty while up)
+  std::string link_error;  ///< why the link is down (empty while up)
   /// The device failed and was reset since the last read(): the cell is in its reset state
   /// (the simulated plant: its solve failed or left an invalid state and it was reset flat at
   /// rest, valves shut). A real driver may set it too (a terminal that rebooted, a cell found
@@ -78,20 +78,20 @@ struct HardwareCapabilities {
 
 /// Everything an implementation may need to configure itself; each takes what it uses.
 struct HardwareConfig {
-  std::uint32_t cell_id = 0;            ///< row * cols + col
-  double control_period_s = 0.005;      ///< the control side's period [s]
+  std::uint32_t cell_id = 0;        ///< row * cols + col
+  double control_period_s = 0.005;  ///< the control side's period [s]
   // The simulated plant (simulated hardware, and the rig emulator's cells).
   CellParams cell;
-  std::vector<CellEffectPtr> effects;   ///< hidden in the simulated plant
-  double load_n = 0.6;                  ///< initial load on the plate [N]
-  double initial_height_m = 0.0;        ///< start at rest at this height [m]
-  double cpr_vacuum_pa = -5000.0;       ///< gauge pressure at the vent while vent_to_vacuum [Pa]
-  double pressure_noise_pa = 0.0;       ///< sd of the simulated pressure sensor [Pa]
-  double height_noise_m = 0.0;          ///< sd of the simulated height sensor [m]
+  std::vector<CellEffectPtr> effects;  ///< hidden in the simulated plant
+  double load_n = 0.6;                 ///< initial load on the plate [N]
+  double initial_height_m = 0.0;       ///< start at rest at this height [m]
+  double cpr_vacuum_pa = -5000.0;      ///< gauge pressure at the vent while vent_to_vacuum [Pa]
+  double pressure_noise_pa = 0.0;      ///< sd of the simulated pressure sensor [Pa]
+  double height_noise_m = 0.0;         ///< sd of the simulated height sensor [m]
   std::uint32_t noise_seed = 1;
   // Real hardware.
-  std::string register_map_path;        ///< modbus_tcp: the register map YAML
-  std::uint32_t bed_cells = 0;          ///< cells in the bed: the map must serve each (0: not checked)
+  std::string register_map_path;  ///< modbus_tcp: the register map YAML
+  std::uint32_t bed_cells = 0;    ///< cells in the bed: the map must serve each (0: not checked)
 };
 
 class CellHardware {

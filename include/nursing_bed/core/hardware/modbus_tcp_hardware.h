@@ -61,12 +61,12 @@ class PwmChannel {
 bool transientModbusError(int error_number);
 
 struct TerminalStats {
-  long cycles = 0;             ///< completed bus cycles
-  long read_requests = 0;      ///< Modbus read requests sent
-  long write_requests = 0;     ///< Modbus write requests sent
-  long connects = 0;           ///< successful connections
-  long link_losses = 0;        ///< times the link went down
-  long failed_exchanges = 0;   ///< cycles cut short by a transient failure and retried
+  long cycles = 0;            ///< completed bus cycles
+  long read_requests = 0;     ///< Modbus read requests sent
+  long write_requests = 0;    ///< Modbus write requests sent
+  long connects = 0;          ///< successful connections
+  long link_losses = 0;       ///< times the link went down
+  long failed_exchanges = 0;  ///< cycles cut short by a transient failure and retried
 };
 
 // size: one bus thread owns the link, the register image and the valves' on-time record
@@ -126,20 +126,20 @@ class ModbusTerminal {
   _modbus* ctx_ = nullptr;
   std::vector<AddressRun> input_runs_, coil_runs_, holding_runs_;
   // Bus thread only:
-  Clock::time_point watchdog_fed_{};      // the terminal's last handled request (guarded by mutex_)
-  Clock::time_point last_exchange_;        // the last completed cycle, or the connection
-  bool flush_pending_ = false;             // a request failed: flush before the next one
-  mutable std::mutex mutex_;               // guards everything below
-  std::vector<std::uint16_t> inputs_;      // by address
-  std::vector<std::uint8_t> coils_;        // by address
-  std::vector<std::uint16_t> holding_;     // by address
-  std::vector<ValveOpenings> commands_;    // by slot
-  std::vector<PwmChannel> pwm_;            // 2 per slot: inlet, vent
+  Clock::time_point watchdog_fed_{};     // the terminal's last handled request (guarded by mutex_)
+  Clock::time_point last_exchange_;      // the last completed cycle, or the connection
+  bool flush_pending_ = false;           // a request failed: flush before the next one
+  mutable std::mutex mutex_;             // guards everything below
+  std::vector<std::uint16_t> inputs_;    // by address
+  std::vector<std::uint8_t> coils_;      // by address
+  std::vector<std::uint16_t> holding_;   // by address
+  std::vector<ValveOpenings> commands_;  // by slot
+  std::vector<PwmChannel> pwm_;          // 2 per slot: inlet, vent
   /// What the outputs drove, per slot: the openings written last, since when, and their
   /// time integral since the slot's last readings() (mutable: readings() hands it out).
   struct Driven {
     double opening[2] = {0.0, 0.0};
-    double integral_s[2] = {0.0, 0.0};   ///< on-time not yet handed out [s]
+    double integral_s[2] = {0.0, 0.0};  ///< on-time not yet handed out [s]
     Clock::time_point since, from;
     double from_caller_s = std::numeric_limits<double>::quiet_NaN();  ///< the last read's now_s
     bool started = false;

@@ -24,9 +24,9 @@ struct ValveOutput {
 
 /// One analogue input register (16-bit unsigned count): value = count * scale + offset.
 struct AnalogInput {
-  int address = -1;            ///< input register; -1: not fitted
-  double scale = 1.0;          ///< SI units per count
-  double offset = 0.0;         ///< SI value at count 0
+  int address = -1;     ///< input register; -1: not fitted
+  double scale = 1.0;   ///< SI units per count
+  double offset = 0.0;  ///< SI value at count 0
   bool present() const { return address >= 0; }
   double toValue(std::uint16_t count) const { return count * scale + offset; }
   /// The count that encodes `value` (rounded, clamped to 0..65535).
@@ -40,28 +40,28 @@ struct CellRegisters {
 };
 
 struct TerminalMap {
-  std::string name;                   ///< label in messages
+  std::string name;  ///< label in messages
   std::string host = "127.0.0.1";
   int port = 502;
   int unit_id = 1;
-  double response_timeout_s = 0.05;   ///< a request unanswered this long fails (and is retried next cycle)
+  double response_timeout_s = 0.05;  ///< a request unanswered this long fails (and is retried next cycle)
   /// The link goes down when no bus cycle has completed for this long (a closed connection:
   /// at once). Must exceed response_timeout_s + cycle_s, so that one unanswered request
   /// alone never takes the link down, and with them stay within 0.5 s, the time in which the
   /// cells of a silent terminal report a communication fault.
   double link_loss_after_s = 0.2;
-  double reconnect_interval_s = 0.25; ///< time between reconnection attempts
+  double reconnect_interval_s = 0.25;  ///< time between reconnection attempts
   /// The terminal's output watchdog: with no request for this long it shuts every output. Until
   /// then, over a lost link, the outputs hold their last written state (and pass gas).
   double watchdog_s = 0.1;
-  double cycle_s = 0.005;             ///< bus cycle: one batched read and write of every cell
-  double stale_after_s = 0.2;         ///< a reading older than this is a sensor fault
+  double cycle_s = 0.005;      ///< bus cycle: one batched read and write of every cell
+  double stale_after_s = 0.2;  ///< a reading older than this is a sensor fault
   /// SCHED_FIFO priority (1-99) of the bus thread serving this terminal, and of the rig
   /// emulator's server standing in for it (a terminal answers in deterministic time); 0: the
   /// normal scheduler. Refused by the system (no CAP_SYS_NICE), the thread runs normally and
   /// the cells' hardware says so (CellHardware::warning).
   int realtime_priority = 0;
-  AnalogInput supply_pressure_pa;     ///< optional supply pressure input
+  AnalogInput supply_pressure_pa;  ///< optional supply pressure input
   std::vector<CellRegisters> cells;
   std::string endpoint() const { return host + ":" + std::to_string(port) + " unit " + std::to_string(unit_id); }
 };

@@ -13,9 +13,9 @@ namespace nursing_bed {
 
 /// What a rig adds to the ideal sensors and valves (all off by default: today's simulation).
 struct RigImperfections {
-  double adc_step_pa = 0.0;          ///< pressure input quantisation step [Pa]; 0 = none
-  double valve_dead_time_s = 0.0;    ///< a command reaches the valve this late [s]
-  bool height_sensor = true;         ///< the simulated cell reports its height
+  double adc_step_pa = 0.0;        ///< pressure input quantisation step [Pa]; 0 = none
+  double valve_dead_time_s = 0.0;  ///< a command reaches the valve this late [s]
+  bool height_sensor = true;       ///< the simulated cell reports its height
 };
 
 // size: the hardware boundary plus the simulated plant's own inputs, views and fault reset
@@ -72,7 +72,7 @@ class SimulatedCellHardware : public CellHardware {
   double load_n_ = 0.6;
   double supply_pressure_pa_ = 0.0;
   ValveOpenings commanded_, acting_;
-  std::deque<ValveOpenings> valve_line_;  ///< commands on their way (dead time)
+  std::deque<ValveOpenings> valve_line_;      ///< commands on their way (dead time)
   Readings measurement_{0.0, 0.0, 0.0, 0.0};  ///< zeros until the first reading
   bool sensor_failed_ = false;
   bool device_reset_ = false;  ///< reported by (and cleared by) the next read()

@@ -16,9 +16,9 @@ namespace nursing_bed {
 
 template <typename Params>
 struct ParamField {
-  std::string key;           ///< "group/name_unit", e.g. "structure/film_thickness_m"
-  std::string description;   ///< meaning and unit
-  bool integer = false;      ///< must be a whole number
+  std::string key;          ///< "group/name_unit", e.g. "structure/film_thickness_m"
+  std::string description;  ///< meaning and unit
+  bool integer = false;     ///< must be a whole number
   std::function<double(const Params&)> get;
   std::function<void(Params&, double)> set;
 };
@@ -65,7 +65,7 @@ void appendNested(ParamTable<Outer>* outer, const ParamTable<Inner>& inner, cons
 struct FlatValue {
   bool numeric = false;
   double value = 0.0;
-  std::string text;   ///< the value as written, for messages
+  std::string text;  ///< the value as written, for messages
 };
 using FlatParams = std::map<std::string, FlatValue>;
 

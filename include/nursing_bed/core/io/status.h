@@ -21,9 +21,7 @@ class Status {
 
   /// Success when `message` is empty, else an error with it: for checks that still report an
   /// empty string for success.
-  static Status fromMessage(std::string message) {
-    return message.empty() ? success() : error(std::move(message));
-  }
+  static Status fromMessage(std::string message) { return message.empty() ? success() : error(std::move(message)); }
 
   bool ok() const { return ok_; }
   explicit operator bool() const { return ok_; }

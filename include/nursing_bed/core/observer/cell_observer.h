@@ -25,19 +25,19 @@ namespace nursing_bed {
 /// Tuning of the observer. Defaults fit the nominal cell at a 5 ms period with a 12-bit pressure
 /// input (doc/real_bed.md, "Observer").
 struct CellObserverParams {
-  double period_s = 0.005;                 ///< one step [s]
-  double pressure_noise_pa = 15.0;         ///< sd of a pressure reading until the still gas's readings measured it [Pa]
-  double height_noise_m = 0.0005;          ///< sd of a height reading, where there is one [m]
-  double flow_uncertainty = 0.02;          ///< relative sd of the modelled valve and leak flows over 1 s [-]
-  double mass_walk_kg_sqrt_s = 2.0e-8;     ///< random walk of the gas mass (unmodelled leaks) [kg/sqrt(s)]
-  double heat_walk_w_sqrt_s = 0.02;        ///< random walk of the gas energy (unmodelled heat) [J/sqrt(s)]
-  double load_filter_time_s = 0.3;         ///< time constant of the load estimate (p A_eff) [s]
-  double initial_load_sd_n = 10.0;         ///< sd of the load guess at reset [N]
-  double valve_dead_time_s = 0.0;          ///< a valve command acts this late (bus and valve) [s]
+  double period_s = 0.005;              ///< one step [s]
+  double pressure_noise_pa = 15.0;      ///< sd of a pressure reading until the still gas's readings measured it [Pa]
+  double height_noise_m = 0.0005;       ///< sd of a height reading, where there is one [m]
+  double flow_uncertainty = 0.02;       ///< relative sd of the modelled valve and leak flows over 1 s [-]
+  double mass_walk_kg_sqrt_s = 2.0e-8;  ///< random walk of the gas mass (unmodelled leaks) [kg/sqrt(s)]
+  double heat_walk_w_sqrt_s = 0.02;     ///< random walk of the gas energy (unmodelled heat) [J/sqrt(s)]
+  double load_filter_time_s = 0.3;      ///< time constant of the load estimate (p A_eff) [s]
+  double initial_load_sd_n = 10.0;      ///< sd of the load guess at reset [N]
+  double valve_dead_time_s = 0.0;       ///< a valve command acts this late (bus and valve) [s]
   /// |mean gauge pressure| under which a venting cell is flat [Pa]; at most half the pressure
   /// at which the plate alone rests lifted (the model's, found at construction).
   double reanchor_pressure_pa = 60.0;
-  double reanchor_time_s = 0.5;            ///< inlet shut and that flat (mean pressure) this long: re-anchor [s]
+  double reanchor_time_s = 0.5;  ///< inlet shut and that flat (mean pressure) this long: re-anchor [s]
   /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
@@ -59,12 +59,12 @@ struct CellEstimate {
   double velocity_m_s = 0.0;
   double mass_kg = 0.0, mass_sd_kg = 0.0;
   double load_n = 0.0, load_sd_n = 0.0;
-  double gauge_pressure_pa = 0.0;          ///< model pressure at the estimate
+  double gauge_pressure_pa = 0.0;  ///< model pressure at the estimate
   double temperature_k = 0.0;
   double volume_m3 = 0.0;
-  int reanchors = 0;                       ///< how often the mass was re-anchored on a flat cell
-  int weight_bounds = 0;                   ///< how often the plate's weight bounded the height
-  double pressure_noise_pa = 0.0;          ///< the readings' sd as measured (ReadingNoise) [Pa]
+  int reanchors = 0;               ///< how often the mass was re-anchored on a flat cell
+  int weight_bounds = 0;           ///< how often the plate's weight bounded the height
+  double pressure_noise_pa = 0.0;  ///< the readings' sd as measured (ReadingNoise) [Pa]
 };
 
 /**
@@ -106,7 +106,8 @@ class CellObserver {
   using Matrix2 = Eigen::Matrix2d;
 
   /// Throws std::invalid_argument naming what is wrong in either parameter set.
-  CellObserver(const CellParams& model, const CellObserverParams& params, const std::vector<CellEffectPtr>& effects = {});
+  CellObserver(const CellParams& model, const CellObserverParams& params,
+               const std::vector<CellEffectPtr>& effects = {});
 
   /// Flat cell at ambient, load guess `load_n` with sd initial_load_sd_n; the supply line at
   /// its setting (a bed's supply runs before its cells are controlled).
@@ -184,23 +185,23 @@ class CellObserver {
   void takeInputs(const ObserverInputs& inputs, double dt);
 
   CellObserverParams params_;
-  CellModel model_;          ///< the cell's physics (flows, effects, structure); resets
+  CellModel model_;  ///< the cell's physics (flows, effects, structure); resets
   double gamma_;
   double time_ = 0.0;
-  Vector x_;                 ///< model state at the estimate
-  Matrix2 p_;                ///< covariance of (m, U)
+  Vector x_;   ///< model state at the estimate
+  Matrix2 p_;  ///< covariance of (m, U)
   double load_n_ = 0.6, load_var_n2_ = 0.0;
   double height_sd_m_ = 0.0;
   double volume_slope_m2_ = 0.01;  ///< dV/dh with the film relaxed, at the estimate
-  CellVariables vars_;       ///< variables at the current estimate
-  ValveDelayLine delay_;     ///< the commands until they act (valve_dead_time_s)
-  ObserverInputs applied_;   ///< the inputs acting over the last period
+  CellVariables vars_;             ///< variables at the current estimate
+  ValveDelayLine delay_;           ///< the commands until they act (valve_dead_time_s)
+  ObserverInputs applied_;         ///< the inputs acting over the last period
   double last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< the last reading
   double flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< see flowPressure
-  ReanchorDetector reanchor_;  ///< the flat-cell test
+  ReanchorDetector reanchor_;                                           ///< the flat-cell test
   int reanchors_ = 0;
   double unstretched_top_m_ = 0.0;  ///< the structure's height limit with the film at rest
-  WeightBound weight_bound_;    ///< the plate alone's rests and the quiet windows
+  WeightBound weight_bound_;        ///< the plate alone's rests and the quiet windows
   int weight_bounds_ = 0;
   ReadingNoise reading_noise_;  ///< kept over resets: the sensor's, not the gas's
   double still_s_ = 0.0;        ///< both valves shut this long, for the noise [s]
@@ -209,10 +210,10 @@ class CellObserver {
 /// Height errors (true minus estimated) accumulated over a run: RMS and worst.
 struct ObserverErrorStats {
   double sum_sq_m2 = 0.0;
-  double max_abs_m = 0.0;    ///< largest |true - estimated| height [m]
+  double max_abs_m = 0.0;  ///< largest |true - estimated| height [m]
   long samples = 0;
   void add(double error_m);
-  double rmsM() const;       ///< RMS error [m] (0 without samples)
+  double rmsM() const;  ///< RMS error [m] (0 without samples)
 };
 
 }  // namespace nursing_bed

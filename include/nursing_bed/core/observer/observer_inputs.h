@@ -15,7 +15,7 @@ struct ObserverInputs {
   /// Inlet and vent openings 0..1, means over the period (vent_to_vacuum is not read: the vent
   /// outlet is vent_back_pressure_pa).
   ValveOpenings valves;
-  double vent_back_pressure_pa = 0.0;      ///< gauge pressure at the vent outlet (CPR vacuum < 0)
+  double vent_back_pressure_pa = 0.0;  ///< gauge pressure at the vent outlet (CPR vacuum < 0)
   /// Regulator setting, gauge; NaN: the cell parameters' setting.
   double supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
   /// The regulator outlet's gauge pressure where the hardware measures it (NaN: not measured;

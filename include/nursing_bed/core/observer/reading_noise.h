@@ -54,7 +54,8 @@ class ReadingNoise {
   int block_readings_;
   double block_sum_ = 0.0;
   int block_count_ = 0;
-  double block_last_ = std::numeric_limits<double>::quiet_NaN(), block_before_last_ = std::numeric_limits<double>::quiet_NaN();
+  double block_last_ = std::numeric_limits<double>::quiet_NaN(),
+         block_before_last_ = std::numeric_limits<double>::quiet_NaN();
   double sum_block_var_ = 0.0, block_differences_ = 0.0;  ///< of the block means: d2^2 / 6 summed, and their count
 };
 

@@ -24,41 +24,41 @@ struct CellParams {
   GasProperties gas;
   double ambient_pressure_pa = kAtmosphericPressurePa;
   double ambient_temperature_k = kRoomTemperatureK;
-  double supply_temperature_k = kRoomTemperatureK;   ///< temperature of the supplied air
+  double supply_temperature_k = kRoomTemperatureK;  ///< temperature of the supplied air
 
-  PillowParams structure;                             ///< geometry and film
+  PillowParams structure;  ///< geometry and film
   /// Structure model: "pillow" (PillowStructure from `structure`), "table" (a
   /// TabulatedStructure read from structure_table_file, e.g. written by fe_airbag; the film
   /// shape then relaxes in structure.film_relaxation_time_s) or "bellows" (from `bellows`).
   std::string structure_type = "pillow";
-  BellowsParams bellows;                              ///< used when structure_type is "bellows"
-  std::string structure_table_file;                   ///< table path (YAML keys structure/type, structure/table_file)
+  BellowsParams bellows;             ///< used when structure_type is "bellows"
+  std::string structure_table_file;  ///< table path (YAML keys structure/type, structure/table_file)
 
-  double plate_mass_kg = 0.6 / kGravity;              ///< loading plate (0.6 N, paper section 2.2)
-  double plate_damping_n_s_m = 20.0;                  ///< viscous damping of the plate guide
-  double bed_contact_stiffness_n_m = 2.0e5;           ///< folded film stack under a bottomed plate
+  double plate_mass_kg = 0.6 / kGravity;     ///< loading plate (0.6 N, paper section 2.2)
+  double plate_damping_n_s_m = 20.0;         ///< viscous damping of the plate guide
+  double bed_contact_stiffness_n_m = 2.0e5;  ///< folded film stack under a bottomed plate
   double bed_contact_damping_n_s_m = 100.0;
 
-  double supply_pressure_pa = 20.0e3;                 ///< pressure-reducing valve setting (gauge)
-  double regulator_time_constant_s = 1.2;             ///< first-order response of that valve's outlet
-  double inlet_area_m2 = 1.5e-5;                      ///< effective area Cd*A of the open inlet valve
-  double vent_area_m2 = 1.5e-5;                       ///< effective area Cd*A of the open vent valve
-  double leak_area_m2 = 0.0;                          ///< effective area of seams/film leakage (eq. 17)
-  double orifice_linear_band_pa = 100.0;              ///< smoothing band of orifice flow near dp = 0
+  double supply_pressure_pa = 20.0e3;      ///< pressure-reducing valve setting (gauge)
+  double regulator_time_constant_s = 1.2;  ///< first-order response of that valve's outlet
+  double inlet_area_m2 = 1.5e-5;           ///< effective area Cd*A of the open inlet valve
+  double vent_area_m2 = 1.5e-5;            ///< effective area Cd*A of the open vent valve
+  double leak_area_m2 = 0.0;               ///< effective area of seams/film leakage (eq. 17)
+  double orifice_linear_band_pa = 100.0;   ///< smoothing band of orifice flow near dp = 0
   /// Spring-loaded relief valve to ambient, beside the vent: closed below the cracking pressure,
   /// opening in proportion to the gauge pressure up to fully open, flow after ISO 6358. It caps
   /// the pressure a sudden outside load drives the gas to (the controller's relief acts through
   /// the vent, which an outside load can outrun).
-  double relief_cracking_pressure_pa = 34000.0;       ///< gauge pressure where it starts to open
-  double relief_full_open_pressure_pa = 37000.0;      ///< gauge pressure where it is fully open
-  double relief_sonic_conductance_m3_s_pa = 1.5e-7;   ///< ISO 6358 C of the open valve; 0 = none
-  double relief_critical_ratio = 0.3;                 ///< ISO 6358 b [-]
+  double relief_cracking_pressure_pa = 34000.0;      ///< gauge pressure where it starts to open
+  double relief_full_open_pressure_pa = 37000.0;     ///< gauge pressure where it is fully open
+  double relief_sonic_conductance_m3_s_pa = 1.5e-7;  ///< ISO 6358 C of the open valve; 0 = none
+  double relief_critical_ratio = 0.3;                ///< ISO 6358 b [-]
   /// Opening 0..1 of the relief valve at `gauge_pressure_pa`.
   double reliefOpening(double gauge_pressure_pa) const;
 
-  double time_step_s = 2.0e-3;                        ///< default (and largest) integration step
-  int jacobian_refresh_steps = 8;                     ///< accepted steps between Jacobian updates
-  double relative_tolerance = 1.0e-4;                 ///< local error control of the sub-steps
+  double time_step_s = 2.0e-3;         ///< default (and largest) integration step
+  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates
+  double relative_tolerance = 1.0e-4;  ///< local error control of the sub-steps
 
   /// Empty when valid, else every problem found, separated by "; ".
   std::string validate() const;
@@ -66,12 +66,12 @@ struct CellParams {
 
 /// Commands and boundary conditions, held over a step.
 struct CellInputs {
-  double inlet_opening = 0.0;   ///< inlet valve opening 0 (closed) .. 1 (open); proportional
-  double vent_opening = 0.0;    ///< vent valve opening 0 .. 1
+  double inlet_opening = 0.0;  ///< inlet valve opening 0 (closed) .. 1 (open); proportional
+  double vent_opening = 0.0;   ///< vent valve opening 0 .. 1
   /// Gauge pressure at the vent's outlet: 0 vents to ambient; < 0 is a vacuum source (the
   /// vacuum-assisted rapid deflation of CPR mattresses).
   double vent_back_pressure_pa = 0.0;
-  double load_n = 0.6;          ///< external vertical load on the plate, plate weight included
+  double load_n = 0.6;  ///< external vertical load on the plate, plate weight included
   /// Pressure-reducing valve setting (gauge); NaN uses CellParams::supply_pressure_pa.
   double supply_pressure_pa = std::numeric_limits<double>::quiet_NaN();
   /// When set, the inlet mass flow is this series [kg/s vs s] (a measured curve, the paper's
@@ -158,8 +158,7 @@ class CellModel {
   /// True when two input sets would give the same right-hand side.
   static bool sameInputs(const CellInputs& a, const CellInputs& b);
   /// Right-hand side dx/dt at (t, x); fills `vars` when non-null.
-  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs,
-                   CellVariables* vars = nullptr) const;
+  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars = nullptr) const;
 
  private:
   void refreshVariables(const CellInputs& inputs);
@@ -178,15 +177,15 @@ class CellModel {
   CellInputs last_inputs_;
   // W-method bookkeeping.
   StateMatrix jacobian_;
-  bool jacobian_fresh_ = false;       // computed at the current state
+  bool jacobian_fresh_ = false;  // computed at the current state
   int steps_since_jacobian_ = 1 << 30;
-  double lu_dt_ = 0.0;                // step size the factorisation was made for
+  double lu_dt_ = 0.0;  // step size the factorisation was made for
   Eigen::PartialPivLU<StateMatrix> lu_;
-  StateVector scale_;                 // typical magnitude of each state (FD increments, tolerances)
-  double substep_s_ = 0.0;            // last accepted sub-step size
+  StateVector scale_;       // typical magnitude of each state (FD increments, tolerances)
+  double substep_s_ = 0.0;  // last accepted sub-step size
   long substeps_ = 0;
   long substep_budget_ = 0;
-  StateVector rate_at_state_;         // dx/dt at (time_, state_, last_inputs_), kept with vars_
+  StateVector rate_at_state_;  // dx/dt at (time_, state_, last_inputs_), kept with vars_
 };
 
 }  // namespace nursing_bed

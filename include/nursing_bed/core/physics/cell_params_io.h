@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/io/param_table.h"
+#include "nursing_bed/core/physics/cell_model.h"
 
 namespace nursing_bed {
 

@@ -18,15 +18,15 @@ constexpr int kMaxShapeDofs = 4;
  * the film stores sum_i dW/dq_i dq_i.
  */
 struct StructureEval {
-  double volume_m3 = 0.0;               ///< gas volume, dead volume included (paper eq. 11)
-  double effective_area_m2 = 0.0;       ///< dV/dh at fixed shape; plate force = p_gauge * this
+  double volume_m3 = 0.0;                              ///< gas volume, dead volume included (paper eq. 11)
+  double effective_area_m2 = 0.0;                      ///< dV/dh at fixed shape; plate force = p_gauge * this
   std::array<double, kMaxShapeDofs> dvolume_dshape{};  ///< dV/dq_i [m^3 per unit q_i]
   std::array<double, kMaxShapeDofs> elastic_force{};   ///< dW/dq_i of the film energy [J per unit q_i]
   std::array<double, kMaxShapeDofs> shape_damping{};   ///< viscous resistance of q_i [J s per unit q_i^2]
-  double contact_area_m2 = 0.0;         ///< flat film area pressed against the plate
-  double surface_area_m2 = 0.0;         ///< wetted inner film area (heat exchange)
-  double film_stretch = 1.0;            ///< representative film stretch [-]
-  double film_tension_n_m = 0.0;        ///< film tension per unit current length [N/m]
+  double contact_area_m2 = 0.0;                        ///< flat film area pressed against the plate
+  double surface_area_m2 = 0.0;                        ///< wetted inner film area (heat exchange)
+  double film_stretch = 1.0;                           ///< representative film stretch [-]
+  double film_tension_n_m = 0.0;                       ///< film tension per unit current length [N/m]
   /// The structure's own force on the plate besides the gas's, + upward (a bellows' spring) [N]
   double plate_force_n = 0.0;
 };

@@ -31,8 +31,7 @@ inline double temperatureFromEnergy(const GasProperties& gas, double internal_en
 }
 
 /// Mass of gas at absolute pressure p, temperature T in volume V (ideal gas law).
-inline double massFromState(const GasProperties& gas, double pressure_pa, double temperature_k,
-                            double volume_m3) {
+inline double massFromState(const GasProperties& gas, double pressure_pa, double temperature_k, double volume_m3) {
   return pressure_pa * volume_m3 / (gas.gas_constant_j_kg_k * temperature_k);
 }
 

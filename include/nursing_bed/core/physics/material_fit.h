@@ -48,19 +48,19 @@ struct YeohFitOptions {
 
 /// A Yeoh fit and its quality.
 struct YeohFit {
-  YeohMaterial material;          ///< fitted C10, C20, C30 [Pa]
-  double c10_stderr_pa = 0.0;     ///< standard error of C10 [Pa]
-  double c20_stderr_pa = 0.0;     ///< standard error of C20 [Pa]
-  double c30_stderr_pa = 0.0;     ///< standard error of C30 [Pa]
-  double r_squared = 0.0;         ///< coefficient of determination [-]; NaN if stress is constant
-  double rms_residual_pa = 0.0;   ///< sqrt(mean squared residual) [Pa]
+  YeohMaterial material;             ///< fitted C10, C20, C30 [Pa]
+  double c10_stderr_pa = 0.0;        ///< standard error of C10 [Pa]
+  double c20_stderr_pa = 0.0;        ///< standard error of C20 [Pa]
+  double c30_stderr_pa = 0.0;        ///< standard error of C30 [Pa]
+  double r_squared = 0.0;            ///< coefficient of determination [-]; NaN if stress is constant
+  double rms_residual_pa = 0.0;      ///< sqrt(mean squared residual) [Pa]
   double max_abs_residual_pa = 0.0;  ///< largest |measured - fitted| [Pa]
   /// sqrt(mean((residual / max(|measured|, floor))^2)) with the kRelative floor [-]
   double rms_relative_residual = 0.0;
   std::size_t num_points = 0;
-  double min_stretch = 0.0;       ///< range of the data, i.e. where the fit is valid [-]
+  double min_stretch = 0.0;  ///< range of the data, i.e. where the fit is valid [-]
   double max_stretch = 0.0;
-  std::string validation;         ///< material.validate(): empty when the constants are usable
+  std::string validation;                            ///< material.validate(): empty when the constants are usable
   FitWeighting weighting = FitWeighting::kRelative;  ///< how the residuals were weighted
 };
 

@@ -8,7 +8,7 @@ namespace nursing_bed {
 
 /// Mass flow through an orifice.
 struct OrificeFlow {
-  double mass_flow_kg_s = 0.0;    ///< positive from side a to side b [kg/s]
+  double mass_flow_kg_s = 0.0;          ///< positive from side a to side b [kg/s]
   double upstream_temperature_k = 0.0;  ///< stagnation temperature the flow carries [K]
   bool choked = false;
 };
@@ -27,12 +27,11 @@ struct OrificeFlow {
  * band edge: monotone, C1, and exactly the isentropic law outside the band.
  */
 OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, double pressure_a_pa,
-                        double temperature_a_k, double pressure_b_pa, double temperature_b_k,
-                        double linear_band_pa);
+                        double temperature_a_k, double pressure_b_pa, double temperature_b_k, double linear_band_pa);
 
 /// The unsmoothed isentropic law from upstream (p_up, T_up) to p_down <= p_up [kg/s].
-double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa,
-                          double t_up_k, double p_down_pa);
+double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa, double t_up_k,
+                          double p_down_pa);
 
 /// Reference density and temperature of ISO 6358's standard reference atmosphere (ANR).
 constexpr double kIso6358ReferenceDensityKgM3 = 1.185;

@@ -32,10 +32,10 @@ TimeSeries paperShapedInflow(double total_mass_kg, double peak_time_s = 1.0, dou
 /// `inflation_end_s`, then closed.
 struct InflationSetup {
   double load_n = 0.6;
-  double valve_pressure_pa = 20.0e3;    ///< regulator setting, gauge
-  double inflation_end_s = 5.5;         ///< inlet closes here (paper: inflation ends at 5.5 s)
-  double duration_s = 5.5;              ///< simulated time
-  double sample_s = 0.01;               ///< trace sampling
+  double valve_pressure_pa = 20.0e3;              ///< regulator setting, gauge
+  double inflation_end_s = 5.5;                   ///< inlet closes here (paper: inflation ends at 5.5 s)
+  double duration_s = 5.5;                        ///< simulated time
+  double sample_s = 0.01;                         ///< trace sampling
   const TimeSeries* prescribed_inflow = nullptr;  ///< drive with a given curve instead
 };
 

@@ -14,10 +14,10 @@ namespace nursing_bed {
 
 struct StructureTableData {
   std::string description;
-  std::vector<double> heights_m;                    ///< strictly increasing, > 0
-  std::vector<double> pressures_pa;                 ///< strictly increasing, > 0
-  std::vector<std::vector<double>> volume_m3;       ///< [height][pressure], > 0
-  std::vector<std::vector<double>> plate_force_n;   ///< [height][pressure]
+  std::vector<double> heights_m;                   ///< strictly increasing, > 0
+  std::vector<double> pressures_pa;                ///< strictly increasing, > 0
+  std::vector<std::vector<double>> volume_m3;      ///< [height][pressure], > 0
+  std::vector<std::vector<double>> plate_force_n;  ///< [height][pressure]
 
   /// Success when consistent, else what is wrong (names the field).
   Status validate() const;

@@ -79,8 +79,8 @@ class RigTerminalServer {
   _modbus_mapping_t* mapping_ = nullptr;
   int listen_fd_ = -1;
   std::vector<int> clients_;
-  std::vector<double> coil_on_s_;                          ///< per coil, since the last take and carried
-  std::vector<double> coil_total_on_s_;                    ///< per coil, since the start
+  std::vector<double> coil_on_s_;        ///< per coil, since the last take and carried
+  std::vector<double> coil_total_on_s_;  ///< per coil, since the start
   std::chrono::steady_clock::time_point coils_since_;
   std::mutex mutex_;
   std::atomic<long> requests_{0};
@@ -92,10 +92,10 @@ class RigTerminalServer {
 };
 
 struct RigEmulatorOptions {
-  HardwareConfig cell;           ///< plant parameters, hidden effects, noise of every cell
-  RigImperfections rig;          ///< ADC step, valve dead time (height sensor: from the map)
-  double period_s = 0.005;       ///< simulation step [s]
-  double max_catch_up_s = 0.5;   ///< a lag up to this is run through, beyond it given up [s]
+  HardwareConfig cell;          ///< plant parameters, hidden effects, noise of every cell
+  RigImperfections rig;         ///< ADC step, valve dead time (height sensor: from the map)
+  double period_s = 0.005;      ///< simulation step [s]
+  double max_catch_up_s = 0.5;  ///< a lag up to this is run through, beyond it given up [s]
   /// SCHED_FIFO priority of the simulation thread (1-99; 0: the normal scheduler). A rig's
   /// physics does not pause: a simulation starved for tens of ms serves the same pressure
   /// while its valves (on the servers' real-time threads) pass gas, which no real sensor does.
@@ -153,7 +153,7 @@ class RigEmulator {
   RigEmulatorOptions options_;
   std::vector<std::unique_ptr<RigTerminalServer>> servers_;
   std::vector<Cell> cells_;
-  mutable std::mutex mutex_;    // guards the cells' simulation and simulated_until_
+  mutable std::mutex mutex_;                               // guards the cells' simulation and simulated_until_
   std::chrono::steady_clock::time_point simulated_until_;  ///< the tick the cells' state describes
   std::atomic<long> overruns_{0};
   std::atomic<double> lost_s_{0.0};
