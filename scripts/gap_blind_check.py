@@ -25,9 +25,10 @@ model's parameter file (`gap synth --airbag-param`, magnitudes drawn from the se
 Exit code 0 when all hold, 1 otherwise, 2 for a bad command line.
 
 usage: gap_blind_check.py --out DIR [--protocol small|standard] [--seeds N] [--seed-base B]
-                          [--extended-seeds M] [--gap PATH] [--junit FILE] [--cases NAME,...] [--resume]
+                          [--extended-seeds M] [--gap PATH] [--junit FILE] [--cases NAME,...] [--jobs N] [--resume]
 """
 import argparse
+import concurrent.futures
 import json
 import os
 import random
@@ -35,6 +36,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import threading
 import time
 import xml.sax.saxutils as su
 
@@ -261,10 +263,14 @@ def main():
                                     "pair, valve")
     ap.add_argument("--extended-seeds", type=int, default=1,
                     help="seeds of each calibration case (mismatch, mismatch + effect, pairs, valve-driven; default 1)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="cases diagnosed side by side (default 1; each diagnosis also uses its own threads)")
     ap.add_argument("--resume", action="store_true",
                     help="read back cases whose report is already in --out instead of running them again "
                          "(a long matrix run in parts)")
     args = ap.parse_args()
+    if args.jobs < 1:
+        ap.error("--jobs must be at least 1")
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")
     if not os.path.isfile(args.gap):
@@ -281,15 +287,26 @@ def main():
         wanted = set(args.cases.split(","))
         plan = [p for p in plan if p[1] in wanted or p[0] in wanted]
     os.makedirs(args.out, exist_ok=True)
-    cases = []
     started = time.time()
-    for spec in plan:
+    finished = [0]
+    print_lock = threading.Lock()
+
+    def one(spec):
         c = run_case(args.gap, args.out, spec, args.protocol, args.resume)
         c["right"] = case_right(c)
-        cases.append(c)
-        print(f"[{len(cases)}/{len(plan)}] {c['case']:<48} -> {c['verdict']:<36} {'ok ' if c['right'] else 'BAD'} "
-              f"shrink {c.get('shrink') if c.get('shrink') is None else round(c['shrink'], 3)}  "
-              f"({seconds(c['elapsed_s'])})", flush=True)
+        with print_lock:
+            finished[0] += 1
+            print(f"[{finished[0]}/{len(plan)}] {c['case']:<48} -> {c['verdict']:<36} {'ok ' if c['right'] else 'BAD'} "
+                  f"shrink {c.get('shrink') if c.get('shrink') is None else round(c['shrink'], 3)}  "
+                  f"({seconds(c['elapsed_s'])})", flush=True)
+        return c
+
+    # Cases are independent (own dataset and report directories): --jobs of them side by side,
+    # the slow kinds (joint refits of two effects) first so the jobs end together.
+    slow_first = sorted(range(len(plan)), key=lambda i: plan[i][0] not in ("pair", "mismatch_effect"))
+    with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        done = dict(zip(slow_first, pool.map(one, [plan[i] for i in slow_first])))
+    cases = [done[i] for i in range(len(plan))]
 
     def rate(kind):
         of_kind = [c for c in cases if c["kind"] == kind]
