@@ -11,6 +11,7 @@ namespace nursing_bed {
 namespace {
 
 constexpr double kShapeUnitPa = 1.0e4;  // q0: the relaxed pressure in 10 kPa, as TabulatedStructure's
+constexpr double kFoldDampingJs = 1.0;  // any positive value: ds/dt = foldRate whatever it is
 
 /// Linear interpolation of y over the strictly increasing x, clamped at the ends.
 double interpolate(const std::vector<double>& x, const std::vector<double>& y, double at) {
@@ -128,14 +129,13 @@ StructureEval FoldTableStructure::evaluate(double height_m, const double* shape)
   e.shape_damping[0] = mix(f.shape_damping[0], o.shape_damping[0]);
   e.contact_area_m2 = mix(f.contact_area_m2, o.contact_area_m2);
   e.surface_area_m2 = mix(f.surface_area_m2, o.surface_area_m2);
-  // The fold: the gas works on it through dV/ds; the film's energy is taken such that the net
-  // drive is foldRate (film relaxed to q0, which follows the gas pressure within milliseconds).
-  const double p_film = shape[0] * kShapeUnitPa;
-  const double dvds = o.volume_m3 - f.volume_m3;
-  const double damping = kShapeUnitPa * std::max(std::fabs(dvds), 1e-5) * data_.fold_time_s;
-  e.dvolume_dshape[1] = dvds;
-  e.shape_damping[1] = damping;
-  e.elastic_force[1] = p_film * dvds - damping * foldRate(s, p_film, height_m);
+  // The fold moves at foldRate whatever the gas pressure's mismatch with q0: its residual
+  // depends on s, q0 and h only, so the film balance (relaxedShape) solves it beside q0. The
+  // coordinate is taken unclamped there: past 0 or 1 the cubic pulls it back (a flat drive would
+  // leave the Newton solve without a slope). dV/ds is not reported: the volume itself blends
+  // the tables (the pressure follows it), but the snap's volume change does no p dV work.
+  e.shape_damping[1] = kFoldDampingJs;
+  e.elastic_force[1] = -kFoldDampingJs * foldRate(shape[1], shape[0] * kShapeUnitPa, height_m);
   return e;
 }
 
