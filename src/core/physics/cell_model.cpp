@@ -1,4 +1,5 @@
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/fold_table_structure.h"
 #include "nursing_bed/core/physics/tabulated_structure.h"
 
 #include <algorithm>
@@ -34,10 +35,11 @@ std::string CellParams::validate() const {
   positive("ambient_temperature_k", ambient_temperature_k);
   positive("supply_temperature_k", supply_temperature_k);
   errors.addNested(structure.validate());
-  if (structure_type != "pillow" && structure_type != "table" && structure_type != "bellows") {
-    errors.add("structure_type must be 'pillow', 'table' or 'bellows', got '", structure_type, "'");
-  } else if (structure_type == "table" && structure_table_file.empty()) {
-    errors.add("structure_table_file must be set when structure_type is 'table'");
+  if (structure_type != "pillow" && structure_type != "table" && structure_type != "fold_table" &&
+      structure_type != "bellows") {
+    errors.add("structure_type must be 'pillow', 'table', 'fold_table' or 'bellows', got '", structure_type, "'");
+  } else if ((structure_type == "table" || structure_type == "fold_table") && structure_table_file.empty()) {
+    errors.add("structure_table_file must be set when structure_type is '", structure_type, "'");
   } else if (structure_type == "bellows") {
     errors.addNested(bellows.validate());
   }
@@ -74,6 +76,10 @@ double CellParams::reliefOpening(double gauge_pressure_pa) const {
 std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params) {
   if (params.structure_type == "table")
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
+                                                params.structure.film_relaxation_time_s,
+                                                params.structure.dead_volume_m3);
+  if (params.structure_type == "fold_table")
+    return std::make_shared<FoldTableStructure>(FoldTableStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
                                                 params.structure.dead_volume_m3);
   if (params.structure_type == "bellows") return std::make_shared<BellowsStructure>(params.bellows);
