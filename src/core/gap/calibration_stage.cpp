@@ -288,12 +288,14 @@ void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& ca
   noise->baseline_withheld_chi2_per_sample = sumSquares(r) / n_held;
 }
 
-std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options) {
+std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options,
+                                         const CellParams& nominal) {
   if (!options.calibrate) return {};
-  const std::vector<std::string> names =
-      options.calibration_params.empty() ? defaultCalibrationParams(prepared.runs) : options.calibration_params;
-  checkCalibrationParams(names, prepared.runs);
-  calibrationAxes(names, CellParams{});  // unknown or repeated names
+  const std::vector<std::string> names = options.calibration_params.empty()
+                                             ? defaultCalibrationParams(prepared.runs, nominal)
+                                             : options.calibration_params;
+  checkCalibrationParams(names, prepared.runs, nominal);
+  calibrationAxes(names, nominal);  // unknown or repeated names
   return names;
 }
 

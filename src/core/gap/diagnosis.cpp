@@ -185,6 +185,21 @@ std::vector<std::string> candidateList(const DiagnosisOptions& options) {
   return candidates;
 }
 
+std::vector<std::string> candidatesForStructure(const std::vector<std::string>& candidates,
+                                                const CellParams& nominal, std::vector<std::string>* notes) {
+  std::vector<std::string> kept;
+  for (const auto& c : candidates) {
+    const std::string& needs = effectSpec(c).structure;
+    if (needs.empty() || needs == nominal.structure_type) {
+      kept.push_back(c);
+    } else if (notes) {
+      notes->push_back(c + ": not fitted, it assumes the " + needs + " structure and the cell's is " +
+                       nominal.structure_type);
+    }
+  }
+  return kept;
+}
+
 // ---- stage 2: the nominal replay ----------------------------------------------------------------
 
 std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams& params,
@@ -481,7 +496,7 @@ void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const D
   rep->pressure_only = std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
   for (std::size_t i : prepared.fit) rep->fit_runs.push_back(prepared.runs[i].name);
   for (std::size_t i : prepared.withheld) rep->withheld_runs.push_back(prepared.runs[i].name);
-  start->calibrated = calibrationList(prepared, options);
+  start->calibrated = calibrationList(prepared, options, params);
   candidateList(options);  // an unknown candidate before anything is replayed
   say("replaying " + std::to_string(prepared.runs.size()) + " runs through the nominal model");
   start->nominal = replayNominal(prepared, params, options, rep);
@@ -534,6 +549,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   startDiagnosis(std::move(runs), params, options, &rep, &s);
   const PreparedRuns& prepared = s.prepared;
   NoiseModel& noise = s.noise;
+  std::vector<std::string> structure_notes;
+  const std::vector<std::string> candidates = candidatesForStructure(candidateList(options), params, &structure_notes);
   CalibrationFit calibration;
   std::vector<ModelFit> uncalibrated;  // the singles on the nominal cell, when the calibration moved
   bool baseline_nominal = true;        // the effects are fitted on the nominal cell
@@ -545,7 +562,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
       // the nominal cell ranks it for, and starts, the joint refit.
       DiagnosisOptions singles = options;
       singles.pair_pool = 0;
-      uncalibrated = fitCandidates(noise, candidateList(options), singles,
+      uncalibrated = fitCandidates(noise, candidates, singles,
                                    [&](const std::string& line) { say(line + " (nominal cell)"); });
       if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
     }
@@ -563,7 +580,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     if (effects == 1) moved_calibration = more.moved_calibration;
   };
   std::vector<ModelFit> fits = fitCandidates(
-      noise, candidateList(options), options, say,
+      noise, candidates, options, say,
       [&](std::vector<ModelFit>* singles) {
         if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
       },
@@ -578,6 +595,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   for (const auto& c : scored) rep.candidates.push_back(c.first);
 
   nominalReasons(rep, prepared, options, noise.heldResidualCount() > 0, &rep.reasons);
+  rep.reasons.insert(rep.reasons.end(), structure_notes.begin(), structure_notes.end());
   const NominalScore baseline = nominalScore(noise, nominalNrmse(prepared, s.nominal, prepared.withheld));
   const Verdict verdict = decideVerdict(rep.candidates, baseline, options);
   rep.reasons.insert(rep.reasons.end(), verdict.reasons.begin(), verdict.reasons.end());
