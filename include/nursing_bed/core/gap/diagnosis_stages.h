@@ -50,8 +50,8 @@ PreparedRuns prepareRuns(std::vector<RunData> runs);
 std::vector<std::string> candidateList(const DiagnosisOptions& options);
 /// `candidates` less those that assume a structure other than that of `nominal`
 /// (EffectSpec::structure), each left out with a line in `notes`.
-std::vector<std::string> candidatesForStructure(const std::vector<std::string>& candidates,
-                                                const CellParams& nominal, std::vector<std::string>* notes);
+std::vector<std::string> candidatesForStructure(const std::vector<std::string>& candidates, const CellParams& nominal,
+                                                std::vector<std::string>* notes);
 
 /// The nominal replay of every run; fills `report`'s runs (before), noise and localization.
 /// Throws std::invalid_argument with the replay's message when one fails.
@@ -189,7 +189,10 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
 /// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,
 /// and their chi2 lower by min_withheld_gain), else the moves are dropped; reasons added.
-void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report);
+/// `above_floor` (a recording judged above its model-form floor, decideVerdictAboveFloor()):
+/// removing floor_removed of the withheld runs' chi2 also holds up.
+void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report,
+                            bool above_floor = false);
 
 /// The calibrated model alone: its nrmse on fit and withheld runs, and the calibrated parameter
 /// file (report->calibrated_yaml; the cell's own settings with the moved values).
