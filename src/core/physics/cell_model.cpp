@@ -43,6 +43,7 @@ std::string CellParams::validate() const {
   } else if (structure_type == "bellows") {
     errors.addNested(bellows.validate());
   }
+  errors.addNested(airway.validate());
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
   positive("bed_contact_stiffness_n_m", bed_contact_stiffness_n_m);
@@ -92,6 +93,7 @@ CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructu
   if (!error.empty()) throw std::invalid_argument("cell parameters: " + error);
   if (!structure_) structure_ = makeCellStructure(params_);
   shape_dofs_ = structure_->shapeDofs();
+  if (params_.airway.active()) effects_.push_back(std::make_shared<AirwayEffect>(params_.airway));
   reset();
 }
 

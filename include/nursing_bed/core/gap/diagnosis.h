@@ -83,6 +83,16 @@ struct DiagnosisOptions {
   /// ones this many range widths) before the fit is called implausible.
   double plausible_slack = 3.0;
 
+  // The model-form floor (doc/gap_real_recordings.md): a recording of real hardware never fits
+  // the model to the noise. "on": when no candidate explains the gap by the rules above, the
+  // calibrated nominal model's chi2/n on the fit runs is taken as the floor of the model's form,
+  // chi2 is counted in units of it, and a candidate is named when it is significant in those
+  // units and removes at least floor_removed of the calibrated model's chi2 on the fit runs and
+  // on the withheld runs. "auto": on when every run was imported from a recording (gap import's
+  // import_mapping metadata); synthetic and bag runs keep the rules above alone. "off": never.
+  std::string model_floor = "auto";
+  double floor_removed = 0.5;
+
   /// Called with one line per step ("fitting leak ... 3/7"). May be empty.
   std::function<void(const std::string&)> progress;
 };
@@ -172,6 +182,19 @@ struct Verdict {
 /// pairs only where no single explains the gap, near ties decided by the withheld runs.
 Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
                       const DiagnosisOptions& options);
+
+/// The decision above the model-form floor (DiagnosisOptions::model_floor): the floor is the
+/// calibrated nominal model's chi2/n (fit runs; withheld runs apart), at least 1; the first
+/// candidate in BIC order (singles before pairs) that lowers BIC by significant_bic_drop with
+/// chi2 counted in floor units, and removes floor_removed of the floor's chi2 on the fit runs
+/// and on the withheld runs, is named ("explained"); else "none" (what remains is the model's
+/// form). The reasons give the floor and each significant candidate's share removed.
+Verdict decideVerdictAboveFloor(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
+                                const DiagnosisOptions& options);
+/// Whether `options.model_floor` applies to runs whose metadata are `metas` ("auto": every run
+/// imported, i.e. with import_mapping metadata). Throws std::invalid_argument for another word.
+bool modelFloorApplies(const DiagnosisOptions& options,
+                       const std::vector<const std::map<std::string, std::string>*>& metas);
 
 /**
  * Diagnoses `runs` (each with a role "fit"/"withheld", or all without one; then about a

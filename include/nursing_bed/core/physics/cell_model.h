@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/physics/airway.h"
 #include "nursing_bed/core/physics/bellows_structure.h"
 #include "nursing_bed/core/physics/cell_effect.h"
 #include "nursing_bed/core/physics/cell_structure.h"
@@ -33,6 +34,9 @@ struct CellParams {
   std::string structure_type = "pillow";
   BellowsParams bellows;             ///< used when structure_type is "bellows"
   std::string structure_table_file;  ///< table path (YAML keys structure/type, structure/table_file)
+  /// Series airway between the meter/sensor and the chamber (none by default); CellModel adds
+  /// it as the first effect when active.
+  AirwayParams airway;
 
   double plate_mass_kg = 0.6 / kGravity;     ///< loading plate (0.6 N, paper section 2.2)
   double plate_damping_n_s_m = 20.0;         ///< viscous damping of the plate guide
