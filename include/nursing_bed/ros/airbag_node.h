@@ -101,8 +101,9 @@ class AirbagNode {
     ValveOpenings valves;
     double setpoint_m = std::numeric_limits<double>::quiet_NaN();
     double pressure_setpoint_pa = std::numeric_limits<double>::quiet_NaN();
-    uint8_t height_source = 0;  ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
-    double height_sd_m = 0.0;   ///< the reported height's standard deviation [m]
+    uint8_t height_source = 0;       ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
+    double height_sd_m = 0.0;        ///< the reported height's standard deviation [m]
+    bool height_unverified = false;  ///< AirbagCell::heightUnverified
     uint8_t mode = 0;
     uint32_t faults = 0;
   };
