@@ -205,6 +205,12 @@ void AirbagNode::reportGasSearch() {
              cell_->time() - gas_search_start_s_);
   }
   finding_gas_ = finding;
+  // An inconsistency between the readings and the observer is worth a warning with its reason.
+  const bool inconsistent = (cell_->faults() & kFaultInconsistent) != 0;
+  if (inconsistent && !inconsistent_ && cell_->monitor())
+    ROS_WARN("%s: readings inconsistent with the observer (%s): finding its gas again, flagged until then",
+             layout_.link_name.c_str(), cell_->monitor()->reason().c_str());
+  inconsistent_ = inconsistent;
   const bool anchoring = cell_->anchoringGas();
   if (anchoring != anchoring_gas_) {
     ROS_DEBUG("%s: %s", layout_.link_name.c_str(),

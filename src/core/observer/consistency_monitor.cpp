@@ -8,7 +8,6 @@
 #include "nursing_bed/core/io/errors.h"
 
 namespace nursing_bed {
-
 Status ConsistencyMonitorParams::validate() const {
   ErrorList errors;
   auto nonNegative = [&](const char* key, double v) {
@@ -24,6 +23,7 @@ Status ConsistencyMonitorParams::validate() const {
   nonNegative("min_drift_pa", min_drift_pa);
   positive("cusum_threshold_pa_s", cusum_threshold_pa_s);
   positive("surprise_m", surprise_m);
+  positive("jump_pa", jump_pa);
   return errors.status();
 }
 
@@ -44,7 +44,12 @@ bool ConsistencyMonitor::update(const ConsistencySample& sample, double dt_s) {
   }
   if (inconsistent()) return false;
   std::ostringstream why;
-  if (frozen(sample.gauge_pressure_pa, dt_s)) {
+  const double previous_pa = last_reading_pa_;
+  const bool jump = jumped(sample);
+  if (jump) {
+    why << "pressure jumped from " << previous_pa << " to " << sample.gauge_pressure_pa
+        << " Pa in one reading under a settled plate";
+  } else if (frozen(sample.gauge_pressure_pa, dt_s)) {
     why << "pressure reading frozen at " << sample.gauge_pressure_pa << " Pa for " << same_for_s_ << " s";
   } else if (std::fabs(sample.correction_m) > params_.surprise_m) {
     why << "the plate's weight bound corrected the height by " << 1e3 * sample.correction_m << " mm (limit "
@@ -55,6 +60,13 @@ bool ConsistencyMonitor::update(const ConsistencySample& sample, double dt_s) {
   }
   reason_ = why.str();
   return inconsistent();
+}
+
+bool ConsistencyMonitor::jumped(const ConsistencySample& sample) const {
+  // Settled before this reading (the valves acting over its period included): a plate still
+  // ringing after a fill from flat swings by kilopascals between two readings.
+  const bool settled = sample.valves_shut && shut_for_s_ >= params_.settle_s;
+  return settled && have_reading_ && std::fabs(sample.gauge_pressure_pa - last_reading_pa_) > params_.jump_pa;
 }
 
 bool ConsistencyMonitor::frozen(double gauge_pressure_pa, double dt_s) {

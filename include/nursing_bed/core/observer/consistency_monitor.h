@@ -23,6 +23,10 @@ struct ConsistencyMonitorParams {
   double min_drift_pa = 150.0;  ///< least innovation the CUSUM counts [Pa]
   /// The CUSUM of the innovation beyond the drift that is a persistent inconsistency [Pa s].
   double cusum_threshold_pa_s = 60.0;
+  /// A settled plate's pressure cannot move this much between two readings: the gas spring
+  /// and the plate's inertia spread even a patient dropping onto it over several readings,
+  /// while a sensor that jumps (an offset, a terminal serving another image) does it at once [Pa].
+  double jump_pa = 1200.0;
   /// A weight bound that moves the estimate more than this showed it wrong [m].
   double surprise_m = 0.006;
 
@@ -41,8 +45,11 @@ struct ConsistencySample {
 };
 
 /**
- * Three tests, each over time:
+ * Four tests:
  *  - frozen: the raw reading unchanged for frozen_s;
+ *  - jump: a settled plate's reading moves more than jump_pa from one reading to the next (a
+ *    controller reacts to the first reading of a jump at once, so a test over time would see
+ *    only its response);
  *  - innovation: while both valves are shut and the plate settled, the pressure predicted is
  *    the hold's running mean (nothing moves gas, so a plate held by a steady load keeps its
  *    pressure); a two-sided CUSUM of the reading's departure from it beyond the noise
@@ -73,6 +80,8 @@ class ConsistencyMonitor {
 
  private:
   bool frozen(double gauge_pressure_pa, double dt_s);
+  /// The jump test on this reading against the last (before frozen() takes it).
+  bool jumped(const ConsistencySample& sample) const;
   bool innovation(const ConsistencySample& sample, double dt_s);
 
   ConsistencyMonitorParams params_;
