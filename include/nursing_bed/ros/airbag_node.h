@@ -127,7 +127,7 @@ class AirbagNode {
   std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
   CellSnapshot snapshot_;
   bool finding_gas_ = false;    ///< the cell was venting to find its gas at the last update
-  bool inconsistent_ = false;  ///< the cell's FAULT_INCONSISTENT at the last report
+  bool inconsistent_ = false;   ///< the cell's FAULT_INCONSISTENT at the last report
   bool anchoring_gas_ = false;  ///< the cell was venting flat to re-anchor its gas at the last update
   bool gas_search_warned_ = false;
   double gas_search_start_s_ = 0.0;
