@@ -205,6 +205,12 @@ void AirbagNode::reportGasSearch() {
              cell_->time() - gas_search_start_s_);
   }
   finding_gas_ = finding;
+  // An inconsistency between the readings and the observer is worth a warning with its reason.
+  const bool inconsistent = (cell_->faults() & kFaultInconsistent) != 0;
+  if (inconsistent && !inconsistent_ && cell_->monitor())
+    ROS_WARN("%s: readings inconsistent with the observer (%s): finding its gas again, flagged until then",
+             layout_.link_name.c_str(), cell_->monitor()->reason().c_str());
+  inconsistent_ = inconsistent;
   const bool anchoring = cell_->anchoringGas();
   if (anchoring != anchoring_gas_) {
     ROS_DEBUG("%s: %s", layout_.link_name.c_str(),
@@ -241,6 +247,7 @@ void AirbagNode::takeSnapshot() {
   s.pressure_setpoint_pa = cell_->pressureSetpoint();
   s.height_source = static_cast<uint8_t>(cell_->heightSource());
   s.height_sd_m = cell_->heightSd();
+  s.height_unverified = cell_->heightUnverified();
   s.mode = static_cast<uint8_t>(cell_->mode());
   s.faults = cell_->faults();
   std::lock_guard<std::mutex> lock(snapshot_mutex_);
@@ -283,6 +290,7 @@ void AirbagNode::publishState(const CellSnapshot& s, const ros::Time& stamp) {
   msg.height_m = m.height_m;
   msg.height_source = s.height_source;
   msg.height_sd_m = s.height_sd_m;
+  msg.height_unverified = s.height_unverified;
   msg.volume_m3 = s.volume_m3;
   msg.gas_mass_kg = s.gas_mass_kg;
   msg.gas_temperature_k = s.gas_temperature_k;

@@ -101,8 +101,9 @@ class AirbagNode {
     ValveOpenings valves;
     double setpoint_m = std::numeric_limits<double>::quiet_NaN();
     double pressure_setpoint_pa = std::numeric_limits<double>::quiet_NaN();
-    uint8_t height_source = 0;  ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
-    double height_sd_m = 0.0;   ///< the reported height's standard deviation [m]
+    uint8_t height_source = 0;       ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
+    double height_sd_m = 0.0;        ///< the reported height's standard deviation [m]
+    bool height_unverified = false;  ///< AirbagCell::heightUnverified
     uint8_t mode = 0;
     uint32_t faults = 0;
   };
@@ -126,6 +127,7 @@ class AirbagNode {
   std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
   CellSnapshot snapshot_;
   bool finding_gas_ = false;    ///< the cell was venting to find its gas at the last update
+  bool inconsistent_ = false;   ///< the cell's FAULT_INCONSISTENT at the last report
   bool anchoring_gas_ = false;  ///< the cell was venting flat to re-anchor its gas at the last update
   bool gas_search_warned_ = false;
   double gas_search_start_s_ = 0.0;

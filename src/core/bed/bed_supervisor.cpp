@@ -239,6 +239,7 @@ BedStatus BedSupervisor::step(double now_s) {
                                                    : last_targets_.heights_m;
   status.dead_cells = health_.deadCells();
   status.faulty_cells = health_.faultyCells();
+  status.unverified_cells = health_.unverifiedCells();
   status.alarms = alarms_;
   return status;
 }
@@ -249,12 +250,14 @@ BedReport BedSupervisor::report(double now_s) const {
   for (const BedCell& c : health_.cells()) {
     r.cells.push_back(health_.report(c.id, now_s));
     dead += r.cells.back().severity == Severity::kError;
-    faulty += r.cells.back().severity == Severity::kWarn;
+    faulty += r.cells.back().severity == Severity::kWarn && health_.state(c.id).faults != kFaultNone;
   }
   r.alarms = alarms_;
-  r.severity = dead ? Severity::kError : ((faulty || !alarms_.empty()) ? Severity::kWarn : Severity::kOk);
+  const std::size_t unverified = health_.unverifiedCells().size();
+  r.severity = dead ? Severity::kError : ((faulty || unverified || !alarms_.empty()) ? Severity::kWarn : Severity::kOk);
   r.message = std::to_string(r.cells.size()) + " cells, " + std::to_string(dead) + " not reporting, " +
-              std::to_string(faulty) + " with faults" + (alarms_.empty() ? "" : "; " + alarms_.front());
+              std::to_string(faulty) + " with faults, " + std::to_string(unverified) + " unverified" +
+              (alarms_.empty() ? "" : "; " + alarms_.front());
   if (runner_.running())
     r.plan = runner_.current().plan->name() + " (" + last_targets_.phase + ")" +
              (resumed_ ? ", resumed after a restart of the bed manager" : "");

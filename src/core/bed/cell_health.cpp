@@ -43,7 +43,7 @@ std::vector<std::string> CellHealthWatcher::watch(double now_s) {
     const CellSnapshot& s = states_[c.id];
     const bool never = !reported(c.id);
     const bool dead = never ? past_grace : now_s - s.seen_s > timeout_s_;
-    const bool faulty = !dead && !never && (s.faults & (kFaultSensor | kFaultModel));
+    const bool faulty = !dead && !never && (s.faults & (kFaultSensor | kFaultModel | kFaultInconsistent));
     if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id])) {
       failed.push_back("cell " + std::to_string(c.id) + " (" + c.name + ") " +
                        (dead ? "stopped reporting"
@@ -68,6 +68,13 @@ std::vector<std::uint32_t> CellHealthWatcher::faultyCells() const {
   std::vector<std::uint32_t> ids;
   for (const BedCell& c : cells_)
     if (faulty_[c.id]) ids.push_back(c.id);
+  return ids;
+}
+
+std::vector<std::uint32_t> CellHealthWatcher::unverifiedCells() const {
+  std::vector<std::uint32_t> ids;
+  for (const BedCell& c : cells_)
+    if (!dead_[c.id] && states_[c.id].unverified) ids.push_back(c.id);
   return ids;
 }
 
@@ -96,7 +103,9 @@ CellReport CellHealthWatcher::report(std::uint32_t id, double now_s) const {
   const double age_s = reported(id) ? now_s - s.seen_s : INFINITY;
   if (age_s > timeout_s_)
     return {Severity::kError, std::isinf(age_s) ? "no state received" : "no state for " + std::to_string(age_s) + " s"};
-  if (s.faults != kFaultNone) return {Severity::kWarn, "faults:" + faultNames(s.faults)};
+  if (s.faults != kFaultNone)
+    return {Severity::kWarn, "faults:" + faultNames(s.faults) + (s.unverified ? "; height unverified" : "")};
+  if (s.unverified) return {Severity::kWarn, "height unverified (its gas is being checked)"};
   return {Severity::kOk, "ok"};
 }
 
@@ -107,6 +116,8 @@ std::string faultNames(std::uint32_t faults) {
   if (faults & kFaultCommandTimeout) names += " command-timeout";
   if (faults & kFaultLowPressure) names += " low-pressure";
   if (faults & kFaultModel) names += " model-reset";
+  if (faults & kFaultCommunication) names += " communication";
+  if (faults & kFaultInconsistent) names += " inconsistent";
   return names;
 }
 

@@ -197,7 +197,7 @@ TEST(BedSupervisor, OtherFaultsAreReportedButDoNotLevelTheBed) {
   EXPECT_EQ(report.cells[1].severity, nb::Severity::kWarn);
   EXPECT_EQ(report.cells[1].message, "faults: overpressure low-pressure");
   EXPECT_EQ(report.severity, nb::Severity::kWarn);
-  EXPECT_EQ(report.message, "6 cells, 0 not reporting, 1 with faults");
+  EXPECT_EQ(report.message, "6 cells, 0 not reporting, 1 with faults, 0 unverified");
   EXPECT_EQ(report.plan, "flat (holding)");
 }
 

@@ -54,6 +54,7 @@ struct BedStatus {
   double tilt_deg = 0.0;                 ///< lateral turn commanded now [deg]
   std::vector<double> target_heights_m;  ///< by cell id; NaN where none (venting)
   std::vector<std::uint32_t> dead_cells, faulty_cells;
+  std::vector<std::uint32_t> unverified_cells;  ///< reporting cells whose estimated height is not proven
   double largest_state_gap_s = 0.0;  ///< longest wait between two states of one cell since the plan started [s]
   std::vector<std::string> alarms;
 };
@@ -61,7 +62,7 @@ struct BedStatus {
 /// The bed on diagnostics: a summary and one report per cell (by id).
 struct BedReport {
   Severity severity = Severity::kOk;  ///< error when a cell is not reporting, warn on faults or alarms
-  std::string message;                ///< "N cells, D not reporting, F with faults[; first alarm]"
+  std::string message;                ///< "N cells, D not reporting, F with faults, U unverified[; first alarm]"
   std::vector<std::string> alarms;
   std::string plan;  ///< "plan (phase)[, resumed ...]"; "" when no plan runs
   std::vector<CellReport> cells;

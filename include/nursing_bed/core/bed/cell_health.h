@@ -33,6 +33,7 @@ struct CellSnapshot {
   double gauge_pressure_pa = kNone;   ///< for messages [Pa]
   double external_load_n = kNone;     ///< for messages [N]
   double seen_s = kNone;              ///< when the state arrived [s]; NaN: never
+  bool unverified = false;            ///< its estimated height is not proven
 };
 
 /// How serious a condition is (a cell's or the bed's, on diagnostics; an event's in the log).
@@ -66,6 +67,8 @@ class CellHealthWatcher {
   bool faulty(std::uint32_t id) const { return faulty_.at(id); }
   std::vector<std::uint32_t> deadCells() const;
   std::vector<std::uint32_t> faultyCells() const;
+  /// Reporting cells whose estimated height is not proven (CellSnapshot::unverified).
+  std::vector<std::uint32_t> unverifiedCells() const;
   /// The reported heights by cell id (NaN where none arrived) [m].
   std::vector<double> heights() const;
   /// Mean reported height of the cells neither dead nor faulty; nullopt when there is none [m].
