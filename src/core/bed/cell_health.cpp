@@ -37,17 +37,24 @@ bool CellHealthWatcher::reporting(std::uint32_t id, double now_s) const {
 }
 
 std::vector<std::string> CellHealthWatcher::watch(double now_s) {
-  const bool past_grace = now_s - started_s_ > startup_grace_s_;
+  if (!judging()) {
+    bool all_reporting = true;
+    for (const BedCell& c : cells_) all_reporting = all_reporting && reporting(c.id, now_s);
+    if (all_reporting || now_s - started_s_ > startup_grace_s_) judged_from_s_ = now_s;
+  }
   std::vector<std::string> failed;
   for (const BedCell& c : cells_) {
     const CellSnapshot& s = states_[c.id];
     const bool never = !reported(c.id);
-    const bool dead = never ? past_grace : now_s - s.seen_s > timeout_s_;
-    const bool faulty = !dead && !never && (s.faults & (kFaultSensor | kFaultModel));
+    // A silence counts from the end of the start-up at the earliest.
+    const bool dead = judging() && (never || now_s - std::max(s.seen_s, judged_from_s_) > timeout_s_);
+    const bool faulty = !dead && !never && (s.faults & kFaultsThatFailACell);
     if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id])) {
+      const std::string what =
+          (s.faults & kFaultCommunication) ? "lost its hardware link" : "reports a sensor or model fault";
       failed.push_back("cell " + std::to_string(c.id) + " (" + c.name + ") " +
                        (dead ? "stopped reporting"
-                             : "reports a sensor or model fault (faults " + std::to_string(s.faults) + ", " +
+                             : what + " (faults " + std::to_string(s.faults) + ", " +
                                    std::to_string(s.gauge_pressure_pa) + " Pa, " + std::to_string(s.height_m) +
                                    " m, load " + std::to_string(s.external_load_n) + " N)"));
     }
@@ -96,6 +103,8 @@ CellReport CellHealthWatcher::report(std::uint32_t id, double now_s) const {
   const double age_s = reported(id) ? now_s - s.seen_s : INFINITY;
   if (age_s > timeout_s_)
     return {Severity::kError, std::isinf(age_s) ? "no state received" : "no state for " + std::to_string(age_s) + " s"};
+  // A lost hardware link leaves the cell unattended: an error like a silent cell.
+  if (s.faults & kFaultCommunication) return {Severity::kError, "hardware link lost, faults:" + faultNames(s.faults)};
   if (s.faults != kFaultNone) return {Severity::kWarn, "faults:" + faultNames(s.faults)};
   return {Severity::kOk, "ok"};
 }
@@ -107,6 +116,7 @@ std::string faultNames(std::uint32_t faults) {
   if (faults & kFaultCommandTimeout) names += " command-timeout";
   if (faults & kFaultLowPressure) names += " low-pressure";
   if (faults & kFaultModel) names += " model-reset";
+  if (faults & kFaultCommunication) names += " communication";
   return names;
 }
 

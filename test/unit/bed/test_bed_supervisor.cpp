@@ -212,6 +212,116 @@ TEST(BedSupervisor, WithNoHealthyCellTheBedLevelsAtTheNominalHeight) {
   EXPECT_EQ(bed.sup.report(bed.now).severity, nb::Severity::kError);
 }
 
+TEST(BedSupervisor, CellsStalledWhileOthersAreStillLoadingAreNotDeadBeforeEveryCellReports) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  // Cells 3..5 are still being loaded and have not reported; 0..2 reported once, then stall
+  // for 3 s (a loading process runs nothing else), far past the timeout.
+  for (std::uint32_t id = 3; id < 6; ++id) bed.silent[id] = true;
+  bed.run(0.1);
+  for (std::uint32_t id = 0; id < 3; ++id) bed.silent[id] = true;
+  nb::BedStatus status = bed.run(3.0);
+  EXPECT_TRUE(status.dead_cells.empty());
+  EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
+  EXPECT_FALSE(bed.sup.health().judging());
+  // Every cell up and reporting: the start-up is over and the cells are judged from here.
+  std::fill(bed.silent.begin(), bed.silent.end(), false);
+  status = bed.run(1.0);
+  EXPECT_TRUE(bed.sup.health().judging());
+  EXPECT_TRUE(status.dead_cells.empty());
+  EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
+  bed.silent[4] = true;
+  status = bed.run(0.6);
+  EXPECT_EQ(status.dead_cells, std::vector<std::uint32_t>{4});
+  EXPECT_EQ(status.plan, nb::PlanKind::kSafeLevel);
+}
+
+TEST(BedSupervisor, ACellSilentAtTheEndOfTheGraceIsJudgedFromThenOn) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.silent[5] = true;  // never reports: the start-up ends with the grace
+  bed.run(1.0);
+  bed.silent[0] = true;  // reported, then silent from 1 s on
+  nb::BedStatus status = bed.run(8.9);
+  EXPECT_TRUE(status.dead_cells.empty());
+  status = bed.run(0.2);
+  EXPECT_EQ(status.dead_cells, std::vector<std::uint32_t>{5});  // silent from the grace's end on
+  status = bed.run(0.4);
+  EXPECT_EQ(status.dead_cells, (std::vector<std::uint32_t>{0, 5}));
+}
+
+TEST(BedSupervisor, WatchBetweenStepsFindsADeadCellWithinTheTimeoutAndAWatchPeriod) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.run(1.0);
+  const double last_state_s = bed.now;
+  bed.silent[2] = true;
+  double found_s = kNaN;
+  for (const double end = bed.now + 1.0; bed.now < end && std::isnan(found_s);) {
+    bed.now += 0.02;
+    bed.report();
+    if (bed.sup.watch(bed.now) > 0) found_s = bed.now;
+  }
+  ASSERT_FALSE(std::isnan(found_s));
+  EXPECT_LE(found_s - last_state_s, 0.5);
+  EXPECT_EQ(bed.sup.health().deadCells(), std::vector<std::uint32_t>{2});
+  bed.out = bed.sup.takeOutput();
+  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "cell 2 (airbag_0_2) stopped reporting"));
+  EXPECT_EQ(bed.sup.watch(found_s + 0.02), 0u);  // acted on once
+}
+
+TEST(BedSupervisor, ALostHardwareLinkIsABedAlarmNamingTheCellsAndAnErrorOnDiagnostics) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.run(1.0);
+  bed.faults[3] = bed.faults[4] = nb::kFaultCommunication | nb::kFaultCommandTimeout;
+  const nb::BedStatus status = bed.run(0.1);
+  EXPECT_EQ(status.faulty_cells, (std::vector<std::uint32_t>{3, 4}));
+  EXPECT_EQ(status.plan, nb::PlanKind::kSafeLevel);
+  ASSERT_FALSE(status.alarms.empty());
+  EXPECT_EQ(status.alarms.front(),
+            "hardware link lost (cells holding their gas, mode SAFE): cells 3 (airbag_1_0), 4 (airbag_1_1)");
+  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "cell 3 (airbag_1_0) lost its hardware link"));
+  const nb::BedReport report = bed.sup.report(bed.now);
+  EXPECT_EQ(report.severity, nb::Severity::kError);
+  EXPECT_EQ(report.cells[3].severity, nb::Severity::kError);
+  EXPECT_EQ(report.cells[3].message, "hardware link lost, faults: command-timeout communication");
+  EXPECT_TRUE(contains(report.message, "6 cells, 0 not reporting, 2 with a lost hardware link, 0 with faults; "
+                                       "hardware link lost"))
+      << report.message;
+  // The link back: the alarm ends.
+  bed.faults[3] = bed.faults[4] = 0;
+  EXPECT_TRUE(bed.run(0.1).alarms.empty());
+  EXPECT_EQ(bed.sup.report(bed.now).severity, nb::Severity::kOk);
+}
+
+TEST(BedSupervisor, ARequestedPlanEndsACprItNeverHeardOfButAResumeOrAFailureDoNot) {
+  {  // resumed after a restart: no announcement (a CPR begun meanwhile may be running)
+    Bed bed;
+    nb::ResumeRecord record;
+    record.running = {{"flat", {}, {}}, kStartS - 4.0};
+    ASSERT_TRUE(bed.sup.resume(record, bed.now).ok);
+    EXPECT_FALSE(bed.sup.takeOutput().cpr);
+    bed.silent[1] = true;  // a failure's safe_level does not announce either
+    bed.run(10.5);
+    EXPECT_EQ(bed.sup.step(bed.now).plan, nb::PlanKind::kSafeLevel);
+    EXPECT_FALSE(bed.sup.takeOutput().cpr);
+    // A nurse's plan does: CPR off, once.
+    ASSERT_TRUE(bed.posture("flat").ok);
+    ASSERT_TRUE(bed.out.cpr);
+    EXPECT_FALSE(*bed.out.cpr);
+    ASSERT_TRUE(bed.posture("flat", {"height_m"}, {"0.08"}).ok);
+    EXPECT_FALSE(bed.out.cpr);
+  }
+  {  // manual heights too
+    Bed bed;
+    bed.run(0.5);
+    ASSERT_TRUE(bed.setHeights({0}, {0.08}).ok);
+    ASSERT_TRUE(bed.out.cpr);
+    EXPECT_FALSE(*bed.out.cpr);
+  }
+}
+
 // ---- leak alarm -------------------------------------------------------------------------------
 
 TEST(BedSupervisor, ACellHeldBelowItsTargetForLongRaisesTheLeakAlarmUntilItRecovers) {

@@ -23,7 +23,7 @@
 namespace nursing_bed {
 
 struct BedSupervisorParams {
-  double cell_timeout_s = 0.5;       ///< a cell silent this long is dead [s]
+  double cell_timeout_s = 0.45;      ///< a cell silent this long is dead [s] (watched at ~50 Hz: dead within 0.5 s)
   double startup_grace_s = 10.0;     ///< cells that never reported are dead only this long after the start [s]
   double resend_s = 1.0;             ///< setpoints and vents are repeated this often [s]
   double leak_alarm_error_m = 0.01;  ///< a cell this far below its target ... [m]
@@ -104,6 +104,9 @@ class BedSupervisor {
   void onCpr(bool on, double now_s);
   /// One plan step at `now_s`: watches the cells, evaluates the plan, queues the commands.
   BedStatus step(double now_s);
+  /// Watches the cells at `now_s` between plan steps (a dead cell is acted on sooner than the
+  /// plan rate allows): levels the bed if a cell failed. Returns how many newly failed.
+  std::size_t watch(double now_s);
   /// What the calls since the last takeOutput() want done.
   SupervisorOutput takeOutput();
   /// Diagnostics at `now_s`.
@@ -117,6 +120,8 @@ class BedSupervisor {
   std::string setTunables(const BedSupervisorParams& params);
 
   const CellHealthWatcher& health() const { return health_; }
+  /// The alarms raised at the last watch (step or watch) [text each].
+  const std::vector<std::string>& alarms() const { return alarms_; }
   const BedSupervisorParams& params() const { return params_; }
 
  private:
@@ -125,11 +130,13 @@ class BedSupervisor {
   /// After a plan starts or resumes: every target sent again, CPR announced, the record saved.
   void started();
   void announceCpr(bool on);
+  /// After a requested plan: CPR announced off when no announcement was ever made.
+  void endUnknownCpr();
   void saveResume();
   /// Height the bed levels at when a cell fails: the healthy cells' mean within the plan limits
   /// (the nominal height when none is known).
   double safeLevel() const;
-  void watchCells(double now_s);
+  std::size_t watchCells(double now_s);
   /// The current targets with `ids` set to `heights_m` (the others: the plan's target, else
   /// what was sent, else the measured height, within the plan limits).
   std::vector<double> customTargets(const std::vector<std::uint32_t>& ids, const std::vector<double>& heights_m) const;
