@@ -216,8 +216,12 @@ std::size_t BedSupervisor::watchCells(double now_s) {
       link_lost += (link_lost.empty() ? "" : ", ") + std::to_string(c.id) + " (" + c.name + ")";
   }
   // A lost terminal leaves its cells holding their gas, uncontrolled: the bed's first alarm.
+  // They keep their targets and resume the plan when the link returns.
   if (!link_lost.empty())
     alarms_.insert(alarms_.begin(), "hardware link lost (cells holding their gas, mode SAFE): cells " + link_lost);
+  if (link_lost != link_lost_ && !link_lost.empty())
+    log(BedEvent::Kind::kCellFailed, Severity::kError, alarms_.front());
+  link_lost_ = link_lost;
   if (failed.empty()) return 0;
   // Keep the patient level, at the healthy cells' mean height, reached at the limited rates.
   const double h = safeLevel();

@@ -50,11 +50,9 @@ std::vector<std::string> CellHealthWatcher::watch(double now_s) {
     const bool dead = judging() && (never || now_s - std::max(s.seen_s, judged_from_s_) > timeout_s_);
     const bool faulty = !dead && !never && (s.faults & kFaultsThatFailACell);
     if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id])) {
-      const std::string what =
-          (s.faults & kFaultCommunication) ? "lost its hardware link" : "reports a sensor or model fault";
       failed.push_back("cell " + std::to_string(c.id) + " (" + c.name + ") " +
                        (dead ? "stopped reporting"
-                             : what + " (faults " + std::to_string(s.faults) + ", " +
+                             : "reports a sensor or model fault (faults " + std::to_string(s.faults) + ", " +
                                    std::to_string(s.gauge_pressure_pa) + " Pa, " + std::to_string(s.height_m) +
                                    " m, load " + std::to_string(s.external_load_n) + " N)"));
     }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "nursing_bed/core/bed/bed_supervisor.h"
@@ -276,18 +277,22 @@ TEST(BedSupervisor, ALostHardwareLinkIsABedAlarmNamingTheCellsAndAnErrorOnDiagno
   bed.run(1.0);
   bed.faults[3] = bed.faults[4] = nb::kFaultCommunication | nb::kFaultCommandTimeout;
   const nb::BedStatus status = bed.run(0.1);
-  EXPECT_EQ(status.faulty_cells, (std::vector<std::uint32_t>{3, 4}));
-  EXPECT_EQ(status.plan, nb::PlanKind::kSafeLevel);
+  // The cells hold their gas and keep their targets: the plan goes on, the bed alarms.
+  EXPECT_TRUE(status.faulty_cells.empty());
+  EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
   ASSERT_FALSE(status.alarms.empty());
   EXPECT_EQ(status.alarms.front(),
             "hardware link lost (cells holding their gas, mode SAFE): cells 3 (airbag_1_0), 4 (airbag_1_1)");
-  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "cell 3 (airbag_1_0) lost its hardware link"));
+  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "hardware link lost"));
+  bed.run(0.5);
+  EXPECT_FALSE(bed.logged(nb::BedEvent::Kind::kCellFailed, "hardware link lost"));  // logged once
   const nb::BedReport report = bed.sup.report(bed.now);
   EXPECT_EQ(report.severity, nb::Severity::kError);
   EXPECT_EQ(report.cells[3].severity, nb::Severity::kError);
   EXPECT_EQ(report.cells[3].message, "hardware link lost, faults: command-timeout communication");
-  EXPECT_TRUE(contains(report.message, "6 cells, 0 not reporting, 2 with a lost hardware link, 0 with faults; "
-                                       "hardware link lost"))
+  EXPECT_TRUE(contains(report.message,
+                       "6 cells, 0 not reporting, 2 with a lost hardware link, 0 with faults; "
+                       "hardware link lost"))
       << report.message;
   // The link back: the alarm ends.
   bed.faults[3] = bed.faults[4] = 0;
@@ -553,6 +558,30 @@ TEST(BedSupervisor, EveryRefusedPostureRequestSaysWhyAndChangesNothing) {
   const nb::BedStatus status = bed.run(0.1);
   EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
   EXPECT_NEAR(status.elapsed_s, 0.6, 1e-6);
+}
+
+TEST(BedSupervisor, HugeUnicodeAndManyArgumentsAreRefusedWithoutQuotingThem) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  const std::string huge(40000, '9');
+  const std::vector<std::tuple<std::string, std::vector<std::string>, std::vector<std::string>, std::string>> cases{
+      {huge, {}, {}, "the plan name has 40000 characters (at most 64)"},
+      {"fl\xc3\xa4t", {}, {}, "the plan name holds a character that is not printable ASCII (byte 195 at 2)"},
+      {"flat", {"height_m"}, {huge}, "the value of 'height_m' has 40000 characters (at most 256)"},
+      {"flat", {"height_m"}, {"\xef\xbc\x90.\xef\xbc\x91"}, "the value of 'height_m' holds a character"},
+      {"flat", {std::string("h\0", 2)}, {"0.1"}, "argument 1's name holds a character that is not printable"},
+      {"flat", std::vector<std::string>(33, "height_m"), std::vector<std::string>(33, "0.1"),
+       "33 arguments (a plan takes at most 32)"},
+      {"flat", {"height_m"}, {std::string(200, '1')}, "height_m must be a number of at most 64 characters"},
+  };
+  for (const auto& [plan, keys, values, message] : cases) {
+    const nb::RequestResult r = bed.posture(plan, keys, values);
+    EXPECT_FALSE(r.ok);
+    EXPECT_TRUE(contains(r.message, message)) << r.message;
+    EXPECT_LT(r.message.size(), 200u);
+    EXPECT_TRUE(bed.out.commands.empty() && !bed.out.resume_record);
+  }
+  EXPECT_EQ(bed.run(0.1).plan, nb::PlanKind::kFlat);
 }
 
 TEST(BedSupervisor, AcceptedRequestsStartTheirPlanAndSaveIt) {

@@ -148,6 +148,7 @@ class BedSupervisor {
   CellCommander commander_;
   PlanRunner runner_;
   std::vector<std::string> alarms_;
+  std::string link_lost_;  ///< the cells whose hardware link was lost at the last watch
   PlanTargets last_targets_;
   double last_step_s_ = CellSnapshot::kNone;
   int cpr_announced_ = -1;  ///< last CPR announcement (-1: none)

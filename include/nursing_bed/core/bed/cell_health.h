@@ -1,6 +1,6 @@
 // Health of the bed's cells as the bed supervisor sees them (ROS-free): each cell's last state,
 // which cells are dead (silent past a timeout, judged only once the start-up is over) or faulty
-// (a sensor, model or communication fault), and each cell's condition for diagnostics. Times
+// (a sensor or model fault), and each cell's condition for diagnostics. Times
 // are seconds on the caller's clock, simulated or wall.
 #pragma once
 
@@ -93,8 +93,10 @@ class CellHealthWatcher {
   double largest_gap_s_ = 0.0;
 };
 
-/// The fault bits that make a cell faulty for the bed (it is levelled around it).
-constexpr std::uint32_t kFaultsThatFailACell = kFaultSensor | kFaultModel | kFaultCommunication;
+/// The fault bits that make a cell faulty for the bed (it is levelled around it). A lost
+/// hardware link is not one: the cell holds its gas and resumes the plan when the link returns,
+/// while the bed raises an alarm (BedSupervisor).
+constexpr std::uint32_t kFaultsThatFailACell = kFaultSensor | kFaultModel;
 
 /// The names of the fault bits set in `faults`, each after a space (" sensor overpressure").
 std::string faultNames(std::uint32_t faults);
