@@ -111,9 +111,9 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   vent_sub_ = private_nh_.subscribe(names::kVent, 10, &AirbagNode::onVent, this);
   heartbeat_sub_ = private_nh_.subscribe(names::kHeartbeat, 10, &AirbagNode::onHeartbeat, this);
   // The bed-wide loads and heartbeat come through the process's one subscription (BedTopics).
-  bed_topics_handle_ = BedTopics::instance().add(BedTopics::Handlers{
-      [this](const std_msgs::Float64MultiArray& loads) { onCellLoads(loads); },
-      [this](const std::string& publisher) { onBedHeartbeat(publisher); }});
+  bed_topics_handle_ = BedTopics::instance().add(
+      BedTopics::Handlers{[this](const std_msgs::Float64MultiArray& loads) { onCellLoads(loads); },
+                          [this](const std::string& publisher) { onBedHeartbeat(publisher); }});
   cpr_sub_ = nh_.subscribe(names::kCpr, 2, &AirbagNode::onCpr, this);
   start_ = ros::Time::now();
   last_publish_ = start_;
@@ -385,8 +385,8 @@ bool AirbagNode::setPressure(SetPressure::Request& req, SetPressure::Response& r
 bool AirbagNode::commandFromOwner(const std::string& publisher, const char* topic) const {
   // Intra-process messages carry this process's name (the bed manager nodelet's).
   if (publisher == params_.command_source || publisher == ros::this_node::getName()) return true;
-  ROS_WARN_THROTTLE(1.0, "%s: %s from %s refused: only %s (or this process) commands the cell", layout_.link_name.c_str(),
-                    topic, publisher.c_str(), params_.command_source.c_str());
+  ROS_WARN_THROTTLE(1.0, "%s: %s from %s refused: only %s (or this process) commands the cell",
+                    layout_.link_name.c_str(), topic, publisher.c_str(), params_.command_source.c_str());
   return false;
 }
 

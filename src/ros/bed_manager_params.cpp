@@ -32,6 +32,8 @@ BedManagerParams BedManager::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("leak_alarm_error_m", b.leak_alarm_error_m, b.leak_alarm_error_m);
   pnh.param("leak_alarm_s", b.leak_alarm_s, b.leak_alarm_s);
   pnh.param("initial_plan", p.initial_plan, p.initial_plan);
+  // roslaunch drops an empty value given on its command line (initial_plan:=""): "none" says it.
+  if (p.initial_plan == "none") p.initial_plan.clear();
   applyFlatParams(flattenRosParams(pnh, "plans"), "parameters " + pnh.resolveName("plans"), planConfigFields(),
                   &b.plans);
   pnh.param("body/first_row", b.body.first_row, b.body.first_row);

@@ -13,9 +13,9 @@
 #include <std_msgs/Float64MultiArray.h>
 
 #include <functional>
-#include <string>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <vector>
 
 namespace nursing_bed {
