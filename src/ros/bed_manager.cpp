@@ -175,10 +175,9 @@ void BedManager::publishDiagnosticsLocked(const ros::Time& now) {
 void BedManager::watchCells(const ros::TimerEvent&) {
   const ros::Time now = ros::Time::now();
   std::lock_guard<std::mutex> lock(mutex_);
-  const std::vector<std::string> alarms_before = supervisor_->alarms();
-  const std::size_t failed = supervisor_->watch(now.toSec());
+  const std::size_t changed = supervisor_->watch(now.toSec());
   carryOut(supervisor_->takeOutput());
-  if (failed > 0 || supervisor_->alarms() != alarms_before) publishDiagnosticsLocked(now);
+  if (changed > 0) publishDiagnosticsLocked(now);
 }
 
 void BedManager::step(const ros::TimerEvent&) {

@@ -27,6 +27,7 @@ BedManagerParams BedManager::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("joint_state_rate_hz", p.joint_state_rate_hz, p.joint_state_rate_hz);
   pnh.param("plan_rate_hz", p.plan_rate_hz, p.plan_rate_hz);
   pnh.param("cell_timeout_s", b.cell_timeout_s, b.cell_timeout_s);
+  pnh.param("startup_grace_s", b.startup_grace_s, b.startup_grace_s);
   pnh.param("diagnostics_rate_hz", p.diagnostics_rate_hz, p.diagnostics_rate_hz);
   pnh.param("resend_s", b.resend_s, b.resend_s);
   pnh.param("leak_alarm_error_m", b.leak_alarm_error_m, b.leak_alarm_error_m);

@@ -219,16 +219,16 @@ std::size_t BedSupervisor::watchCells(double now_s) {
   // They keep their targets and resume the plan when the link returns.
   if (!link_lost.empty())
     alarms_.insert(alarms_.begin(), "hardware link lost (cells holding their gas, mode SAFE): cells " + link_lost);
-  if (link_lost != link_lost_ && !link_lost.empty())
-    log(BedEvent::Kind::kCellFailed, Severity::kError, alarms_.front());
+  const std::size_t link_changed = link_lost != link_lost_ ? 1 : 0;
+  if (link_changed && !link_lost.empty()) log(BedEvent::Kind::kCellFailed, Severity::kError, alarms_.front());
   link_lost_ = link_lost;
-  if (failed.empty()) return 0;
+  if (failed.empty()) return link_changed;
   // Keep the patient level, at the healthy cells' mean height, reached at the limited rates.
   const double h = safeLevel();
   for (const std::string& f : failed)
     log(BedEvent::Kind::kCellFailed, Severity::kError, f + "; levelling the bed at " + fixed(h, 3) + " m");
   if (!runner_.runs(PlanKind::kCpr)) start(runner_.safeLevel(h, now_s));
-  return failed.size();
+  return failed.size() + link_changed;
 }
 
 BedStatus BedSupervisor::step(double now_s) {

@@ -4,6 +4,9 @@
 #include <stdexcept>
 
 namespace nursing_bed {
+namespace {
+constexpr double kStartUpSettleS = 2.0;  ///< see CellHealthWatcher::watch
+}  // namespace
 
 CellHealthWatcher::CellHealthWatcher(std::vector<BedCell> cells, double timeout_s, double startup_grace_s,
                                      double started_s)
@@ -40,7 +43,10 @@ std::vector<std::string> CellHealthWatcher::watch(double now_s) {
   if (!judging()) {
     bool all_reporting = true;
     for (const BedCell& c : cells_) all_reporting = all_reporting && reporting(c.id, now_s);
-    if (all_reporting || now_s - started_s_ > startup_grace_s_) judged_from_s_ = now_s;
+    // The cells loaded last still stall for a moment after their first state: silences count
+    // from kStartUpSettleS after every cell first reported at once.
+    if (all_reporting) judged_from_s_ = now_s + kStartUpSettleS;
+    else if (now_s - started_s_ > startup_grace_s_) judged_from_s_ = now_s;
   }
   std::vector<std::string> failed;
   for (const BedCell& c : cells_) {

@@ -23,8 +23,10 @@
 namespace nursing_bed {
 
 struct BedSupervisorParams {
-  double cell_timeout_s = 0.45;      ///< a cell silent this long is dead [s] (watched at ~50 Hz: dead within 0.5 s)
-  double startup_grace_s = 10.0;     ///< cells that never reported are dead only this long after the start [s]
+  double cell_timeout_s = 0.45;  ///< a cell silent this long is dead [s] (watched at ~50 Hz: dead within 0.5 s)
+  /// Cells are judged once every cell reports, or this long after the start: a cell that never
+  /// reported is dead only then (a loaded machine takes seconds to load a whole bed) [s].
+  double startup_grace_s = 60.0;
   double resend_s = 1.0;             ///< setpoints and vents are repeated this often [s]
   double leak_alarm_error_m = 0.01;  ///< a cell this far below its target ... [m]
   double leak_alarm_s = 15.0;        ///< ... for this long raises the leak alarm [s]
@@ -105,7 +107,8 @@ class BedSupervisor {
   /// One plan step at `now_s`: watches the cells, evaluates the plan, queues the commands.
   BedStatus step(double now_s);
   /// Watches the cells at `now_s` between plan steps (a dead cell is acted on sooner than the
-  /// plan rate allows): levels the bed if a cell failed. Returns how many newly failed.
+  /// plan rate allows): levels the bed if a cell failed. Returns how many newly failed, plus one
+  /// when the set of cells with a lost hardware link changed.
   std::size_t watch(double now_s);
   /// What the calls since the last takeOutput() want done.
   SupervisorOutput takeOutput();
@@ -120,8 +123,6 @@ class BedSupervisor {
   std::string setTunables(const BedSupervisorParams& params);
 
   const CellHealthWatcher& health() const { return health_; }
-  /// The alarms raised at the last watch (step or watch) [text each].
-  const std::vector<std::string>& alarms() const { return alarms_; }
   const BedSupervisorParams& params() const { return params_; }
 
  private:

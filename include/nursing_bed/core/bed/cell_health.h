@@ -48,9 +48,10 @@ struct CellReport {
 class CellHealthWatcher {
  public:
   /// `cells` by id; a cell is dead when silent for more than `timeout_s`. No cell is judged
-  /// until the start-up is over: every cell reporting at once (cells still being loaded stall
-  /// the ones loaded before them), or `startup_grace_s` after `started_s`, whichever is first;
-  /// silences count from then.
+  /// until the start-up is over: 2 s after every cell first reports at once (cells still being
+  /// loaded stall the ones loaded before them, and the last ones stall a moment after their
+  /// first state), or `startup_grace_s` after `started_s`, whichever is first; silences count
+  /// from then.
   CellHealthWatcher(std::vector<BedCell> cells, double timeout_s, double startup_grace_s, double started_s);
 
   /// Keeps a cell's state (and the longest wait between two of its states); false, and nothing
