@@ -47,6 +47,10 @@ struct AirbagNodeParams {
   /// ~reconfigure (else defaults_ns/reconfigure): serve ~set_parameters (dynamic_reconfigure);
   /// off, the cell starts faster.
   bool reconfigure = true;
+  /// ~command_source (else defaults_ns/command_source): the node whose per-cell setpoints, vents
+  /// and heartbeats the cell obeys, besides its own process (the bed manager nodelet shares it);
+  /// anything else publishing them is refused, named in a warning.
+  std::string command_source = "/bed_manager";
   AirbagCellParams airbag;        ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
   AirbagHardwareParams hardware;  ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
@@ -76,12 +80,15 @@ class AirbagNode {
   bool setPressure(SetPressure::Request& req, SetPressure::Response& res);
   /// The cell over the hardware plugin of params_.hardware (the simulated cell by default).
   std::unique_ptr<AirbagCell> makeCell();
-  void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
+  void onSetpoint(const ros::MessageEvent<const std_msgs::Float64>& event);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
   void onCellLoads(const std_msgs::Float64MultiArray& msg);
-  void onVent(const std_msgs::Empty::ConstPtr& msg);
-  void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
-  void onBedHeartbeat();
+  void onVent(const ros::MessageEvent<const std_msgs::Empty>& event);
+  void onHeartbeat(const ros::MessageEvent<const std_msgs::Empty>& event);
+  void onBedHeartbeat(const std::string& publisher);
+  /// A per-cell command from `publisher` on `topic` is obeyed (the bed manager's or this
+  /// process's); else false, with a throttled warning naming the publisher.
+  bool commandFromOwner(const std::string& publisher, const char* topic) const;
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
   /// A dynamic_reconfigure request: new controller tuning and safety thresholds for the cell
   /// (applyTuning), or refused whole (ros/reconfigure.h).

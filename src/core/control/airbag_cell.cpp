@@ -179,7 +179,7 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   controller_.setTarget(height_m);
   if (use_estimate_) gas_.heightRequested(height_m, measurement_.height_m);
   pressure_.clear();
-  mode_ = AirbagMode::kHeight;
+  enterMode(AirbagMode::kHeight);
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
   safety_.noteCommand(now_s);
   return "";
@@ -188,7 +188,16 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
 void AirbagCell::setCpr(bool on, double now_s) {
   if (on) requestVent(now_s);
   else if (cpr_ && mode_ == AirbagMode::kVent) mode_ = AirbagMode::kIdle;
+  else if (cpr_ && (faults_ & kFaultCommunication) && mode_before_link_loss_ == AirbagMode::kVent)
+    mode_before_link_loss_ = AirbagMode::kIdle;
   cpr_ = on;
+}
+
+void AirbagCell::enterMode(AirbagMode mode) {
+  // With the link down nothing is commanded: the cell stays SAFE and takes the mode when the
+  // link is back (onLink).
+  if (faults_ & kFaultCommunication) mode_before_link_loss_ = mode;
+  else mode_ = mode;
 }
 
 std::string AirbagCell::checkPressure(double pressure_pa) const {
@@ -206,7 +215,7 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   controller_.clearTarget();
   gas_.pressureRequested();  // a pressure is held from where the cell is
   pressure_.setSetpoint(pressure_pa);
-  mode_ = AirbagMode::kPressure;
+  enterMode(AirbagMode::kPressure);
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
   safety_.noteCommand(now_s);
   return "";
@@ -215,7 +224,7 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
 void AirbagCell::requestVent(double now_s) {
   controller_.clearTarget();
   pressure_.clear();
-  mode_ = AirbagMode::kVent;
+  enterMode(AirbagMode::kVent);
   faults_ &= ~kFaultCommandTimeout;
   safety_.noteCommand(now_s);
 }

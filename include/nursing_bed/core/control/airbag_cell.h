@@ -210,6 +210,8 @@ class AirbagCell {
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
   void resetControl(double load_n);
+  /// Takes a commanded mode (held for the link's return while it is down).
+  void enterMode(AirbagMode mode);
   /// The mode a cleared fault returns to: pressure, height or idle by the setpoint held.
   AirbagMode resumedMode() const;
   /// After the hardware reported a device reset (the simulated plant's failed solve, reset flat
