@@ -227,6 +227,11 @@ std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams
   report->noise_p_pa = median(noise_p);
   report->noise_h_m = median(noise_h);
   report->localization = localizeGap(runs, nominal);
+  std::vector<std::vector<GapEvent>> events(runs.size());
+  parallelFor(static_cast<int>(runs.size()), options.threads, [&](int i) {
+    events[i] = localiseInTime(runs[i], params, {}, prepared.noises[i].p_pa, prepared.noises[i].h_m);
+  });
+  for (const auto& run_events : events) report->events.insert(report->events.end(), run_events.begin(), run_events.end());
   return nominal;
 }
 

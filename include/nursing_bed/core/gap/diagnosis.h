@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/localisation.h"
 #include "nursing_bed/core/gap/replay.h"
 #include "nursing_bed/core/gap/run_data.h"
 #include "nursing_bed/core/physics/cell_model.h"
@@ -141,6 +142,8 @@ struct DiagnosisReport {
   bool roles_chosen = false;  ///< true: no roles were given, the diagnosis chose them
   double noise_p_pa = 0.0, noise_h_m = 0.0;
   std::vector<GapShare> localization;
+  /// Where in time the nominal model and each run part (re-anchored windows; localisation.h).
+  std::vector<GapEvent> events;
   double nominal_chi2_per_sample = 0.0;  ///< fit runs, in noise-floor units
   double nominal_fit_nrmse = 0.0;
   double nominal_withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs (NaN: none)
