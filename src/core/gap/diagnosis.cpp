@@ -79,9 +79,9 @@ void splitValues(const ModelSpec& m, const std::map<std::string, double>& values
 }
 
 /// Parameters a model fits beyond the baseline's: its effects' and the calibrated ones the
-/// baseline holds at nominal.
+/// baseline holds at nominal; not those the fit holds (heldAxes()).
 int extraParameters(const ModelSpec& m, const NoiseModel& noise) {
-  int k = 0;
+  int k = -static_cast<int>(heldAxes(noise.fit, m).size());
   for (const auto& a : m.axes) k += (!a.calibration || !noise.baseline_calibration.count(a.spec.name)) ? 1 : 0;
   return k;
 }

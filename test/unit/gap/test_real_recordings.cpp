@@ -13,6 +13,7 @@
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/fit_model.h"
 #include "nursing_bed/core/gap/log_import.h"
 #include "nursing_bed/core/physics/airway.h"
 #include "nursing_bed/core/physics/cell_model.h"
@@ -118,6 +119,25 @@ TEST(StructureCalibration, CandidatesThatAssumeThePillowAreLeftOutWithANote) {
   notes.clear();
   EXPECT_EQ(gs::candidatesForStructure(all, nb::CellParams{}, &notes), all);
   EXPECT_TRUE(notes.empty());
+}
+
+TEST(StructureCalibration, FlowMeterScaleErrorIsHeldWhereItIsTheCompliance) {
+  // On pressure alone a meter reading (1 + k) times the flow is a compliance C (1 + k): the
+  // inflow bias' fit keeps its offset and holds the scale error at 0 there, only there.
+  gs::FitData fit;
+  fit.params = lungParams("lung_quicklung_c20.yaml");
+  fit.runs.resize(2);
+  for (auto& r : fit.runs) r.has_height = false;
+  const gs::ModelSpec bias = gs::makeModelSpec({"leak", "inflow_bias"});
+  const std::vector<int> held = gs::heldAxes(fit, bias);
+  ASSERT_EQ(held.size(), 1u);
+  EXPECT_EQ(bias.axes[held[0]].spec.name, "scale_error");
+  EXPECT_TRUE(gs::heldAxes(fit, gs::makeModelSpec({"leak"})).empty());
+  fit.runs[1].has_height = true;  // a height reading tells the volume apart
+  EXPECT_TRUE(gs::heldAxes(fit, bias).empty());
+  fit.runs[1].has_height = false;
+  fit.params = nb::CellParams{};  // the pillow has no compliance parameter of its own
+  EXPECT_TRUE(gs::heldAxes(fit, bias).empty());
 }
 
 // ---- the recordings ------------------------------------------------------------------------------
