@@ -231,7 +231,8 @@ std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams
   parallelFor(static_cast<int>(runs.size()), options.threads, [&](int i) {
     events[i] = localiseInTime(runs[i], params, {}, prepared.noises[i].p_pa, prepared.noises[i].h_m);
   });
-  for (const auto& run_events : events) report->events.insert(report->events.end(), run_events.begin(), run_events.end());
+  for (const auto& run_events : events)
+    report->events.insert(report->events.end(), run_events.begin(), run_events.end());
   return nominal;
 }
 

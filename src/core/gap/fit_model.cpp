@@ -299,8 +299,7 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
       problem.SetParameterUpperBound(u.data(), static_cast<int>(j), model.axes[j].u_max);
     }
     if (held.size() == model.axes.size()) problem.SetParameterBlockConstant(u.data());
-    else if (!held.empty())
-      problem.SetManifold(u.data(), new ceres::SubsetManifold(static_cast<int>(u.size()), held));
+    else if (!held.empty()) problem.SetManifold(u.data(), new ceres::SubsetManifold(static_cast<int>(u.size()), held));
     ceres::Solver::Options options;
     options.linear_solver_type = ceres::DENSE_QR;
     options.max_num_iterations = max_iterations;

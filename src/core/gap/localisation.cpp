@@ -21,9 +21,9 @@ RunData sliceRun(const RunData& run, std::size_t i0, std::size_t i1) {
   auto cut = [&](auto* v) {
     if (v->size() == n) *v = std::decay_t<decltype(*v)>(v->begin() + i0, v->begin() + i1 + 1);
   };
-  for (std::vector<double>* v : {&out.t_s, &out.mdot_in_kg_s, &out.p_gauge_pa, &out.h_m, &out.load_n_series,
-                                 &out.valve_cmd, &out.p_supply_gauge_pa, &out.t_gas_k, &out.mdot_uncorrected_kg_s,
-                                 &out.p_setpoint_gauge_pa})
+  for (std::vector<double>* v :
+       {&out.t_s, &out.mdot_in_kg_s, &out.p_gauge_pa, &out.h_m, &out.load_n_series, &out.valve_cmd,
+        &out.p_supply_gauge_pa, &out.t_gas_k, &out.mdot_uncorrected_kg_s, &out.p_setpoint_gauge_pa})
     cut(v);
   cut(&out.inlet_closed);
   return out;

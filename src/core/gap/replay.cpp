@@ -68,8 +68,8 @@ bool zeroMeanWithinNoise(const std::vector<double>& x, std::size_t begin, std::s
 /// left. n when the run has height readings, no metered flow, or never empties.
 std::size_t emptiedFrom(const RunData& run, std::size_t vent_start) {
   const std::size_t n = run.size();
-  const bool metered = std::any_of(run.mdot_in_kg_s.begin(), run.mdot_in_kg_s.end(),
-                                   [](double q) { return std::isfinite(q); });
+  const bool metered =
+      std::any_of(run.mdot_in_kg_s.begin(), run.mdot_in_kg_s.end(), [](double q) { return std::isfinite(q); });
   const bool has_height = std::any_of(run.h_m.begin(), run.h_m.end(), [](double h) { return std::isfinite(h); });
   if (!metered || has_height) return n;
   for (std::size_t i = vent_start, end = vent_start; i < n; ++i) {

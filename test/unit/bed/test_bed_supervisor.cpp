@@ -307,7 +307,7 @@ TEST(BedSupervisor, ALostHardwareLinkIsABedAlarmNamingTheCellsAndAnErrorOnDiagno
   EXPECT_EQ(report.cells[3].severity, nb::Severity::kError);
   EXPECT_EQ(report.cells[3].message, "hardware link lost, faults: command-timeout communication");
   EXPECT_TRUE(contains(report.message,
-                       "6 cells, 0 not reporting, 2 with a lost hardware link, 0 with faults; "
+                       "6 cells, 0 not reporting, 2 with a lost hardware link, 0 with faults, 0 unverified; "
                        "hardware link lost"))
       << report.message;
   // The link back: the alarm ends.
