@@ -30,7 +30,8 @@ struct CellParams {
   PillowParams structure;  ///< geometry and film
   /// Structure model: "pillow" (PillowStructure from `structure`), "table" (a
   /// TabulatedStructure read from structure_table_file, e.g. written by fe_airbag; the film
-  /// shape then relaxes in structure.film_relaxation_time_s) or "bellows" (from `bellows`).
+  /// shape then relaxes in structure.film_relaxation_time_s), "fold_table" (two FE tables, folded
+  /// and open at the middle connection, with hysteresis) or "bellows" (from `bellows`).
   std::string structure_type = "pillow";
   BellowsParams bellows;             ///< used when structure_type is "bellows"
   std::string structure_table_file;  ///< table path (YAML keys structure/type, structure/table_file)
