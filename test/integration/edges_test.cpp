@@ -8,7 +8,6 @@
 #include <std_msgs/Empty.h>
 #include <std_msgs/Float64.h>
 #include <std_msgs/Float64MultiArray.h>
-#include <xmlrpcpp/XmlRpcClient.h>
 
 #include <cstdlib>
 #include <limits>
@@ -312,19 +311,7 @@ TEST_F(EdgesFixture, ALostTerminalIsABedAlarmWithItsCellsSafeOnDiagnosticsWithin
         for (const auto& s : m->status)
           if (s.name == "bed") bed_diag = s;
       });
-  // Shut the emulator down (what `rosnode kill` does, without its start-up time).
-  XmlRpc::XmlRpcValue args, result, payload;
-  args[0] = ros::this_node::getName();
-  args[1] = "/rig_emulator";
-  ASSERT_TRUE(ros::master::execute("lookupNode", args, result, payload, true));
-  std::string host;
-  std::uint32_t port = 0;
-  ASSERT_TRUE(ros::network::splitURI(static_cast<std::string>(payload), host, port));
-  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-  XmlRpc::XmlRpcValue call, reply;
-  call[0] = ros::this_node::getName();
-  call[1] = "test: terminal lost";
-  ASSERT_TRUE(client.execute("shutdown", call, reply));
+  ASSERT_NO_FATAL_FAILURE(shutdownNode("/rig_emulator", "test: terminal lost"));
   const ros::WallTime lost = ros::WallTime::now();
   double safe_s = kNaN, alarm_s = kNaN, diag_s = kNaN;
   auto contains = [](const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; };
