@@ -24,7 +24,7 @@ import threading
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_GAP = os.path.join(HERE, "..", "build", "devel", "lib", "nursing_bed", "gap")
+DEFAULT_GAP = os.path.join(HERE, "..", "devel", "lib", "nursing_bed", "gap")
 RUN_SUFFIXES = (".csv", ".bag")
 
 

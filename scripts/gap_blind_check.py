@@ -45,7 +45,7 @@ import time
 import xml.sax.saxutils as su
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-DEFAULT_GAP = os.path.join(HERE, "..", "build", "devel", "lib", "nursing_bed", "gap")
+DEFAULT_GAP = os.path.join(HERE, "..", "devel", "lib", "nursing_bed", "gap")
 
 TOP1_MIN, NONE_MIN, UNEXPLAINED_MIN, SHRINK_MIN = 0.90, 1.00, 0.70, 0.80
 MISMATCH_MIN, MISMATCH_EFFECT_MIN, PAIR_MIN, VALVE_MIN = 0.90, 0.90, 0.80, 0.90

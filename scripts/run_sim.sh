@@ -9,7 +9,7 @@ export PATH="/usr/bin:$PATH"
 cd "$ROOT"
 
 # The main job: the simulated bed (launch args such as rows:=4 cols:=3 rviz:=true pass through).
-# The paper reproduction is build/devel/lib/nursing_bed/paper_reproduction --out DIR.
+# The paper reproduction is devel/lib/nursing_bed/paper_reproduction --out DIR.
 MAIN_JOB=(roslaunch nursing_bed sim.launch)
 
 mkdir -p "$BUILD"
@@ -25,7 +25,7 @@ fi
 # catkin's setup scripts read unset variables.
 set +u
 # shellcheck disable=SC1091
-source "$BUILD/devel/setup.bash"
+source "$ROOT/devel/setup.bash"
 set -u
 
 echo "run_sim: ${MAIN_JOB[*]} $*"
