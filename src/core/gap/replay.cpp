@@ -35,15 +35,16 @@ double initialPressure(const RunData& run) {
   return std::accumulate(p.begin(), p.end(), 0.0) / p.size();
 }
 
-/// The height to start a replay at rest from: the measured one, or without height readings the
-/// structure's equilibrium at the first pressure (NaN: start flat).
+/// The height to start a replay at rest from (NaN: start flat): the measured one above
+/// kLandedHeightM, or without height readings the structure's equilibrium at the first pressure
+/// (a spring-loaded chamber at a low resting pressure holds it a few mm up: not landed).
 double startHeight(const RunData& run, const CellStructure& structure, double load_n) {
   const InitialHeight h0 = initialHeight(run);
-  if (h0.samples > 0) return h0.h_m;
+  if (h0.samples > 0) return h0.h_m > kLandedHeightM ? h0.h_m : NAN;
   const double p0 = initialPressure(run);
   if (!(p0 > kRestingPressureMinPa)) return NAN;
   const StructureEquilibrium eq = structure.equilibriumAtPressure(p0, load_n);
-  return eq.converged ? eq.height_m : NAN;
+  return eq.converged && eq.height_m > 0.0 ? eq.height_m : NAN;
 }
 /// Whether the finite samples of x in [begin, end) (at least 10) have a mean within 3 standard
 /// errors of zero.
@@ -225,7 +226,7 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
     // pressure), with the measured gas temperature if there is one.
     const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
     const double h_start = startHeight(run, model.structure(), load0);
-    if (h_start > kLandedHeightM) model.resetToEquilibrium(h_start, load0, t_gas0);
+    if (std::isfinite(h_start)) model.resetToEquilibrium(h_start, load0, t_gas0);
     else model.reset(load0);
     // Model time starts at the run's first sample.
     model.setState(run.t_s[0], model.state());
