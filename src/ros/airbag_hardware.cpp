@@ -40,6 +40,7 @@ Status AirbagHardwareParams::validate() const {
                "hardware/register_map must name the register map YAML for nursing_bed/ModbusTcpHardware");
   errors.addNested(observer.validate(), "observer/: ");
   errors.addNested(gas_check.validate(), "observer/: ");
+  errors.addNested(monitor.validate(), "observer/monitor_: ");
   try {
     effectsFromText(observer_effects, 1);
   } catch (const std::invalid_argument& e) {
@@ -59,7 +60,8 @@ AirbagHardwareParams AirbagHardwareParams::load(const ros::NodeHandle& pnh, cons
   values.erase("observer/force");
   if (!pnh.getParam("observer/force", p.observer_force))
     pnh.getParam(defaults_ns + "/observer/force", p.observer_force);
-  applyObserverParams(values, "parameters of " + pnh.getNamespace(), &p.observer, &p.gas_check, "observer/");
+  applyObserverParams(values, "parameters of " + pnh.getNamespace(), &p.observer, &p.gas_check, &p.monitor,
+                      "observer/");
   return p;
 }
 
@@ -80,6 +82,7 @@ AirbagObserverSetup observerSetup(const AirbagHardwareParams& params, const Cell
   AirbagObserverSetup setup;
   setup.params = params.observer;
   setup.gas_check = params.gas_check;
+  setup.monitor = params.monitor;
   setup.model = params.observer_cell_params.empty() ? cell : loadCellParamsYaml(params.observer_cell_params);
   setup.effects = effectsFromText(params.observer_effects, seed);
   setup.force = params.observer_force;

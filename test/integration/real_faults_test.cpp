@@ -176,5 +176,25 @@ TEST_F(RealFaultsFixture, AnOffsetAndAFrozenSensorAreFlaggedWithinSecondsAndTheO
   EXPECT_NE(bad.message.find("valve must be inlet or vent"), std::string::npos) << bad.message;
 }
 
+TEST_F(RealFaultsFixture, AStuckShutInletAtItsNextMoveAndAStuckOpenInletAreFlaggedTheOtherCellIsNot) {
+  raiseAll(0.06);
+  scoring_ = true;
+  waitFor([] { return false; }, 1.0);  // the plates settle
+  // Shut is what a holding cell asks of its inlet: seen when a move needs it.
+  ASSERT_TRUE(inject("stuck_closed", {1}, 0.0, "inlet").success);
+  ASSERT_TRUE(callBed({1}, {0.08}).success);
+  const ros::WallTime shut_at = ros::WallTime::now();
+  ASSERT_TRUE(waitFor([this] { return flagged(states_[1]); }, 5.0)) << "stuck-shut inlet not flagged";
+  const double shut_flag_s = (ros::WallTime::now() - shut_at).toSec();
+  ASSERT_TRUE(inject("stuck_open", {2}, 0.0, "inlet").success);
+  const ros::WallTime open_at = ros::WallTime::now();
+  ASSERT_TRUE(waitFor([this] { return flagged(states_[2]); }, 5.0)) << "stuck-open inlet not flagged";
+  const double open_flag_s = (ros::WallTime::now() - open_at).toSec();
+  EXPECT_TRUE(waitFor([this] { return flagged(states_[0]); }, 5.0) == false) << "cell 0 flagged";
+  EXPECT_NEAR(latestTruth(0), 0.06, 0.002);
+  std::printf("[          ] stuck-shut inlet flagged %.2f s into its move, stuck-open inlet after %.2f s\n", shut_flag_s,
+              open_flag_s);
+}
+
 }  // namespace test
 }  // namespace nursing_bed

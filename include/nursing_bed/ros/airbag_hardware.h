@@ -21,6 +21,8 @@ struct AirbagHardwareParams {
   /// observer/resume_vent_s, observer/reanchor_below_m: the cell's checks of the observer's gas
   /// (gasVerifierParamFields).
   GasVerifierParams gas_check;
+  /// observer/monitor_<key>: the consistency monitor's thresholds (consistencyMonitorParamFields).
+  ConsistencyMonitorParams monitor;
   /// observer/cell_params: YAML of the observer's cell model (a calibrated set, e.g. from
   /// `gap calibrate`); empty: the cell's own parameters.
   std::string observer_cell_params;

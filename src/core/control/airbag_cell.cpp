@@ -372,14 +372,39 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   Readings z = measurement_;
   if (use_estimate_) z.height_m = std::numeric_limits<double>::quiet_NaN();
   if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
-  const double height_before = observer_->estimate().height_m;
+  const CellEstimate before = observer_->estimate();
   const ObserverEvents events = observer_->step(in, z, dt_s);
   gas_.note(events);
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
-  if (!sim_) monitorStep(events, height_before, dt_s > 0.0 ? dt_s : params_.control_period_s);
+  if (!sim_) monitorStep(events, before, dt_s > 0.0 ? dt_s : params_.control_period_s);
 }
 
-void AirbagCell::monitorStep(const ObserverEvents& events, double height_before_m, double dt_s) {
+double AirbagCell::countedStepPa(const ObserverEvents& events, const CellEstimate& before) const {
+  // Fixed volume: p = (gamma - 1) U / V with U ~ m, so dp = gamma p dm / m for gas passed
+  // at about the cell's temperature. One valve at a time (a step that also re-anchored the
+  // mass is no count of the valves).
+  const ValveOpenings& v = observer_->appliedInputs().valves;
+  const int direction = v.inlet > 0.0 && v.vent == 0.0 ? 1 : (v.vent > 0.0 && v.inlet == 0.0 ? -1 : 0);
+  if (direction == 0 || events.reanchored || !(before.mass_kg > 0.0)) return 0.0;
+  const double dm_kg = std::fabs(observer_->estimate().mass_kg - before.mass_kg);
+  const double p_abs = measurement_.gauge_pressure_pa + params_.cell.ambient_pressure_pa;
+  return direction * params_.cell.gas.heat_capacity_ratio * p_abs * dm_kg / before.mass_kg;
+}
+
+double AirbagCell::platePeriod() const {
+  // Load p A: A = F / p; the gas spring k = gamma p_abs A^2 / V; the moving mass M = F / g.
+  constexpr double kGravity = 9.81;
+  const CellEstimate e = observer_->estimate();
+  const double p = measurement_.gauge_pressure_pa;
+  if (!(e.load_n > 0.0 && p > 0.0 && e.volume_m3 > 0.0)) return 0.0;
+  const double area_m2 = e.load_n / p;
+  const double stiffness_n_m =
+      params_.cell.gas.heat_capacity_ratio * (p + params_.cell.ambient_pressure_pa) * area_m2 * area_m2 / e.volume_m3;
+  return 2.0 * M_PI * std::sqrt(e.load_n / kGravity / stiffness_n_m);
+}
+
+void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& before, double dt_s) {
+  const double height_before_m = before.height_m;
   // The pressure before a lost link, for the check after it (over a few periods: one
   // reading's noise is not the cell's pressure).
   const double p = measurement_.gauge_pressure_pa;
@@ -396,6 +421,9 @@ void AirbagCell::monitorStep(const ObserverEvents& events, double height_before_
   // only pulls the estimate to a bound, so a large one shows the inventory wrong.
   if (events.weight_bounded && !events.reanchored)
     sample.correction_m = observer_->estimate().height_m - height_before_m;
+  sample.counted_step_pa = countedStepPa(events, before);
+  sample.load_n = observer_->estimate().load_n;
+  sample.plate_period_s = platePeriod();
   if (monitor_.update(sample, dt_s)) {
     faults_ |= kFaultInconsistent;
     gas_.suspect();

@@ -105,14 +105,16 @@ const ParamTable<GasVerifierParams>& gasVerifierParamFields() {
 }
 
 void applyObserverParams(const FlatParams& values, const std::string& source, CellObserverParams* observer,
-                         GasVerifierParams* gas_check, const std::string& prefix) {
-  FlatParams observer_values, gas_values;
+                         GasVerifierParams* gas_check, ConsistencyMonitorParams* monitor, const std::string& prefix) {
+  FlatParams observer_values, gas_values, monitor_values;
   for (const auto& [key, value] : values) {
     bool gas_key = false;
     for (const auto& f : gasVerifierParamFields()) gas_key = gas_key || key == prefix + f.key;
-    (gas_key ? gas_values : observer_values)[key] = value;
+    const bool monitor_key = key.rfind(prefix + "monitor_", 0) == 0;
+    (gas_key ? gas_values : (monitor_key ? monitor_values : observer_values))[key] = value;
   }
   applyFlatParams(gas_values, source, gasVerifierParamFields(), gas_check, prefix);
+  applyFlatParams(monitor_values, source, consistencyMonitorParamFields(), monitor, prefix);
   applyFlatParams(observer_values, source, observerParamFields(), observer, prefix);
 }
 

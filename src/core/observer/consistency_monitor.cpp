@@ -24,6 +24,11 @@ Status ConsistencyMonitorParams::validate() const {
   positive("cusum_threshold_pa_s", cusum_threshold_pa_s);
   positive("surprise_m", surprise_m);
   positive("jump_pa", jump_pa);
+  nonNegative("response_min_pa", response_min_pa);
+  positive("response_sds", response_sds);
+  nonNegative("response_window_s", response_window_s);
+  nonNegative("response_min_period_s", response_min_period_s);
+  nonNegative("max_load_n", max_load_n);
   return errors.status();
 }
 
@@ -54,6 +59,11 @@ bool ConsistencyMonitor::update(const ConsistencySample& sample, double dt_s) {
   } else if (std::fabs(sample.correction_m) > params_.surprise_m) {
     why << "the plate's weight bound corrected the height by " << 1e3 * sample.correction_m << " mm (limit "
         << 1e3 * params_.surprise_m << " mm)";
+  } else if (params_.max_load_n > 0.0 && sample.load_n > params_.max_load_n) {
+    why << "the observer's load " << sample.load_n << " N exceeds any a cell carries (" << params_.max_load_n
+        << " N): the pressure is more than its counted gas can hold";
+  } else if (const std::string silent = response_.update(sample, dt_s, params_); !silent.empty()) {
+    why << silent;
   } else if (innovation(sample, dt_s)) {
     why << "pressure " << sample.gauge_pressure_pa << " Pa departs from the hold's " << reference_pa_
         << " Pa with both valves shut (CUSUM " << cusum() << " Pa s)";
@@ -102,6 +112,7 @@ bool ConsistencyMonitor::innovation(const ConsistencySample& sample, double dt_s
 }
 
 void ConsistencyMonitor::interrupt() {
+  response_.restart();
   have_reading_ = false;
   same_for_s_ = 0.0;
   shut_for_s_ = 0.0;
@@ -112,6 +123,63 @@ void ConsistencyMonitor::interrupt() {
 void ConsistencyMonitor::clear() {
   reason_.clear();
   interrupt();
+}
+
+std::string ValveResponseCheck::update(const ConsistencySample& sample, double dt_s,
+                                       const ConsistencyMonitorParams& params) {
+  const double p = sample.gauge_pressure_pa;
+  for (int i = kRecent - 1; i > 0; --i) recent_[i] = recent_[i - 1];
+  recent_[0] = p;
+  double recent_pa = 0.0;
+  for (const double r : recent_) recent_pa += r / kRecent;
+  const int direction = sample.counted_step_pa > 0.0 ? 1 : (sample.counted_step_pa < 0.0 ? -1 : 0);
+  std::string why;
+  if (direction_ != 0) {
+    best_pa_ = std::max(best_pa_, direction_ * (recent_pa - baseline_pa_));
+    if (direction == direction_) {
+      counted_pa_ += sample.counted_step_pa;
+      after_s_ = 0.0;
+      return why;
+    }
+    after_s_ += dt_s;
+    // Judged once the window after the counted flow has passed, or when the other valve opens.
+    if (direction == 0 && after_s_ < params.response_window_s) return why;
+    const double needed_pa = params.response_sds * sample.noise_sd_pa;
+    // A vent can take the pressure down to ambient at most: a plate that rests at a few
+    // reading sds (a light one) has no room to show its vent working.
+    const bool room = (direction_ > 0 || baseline_pa_ >= 2.0 * needed_pa) && slow_enough_;
+    if (params.response_min_pa > 0.0 && std::fabs(counted_pa_) >= params.response_min_pa && room &&
+        best_pa_ < needed_pa) {
+      std::ostringstream w;
+      w << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << std::fabs(counted_pa_)
+        << " Pa at fixed volume but the pressure moved " << best_pa_ << " Pa its way (less than " << needed_pa
+        << " Pa): a valve that does not open";
+      why = w.str();
+    }
+    direction_ = 0;
+    pre_count_ = 0;
+  }
+  if (direction != 0 && pre_count_ >= kPre) {
+    baseline_pa_ = 0.0;
+    for (const double r : pre_) baseline_pa_ += r / kPre;
+    direction_ = direction;
+    slow_enough_ = sample.plate_period_s >= params.response_min_period_s;
+    counted_pa_ = sample.counted_step_pa;
+    best_pa_ = direction * (recent_pa - baseline_pa_);
+    after_s_ = 0.0;
+  } else if (direction == 0) {
+    pre_[pre_next_] = p;
+    pre_next_ = (pre_next_ + 1) % kPre;
+    pre_count_ = std::min(kPre, pre_count_ + 1);
+  }
+  return why;
+}
+
+void ValveResponseCheck::restart() {
+  direction_ = 0;
+  pre_count_ = 0;
+  pre_next_ = 0;
+  recent_.fill(0.0);
 }
 
 double ConsistencyMonitor::cusum() const { return std::max(up_pa_s_, down_pa_s_); }

@@ -28,7 +28,40 @@ ParamTable<P> makeFields() {
 }
 #undef NB_FIELD
 
+ParamTable<ConsistencyMonitorParams> makeMonitorFields() {
+  using M = ConsistencyMonitorParams;
+  auto field = [](const char* key, const char* desc, double M::*member) {
+    return realField<M>(std::string("monitor_") + key, desc, [member](M& p) -> double& { return p.*member; });
+  };
+  return {
+      field("frozen_s", "the same raw reading this long is a frozen sensor; 0 = off [s]", &M::frozen_s),
+      field("settle_s", "both valves shut this long before a hold's pressure is tested [s]", &M::settle_s),
+      field("reference_time_s", "time constant of the hold's reference pressure [s]", &M::reference_time_s),
+      field("drift_sds", "innovation within this many reading sds is noise [-]", &M::drift_sds),
+      field("min_drift_pa", "least innovation the CUSUM counts [Pa]", &M::min_drift_pa),
+      field("cusum_threshold_pa_s", "CUSUM of the innovation that is a persistent inconsistency [Pa s]",
+            &M::cusum_threshold_pa_s),
+      field("jump_pa", "a settled plate's reading moving this much in one reading is a sensor jump [Pa]", &M::jump_pa),
+      field("surprise_m", "a weight-bound correction larger than this shows the gas count wrong [m]", &M::surprise_m),
+      field("response_min_pa",
+            "a valve pulse counted to move the pressure this much at fixed volume must move it; 0 = off [Pa]",
+            &M::response_min_pa),
+      field("response_sds", "the response asked of it, in reading sds [-]", &M::response_sds),
+      field("response_window_s", "the response awaited this long after the counted flow [s]", &M::response_window_s),
+      field("response_min_period_s",
+            "pulses judged only where the plate's period on its gas spring is at least this; 0 = all [s]",
+            &M::response_min_period_s),
+      field("max_load_n", "an observer load estimate above this shows the gas count wrong; 0 = off [N]",
+            &M::max_load_n),
+  };
+}
+
 }  // namespace
+
+const ParamTable<ConsistencyMonitorParams>& consistencyMonitorParamFields() {
+  static const ParamTable<ConsistencyMonitorParams> fields = makeMonitorFields();
+  return fields;
+}
 
 const ParamTable<CellObserverParams>& observerParamFields() {
   static const ParamTable<CellObserverParams> fields = makeFields();

@@ -60,6 +60,11 @@ TEST(ConsistencyMonitorParams, RefusesBadValuesNamingThem) {
   expectRefused("reference_time_s", &nb::ConsistencyMonitorParams::reference_time_s, 0.0);
   expectRefused("cusum_threshold_pa_s", &nb::ConsistencyMonitorParams::cusum_threshold_pa_s, std::nan(""));
   expectRefused("surprise_m", &nb::ConsistencyMonitorParams::surprise_m, -0.001);
+  expectRefused("response_min_pa", &nb::ConsistencyMonitorParams::response_min_pa, -1.0);
+  expectRefused("response_sds", &nb::ConsistencyMonitorParams::response_sds, 0.0);
+  expectRefused("response_window_s", &nb::ConsistencyMonitorParams::response_window_s, INFINITY);
+  expectRefused("response_min_period_s", &nb::ConsistencyMonitorParams::response_min_period_s, -0.01);
+  expectRefused("max_load_n", &nb::ConsistencyMonitorParams::max_load_n, std::nan(""));
   EXPECT_TRUE(nb::ConsistencyMonitorParams{}.validate().ok());
 }
 
@@ -147,4 +152,58 @@ TEST(ConsistencyMonitor, AMissingReadingStartsTheTestsAgain) {
   for (; t < 0.8; t += kPeriod) monitor.update(sample(1234.0, false), kPeriod);
   EXPECT_FALSE(monitor.update(sample(std::nan(""), false), kPeriod));
   for (t = 0.0; t < 0.8; t += kPeriod) EXPECT_FALSE(monitor.update(sample(1234.0, false), kPeriod));
+}
+
+namespace {
+
+/// A pulse of `periods` periods of one valve (+1 inlet, -1 vent), each counted to move the
+/// pressure by `step_pa` at fixed volume, after half a second of hold at `pressure_pa`; the
+/// readings move `response_pa` its way during it, the plate swinging with `plate_period_s`.
+/// Returns whether the monitor flagged it.
+bool pulse(double pressure_pa, int direction, double step_pa, int periods, double response_pa,
+           double plate_period_s = 0.05) {
+  nb::ConsistencyMonitor monitor;
+  Sensor sensor(13);
+  runHolds(&monitor, &sensor, 0.5, pressure_pa, 100.0);
+  for (int i = 0; i < periods + 40; ++i) {
+    nb::ConsistencySample s =
+        sample(sensor.read(pressure_pa + direction * (i < periods ? response_pa : 0.0)), i >= periods);
+    s.counted_step_pa = i < periods ? direction * step_pa : 0.0;
+    s.plate_period_s = plate_period_s;
+    if (monitor.update(s, kPeriod)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST(ConsistencyMonitor, AValvePulseThatMovesNoPressureIsFlaggedOneThatDoesIsNot) {
+  for (const int direction : {1, -1}) {
+    EXPECT_FALSE(pulse(900.0, direction, 1000.0, 10, 300.0)) << direction << ": a working valve";
+    EXPECT_TRUE(pulse(900.0, direction, 1000.0, 10, 0.0)) << direction << ": a valve stuck shut";
+    EXPECT_FALSE(pulse(900.0, direction, 200.0, 10, 0.0)) << direction << ": too small a pulse to judge";
+  }
+  // A plate resting at a few sds of pressure has no room to show its vent.
+  EXPECT_FALSE(pulse(40.0, -1, 1000.0, 10, 0.0));
+  // A light plate follows the gas at once: its pulses are not judged.
+  EXPECT_FALSE(pulse(900.0, 1, 1000.0, 10, 0.0, 0.01));
+  nb::ConsistencyMonitorParams off;
+  off.response_min_pa = 0.0;
+  nb::ConsistencyMonitor monitor(off);
+  Sensor sensor(13);
+  runHolds(&monitor, &sensor, 0.5, 900.0, 100.0);
+  nb::ConsistencySample s = sample(sensor.read(900.0), false);
+  s.counted_step_pa = 5000.0;
+  s.plate_period_s = 0.05;
+  for (int i = 0; i < 50; ++i) EXPECT_FALSE(monitor.update(i < 10 ? s : sample(sensor.read(900.0), true), kPeriod));
+}
+
+TEST(ConsistencyMonitor, ALoadAboveAnyACellCarriesIsFlagged) {
+  nb::ConsistencyMonitor monitor;
+  nb::ConsistencySample s = sample(900.0, false);
+  s.load_n = 150.0;
+  EXPECT_FALSE(monitor.update(s, kPeriod));
+  s.load_n = 350.0;
+  EXPECT_TRUE(monitor.update(s, kPeriod));
+  EXPECT_NE(monitor.reason().find("350 N"), std::string::npos) << monitor.reason();
 }

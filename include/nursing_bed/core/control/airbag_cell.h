@@ -198,9 +198,14 @@ class AirbagCell {
   /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
-  /// The consistency monitor on this period's readings (the height before the observer's
-  /// step was `height_before_m`); an inconsistency suspects the gas and flags the cell.
-  void monitorStep(const ObserverEvents& events, double height_before_m, double dt_s);
+  /// The consistency monitor on this period's readings (`before`: the estimate before the
+  /// observer's step); an inconsistency suspects the gas and flags the cell.
+  void monitorStep(const ObserverEvents& events, const CellEstimate& before, double dt_s);
+  /// The fixed-volume pressure change of the gas the observer counted through one valve in
+  /// its last step (+ inlet, - vent, 0 none) [Pa].
+  double countedStepPa(const ObserverEvents& events, const CellEstimate& before) const;
+  /// The plate's period on its gas spring at the observer's estimate (0: unknown) [s].
+  double platePeriod() const;
   /// The observer's inputs over a period with the link down.
   ObserverInputs linkDownInputs(const CellReadings& readings) const;
   /// The gas check's valve filters (GasVerifier) over the mode's valves, where an observer

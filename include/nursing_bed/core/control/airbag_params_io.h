@@ -25,10 +25,11 @@ AirbagCellParams airbagParamsFrom(const FlatParams& values, const std::string& s
 /// with the observer's own keys (observerParamFields), as the re-anchor test they drive is.
 const ParamTable<GasVerifierParams>& gasVerifierParamFields();
 
-/// Applies the values under `prefix` (e.g. "observer/") to the observer's tuning and to the gas
-/// check's (its keys routed to `gas_check`); throws std::runtime_error naming `source` and the
-/// key for an unknown key or a bad value.
+/// Applies the values under `prefix` (e.g. "observer/") to the observer's tuning, to the gas
+/// check's (its keys routed to `gas_check`) and to the consistency monitor's (monitor_ keys,
+/// to `monitor`); throws std::runtime_error naming `source` and the key for an unknown key or a
+/// bad value.
 void applyObserverParams(const FlatParams& values, const std::string& source, CellObserverParams* observer,
-                         GasVerifierParams* gas_check, const std::string& prefix);
+                         GasVerifierParams* gas_check, ConsistencyMonitorParams* monitor, const std::string& prefix);
 
 }  // namespace nursing_bed

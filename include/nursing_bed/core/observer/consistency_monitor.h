@@ -3,6 +3,7 @@
 // that restarted empty, a stuck valve, a leak the model lacks, a frozen or drifting sensor).
 #pragma once
 
+#include <array>
 #include <string>
 
 #include "nursing_bed/core/io/status.h"
@@ -29,6 +30,24 @@ struct ConsistencyMonitorParams {
   double jump_pa = 1200.0;
   /// A weight bound that moves the estimate more than this showed it wrong [m].
   double surprise_m = 0.006;
+  /// A valve pulse whose counted gas would move the pressure at least this much at fixed
+  /// volume (gamma p dm / m) is checked for a response: the pressure must move its way
+  /// before the plate can take the gas up. Smaller pulses (a hold's corrections) are not
+  /// judged; 0: off [Pa].
+  double response_min_pa = 3000.0;
+  /// The response asked of such a pulse: the mean of the last few readings moves this many
+  /// reading sds from the mean before it, in the pulse's direction [-].
+  double response_sds = 3.0;
+  /// After the pulse's counted flow ends, the response is awaited this long [s].
+  double response_window_s = 0.1;
+  /// Pulses are judged only where the plate swings on its gas spring at least this slowly:
+  /// a light plate follows the gas within a reading or two and its pressure hardly moves,
+  /// working valve or not; 0: every plate [s].
+  double response_min_period_s = 0.03;
+  /// No load on a cell is larger: the observer's load estimate above it (a pressure its
+  /// counted gas cannot hold at any height the structure has, e.g. a valve passing gas
+  /// while shut) shows the count wrong; 0: off [N].
+  double max_load_n = 200.0;
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
@@ -42,10 +61,41 @@ struct ConsistencySample {
   /// How far a correction of the observer's that does not prove the gas (a weight bound)
   /// moved the height in this period [m]; 0 without one.
   double correction_m = 0.0;
+  /// The fixed-volume pressure change of the gas the observer counted through the valves in
+  /// this period (gamma p dm / m: + inlet, - vent; 0 with both valves shut) [Pa].
+  double counted_step_pa = 0.0;
+  double load_n = 0.0;  ///< the observer's load estimate [N]
+  /// Period of the plate (with its load) on its gas spring, 2 pi sqrt(M / k) with
+  /// k = gamma p A^2 / V, at the observer's estimate; 0: unknown (plate on the bed) [s].
+  double plate_period_s = 0.0;
+};
+
+/// One job: whether a valve that was counted to pass gas moved the pressure at all. A valve
+/// stuck shut passes nothing, so the readings stay within their noise where a working one
+/// moves them by hundreds of pascals (even a light plate, which takes the gas up at once,
+/// moves its pressure along the structure). Judged per pulse of one direction.
+class ValveResponseCheck {
+ public:
+  /// One period; returns a non-empty reason when a judged pulse had no response.
+  std::string update(const ConsistencySample& sample, double dt_s, const ConsistencyMonitorParams& params);
+  void restart();
+
+ private:
+  static constexpr int kPre = 10;    ///< readings averaged before a pulse
+  static constexpr int kRecent = 4;  ///< readings averaged for the response
+  std::array<double, kPre> pre_{};   ///< the last readings (ring)
+  int pre_count_ = 0, pre_next_ = 0;
+  std::array<double, kRecent> recent_{};
+  int direction_ = 0;         ///< the pulse under way: +1 inlet, -1 vent, 0 none
+  double baseline_pa_ = 0.0;  ///< mean reading before the pulse
+  double counted_pa_ = 0.0;   ///< the pulse's fixed-volume change so far
+  double best_pa_ = 0.0;      ///< largest move of the recent mean in its direction
+  double after_s_ = 0.0;      ///< time since its counted flow ended
+  bool slow_enough_ = false;  ///< its plate swings slowly enough to show the gas
 };
 
 /**
- * Four tests:
+ * Six tests:
  *  - frozen: the raw reading unchanged for frozen_s;
  *  - jump: a settled plate's reading moves more than jump_pa from one reading to the next (a
  *    controller reacts to the first reading of a jump at once, so a test over time would see
@@ -57,6 +107,9 @@ struct ConsistencySample {
  *    sensor, a sudden leak or valve flow under a settled plate, a terminal that restarted);
  *  - surprise: a correction of the observer's that does not prove the gas (a weight bound)
  *    larger than surprise_m: the estimate was that far wrong.
+ *  - response: a valve pulse counted to move the pressure by response_min_pa at fixed volume
+ *    that moved the readings by less than response_sds (ValveResponseCheck): a valve stuck shut;
+ *  - load: the observer's load estimate above max_load_n (gas passing a shut valve).
  * Once inconsistent it stays so until clear() (the cell's gas re-verified).
  */
 class ConsistencyMonitor {
@@ -85,6 +138,7 @@ class ConsistencyMonitor {
   bool innovation(const ConsistencySample& sample, double dt_s);
 
   ConsistencyMonitorParams params_;
+  ValveResponseCheck response_;
   std::string reason_;
   double last_reading_pa_ = 0.0;
   bool have_reading_ = false;

@@ -1,0 +1,200 @@
+// A cell without a height sensor over hardware with a fault injected (a valve stuck open or
+// shut, a frozen or offset pressure sensor, a leak): each fault that misleads the observer is
+// flagged (a fault bit or the estimate marked unverified) within seconds, and a healthy cell
+// moved around under light and heavy loads never is.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "nursing_bed/core/control/airbag_cell.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+/// A simulated plant behind a terminal whose valves and pressure input can fail as the rig
+/// emulator's do (core/rig/rig_faults.h): the plant sees what the faulty valves pass.
+class FaultyHardware : public nb::CellHardware {
+ public:
+  explicit FaultyHardware(std::shared_ptr<nb::SimulatedCellHardware> plant) : plant_(std::move(plant)) {}
+  void configure(const nb::HardwareConfig&) override {}
+  nb::HardwareCapabilities capabilities() const override { return {}; }
+  nb::CellReadings read(double now_s) override {
+    plant_->write(applied(), now_s);
+    nb::CellReadings r = plant_->read(now_s);
+    r.height_m = {};
+    r.inflow_kg_s = {};
+    r.gas_temperature_k = {};
+    if (frozen && have_frozen_) r.gauge_pressure_pa.value = frozen_.value;
+    frozen_ = r.gauge_pressure_pa;
+    have_frozen_ = true;
+    r.gauge_pressure_pa.value += offset_pa;
+    return r;
+  }
+  void write(const nb::ValveOpenings& v, double now_s) override {
+    written_ = v;
+    plant_->write(applied(), now_s);
+  }
+  std::string describe() const override { return "faulty"; }
+  nb::ValveOpenings applied() const {
+    nb::ValveOpenings v = written_;
+    if (stuck_inlet >= 0) v.inlet = stuck_inlet;
+    if (stuck_vent >= 0) v.vent = stuck_vent;
+    if (leak_m2 > 0) v.vent = std::min(1.0, v.vent + leak_m2 / 1.5e-5);
+    return v;
+  }
+  std::shared_ptr<nb::SimulatedCellHardware> plant_;
+  int stuck_inlet = -1, stuck_vent = -1;
+  bool frozen = false;
+  double offset_pa = 0.0, leak_m2 = 0.0;
+
+ private:
+  nb::ValveOpenings written_;
+  nb::StampedReading frozen_;
+  bool have_frozen_ = false;
+};
+
+/// A cell resting at `height_m` under `load_n` on faulty hardware, controlled every 5 ms.
+struct FaultyCell {
+  FaultyCell(double height_m, double load_n) {
+    nb::AirbagCellParams p;
+    nb::AirbagObserverSetup observer;
+    observer.params.valve_dead_time_s = 0.015;  // the valve's 10 ms and a reading one cycle old
+    nb::RigImperfections rig;
+    rig.height_sensor = false;
+    rig.adc_step_pa = 12.2;
+    rig.valve_dead_time_s = 0.01;
+    plant = std::make_shared<nb::SimulatedCellHardware>(rig);
+    nb::HardwareConfig c;
+    c.control_period_s = p.control_period_s;
+    c.cell = p.cell;
+    c.pressure_noise_pa = 10.0;
+    c.initial_height_m = height_m;
+    c.load_n = load_n;
+    plant->configure(c);
+    hw = std::make_shared<FaultyHardware>(plant);
+    cell = std::make_unique<nb::AirbagCell>(p, hw, observer);
+    cell->resetToHeight(height_m, load_n);
+  }
+  bool flagged() const { return cell->faults() != 0 || cell->heightUnverified(); }
+  /// Runs to `end_s`; returns the time of the first flag (-1: none) and the largest error of an
+  /// unflagged estimate meanwhile.
+  double runTo(double end_s, double* worst_unflagged_m = nullptr) {
+    double first = -1.0;
+    for (; t < end_s - 1e-9; t += 0.005) {
+      cell->advanceTo(t);
+      if (flagged() && first < 0.0) first = t;
+      if (!flagged() && worst_unflagged_m)
+        *worst_unflagged_m =
+            std::max(*worst_unflagged_m, std::fabs(cell->measurement().height_m - plant->variables().height_m));
+    }
+    return first;
+  }
+  std::shared_ptr<nb::SimulatedCellHardware> plant;
+  std::shared_ptr<FaultyHardware> hw;
+  std::unique_ptr<nb::AirbagCell> cell;
+  double t = 0.005;
+};
+
+struct FaultCase {
+  const char* name;
+  void (*inject)(FaultyHardware*);
+  /// A fault that does nothing while the valves are shut is seen when the cell is moved.
+  double move_to_m;
+};
+
+const FaultCase kFaults[] = {
+    {"stuck-open vent", [](FaultyHardware* h) { h->stuck_vent = 1; }, 0.0},
+    {"stuck-open inlet", [](FaultyHardware* h) { h->stuck_inlet = 1; }, 0.0},
+    {"stuck-shut inlet", [](FaultyHardware* h) { h->stuck_inlet = 0; }, +0.02},
+    {"stuck-shut vent", [](FaultyHardware* h) { h->stuck_vent = 0; }, -0.015},
+    {"frozen sensor", [](FaultyHardware* h) { h->frozen = true; }, 0.0},
+    {"offset +2 kPa", [](FaultyHardware* h) { h->offset_pa = 2000.0; }, 0.0},
+};
+
+/// Settles the cell at `height_m` under `load_n`, injects the fault (and moves the cell where
+/// the fault needs it); returns how long until it was flagged (-1: not within 5 s).
+double secondsToFlag(const FaultCase& fault, double height_m, double load_n) {
+  FaultyCell c(height_m, load_n);
+  EXPECT_EQ(c.cell->requestHeight(height_m, 0.0), "");
+  EXPECT_LT(c.runTo(6.0), 0.0) << fault.name << ": flagged before the fault";
+  fault.inject(c.hw.get());
+  if (fault.move_to_m != 0.0) {
+    EXPECT_EQ(c.cell->requestHeight(height_m + fault.move_to_m, c.t), "");
+  }
+  const double at = c.t;
+  const double first = c.runTo(at + 5.0);
+  return first < 0.0 ? -1.0 : first - at;
+}
+
+}  // namespace
+
+TEST(CellFaults, EachValveAndSensorFaultIsFlaggedWithinFiveSecondsUnderALightAndAHeavyLoad) {
+  for (const FaultCase& fault : kFaults) {
+    for (const auto& [height_m, load_n] : {std::pair{0.06, 15.6}, std::pair{0.09, 36.0}}) {
+      const double s = secondsToFlag(fault, height_m, load_n);
+      std::printf("[faults] %s at %.0f mm under %.1f N: flagged after %.2f s\n", fault.name, 1e3 * height_m, load_n, s);
+      EXPECT_GE(s, 0.0) << fault.name << " at " << height_m << " m under " << load_n << " N not flagged within 5 s";
+    }
+  }
+}
+
+TEST(CellFaults, AValveStuckShutIsFlaggedOnlyWhenItIsCommanded) {
+  // Shut is what a holding cell asks of its valves: the estimate stays right, nothing to flag.
+  FaultyCell c(0.06, 15.6);
+  ASSERT_EQ(c.cell->requestHeight(0.06, 0.0), "");
+  c.runTo(6.0);
+  c.hw->stuck_inlet = 0;
+  double worst = 0.0;
+  EXPECT_LT(c.runTo(16.0, &worst), 0.0);
+  EXPECT_LT(worst, 0.002);
+  ASSERT_EQ(c.cell->requestHeight(0.08, c.t), "");
+  EXPECT_GE(c.runTo(c.t + 1.0), 0.0);
+  EXPECT_NE(c.cell->monitor()->reason().find("inlet"), std::string::npos) << c.cell->monitor()->reason();
+}
+
+TEST(CellFaults, AHealthyCellMovedAroundUnderThreeLoadsIsNeverFlagged) {
+  const double targets[] = {0.06, 0.10, 0.045, 0.08, 0.03, 0.07, 0.12, 0.05};
+  for (const double load_n : {0.6, 15.6, 36.0}) {
+    FaultyCell c(0.02, load_n);
+    int flags = 0;
+    bool was = false;
+    for (int i = 0; i < 16; ++i) {
+      ASSERT_EQ(c.cell->requestHeight(targets[i % 8], c.t), "");
+      for (const double end = c.t + 4.0; c.t < end;) {
+        c.runTo(c.t + 0.005);
+        const bool now = (c.cell->faults() & nb::kFaultInconsistent) != 0;
+        flags += now && !was;
+        was = now;
+      }
+    }
+    std::printf("[faults] healthy cell under %.1f N, 16 moves over 64 s: %d flags\n", load_n, flags);
+    EXPECT_EQ(flags, 0) << "under " << load_n << " N";
+  }
+}
+
+TEST(CellFaults, SmallMovesOfAHealthyCellUnderLoadsFromThePlateAloneUpAreNeverFlagged) {
+  // Steps of 0.5-7 mm: the valve pulses the response test is most likely to misjudge, where
+  // the plate is light enough to follow the gas almost at once.
+  for (const double load_n : {0.6, 3.0, 7.0, 12.0, 25.0}) {
+    FaultyCell c(0.06, load_n);
+    int flags = 0;
+    bool was = false;
+    for (int i = 0; i < 40; ++i) {
+      const double target = 0.06 + 0.001 * (i % 8) * ((i / 8) % 2 ? 1 : -1) + (i % 2) * 0.0005 * (i % 5);
+      ASSERT_EQ(c.cell->requestHeight(target, c.t), "");
+      for (const double end = c.t + 1.5; c.t < end;) {
+        c.runTo(c.t + 0.005);
+        const bool now = (c.cell->faults() & nb::kFaultInconsistent) != 0;
+        flags += now && !was;
+        was = now;
+      }
+    }
+    EXPECT_EQ(flags, 0) << "under " << load_n << " N";
+  }
+}
