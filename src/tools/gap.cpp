@@ -314,6 +314,7 @@ int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const c
   const nb::CellParams params = nb::loadCellParamsYaml(airbag);
   std::cout << "gap " << name << ": " << runs.size() << " runs from " << c.dataset << ", airbag " << airbag << "\n";
   options.progress = [](const std::string& line) { std::cout << "  " << line << std::endl; };
+  options.status = [name](const std::string& line) { std::cerr << "gap " << name << ": " << line << std::endl; };
   const nb::DiagnosisReport report = analyse(runs, params, options, c.dataset);
   nb::writeReportFiles(c.out_dir, report);
   std::cout << "wrote " << c.out_dir << "/report.json, report.md, " << report.calibration.file << ", traces/\n";
