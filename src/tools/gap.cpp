@@ -278,7 +278,8 @@ void defineCommon(CLI::App& sub, AnalysisArgs* a) {
       ->type_name("NAME,...");
   sub.add_option("--airbag", a->airbag_override, "the nominal parameter file (default: the one the dataset names)")
       ->type_name("FILE");
-  sub.add_option("--threads", a->threads, "candidate fits in parallel")->type_name("N");
+  sub.add_option("--threads", a->threads, "threads for the fits: candidates and their replays in parallel")
+      ->type_name("N");
   sub.add_flag("--no-plots", a->no_plots, "skip the PNG plots (they need /usr/bin/python3 with matplotlib)");
 }
 

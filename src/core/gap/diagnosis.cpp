@@ -593,9 +593,7 @@ class StageClock {
     double units = 1.0;
     int seen = 0;
   };
-  double elapsed() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  }
+  double elapsed() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count(); }
   const DiagnosisOptions& options_;
   const std::chrono::steady_clock::time_point started_;
   std::mutex mutex_;
@@ -617,8 +615,8 @@ struct FittedModels {
   std::map<std::string, CalibrationSummary> joint;  ///< joint refits' summaries by model name
 };
 
-FittedModels fitModels(DiagnosisStart& s, const std::vector<std::string>& candidates,
-                       const DiagnosisOptions& options, StageClock* clock) {
+FittedModels fitModels(DiagnosisStart& s, const std::vector<std::string>& candidates, const DiagnosisOptions& options,
+                       StageClock* clock) {
   using namespace gap;
   auto say = [&](const std::string& line) { clock->say(line); };
   NoiseModel& noise = s.noise;

@@ -69,7 +69,7 @@ TEST(GapProgress, TheTimeLeftIsThePlannedWorkAtTheMeanCostSoFar) {
   e.start(5.0);  // the replays before the fits are not a unit of them
   e.plan(1, 2.0);
   e.plan(8, 1.0);
-  e.done(2.0, 25.0);                           // 10 s a unit
+  e.done(2.0, 25.0);                            // 10 s a unit
   EXPECT_DOUBLE_EQ(e.secondsLeft(25.0), 80.0);  // 8 units left
   EXPECT_DOUBLE_EQ(e.secondsLeft(35.0), 70.0);  // the step under way has spent 10 s of it
   e.unplan(4, 1.0);                             // a stage that will not run
