@@ -278,7 +278,8 @@ void defineCommon(CLI::App& sub, AnalysisArgs* a) {
       ->type_name("NAME,...");
   sub.add_option("--airbag", a->airbag_override, "the nominal parameter file (default: the one the dataset names)")
       ->type_name("FILE");
-  sub.add_option("--threads", a->threads, "candidate fits in parallel")->type_name("N");
+  sub.add_option("--threads", a->threads, "threads for the fits: candidates and their replays in parallel")
+      ->type_name("N");
   sub.add_flag("--no-plots", a->no_plots, "skip the PNG plots (they need /usr/bin/python3 with matplotlib)");
 }
 
@@ -314,6 +315,7 @@ int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const c
   const nb::CellParams params = nb::loadCellParamsYaml(airbag);
   std::cout << "gap " << name << ": " << runs.size() << " runs from " << c.dataset << ", airbag " << airbag << "\n";
   options.progress = [](const std::string& line) { std::cout << "  " << line << std::endl; };
+  options.status = [name](const std::string& line) { std::cerr << "gap " << name << ": " << line << std::endl; };
   const nb::DiagnosisReport report = analyse(runs, params, options, c.dataset);
   nb::writeReportFiles(c.out_dir, report);
   std::cout << "wrote " << c.out_dir << "/report.json, report.md, " << report.calibration.file << ", traces/\n";

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/progress.h"
 
 namespace nursing_bed {
 namespace gap {
@@ -522,6 +523,7 @@ void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const D
   };
   rep->options = options;
   rep->options.progress = nullptr;
+  rep->options.status = nullptr;
   if (runs.empty()) throw std::invalid_argument("no runs to diagnose");
   const std::string params_problem = params.validate();
   if (!params_problem.empty()) throw std::invalid_argument("airbag parameters: " + params_problem);
@@ -545,6 +547,138 @@ void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const D
   say("noise floor: pressure " + fmt(rep->noise_p_pa) + " Pa, height " + fmt(rep->noise_h_m * 1e3) +
       " mm; nominal model: chi2/n = " + fmt(rep->nominal_chi2_per_sample) + " on " + std::to_string(n) +
       " fit residuals");
+}
+
+/// The progress lines of diagnoseRuns(), and after each the elapsed time and the time left on
+/// DiagnosisOptions::status. Each stage plans its steps (a step costs `units` single fits); each
+/// progress line within a stage is one step done; finish() drops what a stage did not run.
+class StageClock {
+ public:
+  StageClock(const DiagnosisOptions& options, std::chrono::steady_clock::time_point started)
+      : options_(options), started_(started) {}
+
+  void plan(int stage, int steps, double units) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stages_[stage] = {steps, units, 0};
+    estimate_.plan(steps, units);
+  }
+  /// Lines from now on are steps of `stage`; the first stage starts the clock of the estimate.
+  void enter(int stage) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!estimating_) estimate_.start(elapsed());
+    estimating_ = true;
+    current_ = stage;
+  }
+  void finish(int stage) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Stage& st = stages_[stage];
+    estimate_.unplan(st.planned - st.seen, st.units);
+    st.seen = st.planned;
+    if (current_ == stage) current_ = kNoStage;
+  }
+  void say(const std::string& line) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (options_.progress) options_.progress(line);
+    if (current_ != kNoStage && stages_[current_].seen < stages_[current_].planned) {
+      ++stages_[current_].seen;
+      estimate_.done(stages_[current_].units, elapsed());
+    }
+    if (options_.status) options_.status(estimate_.line(elapsed()));
+  }
+
+ private:
+  static constexpr int kNoStage = -1;
+  struct Stage {
+    int planned = 0;
+    double units = 1.0;
+    int seen = 0;
+  };
+  double elapsed() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count(); }
+  const DiagnosisOptions& options_;
+  const std::chrono::steady_clock::time_point started_;
+  std::mutex mutex_;
+  std::map<int, Stage> stages_;
+  int current_ = kNoStage;
+  bool estimating_ = false;
+  gap::ProgressEstimate estimate_;
+};
+
+/// The stages of the fitting work, and what one step of each costs against a single's fit (a
+/// calibration or joint refit fits four or more parameters, a pair two effects).
+enum FitStage { kCalibration, kNominalSingles, kSingles, kJointSingles, kPairs, kJointPairs };
+constexpr double kStageUnits[] = {2.0, 1.0, 1.0, 4.0, 3.0, 5.0};
+
+/// The calibration, the singles and the pairs, with their joint refits (diagnoseRuns()).
+struct FittedModels {
+  gap::CalibrationFit calibration;
+  std::vector<gap::ModelFit> fits;
+  std::map<std::string, CalibrationSummary> joint;  ///< joint refits' summaries by model name
+};
+
+FittedModels fitModels(DiagnosisStart& s, const std::vector<std::string>& candidates, const DiagnosisOptions& options,
+                       StageClock* clock) {
+  using namespace gap;
+  auto say = [&](const std::string& line) { clock->say(line); };
+  NoiseModel& noise = s.noise;
+  const int singles = static_cast<int>(candidates.size());
+  const bool calibrating = !s.calibrated.empty();
+  clock->plan(kCalibration, calibrating ? 1 : 0, kStageUnits[kCalibration]);
+  clock->plan(kSingles, singles, kStageUnits[kSingles]);
+  clock->plan(kJointSingles, calibrating ? options.joint_pool : 0, kStageUnits[kJointSingles]);
+  clock->plan(kPairs, options.pair_pool > 0 ? singles - 1 : 0, kStageUnits[kPairs]);
+  clock->plan(kJointPairs, calibrating && options.pair_pool > 0 ? 2 : 0, kStageUnits[kJointPairs]);
+  FittedModels out;
+  CalibrationFit& calibration = out.calibration;
+  std::vector<ModelFit> uncalibrated;  // the singles on the nominal cell, when the calibration moved
+  bool baseline_nominal = true;        // the effects are fitted on the nominal cell
+  if (calibrating) {
+    clock->enter(kCalibration);
+    calibration = calibrateModel(noise, s.calibrated, options, say);
+    clock->finish(kCalibration);
+    if (!calibration.summary.movedValues().empty()) {
+      // A calibration may imitate part of an effect (a larger vent area the gas a leak loses
+      // while the controller holds); fitted on top of it the effect then fits badly. Its fit on
+      // the nominal cell ranks it for, and starts, the joint refit.
+      DiagnosisOptions nominal_singles = options;
+      nominal_singles.pair_pool = 0;
+      clock->plan(kNominalSingles, singles, kStageUnits[kNominalSingles]);
+      clock->enter(kNominalSingles);
+      uncalibrated = fitCandidates(noise, candidates, nominal_singles,
+                                   [&](const std::string& line) { say(line + " (nominal cell)"); });
+      clock->finish(kNominalSingles);
+      if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
+    }
+    rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
+    baseline_nominal = calibration.summary.movedValues().empty();
+  }
+  if (baseline_nominal && !uncalibrated.empty()) clock->finish(kSingles);  // the same fits, reused
+  // The best singles, then the best pair and every pair with a single that moved the
+  // calibration, refitted with the calibration free as well.
+  std::set<std::string> moved_calibration;
+  auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
+    const JointRefits more =
+        refitBestJointly(noise, calibration, fits, effects, pool, options, say, moved_calibration, uncalibrated);
+    out.joint.insert(more.summaries.begin(), more.summaries.end());
+    if (effects == 1) moved_calibration = more.moved_calibration;
+  };
+  clock->enter(kSingles);
+  out.fits = fitCandidates(
+      noise, candidates, options, say,
+      [&](std::vector<ModelFit>* fitted_singles) {
+        clock->finish(kSingles);
+        clock->enter(kJointSingles);
+        if (calibrating) settle(fitted_singles, 1, options.joint_pool);
+        clock->finish(kJointSingles);
+        if (anySingleWithinNoise(*fitted_singles, noise, options)) clock->finish(kPairs);
+        clock->enter(kPairs);
+      },
+      baseline_nominal ? uncalibrated : std::vector<ModelFit>{});
+  clock->finish(kPairs);
+  // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
+  clock->enter(kJointPairs);
+  if (calibrating && !anySingleWithinNoise(out.fits, noise, options)) settle(&out.fits, 2, 1);
+  clock->finish(kJointPairs);
+  return out;
 }
 
 }  // namespace
@@ -585,9 +719,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
                              const std::string& dataset_name) {
   using namespace gap;
   const auto started = std::chrono::steady_clock::now();
-  auto say = [&](const std::string& line) {
-    if (options.progress) options.progress(line);
-  };
+  StageClock clock(options, started);
+  auto say = [&](const std::string& line) { clock.say(line); };
   DiagnosisReport rep;
   rep.dataset = dataset_name;
   DiagnosisStart s;
@@ -596,42 +729,10 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   NoiseModel& noise = s.noise;
   std::vector<std::string> structure_notes;
   const std::vector<std::string> candidates = candidatesForStructure(candidateList(options), params, &structure_notes);
-  CalibrationFit calibration;
-  std::vector<ModelFit> uncalibrated;  // the singles on the nominal cell, when the calibration moved
-  bool baseline_nominal = true;        // the effects are fitted on the nominal cell
-  if (!s.calibrated.empty()) {
-    calibration = calibrateModel(noise, s.calibrated, options, say);
-    if (!calibration.summary.movedValues().empty()) {
-      // A calibration may imitate part of an effect (a larger vent area the gas a leak loses
-      // while the controller holds); fitted on top of it the effect then fits badly. Its fit on
-      // the nominal cell ranks it for, and starts, the joint refit.
-      DiagnosisOptions singles = options;
-      singles.pair_pool = 0;
-      uncalibrated =
-          fitCandidates(noise, candidates, singles, [&](const std::string& line) { say(line + " (nominal cell)"); });
-      if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
-    }
-    rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
-    baseline_nominal = calibration.summary.movedValues().empty();
-  }
-  // The best singles, then the best pair and every pair with a single that moved the
-  // calibration, refitted with the calibration free as well.
-  std::map<std::string, CalibrationSummary> joint;
-  std::set<std::string> moved_calibration;
-  auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
-    const JointRefits more =
-        refitBestJointly(noise, calibration, fits, effects, pool, options, say, moved_calibration, uncalibrated);
-    joint.insert(more.summaries.begin(), more.summaries.end());
-    if (effects == 1) moved_calibration = more.moved_calibration;
-  };
-  std::vector<ModelFit> fits = fitCandidates(
-      noise, candidates, options, say,
-      [&](std::vector<ModelFit>* singles) {
-        if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
-      },
-      baseline_nominal ? uncalibrated : std::vector<ModelFit>{});
-  // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
-  if (!s.calibrated.empty() && !anySingleWithinNoise(fits, noise, options)) settle(&fits, 2, 1);
+  const FittedModels fitted = fitModels(s, candidates, options, &clock);
+  const std::vector<ModelFit>& fits = fitted.fits;
+  const CalibrationFit& calibration = fitted.calibration;
+  const std::map<std::string, CalibrationSummary>& joint = fitted.joint;
   const std::vector<ScoredCandidate> scored = scoreCandidates(fits, prepared, noise, params, options);
   for (const auto& c : scored) rep.candidates.push_back(c.first);
 

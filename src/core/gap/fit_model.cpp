@@ -11,6 +11,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <deque>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 
 namespace nursing_bed {
@@ -178,56 +181,162 @@ double sumSquares(const std::vector<double>& r) {
 
 namespace {
 
+/// Whitened residuals at points of the fit coordinates, remembered: Levenberg-Marquardt evaluates
+/// a point it accepts once more with its Jacobian, and a solve starts at a grid point the probe
+/// has replayed. A replay is a pure function of the coordinates, so a remembered vector is
+/// exactly what a new replay would give. Each batch of points is replayed run by run across
+/// FitData::threads (a Jacobian's columns and the runs together keep both cores busy); every
+/// value lands in its own slot, so the result does not depend on the threads' scheduling.
+class ResidualEvaluator {
+ public:
+  ResidualEvaluator(const FitData& fit, const ModelSpec& model) : fit_(fit), model_(model) {
+    offset_.push_back(0);
+    for (const auto& r : fit.runs) offset_.push_back(offset_.back() + 2 * static_cast<int>(r.index.size()));
+  }
+  /// One for a solve of its own, starting with what `probe` remembers and no replays counted
+  /// (a solve's own memory: what it finds there does not depend on another solve beside it).
+  explicit ResidualEvaluator(const ResidualEvaluator& probe)
+      : fit_(probe.fit_), model_(probe.model_), offset_(probe.offset_), entries_(probe.entries_) {}
+
+  /// Residuals at each of `points` into outs[i] (residualCount() values each); ok[i] false where
+  /// the model is not admitted there or a replay failed.
+  void evaluate(const std::vector<std::vector<double>>& points, const std::vector<double*>& outs,
+                std::vector<char>* ok) {
+    ok->assign(points.size(), 0);
+    struct Miss {
+      std::size_t point;
+      CellParams params;
+      std::vector<CellEffectPtr> effects;
+    };
+    std::vector<Miss> misses;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if (recall(points[i], outs[i], &(*ok)[i])) continue;
+      try {
+        const auto values = valuesOf(model_, points[i]);
+        misses.push_back({i, modelParams(model_, values, fit_.params), buildEffects(model_, values)});
+      } catch (const std::invalid_argument&) {
+        remember(points[i], nullptr, false);  // outside what makeEffect() admits: Ceres shrinks its step
+      }
+    }
+    const int runs = static_cast<int>(fit_.runs.size());
+    std::vector<char> run_ok(misses.size() * runs, 1);
+    parallelFor(static_cast<int>(run_ok.size()), fit_.threads, [&](int task) {
+      const Miss& m = misses[task / runs];
+      const int r = task % runs;
+      run_ok[task] = runResiduals(fit_.runs[r], m.params, m.effects, outs[m.point] + offset_[r]);
+    });
+    for (std::size_t k = 0; k < misses.size(); ++k) {
+      const std::size_t i = misses[k].point;
+      (*ok)[i] = std::all_of(run_ok.begin() + k * runs, run_ok.begin() + (k + 1) * runs, [](char c) { return c != 0; });
+      remember(points[i], outs[i], (*ok)[i] != 0);
+    }
+    replays_ += static_cast<int>(misses.size());
+  }
+
+  bool evaluate(const std::vector<double>& u, double* out) {
+    std::vector<char> ok;
+    evaluate({u}, {out}, &ok);
+    return ok[0] != 0;
+  }
+
+  /// Replays of the fit-run set made (remembered points not counted).
+  int replays() const { return replays_; }
+
+  const ModelSpec& model() const { return model_; }
+  int residualCount() const { return offset_.back(); }
+
+ private:
+  /// Points remembered: the last few, enough for an accepted step and a solve's start.
+  static constexpr std::size_t kRemembered = 8;
+  struct Entry {
+    std::vector<double> u, r;
+    bool ok = false;
+  };
+
+  bool recall(const std::vector<double>& u, double* out, char* ok) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const Entry& e : entries_)
+      if (e.u == u) {
+        if (e.ok) std::copy(e.r.begin(), e.r.end(), out);
+        *ok = e.ok;
+        return true;
+      }
+    return false;
+  }
+
+  void remember(const std::vector<double>& u, const double* r, bool ok) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Entry e;
+    e.u = u;
+    e.ok = ok;
+    if (r && ok) e.r.assign(r, r + offset_.back());
+    entries_.push_back(std::move(e));
+    if (entries_.size() > kRemembered) entries_.pop_front();
+  }
+
+  const FitData& fit_;
+  const ModelSpec& model_;
+  std::vector<int> offset_;  ///< each run's first residual slot
+  mutable std::mutex mutex_;
+  std::deque<Entry> entries_;
+  std::atomic<int> replays_{0};
+};
+
 /// All fit residuals as a function of the fit coordinates u; Jacobian by forward differences
-/// of whole replays (a step of kJacobianStep, backwards at the upper bound).
+/// of whole replays (a step of kJacobianStep, backwards at the upper bound), the columns
+/// replayed together.
 class ReplayCost : public ceres::CostFunction {
  public:
-  ReplayCost(const FitData& fit, const ModelSpec& model, std::atomic<int>* evaluations)
-      : fit_(fit), model_(model), evaluations_(evaluations) {
-    set_num_residuals(fit.residualCount());
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(model.axes.size()));
+  explicit ReplayCost(ResidualEvaluator* evaluator) : evaluator_(evaluator) {
+    set_num_residuals(evaluator->residualCount());
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(evaluator->model().axes.size()));
   }
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    const int k = static_cast<int>(model_.axes.size());
-    std::vector<double> u(parameters[0], parameters[0] + k);
-    if (!residualsAt(u, residuals)) return false;
-    if (jacobians && jacobians[0]) {
-      const int n = num_residuals();
-      std::vector<double> shifted(n);
-      for (int j = 0; j < k; ++j) {
-        // Forward, or backward at the upper bound; the other way where the replay fails there
-        // (a failed column would stop the whole solve at its start).
-        const double first = u[j] + kJacobianStep <= model_.axes[j].u_max ? kJacobianStep : -kJacobianStep;
-        double step = 0.0;
-        for (double s : {first, -first}) {
-          std::vector<double> v = u;
-          v[j] += s;
-          if (v[j] < model_.axes[j].u_min || v[j] > model_.axes[j].u_max || !residualsAt(v, shifted.data())) continue;
-          step = s;
-          break;
-        }
-        if (step == 0.0) return false;
-        for (int i = 0; i < n; ++i) jacobians[0][i * k + j] = (shifted[i] - residuals[i]) / step;
+    const ModelSpec& model = evaluator_->model();
+    const int k = static_cast<int>(model.axes.size()), n = num_residuals();
+    const std::vector<double> u(parameters[0], parameters[0] + k);
+    if (!(jacobians && jacobians[0])) return evaluator_->evaluate(u, residuals);
+    // Forward, or backward at the upper bound; the other way where the replay fails there (a
+    // failed column would stop the whole solve at its start).
+    std::vector<double> step(k, 0.0), shifted(static_cast<std::size_t>(n) * k);
+    std::vector<char> done(k, 0);
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      std::vector<std::vector<double>> points;
+      std::vector<double*> outs;
+      std::vector<int> columns;
+      if (attempt == 0) {
+        points.push_back(u);
+        outs.push_back(residuals);
       }
+      for (int j = 0; j < k; ++j) {
+        if (done[j]) continue;
+        const double first = u[j] + kJacobianStep <= model.axes[j].u_max ? kJacobianStep : -kJacobianStep;
+        const double s = attempt == 0 ? first : -first;
+        std::vector<double> v = u;
+        v[j] += s;
+        if (v[j] < model.axes[j].u_min || v[j] > model.axes[j].u_max) continue;
+        step[j] = s;
+        points.push_back(v);
+        outs.push_back(shifted.data() + static_cast<std::size_t>(j) * n);
+        columns.push_back(j);
+      }
+      std::vector<char> ok;
+      evaluator_->evaluate(points, outs, &ok);
+      const std::size_t first_column = attempt == 0 ? 1 : 0;
+      if (attempt == 0 && !ok[0]) return false;
+      for (std::size_t c = 0; c < columns.size(); ++c) done[columns[c]] = ok[first_column + c];
+    }
+    for (int j = 0; j < k; ++j) {
+      if (!done[j]) return false;
+      const double* col = shifted.data() + static_cast<std::size_t>(j) * n;
+      for (int i = 0; i < n; ++i) jacobians[0][i * k + j] = (col[i] - residuals[i]) / step[j];
     }
     return true;
   }
 
-  bool residualsAt(const std::vector<double>& u, double* out) const {
-    ++*evaluations_;
-    try {
-      const auto values = valuesOf(model_, u);
-      return fitResiduals(fit_, modelParams(model_, values, fit_.params), buildEffects(model_, values), out);
-    } catch (const std::invalid_argument&) {
-      return false;  // outside what makeEffect() admits: Ceres shrinks its step
-    }
-  }
-
  private:
-  const FitData& fit_;
-  const ModelSpec& model_;
-  std::atomic<int>* evaluations_;
+  ResidualEvaluator* evaluator_;
 };
 
 }  // namespace
@@ -267,21 +376,29 @@ std::vector<int> heldAxes(const FitData& fit, const ModelSpec& model) {
 
 FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
                     int max_iterations) {
-  std::atomic<int> evaluations{0};
-  ReplayCost probe(fit, model, &evaluations);
-  std::vector<double> r(fit.residualCount());
-  std::vector<std::pair<double, std::vector<double>>> ranked;  // chi2, start
+  ResidualEvaluator evaluator(fit, model);
   const std::vector<int> held = heldAxes(fit, model);
   std::vector<std::vector<double>> tried;
   for (auto s : starts) {
     for (int j : held) s[j] = model.axes[j].toU(model.axes[j].spec.off_value);
     if (!held.empty() && std::find(tried.begin(), tried.end(), s) != tried.end()) continue;  // merged by the hold
     tried.push_back(s);
-    if (probe.residualsAt(s, r.data())) ranked.emplace_back(sumSquares(r), s);
   }
+  // The grid probed in one batch; its residuals are needed for their sums only.
+  const std::size_t n = static_cast<std::size_t>(fit.residualCount());
+  std::vector<double> probe(tried.size() * n);
+  std::vector<double*> outs;
+  for (std::size_t i = 0; i < tried.size(); ++i) outs.push_back(probe.data() + i * n);
+  std::vector<char> ok;
+  evaluator.evaluate(tried, outs, &ok);
+  std::vector<std::pair<double, std::vector<double>>> ranked;  // chi2, start
+  for (std::size_t i = 0; i < tried.size(); ++i)
+    if (ok[i]) ranked.emplace_back(sumSquares(std::vector<double>(outs[i], outs[i] + n)), tried[i]);
+  probe.clear();
+  probe.shrink_to_fit();
   FitOutcome best;
   if (ranked.empty()) {
-    best.evaluations = evaluations;
+    best.evaluations = evaluator.replays();
     best.message = "the model failed at every starting point";
     return best;
   }
@@ -290,10 +407,17 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
   best.ok = true;
   best.u = ranked[0].second;
   best.chi2 = ranked[0].first;
-  for (std::size_t k = 0; k < refined; ++k) {
+  // The solves run side by side, each with its own memory; the best is then taken in start
+  // order, as one after the other.
+  std::vector<std::unique_ptr<ResidualEvaluator>> solvers;
+  for (std::size_t k = 0; k < refined; ++k) solvers.push_back(std::make_unique<ResidualEvaluator>(evaluator));
+  std::vector<std::vector<double>> solved(refined);
+  std::vector<ceres::Solver::Summary> summaries(refined);
+  parallelFor(static_cast<int>(refined), fit.threads, [&](int k) {
     ceres::Problem problem;
-    std::vector<double> u = ranked[k].second;
-    problem.AddResidualBlock(new ReplayCost(fit, model, &evaluations), nullptr, u.data());
+    std::vector<double>& u = solved[k];
+    u = ranked[k].second;
+    problem.AddResidualBlock(new ReplayCost(solvers[k].get()), nullptr, u.data());
     for (std::size_t j = 0; j < model.axes.size(); ++j) {
       problem.SetParameterLowerBound(u.data(), static_cast<int>(j), model.axes[j].u_min);
       problem.SetParameterUpperBound(u.data(), static_cast<int>(j), model.axes[j].u_max);
@@ -307,23 +431,26 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
     options.parameter_tolerance = 1e-4;
     options.num_threads = 1;
     options.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(options, &problem, &summary);
+    ceres::Solve(options, &problem, &summaries[k]);
+  });
+  for (std::size_t k = 0; k < refined; ++k) {
+    const ceres::Solver::Summary& summary = summaries[k];
     // A solve that failed at its start reports final_cost -1: never a result.
     if (summary.IsSolutionUsable() && summary.final_cost >= 0.0 && std::isfinite(summary.final_cost) &&
         2.0 * summary.final_cost <= best.chi2) {
-      best.u = u;
+      best.u = solved[k];
       best.chi2 = 2.0 * summary.final_cost;
       best.message = summary.BriefReport();
     }
   }
-  best.evaluations = evaluations;
+  best.evaluations = evaluator.replays();
+  for (const auto& solver : solvers) best.evaluations += solver->replays();
   return best;
 }
 
 bool fitCovariance(const FitData& fit, const ModelSpec& model, const std::vector<double>& u, Eigen::MatrixXd* cov) {
-  std::atomic<int> evaluations{0};
-  const ReplayCost cost(fit, model, &evaluations);
+  ResidualEvaluator evaluator(fit, model);
+  const ReplayCost cost(&evaluator);
   const int k = static_cast<int>(u.size()), n = fit.residualCount();
   std::vector<double> r(n), jac(static_cast<std::size_t>(n) * k);
   const double* parameters[] = {u.data()};

@@ -96,6 +96,9 @@ struct DiagnosisOptions {
 
   /// Called with one line per step ("fitting leak ... 3/7"). May be empty.
   std::function<void(const std::string&)> progress;
+  /// Called after each progress line of `gap diagnose` with the elapsed time and an estimate of
+  /// the time left ("41 s elapsed, about 2 min left"). May be empty.
+  std::function<void(const std::string&)> status;
 };
 
 /// One fitted model: nominal plus `effects`.

@@ -1,0 +1,89 @@
+// What keeps the fits fast without changing them (doc/gap_diagnosis.md, "Fitting the
+// candidates"): the fit's results do not depend on how many threads replay, and a point already
+// replayed is not replayed again; and the progress line's time left.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/progress.h"
+#include "nursing_bed/core/gap/synth.h"
+
+namespace nb = nursing_bed;
+namespace gs = nursing_bed::gap;
+
+namespace {
+
+/// The small protocol's runs with their roles, a leak of `leak_area_m2` in the cell.
+std::vector<nb::RunData> runs(double leak_area_m2) {
+  const nb::CellParams params;
+  const nb::SynthProtocol protocol = nb::synthProtocol("small", params);
+  std::mt19937 rng(3);
+  std::vector<nb::RunData> out;
+  for (const auto& spec : protocol.runs) {
+    out.push_back(nb::simulateSynthRun(params, {nb::makeEffect("leak", {{"leak_area_m2", leak_area_m2}})}, protocol,
+                                       spec, nb::SensorNoise{}, &rng));
+    out.back().role = spec.role;
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(GapFitSpeed, AFitGivesTheSameResultWithOneThreadOrTwo) {
+  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
+  nb::DiagnosisOptions options;
+  options.threads = 1;
+  const gs::NoiseModel one = gs::buildNoiseModel(prepared, nb::CellParams{}, options);
+  options.threads = 2;
+  const gs::NoiseModel two = gs::buildNoiseModel(prepared, nb::CellParams{}, options);
+  // Two effects: two Levenberg-Marquardt solves side by side, the Jacobian's columns together.
+  const gs::ModelSpec model = gs::makeModelSpec({"leak", "heat_transfer"});
+  const gs::FitOutcome a = gs::fitModel(one.fit, model, gs::gridStarts(model), 6);
+  const gs::FitOutcome b = gs::fitModel(two.fit, model, gs::gridStarts(model), 6);
+  ASSERT_TRUE(a.ok) << a.message;
+  EXPECT_EQ(a.u, b.u);
+  EXPECT_EQ(a.chi2, b.chi2);
+  EXPECT_EQ(a.evaluations, b.evaluations);
+  EXPECT_LT(a.chi2, one.chi2_nominal);
+}
+
+TEST(GapFitSpeed, AStartTheGridProbeReplayedIsNotReplayedAgain) {
+  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
+  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const gs::ModelSpec leak = gs::makeModelSpec({"leak"});
+  // No iteration: the start is probed (1 replay of the runs) and its Jacobian taken (1 more, the
+  // start's residuals remembered from the probe).
+  const gs::FitOutcome f = gs::fitModel(noise.fit, leak, {{0.5}}, 0);
+  ASSERT_TRUE(f.ok) << f.message;
+  EXPECT_EQ(f.evaluations, 2);
+}
+
+TEST(GapProgress, TheTimeLeftIsThePlannedWorkAtTheMeanCostSoFar) {
+  gs::ProgressEstimate e;
+  EXPECT_TRUE(std::isnan(e.secondsLeft(3.0)));
+  EXPECT_NE(e.line(3.0).find("not yet known"), std::string::npos);
+  e.start(5.0);  // the replays before the fits are not a unit of them
+  e.plan(1, 2.0);
+  e.plan(8, 1.0);
+  e.done(2.0, 25.0);                            // 10 s a unit
+  EXPECT_DOUBLE_EQ(e.secondsLeft(25.0), 80.0);  // 8 units left
+  EXPECT_DOUBLE_EQ(e.secondsLeft(35.0), 70.0);  // the step under way has spent 10 s of it
+  e.unplan(4, 1.0);                             // a stage that will not run
+  EXPECT_DOUBLE_EQ(e.secondsLeft(25.0), 40.0);
+  e.unplan(100, 1.0);  // never below what is done
+  EXPECT_DOUBLE_EQ(e.secondsLeft(25.0), 0.0);
+  EXPECT_EQ(e.line(25.0), "25 s elapsed, about 0 s left");
+}
+
+TEST(GapProgress, DurationsReadInSecondsThenHalfMinutes) {
+  EXPECT_EQ(gs::roughDuration(0.4), "0 s");
+  EXPECT_EQ(gs::roughDuration(45.0), "45 s");
+  EXPECT_EQ(gs::roughDuration(89.0), "89 s");
+  EXPECT_EQ(gs::roughDuration(150.0), "2.5 min");
+  EXPECT_EQ(gs::roughDuration(1200.0), "20 min");
+  EXPECT_EQ(gs::roughDuration(NAN), "?");
+}
