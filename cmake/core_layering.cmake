@@ -27,7 +27,7 @@ set(NURSING_BED_CORE_ALLOWED_gap io physics)
 set(NURSING_BED_CORE_ALLOWED_fe io physics)
 # The rig emulator: Modbus TCP servers over simulated cells, a test rig and bench tool (not the
 # bed's driver, so neither the hardware nor the control side links it).
-set(NURSING_BED_CORE_ALLOWED_rig hardware)
+set(NURSING_BED_CORE_ALLOWED_rig io physics hardware)
 
 function(nursing_bed_check_core_layering root)
   # The lists themselves: a domain may only use domains listed before it (no cycles).

@@ -23,9 +23,10 @@ A rough parser (comments, strings, braces, angle brackets), good enough for this
 headers, not a C++ parser: a function-pointer data member would count as a method.
 """
 import argparse
-import os
 import re
 import sys
+
+from source_tree import source_files
 
 KEYWORD_SKIP = {"using", "typedef", "friend", "static_assert", "enum"}
 EXEMPT_NAME = re.compile(r"(Params|Options|Config)$")
@@ -260,13 +261,7 @@ def main():
     ap.add_argument("--all", action="store_true", help="list every class, not only the large ones")
     ap.add_argument("paths", nargs="+")
     a = ap.parse_args()
-    files = []
-    for p in a.paths:
-        if os.path.isdir(p):
-            for d, _, fs in os.walk(p):
-                files += [os.path.join(d, f) for f in fs if f.endswith((".h", ".hpp"))]
-        else:
-            files.append(p)
+    files = source_files(a.paths, (".h", ".hpp"))
     offenders, allowed_used = [], set()
     print("methods  data  class  (file:line)  status")
     for f in sorted(files):

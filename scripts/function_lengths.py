@@ -14,6 +14,8 @@ import os
 import re
 import sys
 
+from source_tree import source_files
+
 
 def strip(line, in_comment):
     out, i = "", 0
@@ -87,13 +89,7 @@ def main():
                     help="a long function not to fail on (an exception still being worked on)")
     ap.add_argument("paths", nargs="+")
     a = ap.parse_args()
-    files = []
-    for p in a.paths:
-        if os.path.isdir(p):
-            for d, _, fs in os.walk(p):
-                files += [os.path.join(d, f) for f in fs if f.endswith((".cpp", ".h"))]
-        else:
-            files.append(p)
+    files = source_files(a.paths, (".cpp", ".h"))
     long = []
     for f in sorted(files):
         for name, s, e in functions(f):

@@ -22,12 +22,17 @@ model's parameter file (`gap synth --airbag-param`, magnitudes drawn from the se
   - valve-driven runs without a flow meter (inlet area off, a leak): leak named and the inlet
     area within 10 % >= 90 %
   - clean data: "none" and no parameter moved, every time
+and for runs without a height sensor (`gap synth --no-height`, flow meter present; in the
+standard matrix, or with --cases no_height):
+  - clean data: "none" and no parameter moved, every time
+  - a leak (1.5e-8 m^2), heat exchange (10 W/(m^2 K)) and an inflow bias each named >= 2/3
 Exit code 0 when all hold, 1 otherwise, 2 for a bad command line.
 
 usage: gap_blind_check.py --out DIR [--protocol small|standard] [--seeds N] [--seed-base B]
-                          [--extended-seeds M] [--gap PATH] [--junit FILE] [--cases NAME,...] [--resume]
+                          [--extended-seeds M] [--gap PATH] [--junit FILE] [--cases NAME,...] [--jobs N] [--resume]
 """
 import argparse
+import concurrent.futures
 import json
 import os
 import random
@@ -35,6 +40,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import threading
 import time
 import xml.sax.saxutils as su
 
@@ -43,6 +49,7 @@ DEFAULT_GAP = os.path.join(HERE, "..", "build", "devel", "lib", "nursing_bed", "
 
 TOP1_MIN, NONE_MIN, UNEXPLAINED_MIN, SHRINK_MIN = 0.90, 1.00, 0.70, 0.80
 MISMATCH_MIN, MISMATCH_EFFECT_MIN, PAIR_MIN, VALVE_MIN = 0.90, 0.90, 0.80, 0.90
+NO_HEIGHT_NONE_MIN, NO_HEIGHT_NAMED_MIN = 1.00, 2.0 / 3.0
 # A mismatch is "too small to matter" below this many standard errors of the calibration's fit.
 SMALL_MISMATCH_SE = 6.0
 # ... or when the unmoved (nominal) model fits the withheld runs within the noise: chi2 per
@@ -54,6 +61,10 @@ PAIRS = [("leak", "heat_transfer"), ("inflow_bias", "pressure_sensor_lag"),
          ("membrane_viscoelasticity", "plate_friction"), ("leak", "supply_line")]
 # Mid-range magnitudes of the pairs' effects (parameters not given are drawn from the seed).
 PAIR_PARAMS = {"leak": "leak:leak_area_m2=1.5e-8", "heat_transfer": "heat_transfer:heat_transfer_coefficient_w_m2_k=8"}
+# Runs without a height sensor: clean, and these effects (the inflow bias drawn from the seed).
+NO_HEIGHT_CASES = [("clean", []), ("leak", ["leak:leak_area_m2=1.5e-8"]),
+                   ("heat_transfer", ["heat_transfer:heat_transfer_coefficient_w_m2_k=10"]),
+                   ("inflow_bias", ["inflow_bias"])]
 
 
 def draw_mismatch(param, rng):
@@ -87,6 +98,12 @@ def calibration_plan(candidates, seeds, seed_base):
         plan.append(("valve", "leak_no_meter", ["leak"], {"inlet_area_m2": draw_mismatch("inlet_area_m2", rng)},
                      ["--no-flow-meter"], seed))
     return plan
+
+
+def no_height_plan(seeds, seed_base):
+    """The cases without a height sensor: (kind, name, effects, airbag params, synth flags, seed)."""
+    return [("no_height", name, effects, {}, ["--no-height"], seed_base + k)
+            for name, effects in NO_HEIGHT_CASES for k in range(seeds)]
 
 
 def effect_lists(gap):
@@ -229,6 +246,10 @@ def case_right(c):
         area = c["moved"].get("inlet_area_m2", NOMINAL["inlet_area_m2"])
         c["inlet_area_error"] = abs(area / truth_area - 1.0)
         return c["status"] == "explained" and c["named"] == ["leak"] and c["inlet_area_error"] <= 0.10
+    if kind == "no_height":
+        if c["truth"] == "clean":
+            return c["verdict"] == "none" and not c["moved"]
+        return c["status"] == "explained" and c["named"] == c["truth_effects"]
     return False
 
 
@@ -239,8 +260,9 @@ def seconds(value):
 def confusion(cases, columns):
     rows = {}
     for c in cases:
-        rows.setdefault(c["truth"], {}).setdefault(c["verdict"], 0)
-        rows[c["truth"]][c["verdict"]] += 1
+        truth = c["truth"] + (" (no height)" if c["kind"] == "no_height" else "")
+        rows.setdefault(truth, {}).setdefault(c["verdict"], 0)
+        rows[truth][c["verdict"]] += 1
     extra = sorted({v for r in rows.values() for v in r} - set(columns))
     cols = columns + extra
     lines = ["| truth \\ verdict | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
@@ -258,13 +280,18 @@ def main():
     ap.add_argument("--gap", default=DEFAULT_GAP, help="the gap executable")
     ap.add_argument("--junit", help="also write a JUnit XML result file here")
     ap.add_argument("--cases", help="comma-separated subset of cases: effect names, clean, mismatch, mismatch_effect, "
-                                    "pair, valve")
+                                    "pair, valve, no_height (runs without a height sensor; in the standard "
+                                    "matrix by default, in the small one only when named here)")
     ap.add_argument("--extended-seeds", type=int, default=1,
                     help="seeds of each calibration case (mismatch, mismatch + effect, pairs, valve-driven; default 1)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="cases diagnosed side by side (default 1; each diagnosis also uses its own threads)")
     ap.add_argument("--resume", action="store_true",
                     help="read back cases whose report is already in --out instead of running them again "
                          "(a long matrix run in parts)")
     args = ap.parse_args()
+    if args.jobs < 1:
+        ap.error("--jobs must be at least 1")
     if args.seeds < 1:
         ap.error("--seeds must be at least 1")
     if not os.path.isfile(args.gap):
@@ -277,25 +304,40 @@ def main():
         for k in range(args.seeds):
             plan.append((kind, effect or "clean", [effect] if effect else [], {}, [], args.seed_base + k))
     plan += calibration_plan(candidates, args.extended_seeds, args.seed_base)
+    wanted = set(args.cases.split(",")) if args.cases else set()
+    if args.protocol == "standard" or "no_height" in wanted:
+        plan += no_height_plan(args.seeds, args.seed_base)
     if args.cases:
-        wanted = set(args.cases.split(","))
-        plan = [p for p in plan if p[1] in wanted or p[0] in wanted]
+        # no_height selects those cases alone; a name selects it among the height-sensor cases
+        plan = [p for p in plan if p[0] in wanted or (p[1] in wanted and p[0] != "no_height")]
     os.makedirs(args.out, exist_ok=True)
-    cases = []
     started = time.time()
-    for spec in plan:
+    finished = [0]
+    print_lock = threading.Lock()
+
+    def one(spec):
         c = run_case(args.gap, args.out, spec, args.protocol, args.resume)
         c["right"] = case_right(c)
-        cases.append(c)
-        print(f"[{len(cases)}/{len(plan)}] {c['case']:<48} -> {c['verdict']:<36} {'ok ' if c['right'] else 'BAD'} "
-              f"shrink {c.get('shrink') if c.get('shrink') is None else round(c['shrink'], 3)}  "
-              f"({seconds(c['elapsed_s'])})", flush=True)
+        with print_lock:
+            finished[0] += 1
+            print(f"[{finished[0]}/{len(plan)}] {c['case']:<48} -> {c['verdict']:<36} {'ok ' if c['right'] else 'BAD'} "
+                  f"shrink {c.get('shrink') if c.get('shrink') is None else round(c['shrink'], 3)}  "
+                  f"({seconds(c['elapsed_s'])})", flush=True)
+        return c
+
+    # Cases are independent (own dataset and report directories): --jobs of them side by side,
+    # the slow kinds (joint refits of two effects) first so the jobs end together.
+    slow_first = sorted(range(len(plan)), key=lambda i: plan[i][0] not in ("pair", "mismatch_effect"))
+    with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        done = dict(zip(slow_first, pool.map(one, [plan[i] for i in slow_first])))
+    cases = [done[i] for i in range(len(plan))]
 
     def rate(kind):
         of_kind = [c for c in cases if c["kind"] == kind]
         return (sum(c["right"] for c in of_kind) / len(of_kind) if of_kind else None), of_kind
 
-    named = [c for c in cases if c["right"] and c["kind"] in ("candidate", "mismatch_effect", "pair", "valve")]
+    named = [c for c in cases if c["right"] and c["kind"] in ("candidate", "mismatch_effect", "pair", "valve")
+             or (c["right"] and c["kind"] == "no_height" and c["truth"] != "clean")]
     shrinks = [c["shrink"] for c in named if c["shrink"] is not None]
     rates, counts = {}, {}
     for key, kind in [("top1", "candidate"), ("clean_none", "clean"), ("out_of_library_unexplained", "out_of_library"),
@@ -303,11 +345,19 @@ def main():
                       ("pairs_named", "pair"), ("valve_driven_leak_and_inlet", "valve")]:
         rates[key], of_kind = rate(kind)
         counts[key] = f"{sum(c['right'] for c in of_kind)}/{len(of_kind)}"
+    no_height = [c for c in cases if c["kind"] == "no_height"]
+    for key, group in [("no_height_clean_none", [c for c in no_height if c["truth"] == "clean"])] + \
+            [(f"no_height_{name}_named", [c for c in no_height if c["truth"] == name])
+             for name, _ in NO_HEIGHT_CASES if name != "clean"]:
+        rates[key] = sum(c["right"] for c in group) / len(group) if group else None
+        counts[key] = f"{sum(c['right'] for c in group)}/{len(group)}"
     rates["median_withheld_shrink"] = statistics.median(shrinks) if shrinks else None
     counts["median_withheld_shrink"] = f"{len(shrinks)} named"
     limits = {"top1": TOP1_MIN, "clean_none": NONE_MIN, "out_of_library_unexplained": UNEXPLAINED_MIN,
               "mismatch_calibrated": MISMATCH_MIN, "mismatch_effect_named": MISMATCH_EFFECT_MIN,
-              "pairs_named": PAIR_MIN, "valve_driven_leak_and_inlet": VALVE_MIN, "median_withheld_shrink": SHRINK_MIN}
+              "pairs_named": PAIR_MIN, "valve_driven_leak_and_inlet": VALVE_MIN, "median_withheld_shrink": SHRINK_MIN,
+              "no_height_clean_none": NO_HEIGHT_NONE_MIN}
+    limits.update({f"no_height_{name}_named": NO_HEIGHT_NAMED_MIN for name, _ in NO_HEIGHT_CASES if name != "clean"})
     passed = {k: (v is None or v >= limits[k]) for k, v in rates.items()}
     matrix = confusion(cases, ["none", "unexplained"] + candidates)
     elapsed = time.time() - started

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs every test of nursing_bed (gtest executables and rostest files, through catkin's
-# run_tests target), then counts the individual test cases of all JUnit result files.
+# Runs every test of nursing_bed (gtest executables, rostest files and the gap blind check:
+# catkin's per-test targets, in lanes by scripts/run_test_lanes.py), then counts the
+# individual test cases of all JUnit result files.
 # Last line: "N passed, N failed". Exit 0 only if nothing failed and at least one test passed.
 # A test executable that crashes or writes no result counts as failed (catkin's run_tests.py
 # then writes MISSING-<name>.xml with one failed case). Set NB_SKIP_BUILD=1 to skip the build.
@@ -27,11 +28,16 @@ rm -rf "$RESULTS"
 mkdir -p "$RESULTS"
 
 if [[ $make_failed -eq 0 ]]; then
-  echo "run_tests: make run_tests (output: $LOG)"
-  # -j1: rostests each start their own master; run them one at a time.
-  if ! make -C "$BUILD" -j1 run_tests >"$LOG" 2>&1; then
-    tail -n 60 "$LOG"
-    echo "run_tests: 'make run_tests' failed (full output: $LOG)"
+  echo "run_tests: every test target, in lanes (scripts/run_test_lanes.py; output: $LOG)"
+  : >"$LOG"
+  # A failing test is counted from its result file below; exit 1 (a target exited non-zero) alone
+  # is not a failure, any other exit means the lanes themselves broke.
+  /usr/bin/python3 "$ROOT/scripts/run_test_lanes.py" --build "$BUILD" --source "$ROOT" --log "$LOG"
+  rc=$?
+  if [[ $rc -eq 1 ]]; then
+    echo "run_tests: some test targets exited non-zero (full output: $LOG)"
+  elif [[ $rc -ne 0 ]]; then
+    echo "run_tests: scripts/run_test_lanes.py failed (exit $rc)"
     make_failed=1
   fi
 fi

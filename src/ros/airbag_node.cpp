@@ -30,6 +30,8 @@ Status AirbagNodeParams::validate() const {
   errors.addIf(!(initial_height_m >= 0.0 && initial_height_m <= airbag.controller.max_height_m),
                "~initial_height_m must lie in [0, controller/max_height_m]");
   errors.addIf(!std::isfinite(supply_pressure_pa), "~supply_pressure_pa must be finite");
+  errors.addIf(command_source.empty() || command_source.front() != '/',
+               "~command_source must be a node's absolute name (e.g. /bed_manager)");
   try {
     effectsFromText(effects, static_cast<std::uint32_t>(airbag.noise_seed));
   } catch (const std::invalid_argument& e) {
@@ -56,6 +58,8 @@ AirbagNodeParams AirbagNode::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("effects", p.effects, p.effects);
   if (!pnh.getParam("reconfigure", p.reconfigure))
     pnh.param(p.defaults_ns + "/reconfigure", p.reconfigure, p.reconfigure);
+  if (!pnh.getParam("command_source", p.command_source))
+    pnh.param(p.defaults_ns + "/command_source", p.command_source, p.command_source);
   const FlatParams values = layeredRosParams(pnh, p.defaults_ns, {"cell", "controller", "safety", "sensors", "cpr"});
   p.airbag = airbagParamsFrom(values, "parameters of " + pnh.getNamespace());
   p.hardware = AirbagHardwareParams::load(pnh, p.defaults_ns);
@@ -107,8 +111,9 @@ AirbagNode::AirbagNode(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   vent_sub_ = private_nh_.subscribe(names::kVent, 10, &AirbagNode::onVent, this);
   heartbeat_sub_ = private_nh_.subscribe(names::kHeartbeat, 10, &AirbagNode::onHeartbeat, this);
   // The bed-wide loads and heartbeat come through the process's one subscription (BedTopics).
-  bed_topics_handle_ = BedTopics::instance().add(BedTopics::Handlers{
-      [this](const std_msgs::Float64MultiArray& loads) { onCellLoads(loads); }, [this] { onBedHeartbeat(); }});
+  bed_topics_handle_ = BedTopics::instance().add(
+      BedTopics::Handlers{[this](const std_msgs::Float64MultiArray& loads) { onCellLoads(loads); },
+                          [this](const std::string& publisher) { onBedHeartbeat(publisher); }});
   cpr_sub_ = nh_.subscribe(names::kCpr, 2, &AirbagNode::onCpr, this);
   start_ = ros::Time::now();
   last_publish_ = start_;
@@ -205,6 +210,12 @@ void AirbagNode::reportGasSearch() {
              cell_->time() - gas_search_start_s_);
   }
   finding_gas_ = finding;
+  // An inconsistency between the readings and the observer is worth a warning with its reason.
+  const bool inconsistent = (cell_->faults() & kFaultInconsistent) != 0;
+  if (inconsistent && !inconsistent_ && cell_->monitor())
+    ROS_WARN("%s: readings inconsistent with the observer (%s): finding its gas again, flagged until then",
+             layout_.link_name.c_str(), cell_->monitor()->reason().c_str());
+  inconsistent_ = inconsistent;
   const bool anchoring = cell_->anchoringGas();
   if (anchoring != anchoring_gas_) {
     ROS_DEBUG("%s: %s", layout_.link_name.c_str(),
@@ -241,6 +252,7 @@ void AirbagNode::takeSnapshot() {
   s.pressure_setpoint_pa = cell_->pressureSetpoint();
   s.height_source = static_cast<uint8_t>(cell_->heightSource());
   s.height_sd_m = cell_->heightSd();
+  s.height_unverified = cell_->heightUnverified();
   s.mode = static_cast<uint8_t>(cell_->mode());
   s.faults = cell_->faults();
   std::lock_guard<std::mutex> lock(snapshot_mutex_);
@@ -283,6 +295,7 @@ void AirbagNode::publishState(const CellSnapshot& s, const ros::Time& stamp) {
   msg.height_m = m.height_m;
   msg.height_source = s.height_source;
   msg.height_sd_m = s.height_sd_m;
+  msg.height_unverified = s.height_unverified;
   msg.volume_m3 = s.volume_m3;
   msg.gas_mass_kg = s.gas_mass_kg;
   msg.gas_temperature_k = s.gas_temperature_k;
@@ -377,7 +390,17 @@ bool AirbagNode::setPressure(SetPressure::Request& req, SetPressure::Response& r
   return true;
 }
 
-void AirbagNode::onSetpoint(const std_msgs::Float64::ConstPtr& msg) {
+bool AirbagNode::commandFromOwner(const std::string& publisher, const char* topic) const {
+  // Intra-process messages carry this process's name (the bed manager nodelet's).
+  if (publisher == params_.command_source || publisher == ros::this_node::getName()) return true;
+  ROS_WARN_THROTTLE(1.0, "%s: %s from %s refused: only %s (or this process) commands the cell",
+                    layout_.link_name.c_str(), topic, publisher.c_str(), params_.command_source.c_str());
+  return false;
+}
+
+void AirbagNode::onSetpoint(const ros::MessageEvent<const std_msgs::Float64>& event) {
+  if (!commandFromOwner(event.getPublisherName(), names::kHeightSetpoint)) return;
+  const std_msgs::Float64::ConstPtr msg = event.getConstMessage();
   std::lock_guard<std::timed_mutex> lock(mutex_);
   const ros::Time now = ros::Time::now();
   const Status accepted = request(msg->data, now);
@@ -420,7 +443,8 @@ void AirbagNode::onCellLoads(const std_msgs::Float64MultiArray& msg) {
   applyLoad(msg.data[layout_.id], names::kCellLoads);
 }
 
-void AirbagNode::onVent(const std_msgs::Empty::ConstPtr&) {
+void AirbagNode::onVent(const ros::MessageEvent<const std_msgs::Empty>& event) {
+  if (!commandFromOwner(event.getPublisherName(), names::kVent)) return;
   std::lock_guard<std::timed_mutex> lock(mutex_);
   direct_target_m_ = std::numeric_limits<double>::quiet_NaN();
   cell_->requestVent(elapsed(ros::Time::now()));
@@ -457,9 +481,13 @@ void AirbagNode::onReconfigure(AirbagCellConfig& config) {
   saveReconfigured(private_nh_, changed);
 }
 
-void AirbagNode::onHeartbeat(const std_msgs::Empty::ConstPtr&) { onBedHeartbeat(); }
+void AirbagNode::onHeartbeat(const ros::MessageEvent<const std_msgs::Empty>& event) {
+  onBedHeartbeat(event.getPublisherName());
+}
 
-void AirbagNode::onBedHeartbeat() {
+void AirbagNode::onBedHeartbeat(const std::string& publisher) {
+  // A stray heartbeat would keep the cell out of SAFE while its manager is dead.
+  if (!commandFromOwner(publisher, names::kHeartbeat)) return;
   // Buffered like the loads: the simulation thread feeds the watchdog, so the process's one
   // heartbeat thread never waits for a cell being advanced.
   pending_heartbeat_s_ = elapsed(ros::Time::now());

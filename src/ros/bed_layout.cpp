@@ -4,12 +4,13 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <regex>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <utility>
 
 namespace nursing_bed {
@@ -136,17 +137,38 @@ CellLayout cellOfJoint(const std::string& name, const urdf::Joint& joint, int ro
 
 using CellMap = std::map<std::pair<int, int>, CellLayout>;
 
+/// Reads a canonical decimal index (0, or up to 6 digits without a leading zero) at `*at` and
+/// the `separator` after it; false when there is none.
+bool readIndex(std::string_view name, std::size_t* at, std::string_view separator, int* value) {
+  std::size_t end = *at;
+  while (end < name.size() && end - *at <= 6 && name[end] >= '0' && name[end] <= '9') ++end;
+  const std::size_t digits = end - *at;
+  if (digits == 0 || digits > 6 || (digits > 1 && name[*at] == '0')) return false;
+  if (name.substr(end, separator.size()) != separator) return false;
+  std::from_chars(name.data() + *at, name.data() + end, *value);  // <= 6 digits: fits an int
+  *at = end + separator.size();
+  return true;
+}
+
+/// (row, col) of a joint named airbag_<row>_<col>_joint; canonical decimal indices only, so
+/// that a cell has exactly one possible joint name. No regex: a name of any length is read in
+/// one bounded pass.
+bool cellJointIndices(std::string_view name, int* row, int* col) {
+  constexpr std::string_view kPrefix = "airbag_", kSuffix = "_joint";
+  if (name.substr(0, kPrefix.size()) != kPrefix) return false;
+  std::size_t at = kPrefix.size();
+  return readIndex(name, &at, "_", row) && readIndex(name, &at, kSuffix, col) && at == name.size();
+}
+
 /// Every airbag_<row>_<col>_joint's cell by (row, col); fails when there is none.
 CellMap cellsOf(const urdf::ModelInterface& model) {
-  // Canonical decimal indices only, so that a cell has exactly one possible joint name.
-  static const std::regex kCellJoint("airbag_(0|[1-9][0-9]{0,5})_(0|[1-9][0-9]{0,5})_joint");
   CellMap found;
   for (const auto& entry : model.joints_) {
-    std::smatch match;
-    if (!std::regex_match(entry.first, match, kCellJoint)) {
+    int row = 0, col = 0;
+    if (!cellJointIndices(entry.first, &row, &col)) {
       continue;
     }
-    CellLayout cell = cellOfJoint(entry.first, *entry.second, std::stoi(match[1].str()), std::stoi(match[2].str()));
+    CellLayout cell = cellOfJoint(entry.first, *entry.second, row, col);
     found.emplace(std::make_pair(cell.row, cell.col), std::move(cell));
   }
   if (found.empty()) {

@@ -53,6 +53,7 @@ BedManager::BedManager(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh)
   diagnostics_timer_ =
       nh_.createTimer(ros::Duration(1.0 / params_.diagnostics_rate_hz), &BedManager::publishDiagnostics, this);
   step_timer_ = nh_.createTimer(ros::Duration(1.0 / params_.plan_rate_hz), &BedManager::step, this);
+  watch_timer_ = nh_.createTimer(ros::Duration(1.0 / kWatchRateHz), &BedManager::watchCells, this);
   reconfigure_ = std::make_unique<ReconfigureServer<BedManagerConfig>>(
       private_nh_, bedManagerConfigFrom(params_), [this](BedManagerConfig& config) { onReconfigure(config); });
   ROS_INFO("bed_manager: %s", layout_.describe().c_str());
@@ -163,8 +164,20 @@ void BedManager::publishHeights(const ros::TimerEvent&) {
 void BedManager::publishDiagnostics(const ros::TimerEvent&) {
   const ros::Time now = ros::Time::now();
   std::lock_guard<std::mutex> lock(mutex_);
+  publishDiagnosticsLocked(now);
+}
+
+void BedManager::publishDiagnosticsLocked(const ros::Time& now) {
   const BedReport report = supervisor_->report(now.toSec());
   diagnostics_pub_.publish(diagnosticsMsg(report, layout_, last_state_, supervisor_->health(), now));
+}
+
+void BedManager::watchCells(const ros::TimerEvent&) {
+  const ros::Time now = ros::Time::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::size_t changed = supervisor_->watch(now.toSec());
+  carryOut(supervisor_->takeOutput());
+  if (changed > 0) publishDiagnosticsLocked(now);
 }
 
 void BedManager::step(const ros::TimerEvent&) {

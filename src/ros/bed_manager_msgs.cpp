@@ -41,7 +41,8 @@ std::vector<BedCell> bedCells(const BedLayout& layout) {
 }
 
 CellSnapshot cellSnapshot(const AirbagState& s, double seen_s) {
-  return CellSnapshot{s.cell_id, s.height_m, s.height_sd_m, s.faults, s.gauge_pressure_pa, s.external_load_n, seen_s};
+  return CellSnapshot{s.cell_id,           s.height_m,        s.height_sd_m, s.faults,
+                      s.gauge_pressure_pa, s.external_load_n, seen_s,        s.height_unverified != 0};
 }
 
 BedState bedStateMsg(const BedStatus& status, const ros::Time& stamp) {
@@ -56,6 +57,7 @@ BedState bedStateMsg(const BedStatus& status, const ros::Time& stamp) {
   m.dead_cells = status.dead_cells;
   m.largest_state_gap_s = status.largest_state_gap_s;
   m.faulty_cells = status.faulty_cells;
+  m.unverified_cells = status.unverified_cells;
   m.alarms = status.alarms;
   return m;
 }
@@ -86,6 +88,7 @@ diagnostic_msgs::DiagnosticArray diagnosticsMsg(const BedReport& report, const B
       s.values.push_back(keyValue("height_setpoint_m", std::to_string(st.height_setpoint_m)));
       s.values.push_back(keyValue("external_load_n", std::to_string(st.external_load_n)));
       s.values.push_back(keyValue("faults", std::to_string(static_cast<double>(st.faults))));
+      s.values.push_back(keyValue("height_unverified", st.height_unverified ? "true" : "false"));
     }
     array.status.push_back(s);
   }

@@ -27,11 +27,14 @@ BedManagerParams BedManager::loadParams(const ros::NodeHandle& pnh) {
   pnh.param("joint_state_rate_hz", p.joint_state_rate_hz, p.joint_state_rate_hz);
   pnh.param("plan_rate_hz", p.plan_rate_hz, p.plan_rate_hz);
   pnh.param("cell_timeout_s", b.cell_timeout_s, b.cell_timeout_s);
+  pnh.param("startup_grace_s", b.startup_grace_s, b.startup_grace_s);
   pnh.param("diagnostics_rate_hz", p.diagnostics_rate_hz, p.diagnostics_rate_hz);
   pnh.param("resend_s", b.resend_s, b.resend_s);
   pnh.param("leak_alarm_error_m", b.leak_alarm_error_m, b.leak_alarm_error_m);
   pnh.param("leak_alarm_s", b.leak_alarm_s, b.leak_alarm_s);
   pnh.param("initial_plan", p.initial_plan, p.initial_plan);
+  // roslaunch drops an empty value given on its command line (initial_plan:=""): "none" says it.
+  if (p.initial_plan == "none") p.initial_plan.clear();
   applyFlatParams(flattenRosParams(pnh, "plans"), "parameters " + pnh.resolveName("plans"), planConfigFields(),
                   &b.plans);
   pnh.param("body/first_row", b.body.first_row, b.body.first_row);

@@ -42,9 +42,10 @@ void BedTopics::onLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) {
   for (const auto& e : entries_) e.second.loads(*msg);
 }
 
-void BedTopics::onHeartbeat(const std_msgs::Empty::ConstPtr&) {
+void BedTopics::onHeartbeat(const ros::MessageEvent<const std_msgs::Empty>& event) {
+  const std::string& publisher = event.getPublisherName();
   std::lock_guard<std::mutex> lock(mutex_);
-  for (const auto& e : entries_) e.second.heartbeat();
+  for (const auto& e : entries_) e.second.heartbeat(publisher);
 }
 
 }  // namespace nursing_bed

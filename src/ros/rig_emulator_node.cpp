@@ -52,6 +52,9 @@ RigEmulatorNodeParams RigEmulatorNode::loadParams(const ros::NodeHandle& pnh) {
   int seed = static_cast<int>(p.noise_seed);
   pnh.param("noise_seed", seed, seed);
   p.noise_seed = static_cast<std::uint32_t>(seed);
+  int fault_seed = static_cast<int>(p.fault_seed);
+  pnh.param("fault_seed", fault_seed, fault_seed);
+  p.fault_seed = static_cast<std::uint32_t>(fault_seed);
   return p;
 }
 
@@ -71,12 +74,15 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
   options.cell.load_n = params_.load_n;
   options.cell.initial_height_m = params_.initial_height_m;
   options.cell.noise_seed = params_.noise_seed;
+  options.fault_seed = params_.fault_seed;
   const RegisterMap map = loadRegisterMap(params_.register_map, static_cast<std::uint32_t>(params_.bed_cells));
   emulator_ = std::make_unique<RigEmulator>(map, options);
   loads_sub_ =
       nh.subscribe(names::kCellLoads, 2, &RigEmulatorNode::onCellLoads, this, ros::TransportHints().tcpNoDelay());
   truth_pub_ = private_nh.advertise<RigTruth>("truth", 2);
   truth_timer_ = nh.createTimer(ros::Duration(1.0 / params_.truth_rate_hz), &RigEmulatorNode::publishTruth, this);
+  injectStartFaults(private_nh);
+  fault_srv_ = private_nh.advertiseService("inject_fault", &RigEmulatorNode::onInjectFault, this);
   ROS_INFO("rig_emulator: %zu terminals on 127.0.0.1 serving %s%s%s", map.terminals.size(),
            params_.register_map.c_str(), params_.effects.empty() ? "" : ", hidden effects: ", params_.effects.c_str());
   if (emulator_->scheduling().refused)
@@ -87,6 +93,90 @@ RigEmulatorNode::RigEmulatorNode(ros::NodeHandle nh, ros::NodeHandle private_nh)
       ROS_WARN(
           "rig_emulator: terminal '%s' serves at %s: on a loaded machine it answers (and switches its valves) late",
           server->map().name.c_str(), server->scheduling().text.c_str());
+}
+
+namespace {
+
+bool isNumber(const XmlRpc::XmlRpcValue& v) {
+  return v.getType() == XmlRpc::XmlRpcValue::TypeDouble || v.getType() == XmlRpc::XmlRpcValue::TypeInt;
+}
+
+double number(XmlRpc::XmlRpcValue& v) {
+  return v.getType() == XmlRpc::XmlRpcValue::TypeInt ? static_cast<int>(v) : static_cast<double>(v);
+}
+
+/// The cell ids of a list of non-negative integers; false when it is not one.
+bool cellIds(XmlRpc::XmlRpcValue& list, std::vector<std::uint32_t>* ids) {
+  if (list.getType() != XmlRpc::XmlRpcValue::TypeArray) return false;
+  for (int i = 0; i < list.size(); ++i) {
+    if (list[i].getType() != XmlRpc::XmlRpcValue::TypeInt || static_cast<int>(list[i]) < 0) return false;
+    ids->push_back(static_cast<std::uint32_t>(static_cast<int>(list[i])));
+  }
+  return true;
+}
+
+}  // namespace
+
+bool rigFaultFromXmlRpc(XmlRpc::XmlRpcValue& entry, RigFaultRequest* request, std::string* error) {
+  using V = XmlRpc::XmlRpcValue;
+  if (entry.getType() != V::TypeStruct) {
+    *error = "must be a dict (fault, cell_ids, random_cells, valve, value, delay_s, keep_gas)";
+    return false;
+  }
+  RigFaultRequest r;
+  for (auto& [key, v] : entry) {
+    bool ok = true;
+    if (key == "fault") ok = v.getType() == V::TypeString && (r.fault = static_cast<std::string>(v), true);
+    else if (key == "valve") ok = v.getType() == V::TypeString && (r.valve = static_cast<std::string>(v), true);
+    else if (key == "cell_ids") ok = cellIds(v, &r.cell_ids);
+    else if (key == "random_cells") ok = v.getType() == V::TypeInt && (r.random_cells = static_cast<int>(v), true);
+    else if (key == "value") ok = isNumber(v) && (r.value = number(v), true);
+    else if (key == "delay_s") ok = isNumber(v) && (r.delay_s = number(v), true);
+    else if (key == "keep_gas") ok = v.getType() == V::TypeBoolean && (r.keep_gas = static_cast<bool>(v), true);
+    else {
+      *error = "unknown key '" + key + "'";
+      return false;
+    }
+    if (!ok) {
+      *error = "'" + key + "' has the wrong type";
+      return false;
+    }
+  }
+  *request = r;
+  return true;
+}
+
+void RigEmulatorNode::injectStartFaults(const ros::NodeHandle& private_nh) {
+  XmlRpc::XmlRpcValue faults;
+  if (!private_nh.getParam("faults", faults)) return;
+  if (faults.getType() != XmlRpc::XmlRpcValue::TypeArray)
+    throw std::runtime_error("rig_emulator: ~faults must be a list of dicts");
+  for (int i = 0; i < faults.size(); ++i) {
+    RigFaultRequest request;
+    std::string error, applied;
+    if (!rigFaultFromXmlRpc(faults[i], &request, &error))
+      throw std::runtime_error("rig_emulator: ~faults[" + std::to_string(i) + "]: " + error);
+    const Status s = emulator_->inject(request, &applied);
+    if (!s) throw std::runtime_error("rig_emulator: ~faults[" + std::to_string(i) + "]: " + s.message());
+    ROS_WARN("rig_emulator: injected %s", applied.c_str());
+  }
+}
+
+bool RigEmulatorNode::onInjectFault(InjectRigFault::Request& req, InjectRigFault::Response& res) {
+  RigFaultRequest request;
+  request.fault = req.fault;
+  request.cell_ids.assign(req.cell_ids.begin(), req.cell_ids.end());
+  request.random_cells = req.random_cells;
+  request.valve = req.valve;
+  request.value = req.value;
+  request.delay_s = req.delay_s;
+  request.keep_gas = req.keep_gas;
+  std::string applied;
+  const Status s = emulator_->inject(request, &applied);
+  res.success = s.ok();
+  res.message = s.ok() ? "injected " + applied : s.message();
+  if (s.ok()) ROS_WARN("rig_emulator: injected %s", applied.c_str());
+  return true;
 }
 
 void RigEmulatorNode::onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg) { emulator_->setLoads(msg->data); }

@@ -47,7 +47,7 @@ struct Args {
   std::vector<double> loads{0.6, 10.6, 15.6, 20.6};
   double damping = 1000.0, p_lo_kpa = 1.0, p_hi_kpa = 30.0, tolerance = 1e-4, inflow_mass_kg = 0.0, load = 0.6;
   int p_count = 24;
-  bool vtk_all = false;
+  bool vtk_all = false, and_back = false;
   double gusset_mm = -1.0;
   double h_lo_mm = 10.0, h_hi_mm = 130.0;
   int h_count = 13;
@@ -89,7 +89,7 @@ std::vector<double> numberList(const std::string& option, const std::string& tex
 /// The options as CLI11 takes them: lists and the VTK switch stay text until checkedArgs.
 struct RawArgs {
   Args a;
-  std::string loads, pressures_kpa, heights_mm, vtk_all;
+  std::string loads, pressures_kpa, heights_mm, vtk_all, and_back;
 };
 
 constexpr const char* kSynopsis =
@@ -104,6 +104,7 @@ void defineModes(CLI::App& app, Args* a) {
       {"table", "the structure table (--table, --heights-mm, --pressures-kpa, --branch)"},
       {"reduced", "today's reduced model on the same axes (--inflow-mass-kg, --load)"},
       {"check", "the cell on --table FILE against the FE h(p) CSVs of the same geometry and mesh"},
+      {"foldcheck", "the cell on the fold table --table FILE against the FE's hp --and-back CSVs (3 mm)"},
   };
   for (const auto& [name, what] : modes) {
     CLI::App* mode = app.add_subcommand(name, what);
@@ -132,6 +133,8 @@ void defineOptions(CLI::App& app, RawArgs* r) {
   app.add_option("--loads", r->loads, "plate loads [N] (default 0.6,10.6,15.6,20.6)")->type_name("L1,L2,...");
   app.add_option("--load", a.load, "plate load of transient and reduced [N]")->type_name("L");
   app.add_option("--pressures-kpa", r->pressures_kpa, "gauge pressures (default 1,30,24)")->type_name("LO,HI,COUNT");
+  app.add_option("--and-back", r->and_back, "1: h(p) up the pressures, then back down them (the deflation branch)")
+      ->type_name("1");
   app.add_option("--heights-mm", r->heights_mm, "table heights (default 10,130,13)")->type_name("LO,HI,COUNT");
   app.add_option("--vtk-all", r->vtk_all, "1: a VTK file at every pressure (else the middle and last)")->type_name("1");
   app.add_option("--inflow-mass-kg", a.inflow_mass_kg, "paper-shaped inflow carrying this mass (0: the valve)")
@@ -153,7 +156,9 @@ Args checkedArgs(const RawArgs& r) {
     a.h_lo_mm = h[0], a.h_hi_mm = h[1], a.h_count = static_cast<int>(h[2]);
   }
   a.vtk_all = r.vtk_all == "1";
-  if (a.mode == "check" && a.table.empty()) throw tools::UsageError("check needs --table FILE");
+  a.and_back = r.and_back == "1";
+  if ((a.mode == "check" || a.mode == "foldcheck") && a.table.empty())
+    throw tools::UsageError(a.mode + " needs --table FILE");
   return a;
 }
 
@@ -213,8 +218,10 @@ void heightVsPressure(const Args& a) {
     std::vector<double> pressures;
     for (int i = 0; i < a.p_count; ++i)
       pressures.push_back(1e3 * (a.p_lo_kpa + (a.p_hi_kpa - a.p_lo_kpa) * i / (a.p_count - 1)));
+    // Down again from the top in the same continuation: the states the bag keeps while venting.
+    if (a.and_back) pressures.insert(pressures.end(), pressures.rbegin() + 1, pressures.rend());
     std::ostringstream name;
-    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N";
+    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N" << (a.and_back ? "_updown" : "");
     std::ofstream f(name.str() + ".csv");
     f << "p_gauge_pa,h_m,volume_m3,plate_force_n,max_stretch,wrinkled_fraction,rim_inset_m,converged,iterations,eq24_h_"
          "m\n";
@@ -295,17 +302,14 @@ std::vector<double> tableRoots(const nb::TabulatedStructure& cell, double p, dou
   return roots;
 }
 
-// The table cell run as the FE bag was: a CellModel on the table under `load`, its pressure
-// held at each of `pressures` in turn (ascending; the supply at that pressure, the inlet open)
-// until the plate rests. It follows its own branch through the snaps, as the FE's pressure
-// continuation does; NaN where it does not come to rest within 10 s.
-std::vector<double> runningCellHeights(const std::string& table_file,
-                                       const std::shared_ptr<const nb::TabulatedStructure>& table, double load,
-                                       const std::vector<double>& pressures) {
-  nb::CellParams params;
-  params.structure_type = "table";
-  params.structure_table_file = table_file;  // named only: the loaded table is given, not read again per load
-  nb::CellModel cell(params, table);
+// A cell run as the FE bag was: a CellModel on `structure` under `load`, its pressure held at
+// each of `pressures` in turn (the supply at that pressure, the inlet open) until the plate rests
+// (`calm_steps` x 0.05 s without motion at the pressure). It follows its own branch through the snaps, as the FE's
+// pressure continuation does; NaN where it does not come to rest within 10 s.
+std::vector<double> runningHeights(const nb::CellParams& params,
+                                   const std::shared_ptr<const nb::CellStructure>& structure, double load,
+                                   const std::vector<double>& pressures, int calm_steps) {
+  nb::CellModel cell(params, structure);
   cell.reset(load);
   std::vector<double> heights;
   for (double p : pressures) {
@@ -314,14 +318,26 @@ std::vector<double> runningCellHeights(const std::string& table_file,
     in.supply_pressure_pa = p;
     in.inlet_opening = 1.0;
     double settled = NAN;
+    int calm = 0;
     for (double t = 0.0; t < 10.0 && std::isnan(settled); t += 0.05) {
       cell.advance(0.05, in);
       const nb::CellVariables& v = cell.variables();
-      if (std::abs(v.velocity_m_s) < 1e-4 && std::abs(v.gauge_pressure_pa - p) < 1e-3 * p + 5.0) settled = v.height_m;
+      const bool at_rest = std::abs(v.velocity_m_s) < 1e-4 && std::abs(v.gauge_pressure_pa - p) < 1e-3 * p + 5.0;
+      calm = at_rest ? calm + 1 : 0;
+      if (calm >= calm_steps) settled = v.height_m;
     }
     heights.push_back(std::max(settled, 0.0));
   }
   return heights;
+}
+
+std::vector<double> runningCellHeights(const std::string& table_file,
+                                       const std::shared_ptr<const nb::TabulatedStructure>& table, double load,
+                                       const std::vector<double>& pressures) {
+  nb::CellParams params;
+  params.structure_type = "table";
+  params.structure_table_file = table_file;  // named only: the loaded table is given, not read again per load
+  return runningHeights(params, table, load, pressures, 1);
 }
 
 struct CheckCounts {
@@ -382,6 +398,51 @@ void check(const Args& a) {
       "the table's equilibria, %.2f mm), %d (the running cell, pressure held step by step, %.2f mm)\n",
       within.states, within.own_root, worst * 1e3, within.nearest_root, worst_nearest * 1e3, within.running,
       worst_running * 1e3);
+}
+
+// The cell on a fold table (physics' FoldTableStructure) run through the FE's pressures up and
+// back down (the hp --and-back CSVs), against the FE's heights: states within 3 mm, per load.
+void foldCheck(const Args& a) {
+  nb::CellParams params;
+  params.structure_type = "fold_table";
+  params.structure_table_file = a.table;
+  // The FE's states reach 35 kPa, the relief's cracking pressure: the check is of the structure.
+  params.relief_cracking_pressure_pa = 60e3;
+  params.relief_full_open_pressure_pa = 70e3;
+  const auto structure = nb::makeCellStructure(params);
+  std::ofstream f(a.out + "/fold_check_" + tag(a) + ".csv");
+  f << "load_n,direction,p_gauge_pa,h_fe_m,h_cell_m\n";
+  int states = 0, within = 0;
+  for (double load : a.loads) {
+    std::ostringstream name;
+    name << a.out << "/hp_" << tag(a) << "_load_" << load << "N_updown.csv";
+    std::ifstream in(name.str());
+    if (!in) throw std::runtime_error("cannot read " + name.str() + " (run hp --and-back 1 first)");
+    std::string line;
+    std::getline(in, line);
+    std::vector<double> pressures, h_fe;
+    while (std::getline(in, line)) {
+      const auto v = numbers(line);
+      if (v[7] == 0.0) continue;  // not converged
+      pressures.push_back(v[0]), h_fe.push_back(v[1]);
+    }
+    const std::vector<double> h = runningHeights(params, structure, load, pressures, 2);  // 2: the fold settled too
+    int ok = 0;
+    double worst = 0.0;
+    bool down = false;
+    for (std::size_t k = 0; k < h.size(); ++k) {
+      down = down || (k > 0 && pressures[k] < pressures[k - 1]);
+      const double err = std::abs(h[k] - h_fe[k]);
+      ok += err <= 3e-3;
+      worst = std::max(worst, std::isfinite(err) ? err : 1.0);
+      f << load << ',' << (down ? "down" : "up") << ',' << pressures[k] << ',' << h_fe[k] << ',' << h[k] << '\n';
+    }
+    std::printf("  load %.1f N: %d of %zu states within 3 mm, worst %.1f mm\n", load, ok, h.size(), worst * 1e3);
+    std::fflush(stdout);
+    states += static_cast<int>(h.size()), within += ok;
+  }
+  std::printf("fold table cell vs FE h(p) up and down: %d of %d states within 3 mm (%.1f %%)\n", within, states,
+              100.0 * within / std::max(states, 1));
 }
 
 // Today's reduced model (PillowStructure, config defaults) on the same axes: h(p) per load
@@ -550,6 +611,7 @@ int main(int argc, char** argv) {
     else if (a.mode == "transient") transient(a);
     else if (a.mode == "table") table(a);
     else if (a.mode == "check") check(a);
+    else if (a.mode == "foldcheck") foldCheck(a);
     else if (a.mode == "reduced") reduced(a);
   } catch (const std::exception& e) {
     std::cerr << "fe_airbag: " << e.what() << "\n";

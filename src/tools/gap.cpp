@@ -256,7 +256,7 @@ std::vector<nb::RunData> datasetRuns(const std::string& dataset, const std::stri
 /// Options both calibrate and diagnose take, as given; checked by analysisOptions.
 struct AnalysisArgs {
   std::vector<std::string> datasets;  ///< exactly one, checked after parsing (named in the error)
-  std::string out_dir, topic, airbag_override, params, threads = "2", effects;
+  std::string out_dir, topic, airbag_override, params, threads = "2", effects, model_floor = "auto";
   bool no_plots = false, no_calibration = false;
 };
 
@@ -337,9 +337,11 @@ constexpr const char* kCalibrateSynopsis =
     "looked for) and writes DIR/calibrated_airbag.yaml (a complete parameter file: sim.launch\n"
     "cell_params:=..., the nodes and gap diagnose --airbag accept it), DIR/report.json (the\n"
     "calibration block: value, standard error, correlations, what the runs cannot tell apart),\n"
-    "DIR/report.md, DIR/traces/*.csv and plots. --params defaults to film_stiffness_scale,\n"
-    "gusset_height_m, dead_volume_m3, plate_mass_kg; plus inlet_area_m2, vent_area_m2,\n"
-    "regulator_time_constant_s for runs driven through the valves, no flow meter.";
+    "DIR/report.md, DIR/traces/*.csv and plots. --params defaults to those of the structure:\n"
+    "film_stiffness_scale, gusset_height_m, dead_volume_m3, plate_mass_kg for the pillow;\n"
+    "compliance_m3_pa, dead_volume_m3, plate_damping_n_s_m for a bellows; the airway's resistances\n"
+    "when the parameter file has an airway (its linear one then instead of the plate's damping);\n"
+    "plus inlet_area_m2, vent_area_m2, regulator_time_constant_s for runs driven through the valves.";
 
 int runCalibrate(const AnalysisArgs& a) {
   nb::DiagnosisOptions options;
@@ -352,12 +354,17 @@ void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
   sub.add_option("--effects", a->effects, "candidates to try, comma-separated (default: all seven)")
       ->type_name("NAME,NAME...");
   sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");
+  sub.add_option("--model-floor", a->model_floor,
+                 "judge candidates above the calibrated model's floor when it never fits to the noise: auto (runs "
+                 "imported from recordings), on, off")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
 }
 
 int runDiagnose(const AnalysisArgs& a) {
   nb::DiagnosisOptions options;
   const CommonOptions c = analysisOptions(a, &options);
   options.calibrate = !a.no_calibration;
+  options.model_floor = a.model_floor;
   if (!a.effects.empty())
     options.candidates = nameList("--effects", a.effects, [](const std::string& name) {
       const auto known = nb::candidateEffectNames();

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nursing_bed/core/io/package_path.h"
+#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
 #include "tool_cli.h"
@@ -170,9 +171,10 @@ Json runLoad(const nb::CellParams& params, const Options& opt, std::size_t i, co
           {"quartic_mm_vs_bar", quartic_json}};
 }
 
-/// Quasi-static h(p, load) characteristic of the structure (the paper's section 5 relation).
+/// Quasi-static h(p, load) characteristic of the structure the parameters select (the paper's
+/// section 5 relation).
 void writeCharacteristic(const nb::CellParams& params, const fs::path& out) {
-  nb::PillowStructure structure(params.structure);
+  const auto structure = nb::makeCellStructure(params);
   std::ofstream f(out / "characteristic.csv");
   f << "# quasi-static plate height vs gauge pressure per load (film relaxed, plate at rest)\n";
   f << "p_gauge_pa";
@@ -180,7 +182,7 @@ void writeCharacteristic(const nb::CellParams& params, const fs::path& out) {
   f << ",h_m_paper_eq24\n" << std::setprecision(9);
   for (double p = 250.0; p <= 30000.0 + 1e-9; p += 250.0) {
     f << p;
-    for (double load : nb::kPaperLoadsN) f << ',' << structure.equilibriumAtPressure(p, load).height_m;
+    for (double load : nb::kPaperLoadsN) f << ',' << structure->equilibriumAtPressure(p, load).height_m;
     f << ',' << nb::paperEq24HeightM(p) << '\n';
   }
 }

@@ -10,7 +10,6 @@
 #include <iostream>
 #include <map>
 #include <memory>
-#include <regex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -92,10 +91,19 @@ inline void checkNoExtras(const CLI::App& app) {
 
 /// CLI11's message, with a missing option value said in words.
 inline std::string mistakeText(const CLI::ParseError& e) {
-  std::smatch m;
+  // "<option>: <n> required <type> missing", read without a regex (bounded, no recursion).
   const std::string what = e.what();
-  if (std::regex_match(what, m, std::regex(R"((\S+): \d+ required \S+ missing)"))) return m[1].str() + " needs a value";
-  return what;
+  const std::size_t colon = what.find(": ");
+  const std::size_t required = what.find(" required ");
+  const bool missing = what.size() > 8 && what.compare(what.size() - 8, 8, " missing") == 0;
+  if (colon == std::string::npos || required == std::string::npos || !missing || required < colon) return what;
+  const std::string option = what.substr(0, colon), count = what.substr(colon + 2, required - colon - 2);
+  const bool digits = !count.empty() && count.find_first_not_of("0123456789") == std::string::npos;
+  const std::string type = what.substr(required + 10, what.size() - 8 - required - 10);
+  if (!digits || option.empty() || option.find(' ') != std::string::npos || type.empty() ||
+      type.find(' ') != std::string::npos)
+    return what;
+  return option + " needs a value";
 }
 
 /// Prints the help of `app` (its chosen subcommand's, when there is one) and "`prefix`: `message`"

@@ -4,7 +4,6 @@
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/xmlrpc_manager.h>
-#include <xmlrpcpp/XmlRpcClient.h>
 
 #include <csignal>
 #include <sstream>
@@ -69,21 +68,8 @@ class RealBedFixture : public BedFixture {
     return true;
   }
 
-  /// Asks the emulator node to shut down (what `rosnode kill` does, without its start-up time).
-  void shutdownEmulator() {
-    XmlRpc::XmlRpcValue args, result, payload;
-    args[0] = ros::this_node::getName();
-    args[1] = "/rig_emulator";
-    ASSERT_TRUE(ros::master::execute("lookupNode", args, result, payload, true));
-    std::string host;
-    std::uint32_t port = 0;
-    ASSERT_TRUE(ros::network::splitURI(static_cast<std::string>(payload), host, port));
-    XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-    XmlRpc::XmlRpcValue call, reply;
-    call[0] = ros::this_node::getName();
-    call[1] = "test: emulator killed";
-    ASSERT_TRUE(client.execute("shutdown", call, reply));
-  }
+  /// Asks the emulator node to shut down.
+  void shutdownEmulator() { shutdownNode("/rig_emulator", "test: emulator killed"); }
 
   /// Starts the emulator again under its name (its private parameters are still set).
   void restartEmulator() {

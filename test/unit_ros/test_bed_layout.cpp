@@ -184,6 +184,25 @@ TEST(BedLayoutErrors, NoCellJoints) {
   EXPECT_TRUE(contains(error, "no airbag_<row>_<col>_joint")) << error;
 }
 
+TEST(BedLayoutErrors, OnlyCanonicalCellJointNamesAreCellsWhateverTheirLength) {
+  // Near misses and a 40 000-digit index are other joints (left alone), read without recursion.
+  std::string others;
+  int n = 0;
+  for (const std::string& name :
+       {std::string("airbag_01_0_joint"), std::string("airbag_0_00_joint"), std::string("airbag_1234567_0_joint"),
+        std::string("airbag__0_joint"), std::string("airbag_0_0_joint_"), std::string("airbag_0_0"),
+        std::string("airbag_\xc3\xa9_0_joint"), "airbag_" + std::string(40000, '7') + "_0_joint",
+        "airbag_0_" + std::string(40000, '1') + "_joint"}) {
+    const std::string link = "other_" + std::to_string(n++);
+    others += "<joint name=\"" + name + "\" type=\"fixed\"><parent link=\"bed_link\"/><child link=\"" + link +
+              "\"/></joint><link name=\"" + link + "\"/>";
+  }
+  EXPECT_TRUE(contains(layoutError(robotXml(others)), "no airbag_<row>_<col>_joint"));
+  const nb::BedLayout layout =
+      nb::BedLayout::fromUrdf(robotXml(cellXml(0, 0, 0.0, -0.05) + cellXml(0, 1, 0.0, 0.05) + others));
+  EXPECT_EQ(layout.cells().size(), 2u);
+}
+
 TEST(BedLayoutErrors, CellJointNotPrismatic) {
   const std::string error = layoutError(robotXml(cellXml(0, 0, 0.0, 0.0, "revolute")));
   EXPECT_TRUE(contains(error, "airbag_0_0_joint is revolute, expected prismatic")) << error;

@@ -47,6 +47,10 @@ struct AirbagNodeParams {
   /// ~reconfigure (else defaults_ns/reconfigure): serve ~set_parameters (dynamic_reconfigure);
   /// off, the cell starts faster.
   bool reconfigure = true;
+  /// ~command_source (else defaults_ns/command_source): the node whose per-cell setpoints, vents
+  /// and heartbeats the cell obeys, besides its own process (the bed manager nodelet shares it);
+  /// anything else publishing them is refused, named in a warning.
+  std::string command_source = "/bed_manager";
   AirbagCellParams airbag;        ///< cell/, controller/, safety/, sensors/ (private over defaults_ns)
   AirbagHardwareParams hardware;  ///< hardware/, observer/ (private over defaults_ns; doc/real_bed.md)
 
@@ -76,12 +80,15 @@ class AirbagNode {
   bool setPressure(SetPressure::Request& req, SetPressure::Response& res);
   /// The cell over the hardware plugin of params_.hardware (the simulated cell by default).
   std::unique_ptr<AirbagCell> makeCell();
-  void onSetpoint(const std_msgs::Float64::ConstPtr& msg);
+  void onSetpoint(const ros::MessageEvent<const std_msgs::Float64>& event);
   void onLoad(const std_msgs::Float64::ConstPtr& msg);
   void onCellLoads(const std_msgs::Float64MultiArray& msg);
-  void onVent(const std_msgs::Empty::ConstPtr& msg);
-  void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
-  void onBedHeartbeat();
+  void onVent(const ros::MessageEvent<const std_msgs::Empty>& event);
+  void onHeartbeat(const ros::MessageEvent<const std_msgs::Empty>& event);
+  void onBedHeartbeat(const std::string& publisher);
+  /// A per-cell command from `publisher` on `topic` is obeyed (the bed manager's or this
+  /// process's); else false, with a throttled warning naming the publisher.
+  bool commandFromOwner(const std::string& publisher, const char* topic) const;
   void onCpr(const std_msgs::Bool::ConstPtr& msg);
   /// A dynamic_reconfigure request: new controller tuning and safety thresholds for the cell
   /// (applyTuning), or refused whole (ros/reconfigure.h).
@@ -101,8 +108,9 @@ class AirbagNode {
     ValveOpenings valves;
     double setpoint_m = std::numeric_limits<double>::quiet_NaN();
     double pressure_setpoint_pa = std::numeric_limits<double>::quiet_NaN();
-    uint8_t height_source = 0;  ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
-    double height_sd_m = 0.0;   ///< the reported height's standard deviation [m]
+    uint8_t height_source = 0;       ///< AirbagState::HEIGHT_* (measured or the observer's estimate)
+    double height_sd_m = 0.0;        ///< the reported height's standard deviation [m]
+    bool height_unverified = false;  ///< AirbagCell::heightUnverified
     uint8_t mode = 0;
     uint32_t faults = 0;
   };
@@ -126,6 +134,7 @@ class AirbagNode {
   std::mutex snapshot_mutex_;  ///< guards snapshot_ only (held for a copy)
   CellSnapshot snapshot_;
   bool finding_gas_ = false;    ///< the cell was venting to find its gas at the last update
+  bool inconsistent_ = false;   ///< the cell's FAULT_INCONSISTENT at the last report
   bool anchoring_gas_ = false;  ///< the cell was venting flat to re-anchor its gas at the last update
   bool gas_search_warned_ = false;
   double gas_search_start_s_ = 0.0;

@@ -34,7 +34,7 @@ struct BedManagerParams {
   double joint_state_rate_hz = 30.0;                    ///< ~joint_state_rate_hz
   double plan_rate_hz = 10.0;                           ///< ~plan_rate_hz: plan evaluation and ~state rate
   double diagnostics_rate_hz = 5.0;                     ///< ~diagnostics_rate_hz: /diagnostics rate
-  std::string initial_plan;                             ///< ~initial_plan: plan started at launch ("": none)
+  std::string initial_plan;                             ///< ~initial_plan: plan started at launch ("" or "none": none)
   /// ~cell_timeout_s, ~resend_s, ~leak_alarm_error_m, ~leak_alarm_s, ~plans/..., ~body/..., and
   /// the cells' safety/max_height_rate_m_s (from ~defaults_ns).
   BedSupervisorParams bed;
@@ -57,7 +57,11 @@ class BedManager {
   /// /joint_states (the URDF's joints) and ~heights (each cell's height at its own stamp).
   void publishHeights(const ros::TimerEvent&);
   void publishDiagnostics(const ros::TimerEvent&);
+  void publishDiagnosticsLocked(const ros::Time& now);  ///< with mutex_ held
+  static constexpr double kWatchRateHz = 50.0;          ///< the dead-cell watch's rate [Hz]
   void step(const ros::TimerEvent&);
+  /// Watches the cells between plan steps; a newly failed cell is on /diagnostics at once.
+  void watchCells(const ros::TimerEvent&);
   bool setHeight(SetHeight::Request& req, SetHeight::Response& res);
   bool setHeights(SetHeights::Request& req, SetHeights::Response& res);
   bool setPosture(SetPosture::Request& req, SetPosture::Response& res);
@@ -83,7 +87,7 @@ class BedManager {
   std::vector<ros::Publisher> setpoint_pubs_, vent_pubs_;  // by cell id
   ros::Publisher joint_state_pub_, heights_pub_, diagnostics_pub_, state_pub_;
   ros::ServiceServer set_height_srv_, set_heights_srv_, set_posture_srv_;
-  ros::Timer joint_state_timer_, diagnostics_timer_, step_timer_;
+  ros::Timer joint_state_timer_, diagnostics_timer_, step_timer_, watch_timer_;
   /// ~set_parameters. Last: destroyed first.
   std::unique_ptr<ReconfigureServer<BedManagerConfig>> reconfigure_;
 };

@@ -15,6 +15,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <vector>
 
 namespace nursing_bed {
@@ -23,7 +24,8 @@ class BedTopics {
  public:
   struct Handlers {
     std::function<void(const std_msgs::Float64MultiArray&)> loads;  ///< every /airbag_loads message
-    std::function<void()> heartbeat;                                ///< every bed manager heartbeat
+    /// every heartbeat on the bed manager's topic, with its publisher's node name
+    std::function<void(const std::string&)> heartbeat;
   };
 
   /// The process's fan-out, subscribing on first use.
@@ -39,7 +41,7 @@ class BedTopics {
  private:
   BedTopics();
   void onLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
-  void onHeartbeat(const std_msgs::Empty::ConstPtr& msg);
+  void onHeartbeat(const ros::MessageEvent<const std_msgs::Empty>& event);
 
   std::mutex mutex_;  // held while handlers run and while the list changes
   std::vector<std::pair<int, Handlers>> entries_;

@@ -1,16 +1,18 @@
-// One clock thread per process that advances every airbag in it, and a second one that publishes
-// their states. roscpp's timer manager searches its timers linearly on every expiry, so 180
-// nodelet timers in one manager spend most of their CPU there; a single ticker
-// keeps the cost per cell constant. Publishing has its own thread because simulating the plants
-// can take longer than a period for a moment (every cell filling from flat at once after CPR
-// costs ~1000 integration sub-steps each): the cells' controllers stay alive meanwhile, and the
-// states they publish say so, stamped with the simulated time they describe (doc/safety.md).
+// The clock threads of a process that advance every airbag in it, and one that publishes their
+// states. roscpp's timer manager searches its timers linearly on every expiry, so 180 nodelet
+// timers in one manager spend most of their CPU there; a few tickers keep the cost per cell
+// constant. The airbags are independent plants, so they are split across one simulation thread
+// per core (at most kMaxSimulationThreads): every cell filling from flat at once after CPR costs
+// ~1000 integration sub-steps each, more than one core keeps in real time. Publishing has its own
+// thread, so the cells' controllers stay alive while the plants catch up, and the states they
+// publish say so, stamped with the simulated time they describe (doc/safety.md).
 #pragma once
 
 #include <ros/time.h>
 
 #include <atomic>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -25,12 +27,16 @@ class CellTicker {
   /// first rate wins, so every airbag in a process should use the same rate).
   static CellTicker& instance(double rate_hz);
 
-  /// Registers an airbag: `advance` runs on the simulation thread, `publish` on the publishing
-  /// thread, both every period. Returns a handle for remove(). Thread-safe.
+  /// Registers an airbag: `advance` runs on one of the simulation threads (always the same one
+  /// while the list does not change), `publish` on the publishing thread, both every period.
+  /// Returns a handle for remove(). Thread-safe.
   int add(Tick advance, Tick publish);
   /// Unregisters; when it returns neither callback is running or will run again.
   void remove(int handle);
   double rateHz() const { return rate_hz_; }
+  std::size_t simulationThreads() const { return advance_rounds_.size(); }
+
+  static constexpr unsigned kMaxSimulationThreads = 4;
 
   ~CellTicker();
 
@@ -40,17 +46,23 @@ class CellTicker {
     Tick advance, publish;
   };
   explicit CellTicker(double rate_hz);
-  /// Calls `which` of every entry at `rate_hz_`, holding `round` during each round; `reverse`
-  /// walks the entries backwards (the publishing thread: it meets the simulation thread once
-  /// per round instead of following it from cell to cell).
-  void run(Tick Entry::*which, std::mutex* round, bool reverse);
+  /// Simulation thread `lane` of `lanes`: advances every entry whose index modulo `lanes` is
+  /// `lane`, at `rate_hz_`, holding its round's mutex during each round.
+  void advance(std::size_t lane);
+  /// The publishing thread: publishes every entry twice per period, walking the list backwards
+  /// (it meets the simulation threads once per round instead of following them).
+  void publish();
+  /// Every round's mutex, held while the list changes.
+  std::vector<std::unique_lock<std::mutex>> lockAll();
 
   double rate_hz_;
-  std::mutex advance_round_, publish_round_;  // the list changes only with both held
+  std::vector<std::unique_ptr<std::mutex>> advance_rounds_;  // one per simulation thread
+  std::mutex publish_round_;
   std::vector<Entry> entries_;
   int next_handle_ = 0;
   std::atomic<bool> stop_{false};
-  std::thread advance_thread_, publish_thread_;
+  std::vector<std::thread> advance_threads_;
+  std::thread publish_thread_;
 };
 
 }  // namespace nursing_bed

@@ -1,7 +1,8 @@
 // The rig emulator node: Modbus TCP valve terminals on 127.0.0.1 backed by simulated cells
 // (core RigEmulator), serving the register map the modbus_tcp hardware reads, so the whole
 // real-bed path runs here. Its cells take their loads from /airbag_loads (the patient
-// simulator) and publish their ground truth on ~truth, for tests only. Interface: doc/real_bed.md.
+// simulator) and publish their ground truth on ~truth, for tests only. Faults are injected
+// (tests and benches only) from ~faults at start and by ~inject_fault. Interface: doc/real_bed.md.
 #pragma once
 
 #include <ros/ros.h>
@@ -10,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "nursing_bed/InjectRigFault.h"
 #include "nursing_bed/RigTruth.h"
 #include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/rig/rig_emulator.h"
@@ -31,6 +33,7 @@ struct RigEmulatorNodeParams {
   int simulation_realtime_priority =
       20;  ///< ~simulation_realtime_priority: SCHED_FIFO priority of the simulation thread (0: normal)
   std::uint32_t noise_seed = 1;  ///< ~noise_seed
+  std::uint32_t fault_seed = 1;  ///< ~fault_seed: draws of injected faults (random cells, dropped replies)
 
   /// Success, or every problem found.
   Status validate() const;
@@ -45,6 +48,10 @@ class RigEmulatorNode {
  private:
   void onCellLoads(const std_msgs::Float64MultiArray::ConstPtr& msg);
   void publishTruth(const ros::TimerEvent&);
+  bool onInjectFault(InjectRigFault::Request& req, InjectRigFault::Response& res);
+  /// Injects each fault of ~faults (a list of dicts with the service's fields); throws
+  /// std::runtime_error naming the entry and what is wrong.
+  void injectStartFaults(const ros::NodeHandle& private_nh);
 
   RigEmulatorNodeParams params_;
   long reported_overruns_ = 0;
@@ -52,6 +59,11 @@ class RigEmulatorNode {
   ros::Subscriber loads_sub_;
   ros::Publisher truth_pub_;
   ros::Timer truth_timer_;
+  ros::ServiceServer fault_srv_;
 };
+
+/// One entry of ~faults (a dict with InjectRigFault's request fields) as a request; false with
+/// `*error` naming the key that is wrong.
+bool rigFaultFromXmlRpc(XmlRpc::XmlRpcValue& entry, RigFaultRequest* request, std::string* error);
 
 }  // namespace nursing_bed

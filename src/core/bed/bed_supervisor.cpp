@@ -146,6 +146,7 @@ RequestResult BedSupervisor::setPosture(const std::string& plan, const std::vect
   if (!made) return {false, why};
   const std::string description = made->name() + " " + made->describe();
   start(RunningPlan{std::move(made), now_s, request});
+  endUnknownCpr();
   return {true, "started " + description};
 }
 
@@ -174,6 +175,7 @@ RequestResult BedSupervisor::setHeights(const std::vector<std::uint32_t>& ids, c
   std::vector<double> target = customTargets(ids, heights_m);
   PlanRequest request{planKindName(PlanKind::kCustom), {}, target};
   start(RunningPlan{makeCustomPlan(std::move(target)), now_s, std::move(request)});
+  endUnknownCpr();
   return {true, "set " + std::to_string(ids.size()) + (ids.size() == 1 ? " cell" : " cells") +
                     " as a custom plan, reached at " + std::to_string(params_.max_height_rate_m_s) + " m/s at most"};
 }
@@ -186,27 +188,47 @@ void BedSupervisor::onCpr(bool on, double now_s) {
   start(RunningPlan{runner_.make(request, &why), now_s, request});
 }
 
+void BedSupervisor::endUnknownCpr() {
+  // A CPR begun while no supervisor listened (its latched announcement gone with its publisher)
+  // leaves the cells venting: a plan a nurse asks for ends it. Never on a resume or a cell's
+  // failure, which must not end a CPR that may be running.
+  if (cpr_announced_ == -1 && !runner_.runs(PlanKind::kCpr)) announceCpr(false);
+}
+
 double BedSupervisor::safeLevel() const {
   const PlanConfig& plans = params_.plans;
   const double level = health_.healthyMeanHeight().value_or(plans.nominal_height_m);
   return std::clamp(level, plans.min_height_m, plans.max_height_m);
 }
 
-void BedSupervisor::watchCells(double now_s) {
+std::size_t BedSupervisor::watch(double now_s) { return watchCells(now_s); }
+
+std::size_t BedSupervisor::watchCells(double now_s) {
   alarms_.clear();
   const std::vector<std::string> failed = health_.watch(now_s);
+  std::string link_lost;
   for (const BedCell& c : health_.cells()) {
     const bool silent = health_.dead(c.id) || !health_.reported(c.id);
     const std::string alarm =
         leaks_.update(c, silent, health_.state(c.id).height_m, commander_.sentHeight(c.id), now_s);
     if (!alarm.empty()) alarms_.push_back(alarm);
+    if (!silent && (health_.state(c.id).faults & kFaultCommunication))
+      link_lost += (link_lost.empty() ? "" : ", ") + std::to_string(c.id) + " (" + c.name + ")";
   }
-  if (failed.empty()) return;
+  // A lost terminal leaves its cells holding their gas, uncontrolled: the bed's first alarm.
+  // They keep their targets and resume the plan when the link returns.
+  if (!link_lost.empty())
+    alarms_.insert(alarms_.begin(), "hardware link lost (cells holding their gas, mode SAFE): cells " + link_lost);
+  const std::size_t link_changed = link_lost != link_lost_ ? 1 : 0;
+  if (link_changed && !link_lost.empty()) log(BedEvent::Kind::kCellFailed, Severity::kError, alarms_.front());
+  link_lost_ = link_lost;
+  if (failed.empty()) return link_changed;
   // Keep the patient level, at the healthy cells' mean height, reached at the limited rates.
   const double h = safeLevel();
   for (const std::string& f : failed)
     log(BedEvent::Kind::kCellFailed, Severity::kError, f + "; levelling the bed at " + fixed(h, 3) + " m");
   if (!runner_.runs(PlanKind::kCpr)) start(runner_.safeLevel(h, now_s));
+  return failed.size() + link_changed;
 }
 
 BedStatus BedSupervisor::step(double now_s) {
@@ -239,22 +261,31 @@ BedStatus BedSupervisor::step(double now_s) {
                                                    : last_targets_.heights_m;
   status.dead_cells = health_.deadCells();
   status.faulty_cells = health_.faultyCells();
+  status.unverified_cells = health_.unverifiedCells();
   status.alarms = alarms_;
   return status;
 }
 
 BedReport BedSupervisor::report(double now_s) const {
   BedReport r;
-  int dead = 0, faulty = 0;
+  int dead = 0, faulty = 0, unlinked = 0;
   for (const BedCell& c : health_.cells()) {
     r.cells.push_back(health_.report(c.id, now_s));
-    dead += r.cells.back().severity == Severity::kError;
-    faulty += r.cells.back().severity == Severity::kWarn;
+    const bool error = r.cells.back().severity == Severity::kError;
+    const bool link_lost = error && health_.reporting(c.id, now_s);  // reporting, but its link is down
+    dead += error && !link_lost;
+    unlinked += link_lost;
+    faulty += r.cells.back().severity == Severity::kWarn && health_.state(c.id).faults != kFaultNone;
   }
   r.alarms = alarms_;
-  r.severity = dead ? Severity::kError : ((faulty || !alarms_.empty()) ? Severity::kWarn : Severity::kOk);
+  const std::size_t unverified = health_.unverifiedCells().size();
+  r.severity = (dead || unlinked)                           ? Severity::kError
+               : (faulty || unverified || !alarms_.empty()) ? Severity::kWarn
+                                                            : Severity::kOk;
   r.message = std::to_string(r.cells.size()) + " cells, " + std::to_string(dead) + " not reporting, " +
-              std::to_string(faulty) + " with faults" + (alarms_.empty() ? "" : "; " + alarms_.front());
+              (unlinked ? std::to_string(unlinked) + " with a lost hardware link, " : "") + std::to_string(faulty) +
+              " with faults, " + std::to_string(unverified) + " unverified" +
+              (alarms_.empty() ? "" : "; " + alarms_.front());
   if (runner_.running())
     r.plan = runner_.current().plan->name() + " (" + last_targets_.phase + ")" +
              (resumed_ ? ", resumed after a restart of the bed manager" : "");

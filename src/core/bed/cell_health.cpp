@@ -4,6 +4,9 @@
 #include <stdexcept>
 
 namespace nursing_bed {
+namespace {
+constexpr double kStartUpSettleS = 2.0;  ///< see CellHealthWatcher::watch
+}  // namespace
 
 CellHealthWatcher::CellHealthWatcher(std::vector<BedCell> cells, double timeout_s, double startup_grace_s,
                                      double started_s)
@@ -37,13 +40,21 @@ bool CellHealthWatcher::reporting(std::uint32_t id, double now_s) const {
 }
 
 std::vector<std::string> CellHealthWatcher::watch(double now_s) {
-  const bool past_grace = now_s - started_s_ > startup_grace_s_;
+  if (!judging()) {
+    bool all_reporting = true;
+    for (const BedCell& c : cells_) all_reporting = all_reporting && reporting(c.id, now_s);
+    // The cells loaded last still stall for a moment after their first state: silences count
+    // from kStartUpSettleS after every cell first reported at once.
+    if (all_reporting) judged_from_s_ = now_s + kStartUpSettleS;
+    else if (now_s - started_s_ > startup_grace_s_) judged_from_s_ = now_s;
+  }
   std::vector<std::string> failed;
   for (const BedCell& c : cells_) {
     const CellSnapshot& s = states_[c.id];
     const bool never = !reported(c.id);
-    const bool dead = never ? past_grace : now_s - s.seen_s > timeout_s_;
-    const bool faulty = !dead && !never && (s.faults & (kFaultSensor | kFaultModel));
+    // A silence counts from the end of the start-up at the earliest.
+    const bool dead = judging() && (never || now_s - std::max(s.seen_s, judged_from_s_) > timeout_s_);
+    const bool faulty = !dead && !never && (s.faults & kFaultsThatFailACell);
     if ((dead && !dead_[c.id]) || (faulty && !faulty_[c.id])) {
       failed.push_back("cell " + std::to_string(c.id) + " (" + c.name + ") " +
                        (dead ? "stopped reporting"
@@ -68,6 +79,13 @@ std::vector<std::uint32_t> CellHealthWatcher::faultyCells() const {
   std::vector<std::uint32_t> ids;
   for (const BedCell& c : cells_)
     if (faulty_[c.id]) ids.push_back(c.id);
+  return ids;
+}
+
+std::vector<std::uint32_t> CellHealthWatcher::unverifiedCells() const {
+  std::vector<std::uint32_t> ids;
+  for (const BedCell& c : cells_)
+    if (!dead_[c.id] && states_[c.id].unverified) ids.push_back(c.id);
   return ids;
 }
 
@@ -96,7 +114,13 @@ CellReport CellHealthWatcher::report(std::uint32_t id, double now_s) const {
   const double age_s = reported(id) ? now_s - s.seen_s : INFINITY;
   if (age_s > timeout_s_)
     return {Severity::kError, std::isinf(age_s) ? "no state received" : "no state for " + std::to_string(age_s) + " s"};
-  if (s.faults != kFaultNone) return {Severity::kWarn, "faults:" + faultNames(s.faults)};
+  // A lost hardware link leaves the cell unattended: an error like a silent cell.
+  if (s.faults & kFaultCommunication)
+    return {Severity::kError,
+            "hardware link lost, faults:" + faultNames(s.faults) + (s.unverified ? "; height unverified" : "")};
+  if (s.faults != kFaultNone)
+    return {Severity::kWarn, "faults:" + faultNames(s.faults) + (s.unverified ? "; height unverified" : "")};
+  if (s.unverified) return {Severity::kWarn, "height unverified (its gas is being checked)"};
   return {Severity::kOk, "ok"};
 }
 
@@ -107,6 +131,8 @@ std::string faultNames(std::uint32_t faults) {
   if (faults & kFaultCommandTimeout) names += " command-timeout";
   if (faults & kFaultLowPressure) names += " low-pressure";
   if (faults & kFaultModel) names += " model-reset";
+  if (faults & kFaultCommunication) names += " communication";
+  if (faults & kFaultInconsistent) names += " inconsistent";
   return names;
 }
 

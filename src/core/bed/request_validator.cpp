@@ -51,9 +51,31 @@ std::string checkCellHeights(const std::vector<std::uint32_t>& ids, const std::v
   return "";
 }
 
+std::string checkRequestText(const std::string& what, const std::string& text, std::size_t max_chars) {
+  if (text.size() > max_chars)
+    return what + " has " + std::to_string(text.size()) + " characters (at most " + std::to_string(max_chars) + ")";
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    if (byte < 0x20 || byte > 0x7e)
+      return what + " holds a character that is not printable ASCII (byte " + std::to_string(byte) + " at " +
+             std::to_string(i) + ")";
+  }
+  return "";
+}
+
 bool postureRequest(const std::string& plan, const std::vector<std::string>& keys,
                     const std::vector<std::string>& values, const std::vector<double>& heights_m, PlanRequest* request,
                     std::string* error) {
+  // Bounded before anything reads or echoes them: a refusal quotes only short printable text.
+  *error = checkRequestText("the plan name", plan, kMaxRequestNameChars);
+  if (error->empty() && keys.size() > kMaxRequestArguments)
+    *error =
+        std::to_string(keys.size()) + " arguments (a plan takes at most " + std::to_string(kMaxRequestArguments) + ")";
+  for (std::size_t i = 0; i < keys.size() && error->empty(); ++i)
+    *error = checkRequestText("argument " + std::to_string(i + 1) + "'s name", keys[i], kMaxRequestNameChars);
+  for (std::size_t i = 0; i < values.size() && i < keys.size() && error->empty(); ++i)
+    *error = checkRequestText("the value of '" + keys[i] + "'", values[i], kMaxRequestValueChars);
+  if (!error->empty()) return false;
   if (keys.size() != values.size()) {
     *error = std::to_string(keys.size()) + " keys but " + std::to_string(values.size()) + " values";
     return false;

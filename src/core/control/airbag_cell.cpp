@@ -58,7 +58,8 @@ AirbagCell::AirbagCell(const AirbagCellParams& params, CellHardwarePtr hardware,
       controller_(params.controller, CellCharacteristic::shared(params.cell)),
       supply_pressure_pa_(params.cell.supply_pressure_pa),
       safety_(params_.safety),
-      gas_(observer.gas_check) {
+      gas_(observer.gas_check),
+      monitor_(observer.monitor) {
   if (!hardware_) throw std::invalid_argument("airbag: no cell hardware");
   sim_ = dynamic_cast<SimulatedCellHardware*>(hardware_.get());
   capabilities_ = hardware_->capabilities();  // fixed for the hardware's lifetime
@@ -86,6 +87,8 @@ void AirbagCell::resetControl(double load_n) {
   safety_.setLastPressure(0.0);
   time_s_ = 0.0;
   gas_.reset(true);
+  monitor_.clear();
+  recent_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
 }
 
 void AirbagCell::reset(double load_n) {
@@ -156,7 +159,7 @@ const CellModel& AirbagCell::model() const { return sim_ ? sim_->model() : obser
 double AirbagCell::load() const { return sim_ ? load_n_ : observer_->estimate().load_n; }
 
 double AirbagCell::heightSd() const {
-  if (gas_.findingGas()) return std::numeric_limits<double>::infinity();  // its gas is unknown
+  if (gas_.findingGas() || heightUnverified()) return std::numeric_limits<double>::infinity();  // gas unproven
   return use_estimate_ ? observer_->estimate().height_sd_m : params_.height_noise_m;
 }
 
@@ -176,7 +179,7 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
   controller_.setTarget(height_m);
   if (use_estimate_) gas_.heightRequested(height_m, measurement_.height_m);
   pressure_.clear();
-  mode_ = AirbagMode::kHeight;
+  enterMode(AirbagMode::kHeight);
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
   safety_.noteCommand(now_s);
   return "";
@@ -185,7 +188,16 @@ std::string AirbagCell::requestHeight(double height_m, double now_s) {
 void AirbagCell::setCpr(bool on, double now_s) {
   if (on) requestVent(now_s);
   else if (cpr_ && mode_ == AirbagMode::kVent) mode_ = AirbagMode::kIdle;
+  else if (cpr_ && (faults_ & kFaultCommunication) && mode_before_link_loss_ == AirbagMode::kVent)
+    mode_before_link_loss_ = AirbagMode::kIdle;
   cpr_ = on;
+}
+
+void AirbagCell::enterMode(AirbagMode mode) {
+  // With the link down nothing is commanded: the cell stays SAFE and takes the mode when the
+  // link is back (onLink).
+  if (faults_ & kFaultCommunication) mode_before_link_loss_ = mode;
+  else mode_ = mode;
 }
 
 std::string AirbagCell::checkPressure(double pressure_pa) const {
@@ -203,7 +215,7 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
   controller_.clearTarget();
   gas_.pressureRequested();  // a pressure is held from where the cell is
   pressure_.setSetpoint(pressure_pa);
-  mode_ = AirbagMode::kPressure;
+  enterMode(AirbagMode::kPressure);
   faults_ &= ~(kFaultCommandTimeout | kFaultModel);
   safety_.noteCommand(now_s);
   return "";
@@ -212,7 +224,7 @@ std::string AirbagCell::requestPressure(double pressure_pa, double now_s) {
 void AirbagCell::requestVent(double now_s) {
   controller_.clearTarget();
   pressure_.clear();
-  mode_ = AirbagMode::kVent;
+  enterMode(AirbagMode::kVent);
   faults_ &= ~kFaultCommandTimeout;
   safety_.noteCommand(now_s);
 }
@@ -305,6 +317,8 @@ ValveOpenings AirbagCell::gasCheckValves(double now_s, double gauge_pressure_pa,
   const ValveOpenings valves = gas_.findingValves(period, observer_.get(), checked, &found_after_vent);
   // Its integral ran on the flat start's error through the vent: restart it.
   if (found_after_vent && controller_.hasTarget()) controller_.setTarget(controller_.target());
+  // The safe band of an unproven estimate: held or vented, never inflated.
+  if (use_estimate_ && gas_.unverified()) return ValveOpenings{0.0, valves.vent, valves.vent_to_vacuum};
   return valves;
 }
 
@@ -317,6 +331,8 @@ void AirbagCell::onDeviceReset() {
   safety_.setLastPressure(0.0);
   // The cell is in its reset state (flat): the observer starts from there too.
   if (observer_) observer_->reset(sim_ ? load_n_ : observer_->estimate().load_n);
+  // A real device reset may have kept gas: the flat start holds once the cell is found flat.
+  if (observer_ && !sim_ && use_estimate_) gas_.suspect();
 }
 
 void AirbagCell::onLink(const CellReadings& readings) {
@@ -325,6 +341,8 @@ void AirbagCell::onLink(const CellReadings& readings) {
     faults_ |= kFaultCommunication;
     mode_before_link_loss_ = mode_;
     mode_ = AirbagMode::kSafe;
+    gas_.linkLost(recent_pressure_pa_);
+    monitor_.interrupt();
   } else if (!down && (faults_ & kFaultCommunication)) {
     faults_ &= ~kFaultCommunication;
     // The observer keeps its gas: the terminal's watchdog shut the valves, so the gas is what
@@ -354,8 +372,39 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   Readings z = measurement_;
   if (use_estimate_) z.height_m = std::numeric_limits<double>::quiet_NaN();
   if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
-  gas_.note(observer_->step(in, z, dt_s));
+  const double height_before = observer_->estimate().height_m;
+  const ObserverEvents events = observer_->step(in, z, dt_s);
+  gas_.note(events);
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
+  if (!sim_) monitorStep(events, height_before, dt_s > 0.0 ? dt_s : params_.control_period_s);
+}
+
+void AirbagCell::monitorStep(const ObserverEvents& events, double height_before_m, double dt_s) {
+  // The pressure before a lost link, for the check after it (over a few periods: one
+  // reading's noise is not the cell's pressure).
+  const double p = measurement_.gauge_pressure_pa;
+  if (std::isfinite(p))
+    recent_pressure_pa_ =
+        std::isfinite(recent_pressure_pa_) ? recent_pressure_pa_ + 0.2 * (p - recent_pressure_pa_) : p;
+  if (!use_estimate_) return;
+  ConsistencySample sample;
+  sample.gauge_pressure_pa = p;
+  sample.noise_sd_pa = observer_->estimate().pressure_noise_pa;
+  const ObserverInputs& applied = observer_->appliedInputs();
+  sample.valves_shut = applied.valves.inlet == 0.0 && applied.valves.vent == 0.0;
+  // A re-anchor proves the gas (the cell found flat) whatever it corrected; a weight bound
+  // only pulls the estimate to a bound, so a large one shows the inventory wrong.
+  if (events.weight_bounded && !events.reanchored)
+    sample.correction_m = observer_->estimate().height_m - height_before_m;
+  if (monitor_.update(sample, dt_s)) {
+    faults_ |= kFaultInconsistent;
+    gas_.suspect();
+  }
+  // Found flat again (or the gas otherwise proven): consistent from here.
+  if ((faults_ & kFaultInconsistent) && !gas_.unverified()) {
+    faults_ &= ~kFaultInconsistent;
+    monitor_.clear();
+  }
 }
 
 void AirbagCell::controlStep() {

@@ -85,6 +85,15 @@ ParamTable<GasVerifierParams> makeGasCheckFields() {
                    "a height target at or below this, sent while the cell is above it, is reached through a flat cell "
                    "(vented until re-anchored, then filled); 0 = never [m]",
                    [](G& p) -> double& { return p.reanchor_below_m; }),
+      realField<G>("verify_hold_s",
+                   "after a lost link: valves shut this long, then the pressure is compared with the one before the "
+                   "loss [s]",
+                   [](G& p) -> double& { return p.verify_hold_s; }),
+      realField<G>("verify_tolerance_pa",
+                   "that comparison's least tolerance; a larger difference re-finds the gas by venting flat [Pa]",
+                   [](G& p) -> double& { return p.verify_tolerance_pa; }),
+      realField<G>("verify_tolerance_rel", "that comparison's tolerance as a fraction of the pressure, if larger [-]",
+                   [](G& p) -> double& { return p.verify_tolerance_rel; }),
   };
 }
 

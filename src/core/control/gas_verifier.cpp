@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -15,6 +16,12 @@ Status GasVerifierParams::validate() const {
                "resume_vent_s must lie in [0, 0.2] s (a check, not a vent), got ", resume_vent_s);
   errors.addIf(!(reanchor_below_m >= 0.0 && std::isfinite(reanchor_below_m)), "reanchor_below_m must be >= 0, got ",
                reanchor_below_m);
+  errors.addIf(!(verify_hold_s >= 0.0 && verify_hold_s <= 2.0), "verify_hold_s must lie in [0, 2] s, got ",
+               verify_hold_s);
+  errors.addIf(!(verify_tolerance_pa > 0.0 && std::isfinite(verify_tolerance_pa)),
+               "verify_tolerance_pa must be finite and > 0, got ", verify_tolerance_pa);
+  errors.addIf(!(verify_tolerance_rel >= 0.0 && verify_tolerance_rel < 1.0),
+               "verify_tolerance_rel must lie in [0, 1), got ", verify_tolerance_rel);
   return errors.status();
 }
 
@@ -35,6 +42,35 @@ void GasVerifier::reset(bool verified) {
   check_vent_left_s_ = 0.0;
   check_until_s_ = -1.0;
   check_reanchored_ = false;
+  link_lost_ = false;
+  reference_pa_ = std::numeric_limits<double>::quiet_NaN();
+  hold_left_s_ = 0.0;
+  hold_mismatch_ = false;
+}
+
+void GasVerifier::linkLost(double reference_pa) {
+  link_lost_ = true;
+  reference_pa_ = reference_pa;
+  check_pending_ = false;
+  hold_left_s_ = 0.0;
+  check_vent_left_s_ = 0.0;
+  check_until_s_ = -1.0;
+}
+
+void GasVerifier::linkRestored() {
+  check_pending_ = params_.resume_vent_s > 0.0 || (params_.verify_hold_s > 0.0 && std::isfinite(reference_pa_));
+  if (!check_pending_) link_lost_ = false;
+}
+
+void GasVerifier::suspect() {
+  // Anchoring and finding already vent to flat; a known gas is found again the same way.
+  if (gas_ == GasKnowledge::kKnown || gas_ == GasKnowledge::kAnchoring) gas_ = GasKnowledge::kUnverified;
+  found_flat_ = false;
+}
+
+bool GasVerifier::unverified() const {
+  if (gas_ == GasKnowledge::kUnverified || gas_ == GasKnowledge::kFinding) return true;
+  return link_lost_ || check_pending_ || hold_left_s_ > 0.0 || check_vent_left_s_ > 0.0 || check_until_s_ >= 0.0;
 }
 
 void GasVerifier::note(const ObserverEvents& events) {
@@ -74,9 +110,14 @@ ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double
   const CellObserverParams& op = observer->params();
   if (check_pending_) {
     check_pending_ = false;
-    check_vent_left_s_ = params_.resume_vent_s;
     check_reanchored_ = false;
+    hold_sum_pa_ = 0.0;
+    hold_count_ = 0;
+    // Without a pressure from before the loss there is nothing to compare: the vent check only.
+    hold_left_s_ = std::isfinite(reference_pa_) ? params_.verify_hold_s : 0.0;
+    if (hold_left_s_ <= 0.0) startVentCheck();
   }
+  if (hold_left_s_ > 0.0) return holdValves(period_s, gauge_pressure_pa);
   if (check_vent_left_s_ > 0.0) {
     const bool grounded = gauge_pressure_pa < observer->flatPressure();
     const double opening = grounded ? 0.0 : std::min(1.0, check_vent_left_s_ / period_s);
@@ -88,11 +129,44 @@ ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double
     }
     return ValveOpenings{0.0, opening};
   }
-  if (check_until_s_ < 0.0) return wanted;
+  if (check_until_s_ < 0.0) {
+    if (check_vent_left_s_ <= 0.0 && hold_left_s_ <= 0.0) link_lost_ = false;
+    return wanted;
+  }
   // Found flat (re-anchored), the controller takes over at once; else after the test's time.
   if (now_s < check_until_s_ && !check_reanchored_) return ValveOpenings{};
   check_until_s_ = -1.0;
+  link_lost_ = false;
   return wanted;
+}
+
+void GasVerifier::startVentCheck() {
+  check_vent_left_s_ = params_.resume_vent_s;
+  if (check_vent_left_s_ <= 0.0) link_lost_ = false;
+}
+
+ValveOpenings GasVerifier::holdValves(double period_s, double gauge_pressure_pa) {
+  // The gas and the height kept over the loss, under the load kept, read the pressure they
+  // read before it. A terminal that restarted empty (or a cell emptied meanwhile) reads its
+  // own: pressure alone cannot tell a sealed flat cell floating its plate from a lifted one,
+  // but it can tell either from the cell the observer kept.
+  if (std::isfinite(gauge_pressure_pa)) {
+    hold_sum_pa_ += gauge_pressure_pa;
+    ++hold_count_;
+  }
+  hold_left_s_ = std::max(0.0, hold_left_s_ - period_s);
+  if (hold_left_s_ > 0.0) return ValveOpenings{};
+  const double mean = hold_count_ > 0 ? hold_sum_pa_ / hold_count_ : reference_pa_;
+  const double tolerance =
+      std::max(params_.verify_tolerance_pa, params_.verify_tolerance_rel * std::fabs(reference_pa_));
+  hold_mismatch_ = std::fabs(mean - reference_pa_) > tolerance;
+  if (hold_mismatch_) {
+    suspect();  // found again by venting flat (findingValves)
+    link_lost_ = false;
+  } else {
+    startVentCheck();
+  }
+  return ValveOpenings{};
 }
 
 ValveOpenings GasVerifier::findingValves(double period_s, CellObserver* observer, const ValveOpenings& wanted,

@@ -288,12 +288,14 @@ void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& ca
   noise->baseline_withheld_chi2_per_sample = sumSquares(r) / n_held;
 }
 
-std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options) {
+std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options,
+                                         const CellParams& nominal) {
   if (!options.calibrate) return {};
-  const std::vector<std::string> names =
-      options.calibration_params.empty() ? defaultCalibrationParams(prepared.runs) : options.calibration_params;
-  checkCalibrationParams(names, prepared.runs);
-  calibrationAxes(names, CellParams{});  // unknown or repeated names
+  const std::vector<std::string> names = options.calibration_params.empty()
+                                             ? defaultCalibrationParams(prepared.runs, nominal)
+                                             : options.calibration_params;
+  checkCalibrationParams(names, prepared.runs, nominal);
+  calibrationAxes(names, nominal);  // unknown or repeated names
   return names;
 }
 
@@ -384,7 +386,8 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
   return out;
 }
 
-void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* rep) {
+void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* rep,
+                            bool above_floor) {
   CalibrationSummary& cal = rep->calibration;
   if (!cal.done) return;
   for (const auto& p : cal.parameters)
@@ -394,12 +397,14 @@ void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& opt
   if (!cal.anyMoved() || rep->status != "none") return;
   const int n_held = noise.heldResidualCount();
   const double before = noise.withheld_chi2_per_sample, after = noise.baseline_withheld_chi2_per_sample;
-  const bool within =
-      after <= options.withheld_chi2 || after - 1.0 <= (1.0 - options.withheld_gap_removed) * (before - 1.0);
+  const bool within = after <= options.withheld_chi2 ||
+                      after - 1.0 <= (1.0 - options.withheld_gap_removed) * (before - 1.0) ||
+                      (above_floor && after <= (1.0 - options.floor_removed) * before);
   if (n_held == 0 || (within && (before - after) * n_held >= options.min_withheld_gain)) {
     rep->status = "calibrated";
     rep->reasons.push_back(
-        "the calibrated model fits within the noise" +
+        std::string(above_floor ? "the calibrated model removes the gap down to its model-form floor"
+                                : "the calibrated model fits within the noise") +
         (n_held ? " and holds up on the withheld runs (chi2/n " + fmt(before) + " -> " + fmt(after) + ")"
                 : std::string()) +
         ": calibration alone removes the gap, no effect is needed");

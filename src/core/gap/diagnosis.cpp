@@ -79,9 +79,9 @@ void splitValues(const ModelSpec& m, const std::map<std::string, double>& values
 }
 
 /// Parameters a model fits beyond the baseline's: its effects' and the calibrated ones the
-/// baseline holds at nominal.
+/// baseline holds at nominal; not those the fit holds (heldAxes()).
 int extraParameters(const ModelSpec& m, const NoiseModel& noise) {
-  int k = 0;
+  int k = -static_cast<int>(heldAxes(noise.fit, m).size());
   for (const auto& a : m.axes) k += (!a.calibration || !noise.baseline_calibration.count(a.spec.name)) ? 1 : 0;
   return k;
 }
@@ -185,6 +185,21 @@ std::vector<std::string> candidateList(const DiagnosisOptions& options) {
   return candidates;
 }
 
+std::vector<std::string> candidatesForStructure(const std::vector<std::string>& candidates, const CellParams& nominal,
+                                                std::vector<std::string>* notes) {
+  std::vector<std::string> kept;
+  for (const auto& c : candidates) {
+    const std::string& needs = effectSpec(c).structure;
+    if (needs.empty() || needs == nominal.structure_type) {
+      kept.push_back(c);
+    } else if (notes) {
+      notes->push_back(c + ": not fitted, it assumes the " + needs + " structure and the cell's is " +
+                       nominal.structure_type);
+    }
+  }
+  return kept;
+}
+
 // ---- stage 2: the nominal replay ----------------------------------------------------------------
 
 std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams& params,
@@ -212,6 +227,12 @@ std::vector<Replay> replayNominal(const PreparedRuns& prepared, const CellParams
   report->noise_p_pa = median(noise_p);
   report->noise_h_m = median(noise_h);
   report->localization = localizeGap(runs, nominal);
+  std::vector<std::vector<GapEvent>> events(runs.size());
+  parallelFor(static_cast<int>(runs.size()), options.threads, [&](int i) {
+    events[i] = localiseInTime(runs[i], params, {}, prepared.noises[i].p_pa, prepared.noises[i].h_m);
+  });
+  for (const auto& run_events : events)
+    report->events.insert(report->events.end(), run_events.begin(), run_events.end());
   return nominal;
 }
 
@@ -455,6 +476,35 @@ std::string fmt(double v, int precision) {
 
 namespace {
 
+std::vector<const std::map<std::string, std::string>*> runMetadata(const gap::PreparedRuns& prepared) {
+  std::vector<const std::map<std::string, std::string>*> metas;
+  for (const auto& r : prepared.runs) metas.push_back(&r.meta);
+  return metas;
+}
+
+bool anySingleWithinNoise(const std::vector<gap::ModelFit>& fits, const gap::NoiseModel& noise,
+                          const DiagnosisOptions& options) {
+  return std::any_of(fits.begin(), fits.end(), [&](const gap::ModelFit& f) {
+    return f.outcome.ok && f.model.effects.size() == 1 &&
+           f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;
+  });
+}
+
+/// decideVerdict(); where it names nothing on a recording the model never fits to the noise
+/// (modelFloorApplies()), the decision above its model-form floor, and `above_floor` set.
+Verdict judgeCandidates(const std::vector<CandidateFit>& candidates, const NominalScore& baseline,
+                        const DiagnosisOptions& options, const gap::PreparedRuns& prepared, bool* above_floor) {
+  Verdict verdict = decideVerdict(candidates, baseline, options);
+  *above_floor = verdict.winner < 0 && baseline.chi2 / baseline.fit_residuals > options.within_noise_chi2 &&
+                 modelFloorApplies(options, runMetadata(prepared));
+  if (!*above_floor) return verdict;
+  const Verdict above = decideVerdictAboveFloor(candidates, baseline, options);
+  verdict.reasons.insert(verdict.reasons.end(), above.reasons.begin(), above.reasons.end());
+  verdict.status = above.status;
+  verdict.winner = above.winner;
+  return verdict;
+}
+
 /// The runs prepared, replayed through the nominal model, and their noise model (the first
 /// stages of both diagnoseRuns and calibrateRuns).
 struct DiagnosisStart {
@@ -481,8 +531,9 @@ void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const D
   rep->pressure_only = std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
   for (std::size_t i : prepared.fit) rep->fit_runs.push_back(prepared.runs[i].name);
   for (std::size_t i : prepared.withheld) rep->withheld_runs.push_back(prepared.runs[i].name);
-  start->calibrated = calibrationList(prepared, options);
-  candidateList(options);  // an unknown candidate before anything is replayed
+  start->calibrated = calibrationList(prepared, options, params);
+  candidateList(options);                             // an unknown candidate before anything is replayed
+  modelFloorApplies(options, runMetadata(prepared));  // an unknown model_floor word too
   say("replaying " + std::to_string(prepared.runs.size()) + " runs through the nominal model");
   start->nominal = replayNominal(prepared, params, options, rep);
   start->noise = buildNoiseModel(prepared, params, options);
@@ -511,8 +562,17 @@ DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& param
   rebaseNoiseModel(&s.noise, calibration.summary.movedValues(), calibration.moved_chi2);
   rep.calibration = calibration.summary;
   nominalReasons(rep, s.prepared, options, s.noise.heldResidualCount() > 0, &rep.reasons);
-  rep.status = s.noise.baseline_chi2 / s.noise.fitResidualCount() <= options.within_noise_chi2 ? "none" : "unexplained";
-  settleCalibratedStatus(s.noise, options, &rep);
+  // A recording the model never fits to the noise: the calibrated model is its model-form floor.
+  const bool above_floor = s.noise.baseline_chi2 / s.noise.fitResidualCount() > options.within_noise_chi2 &&
+                           modelFloorApplies(options, runMetadata(s.prepared));
+  rep.status = s.noise.baseline_chi2 / s.noise.fitResidualCount() <= options.within_noise_chi2 || above_floor
+                   ? "none"
+                   : "unexplained";
+  settleCalibratedStatus(s.noise, options, &rep, above_floor);
+  if (above_floor)
+    rep.reasons.push_back("model-form floor: the calibrated model stays at chi2/n " +
+                          fmt(s.noise.baseline_chi2 / s.noise.fitResidualCount()) +
+                          " (a recording of real hardware); gap diagnose judges the candidates above it");
   if (rep.status == "unexplained")
     rep.reasons.push_back("calibration alone leaves a significant gap: run gap diagnose");
   shrinkage(s.prepared, params, rep.calibration.movedValues(), {}, s.nominal, options, &rep);
@@ -534,6 +594,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   startDiagnosis(std::move(runs), params, options, &rep, &s);
   const PreparedRuns& prepared = s.prepared;
   NoiseModel& noise = s.noise;
+  std::vector<std::string> structure_notes;
+  const std::vector<std::string> candidates = candidatesForStructure(candidateList(options), params, &structure_notes);
   CalibrationFit calibration;
   std::vector<ModelFit> uncalibrated;  // the singles on the nominal cell, when the calibration moved
   bool baseline_nominal = true;        // the effects are fitted on the nominal cell
@@ -545,8 +607,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
       // the nominal cell ranks it for, and starts, the joint refit.
       DiagnosisOptions singles = options;
       singles.pair_pool = 0;
-      uncalibrated = fitCandidates(noise, candidateList(options), singles,
-                                   [&](const std::string& line) { say(line + " (nominal cell)"); });
+      uncalibrated =
+          fitCandidates(noise, candidates, singles, [&](const std::string& line) { say(line + " (nominal cell)"); });
       if (dropCalibrationForEffect(noise, uncalibrated, options, &calibration)) say(calibration.summary.notes.back());
     }
     rebaseNoiseModel(&noise, calibration.summary.movedValues(), calibration.moved_chi2);
@@ -563,23 +625,21 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     if (effects == 1) moved_calibration = more.moved_calibration;
   };
   std::vector<ModelFit> fits = fitCandidates(
-      noise, candidateList(options), options, say,
+      noise, candidates, options, say,
       [&](std::vector<ModelFit>* singles) {
         if (!s.calibrated.empty()) settle(singles, 1, options.joint_pool);
       },
       baseline_nominal ? uncalibrated : std::vector<ModelFit>{});
   // A pair is named only where no single fits within the noise (verdict.cpp): else no pair refit.
-  const bool single_within = std::any_of(fits.begin(), fits.end(), [&](const ModelFit& f) {
-    return f.outcome.ok && f.model.effects.size() == 1 &&
-           f.outcome.chi2 / noise.fitResidualCount() <= options.explained_chi2;
-  });
-  if (!s.calibrated.empty() && !single_within) settle(&fits, 2, 1);
+  if (!s.calibrated.empty() && !anySingleWithinNoise(fits, noise, options)) settle(&fits, 2, 1);
   const std::vector<ScoredCandidate> scored = scoreCandidates(fits, prepared, noise, params, options);
   for (const auto& c : scored) rep.candidates.push_back(c.first);
 
   nominalReasons(rep, prepared, options, noise.heldResidualCount() > 0, &rep.reasons);
+  rep.reasons.insert(rep.reasons.end(), structure_notes.begin(), structure_notes.end());
   const NominalScore baseline = nominalScore(noise, nominalNrmse(prepared, s.nominal, prepared.withheld));
-  const Verdict verdict = decideVerdict(rep.candidates, baseline, options);
+  bool above_floor = false;
+  const Verdict verdict = judgeCandidates(rep.candidates, baseline, options, prepared, &above_floor);
   rep.reasons.insert(rep.reasons.end(), verdict.reasons.begin(), verdict.reasons.end());
   rep.status = verdict.status;
   rep.calibration = calibration.summary;
@@ -593,7 +653,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     // still replaces the calibration-only one the winner was not fitted with.
     if (joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
   }
-  settleCalibratedStatus(noise, options, &rep);
+  settleCalibratedStatus(noise, options, &rep, above_floor);
   shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);
   calibratedOutcome(prepared, noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();

@@ -255,14 +255,30 @@ std::vector<std::vector<double>> gridStarts(const ModelSpec& m) {
 /// Levenberg-Marquardt from the best `refined` points of `starts` (a grid); the best result.
 /// With two or more parameters a valley can hold LM far from the optimum (an inflow_bias fit
 /// stopped at chi2/n 578 from one start): the second-best grid point gives it a second way in.
+std::vector<int> heldAxes(const FitData& fit, const ModelSpec& model) {
+  std::vector<int> held;
+  const bool pressure_only =
+      std::none_of(fit.runs.begin(), fit.runs.end(), [](const FitData::Run& r) { return r.has_height; });
+  if (!pressure_only || !calibrationParamApplies(calibrationParam("compliance_m3_pa"), fit.params)) return held;
+  for (std::size_t j = 0; j < model.axes.size(); ++j)
+    if (!model.axes[j].calibration && model.axes[j].spec.name == "scale_error") held.push_back(static_cast<int>(j));
+  return held;
+}
+
 FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
                     int max_iterations) {
   std::atomic<int> evaluations{0};
   ReplayCost probe(fit, model, &evaluations);
   std::vector<double> r(fit.residualCount());
   std::vector<std::pair<double, std::vector<double>>> ranked;  // chi2, start
-  for (const auto& s : starts)
+  const std::vector<int> held = heldAxes(fit, model);
+  std::vector<std::vector<double>> tried;
+  for (auto s : starts) {
+    for (int j : held) s[j] = model.axes[j].toU(model.axes[j].spec.off_value);
+    if (!held.empty() && std::find(tried.begin(), tried.end(), s) != tried.end()) continue;  // merged by the hold
+    tried.push_back(s);
     if (probe.residualsAt(s, r.data())) ranked.emplace_back(sumSquares(r), s);
+  }
   FitOutcome best;
   if (ranked.empty()) {
     best.evaluations = evaluations;
@@ -282,6 +298,8 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
       problem.SetParameterLowerBound(u.data(), static_cast<int>(j), model.axes[j].u_min);
       problem.SetParameterUpperBound(u.data(), static_cast<int>(j), model.axes[j].u_max);
     }
+    if (held.size() == model.axes.size()) problem.SetParameterBlockConstant(u.data());
+    else if (!held.empty()) problem.SetManifold(u.data(), new ceres::SubsetManifold(static_cast<int>(u.size()), held));
     ceres::Solver::Options options;
     options.linear_solver_type = ceres::DENSE_QR;
     options.max_num_iterations = max_iterations;

@@ -17,6 +17,8 @@ constexpr double kMovingPressurePa = 50.0;
 /// A run without height readings starts at rest at its first pressure when that is above this
 /// (a ventilated lung at PEEP); a flat cell's pressure is noise around 0 (5 sd of 30 Pa).
 constexpr double kRestingPressureMinPa = 150.0;
+/// A vent whose flow and pressure stay at zero within the noise this long has emptied the cell.
+constexpr double kEmptiedWindowS = 0.5;
 
 /// The pressure a run starts from: the mean over the first kInitialRestS while steady, else the
 /// first reading; NaN when none is measured there.
@@ -42,6 +44,39 @@ double startHeight(const RunData& run, const CellStructure& structure, double lo
   if (!(p0 > kRestingPressureMinPa)) return NAN;
   const StructureEquilibrium eq = structure.equilibriumAtPressure(p0, load_n);
   return eq.converged ? eq.height_m : NAN;
+}
+/// Whether the finite samples of x in [begin, end) (at least 10) have a mean within 3 standard
+/// errors of zero.
+bool zeroMeanWithinNoise(const std::vector<double>& x, std::size_t begin, std::size_t end) {
+  double sum = 0.0, sum2 = 0.0;
+  int count = 0;
+  for (std::size_t k = begin; k < end; ++k)
+    if (std::isfinite(x[k])) {
+      sum += x[k];
+      sum2 += x[k] * x[k];
+      ++count;
+    }
+  if (count < 10) return false;
+  const double mean = sum / count, var = std::max(0.0, (sum2 - count * mean * mean) / (count - 1));
+  return std::fabs(mean) <= 3.0 * std::sqrt(var / count);
+}
+
+/// Without height readings, where the plate has landed in the vent: from the first vent sample
+/// after which, for kEmptiedWindowS, both the metered flow and the gauge pressure are zero
+/// within the noise. A floating plate's load keeps the gas above ambient, and gas leaves; once
+/// it rests on the bed neither holds, and the meter's noise would be replayed out of the few mL
+/// left. n when the run has height readings, no metered flow, or never empties.
+std::size_t emptiedFrom(const RunData& run, std::size_t vent_start) {
+  const std::size_t n = run.size();
+  const bool metered =
+      std::any_of(run.mdot_in_kg_s.begin(), run.mdot_in_kg_s.end(), [](double q) { return std::isfinite(q); });
+  const bool has_height = std::any_of(run.h_m.begin(), run.h_m.end(), [](double h) { return std::isfinite(h); });
+  if (!metered || has_height) return n;
+  for (std::size_t i = vent_start, end = vent_start; i < n; ++i) {
+    while (end < n && run.t_s[end] < run.t_s[i] + kEmptiedWindowS) ++end;
+    if (zeroMeanWithinNoise(run.mdot_in_kg_s, i, end) && zeroMeanWithinNoise(run.p_gauge_pa, i, end)) return i;
+  }
+  return n;
 }
 }  // namespace
 
@@ -86,12 +121,13 @@ std::vector<RunPhase> classifyPhases(const RunData& run) {
   double peak_p = 0.0;
   for (std::size_t i = 0; i < inflate_end; ++i)
     if (std::isfinite(run.p_gauge_pa[i])) peak_p = std::max(peak_p, run.p_gauge_pa[i]);
+  const std::size_t landed_from = emptiedFrom(run, vent_start);
   bool landed = false;
   for (std::size_t i = 0; i < n; ++i) {
     if (i < inflate_end) {
       phases[i] = run.p_gauge_pa[i] < 0.25 * peak_p ? RunPhase::kDeploy : RunPhase::kPressurize;
     } else if (i >= vent_start) {
-      landed = landed || (std::isfinite(run.h_m[i]) && run.h_m[i] < kLandedHeightM);
+      landed = landed || (std::isfinite(run.h_m[i]) && run.h_m[i] < kLandedHeightM) || i >= landed_from;
       phases[i] = landed ? RunPhase::kLanded : RunPhase::kVent;
     }
   }

@@ -105,6 +105,18 @@ Json localizationJson(const std::vector<GapShare>& localization) {
   return out;
 }
 
+Json eventsJson(const std::vector<GapEvent>& events) {
+  Json out = Json::array();
+  for (const GapEvent& e : events)
+    out.push_back({{"run", e.run},
+                   {"signal", e.signal},
+                   {"onset_s", number(e.onset_s)},
+                   {"end_s", number(e.end_s)},
+                   {"peak_rms", number(e.peak_rms)},
+                   {"floor_rms", number(e.floor_rms)}});
+  return out;
+}
+
 Json candidatesJson(const std::vector<CandidateFit>& candidates) {
   Json out = Json::array();
   for (const CandidateFit& c : candidates)
@@ -125,6 +137,7 @@ std::string reportJson(const DiagnosisReport& r) {
   j["runs"] = {{"fit", r.fit_runs}, {"withheld", r.withheld_runs}};
   j["noise"] = {{"p_gauge_pa", number(r.noise_p_pa)}, {"h_m", number(r.noise_h_m)}};
   j["localization"] = localizationJson(r.localization);
+  j["events"] = eventsJson(r.events);
   j["candidates"] = candidatesJson(r.candidates);
   if (r.calibration.done) j["calibration"] = calibrationJson(r.calibration);
   j["verdict"] = {{"effects", r.verdict_effects}, {"status", r.status}};
@@ -209,6 +222,27 @@ void verdictSection(std::ostream& m, const DiagnosisReport& r) {
     << general(r.noise_h_m * 1e3) << " mm.\n\n";
 }
 
+/// report.md: where in time, from the re-anchored windows.
+void eventsSection(std::ostream& m, const DiagnosisReport& r) {
+  m << "### Where in time\n\n";
+  m << "Each run cut into windows of 0.25 s from every cycle start (setpoint edge), the nominal model restarted at "
+       "rest at the measured state at each window's start, so an early error does not carry over. An event is a "
+       "stretch of windows whose RMS residual is above 3 noise floors and 3 times the median of the same window "
+       "over the run's cycles (the model's own floor there; the noise for a run of fewer than 3 cycles).\n\n";
+  if (r.events.empty()) {
+    m << "No event.\n\n";
+    return;
+  }
+  m << "| run | signal | onset [s] | end [s] | peak RMS [noise floors] | floor there |\n|---|---|---|---|---|---|\n";
+  for (std::size_t i = 0; i < r.events.size() && i < 40; ++i) {
+    const GapEvent& e = r.events[i];
+    m << "| " << e.run << " | " << e.signal << " | " << fixed(e.onset_s, 2) << " | " << fixed(e.end_s, 2) << " | "
+      << general(e.peak_rms) << " | " << general(e.floor_rms) << " |\n";
+  }
+  if (r.events.size() > 40) m << "\n(" << r.events.size() - 40 << " more in report.json)\n";
+  m << "\n";
+}
+
 /// report.md: answer 1: where the gap lies.
 void whereSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## 1. Where the model and the data part\n\n";
@@ -224,6 +258,7 @@ void whereSection(std::ostream& m, const DiagnosisReport& r) {
   m << "\nPhases: *deploy* = bag unfolding (height rising at low pressure), *pressurize* = inflating near full "
        "height, *hold* = inlet closed, *vent* = gas leaving through the inlet (samples after the plate has landed "
        "are left out).\n\n";
+  eventsSection(m, r);
 }
 
 /// report.md: answer 2: the candidates' fits.

@@ -95,11 +95,14 @@ void SimulatedCellHardware::stepPeriod() {
 }
 
 bool SimulatedCellHardware::plantValid() const {
-  // What an absurd input leaves behind (a negative volume, a gas at a few K). No upper bound on the
-  // temperature: the nominal model heats the last milligram of gas to ~1400 K for a few ms when
+  // What an absurd input leaves behind (a negative volume, a gas at a few K, a few nanograms of
+  // gas at millions of K that never recover). The bounds stay far outside what the nominal
+  // model passes through: it heats the last milligram of gas to ~1400 K for a few ms when
   // CPR's vacuum empties the cell onto its dead volume, and recovers by itself.
+  constexpr double kMinGasKg = 1e-9, kMinTemperatureK = 10.0, kMaxTemperatureK = 1e5;
   const CellVariables& v = model_->variables();
-  return model_->state().allFinite() && v.structure.volume_m3 > 0.0 && v.mass_kg > 0.0 && v.temperature_k > 10.0 &&
+  return model_->state().allFinite() && v.structure.volume_m3 > 0.0 && v.mass_kg > kMinGasKg &&
+         v.temperature_k > kMinTemperatureK && v.temperature_k < kMaxTemperatureK &&
          std::isfinite(v.gauge_pressure_pa) && std::isfinite(v.height_m);
 }
 

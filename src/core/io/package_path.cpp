@@ -1,12 +1,13 @@
 #include "nursing_bed/core/io/package_path.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
-#include <regex>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 
 namespace nursing_bed {
 namespace {
@@ -17,12 +18,22 @@ constexpr const char* kPackageName = "nursing_bed";
 
 /// True when `dir` holds a package.xml naming this package.
 bool isThisPackage(const fs::path& dir) {
+  // The name is near the top of a package.xml: a bounded read, searched without a regex.
+  constexpr std::size_t kMaxBytes = 64 * 1024;
   std::ifstream in(dir / "package.xml");
   if (!in) return false;
-  const std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  static const std::regex name("<name>\\s*([^<\\s]+)\\s*</name>");
-  std::smatch m;
-  return std::regex_search(xml, m, name) && m[1] == kPackageName;
+  std::string xml(kMaxBytes, '\0');
+  in.read(xml.data(), static_cast<std::streamsize>(xml.size()));
+  xml.resize(static_cast<std::size_t>(in.gcount()));
+  const std::size_t open = xml.find("<name>");
+  if (open == std::string::npos) return false;
+  const std::size_t close = xml.find("</name>", open);
+  if (close == std::string::npos) return false;
+  const std::string_view blanks = " \t\r\n";
+  std::string_view name(xml.data() + open + 6, close - open - 6);
+  name.remove_prefix(std::min(name.find_first_not_of(blanks), name.size()));
+  name.remove_suffix(name.size() - std::min(name.find_last_not_of(blanks) + 1, name.size()));
+  return name == kPackageName;
 }
 
 /// `entry` itself when it is this package, else its direct subfolders that are (a workspace's

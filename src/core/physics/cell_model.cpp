@@ -1,4 +1,5 @@
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/fold_table_structure.h"
 #include "nursing_bed/core/physics/tabulated_structure.h"
 
 #include <algorithm>
@@ -34,13 +35,15 @@ std::string CellParams::validate() const {
   positive("ambient_temperature_k", ambient_temperature_k);
   positive("supply_temperature_k", supply_temperature_k);
   errors.addNested(structure.validate());
-  if (structure_type != "pillow" && structure_type != "table" && structure_type != "bellows") {
-    errors.add("structure_type must be 'pillow', 'table' or 'bellows', got '", structure_type, "'");
-  } else if (structure_type == "table" && structure_table_file.empty()) {
-    errors.add("structure_table_file must be set when structure_type is 'table'");
+  if (structure_type != "pillow" && structure_type != "table" && structure_type != "fold_table" &&
+      structure_type != "bellows") {
+    errors.add("structure_type must be 'pillow', 'table', 'fold_table' or 'bellows', got '", structure_type, "'");
+  } else if ((structure_type == "table" || structure_type == "fold_table") && structure_table_file.empty()) {
+    errors.add("structure_table_file must be set when structure_type is '", structure_type, "'");
   } else if (structure_type == "bellows") {
     errors.addNested(bellows.validate());
   }
+  errors.addNested(airway.validate());
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
   positive("bed_contact_stiffness_n_m", bed_contact_stiffness_n_m);
@@ -77,6 +80,10 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
                                                 params.structure.dead_volume_m3);
+  if (params.structure_type == "fold_table")
+    return std::make_shared<FoldTableStructure>(FoldTableStructure::load(params.structure_table_file),
+                                                params.structure.film_relaxation_time_s,
+                                                params.structure.dead_volume_m3);
   if (params.structure_type == "bellows") return std::make_shared<BellowsStructure>(params.bellows);
   return std::make_shared<PillowStructure>(params.structure);
 }
@@ -87,6 +94,7 @@ CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructu
   if (!error.empty()) throw std::invalid_argument("cell parameters: " + error);
   if (!structure_) structure_ = makeCellStructure(params_);
   shape_dofs_ = structure_->shapeDofs();
+  if (params_.airway.active()) effects_.push_back(std::make_shared<AirwayEffect>(params_.airway));
   reset();
 }
 

@@ -133,7 +133,33 @@ void RigTerminalServer::answerLate(long requests, double delay_s) {
   late_ = requests;
 }
 
+void RigTerminalServer::setReplyFaults(double drop_probability, double delay_probability, double delay_s,
+                                       std::uint32_t seed) {
+  std::lock_guard<std::mutex> lock(reply_faults_mutex_);
+  reply_faults_.drop_probability = drop_probability;
+  reply_faults_.delay_probability = delay_probability;
+  reply_faults_.delay_s = delay_s;
+  reply_faults_.rng.seed(seed);
+}
+
+void RigTerminalServer::silenceFor(double seconds) {
+  std::lock_guard<std::mutex> lock(reply_faults_mutex_);
+  reply_faults_.silent_until =
+      std::chrono::steady_clock::now() +
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+}
+
 bool RigTerminalServer::withholdReply() {
+  double delay_s = 0.0;
+  {
+    std::lock_guard<std::mutex> lock(reply_faults_mutex_);
+    ReplyFaults& f = reply_faults_;
+    if (std::chrono::steady_clock::now() < f.silent_until) return true;
+    std::uniform_real_distribution<double> draw(0.0, 1.0);
+    if (f.drop_probability > 0.0 && draw(f.rng) < f.drop_probability) return true;
+    if (f.delay_probability > 0.0 && draw(f.rng) < f.delay_probability) delay_s = f.delay_s;
+  }
+  if (delay_s > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(delay_s));
   if (unanswered_ > 0) {
     --unanswered_;
     return true;
@@ -186,7 +212,8 @@ double RigTerminalServer::coilOnSeconds(int address) {
   return coil_total_on_s_.at(static_cast<std::size_t>(address));
 }
 
-RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& options) : options_(options) {
+RigEmulator::RigEmulator(const RegisterMap& map, const RigEmulatorOptions& options)
+    : options_(options), fault_rng_(options.fault_seed) {
   for (std::size_t t = 0; t < map.terminals.size(); ++t) {
     servers_.push_back(std::make_unique<RigTerminalServer>(map.terminals[t]));
     for (const CellRegisters& registers : map.terminals[t].cells) {
@@ -259,7 +286,8 @@ void RigEmulator::applyOutputs(RigTerminalServer& server, const std::vector<doub
       return v.kind == ValveOutput::kCoil ? coil_duty[v.address]
                                           : std::min(1.0, m->tab_registers[v.address] / v.full_scale);
     };
-    cell.hardware->write({opening(cell.registers.inlet), opening(cell.registers.vent), false}, 0.0);
+    const ValveOpenings commanded{opening(cell.registers.inlet), opening(cell.registers.vent), false};
+    cell.hardware->write(cell.faults.apply(commanded, options_.cell.cell.vent_area_m2), 0.0);
   });
 }
 
@@ -267,7 +295,9 @@ void RigEmulator::publishInputs(RigTerminalServer& server, const Cell& cell) {
   const Readings& m = cell.hardware->measurement();
   const CellRegisters& r = cell.registers;
   server.withRegisters([&](modbus_mapping_t* map) {
-    map->tab_input_registers[r.pressure_pa.address] = r.pressure_pa.toCount(m.gauge_pressure_pa);
+    if (!cell.faults.frozen)
+      map->tab_input_registers[r.pressure_pa.address] =
+          r.pressure_pa.toCount(m.gauge_pressure_pa + cell.faults.offset_pa);
     if (r.height_m.present()) map->tab_input_registers[r.height_m.address] = r.height_m.toCount(m.height_m);
     if (r.inflow_kg_s.present()) map->tab_input_registers[r.inflow_kg_s.address] = r.inflow_kg_s.toCount(m.inflow_kg_s);
     const AnalogInput& supply = server.map().supply_pressure_pa;
@@ -282,6 +312,11 @@ void RigEmulator::stepAll(int periods, std::chrono::steady_clock::time_point unt
   std::vector<std::vector<double>> coil_duty;
   for (auto& server : servers_) coil_duty.push_back(server->takeCoilDuty(periods * options_.period_s));
   for (Cell& c : cells_) applyOutputs(*servers_[c.terminal], coil_duty[c.terminal], c);
+  for (Cell& c : cells_)
+    if (c.empty_at && until >= *c.empty_at) {
+      c.hardware->reset(c.hardware->load());
+      c.empty_at.reset();
+    }
   for (int k = 0; k < periods; ++k)
     for (Cell& c : cells_) c.hardware->stepPeriod();
   for (const Cell& c : cells_) publishInputs(*servers_[c.terminal], c);
@@ -289,6 +324,65 @@ void RigEmulator::stepAll(int periods, std::chrono::steady_clock::time_point unt
   steps_ += periods;
   ++wakes_;
   if (periods > most_periods_) most_periods_ = periods;
+}
+
+std::vector<std::uint32_t> RigEmulator::servedIds() const {
+  std::vector<std::uint32_t> ids;
+  for (const Cell& c : cells_) ids.push_back(c.registers.cell_id);
+  return ids;
+}
+
+CellFaults RigEmulator::faults(std::uint32_t cell_id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const Cell& c : cells_)
+    if (c.registers.cell_id == cell_id) return c.faults;
+  return CellFaults{};
+}
+
+Status RigEmulator::inject(const RigFaultRequest& request, std::string* applied) {
+  RigFaultKind kind = RigFaultKind::kClear;
+  const std::vector<std::uint32_t> served = servedIds();
+  const Status valid = checkRigFault(request, served, options_.cell.cell.vent_area_m2, &kind);
+  if (!valid) return valid;
+  std::vector<std::uint32_t> ids;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ids = rigFaultCells(request, served, &fault_rng_);
+    ++injections_;
+    for (Cell& c : cells_) {
+      if (std::find(ids.begin(), ids.end(), c.registers.cell_id) == ids.end()) continue;
+      applyCellFault(kind, request, &c.faults);
+      // A restarted terminal's cells come back flat and empty, as a fresh rig's do: emptied
+      // while it is silent, after its clients have lost the link.
+      if (kind == RigFaultKind::kRestart && !request.keep_gas)
+        c.empty_at = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                            std::chrono::duration<double>(0.5 * request.value));
+    }
+  }
+  injectIntoTerminals(kind, request, ids);
+  if (applied) {
+    *applied = request.fault + " on cells";
+    for (const std::uint32_t id : ids) *applied += " " + std::to_string(id);
+  }
+  return Status::success();
+}
+
+void RigEmulator::injectIntoTerminals(RigFaultKind kind, const RigFaultRequest& request,
+                                      const std::vector<std::uint32_t>& ids) {
+  // Replies are a terminal's: every terminal serving one of the cells takes the request.
+  for (std::size_t t = 0; t < servers_.size(); ++t) {
+    bool serves = false;
+    for (const Cell& c : cells_)
+      serves = serves || (c.terminal == t && std::find(ids.begin(), ids.end(), c.registers.cell_id) != ids.end());
+    if (!serves) continue;
+    const std::uint32_t seed =
+        options_.fault_seed + 1000u * static_cast<std::uint32_t>(injections_) + static_cast<std::uint32_t>(t);
+    RigTerminalServer& server = *servers_[t];
+    if (kind == RigFaultKind::kDropReplies) server.setReplyFaults(request.value, 0.0, 0.0, seed);
+    if (kind == RigFaultKind::kDelayReplies) server.setReplyFaults(0.0, request.value, request.delay_s, seed);
+    if (kind == RigFaultKind::kClear) server.setReplyFaults(0.0, 0.0, 0.0, seed);
+    if (kind == RigFaultKind::kRestart) server.silenceFor(request.value);
+  }
 }
 
 void RigEmulator::run() {

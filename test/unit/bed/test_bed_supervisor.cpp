@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "nursing_bed/core/bed/bed_supervisor.h"
@@ -136,7 +137,7 @@ TEST(BedSupervisor, ACellSilentPastTheTimeoutIsDeadAndTheBedLevelsAtTheHealthyCe
   Bed bed(params);
   bed.heights = {0.06, 0.08, 0.10, 0.12, 0.14, 0.05};
   ASSERT_TRUE(bed.posture("flat").ok);
-  bed.run(1.0);
+  bed.run(2.5);  // past the start-up's settling
   bed.silent[5] = true;
   nb::BedStatus status = bed.run(0.4);  // silent within the timeout: alive
   EXPECT_TRUE(status.dead_cells.empty());
@@ -157,7 +158,9 @@ TEST(BedSupervisor, ACellSilentPastTheTimeoutIsDeadAndTheBedLevelsAtTheHealthyCe
 }
 
 TEST(BedSupervisor, CellsThatNeverReportedAreDeadOnlyAfterTheStartUpGrace) {
-  Bed bed;
+  nb::BedSupervisorParams params;
+  params.startup_grace_s = 10.0;
+  Bed bed(params);
   bed.silent[2] = true;
   ASSERT_TRUE(bed.posture("flat").ok);
   nb::BedStatus status = bed.run(9.9);
@@ -197,12 +200,14 @@ TEST(BedSupervisor, OtherFaultsAreReportedButDoNotLevelTheBed) {
   EXPECT_EQ(report.cells[1].severity, nb::Severity::kWarn);
   EXPECT_EQ(report.cells[1].message, "faults: overpressure low-pressure");
   EXPECT_EQ(report.severity, nb::Severity::kWarn);
-  EXPECT_EQ(report.message, "6 cells, 0 not reporting, 1 with faults");
+  EXPECT_EQ(report.message, "6 cells, 0 not reporting, 1 with faults, 0 unverified");
   EXPECT_EQ(report.plan, "flat (holding)");
 }
 
 TEST(BedSupervisor, WithNoHealthyCellTheBedLevelsAtTheNominalHeight) {
-  Bed bed;
+  nb::BedSupervisorParams params;
+  params.startup_grace_s = 10.0;
+  Bed bed(params);
   std::fill(bed.silent.begin(), bed.silent.end(), true);
   const nb::BedStatus status = bed.run(10.2);
   EXPECT_EQ(status.dead_cells.size(), 6u);
@@ -210,6 +215,134 @@ TEST(BedSupervisor, WithNoHealthyCellTheBedLevelsAtTheNominalHeight) {
   EXPECT_EQ(status.plan, nb::PlanKind::kSafeLevel);
   EXPECT_EQ(status.parameters, "height_m=0.1");
   EXPECT_EQ(bed.sup.report(bed.now).severity, nb::Severity::kError);
+}
+
+TEST(BedSupervisor, CellsStalledWhileOthersAreStillLoadingAreNotDeadBeforeEveryCellReports) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  // Cells 3..5 are still being loaded and have not reported; 0..2 reported once, then stall
+  // for 3 s (a loading process runs nothing else), far past the timeout.
+  for (std::uint32_t id = 3; id < 6; ++id) bed.silent[id] = true;
+  bed.run(0.1);
+  for (std::uint32_t id = 0; id < 3; ++id) bed.silent[id] = true;
+  nb::BedStatus status = bed.run(3.0);
+  EXPECT_TRUE(status.dead_cells.empty());
+  EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
+  EXPECT_FALSE(bed.sup.health().judging());
+  // Every cell up and reporting: the start-up is over and the cells are judged from here.
+  std::fill(bed.silent.begin(), bed.silent.end(), false);
+  status = bed.run(1.0);
+  EXPECT_TRUE(bed.sup.health().judging());
+  EXPECT_TRUE(status.dead_cells.empty());
+  // The cells loaded last may stall a moment after their first state: 2 s before silences count.
+  for (std::uint32_t id = 3; id < 6; ++id) bed.silent[id] = true;
+  status = bed.run(1.0);
+  EXPECT_TRUE(status.dead_cells.empty());
+  std::fill(bed.silent.begin(), bed.silent.end(), false);
+  status = bed.run(1.0);
+  EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
+  bed.silent[4] = true;
+  status = bed.run(0.6);
+  EXPECT_EQ(status.dead_cells, std::vector<std::uint32_t>{4});
+  EXPECT_EQ(status.plan, nb::PlanKind::kSafeLevel);
+}
+
+TEST(BedSupervisor, ACellSilentAtTheEndOfTheGraceIsJudgedFromThenOn) {
+  nb::BedSupervisorParams params;
+  params.startup_grace_s = 10.0;
+  Bed bed(params);
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.silent[5] = true;  // never reports: the start-up ends with the grace
+  bed.run(1.0);
+  bed.silent[0] = true;  // reported, then silent from 1 s on
+  nb::BedStatus status = bed.run(8.9);
+  EXPECT_TRUE(status.dead_cells.empty());
+  status = bed.run(0.2);
+  EXPECT_EQ(status.dead_cells, std::vector<std::uint32_t>{5});  // silent from the grace's end on
+  status = bed.run(0.4);
+  EXPECT_EQ(status.dead_cells, (std::vector<std::uint32_t>{0, 5}));
+}
+
+TEST(BedSupervisor, WatchBetweenStepsFindsADeadCellWithinTheTimeoutAndAWatchPeriod) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.run(2.5);
+  const double last_state_s = bed.now;
+  bed.silent[2] = true;
+  double found_s = kNaN;
+  for (const double end = bed.now + 1.0; bed.now < end && std::isnan(found_s);) {
+    bed.now += 0.02;
+    bed.report();
+    if (bed.sup.watch(bed.now) > 0) found_s = bed.now;
+  }
+  ASSERT_FALSE(std::isnan(found_s));
+  EXPECT_LE(found_s - last_state_s, 0.5);
+  EXPECT_EQ(bed.sup.health().deadCells(), std::vector<std::uint32_t>{2});
+  bed.out = bed.sup.takeOutput();
+  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "cell 2 (airbag_0_2) stopped reporting"));
+  EXPECT_EQ(bed.sup.watch(found_s + 0.02), 0u);  // acted on once
+}
+
+TEST(BedSupervisor, ALostHardwareLinkIsABedAlarmNamingTheCellsAndAnErrorOnDiagnostics) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  bed.run(1.0);
+  bed.faults[3] = bed.faults[4] = nb::kFaultCommunication | nb::kFaultCommandTimeout;
+  bed.now += 0.02;
+  bed.report();
+  EXPECT_EQ(bed.sup.watch(bed.now), 1u);  // the link-lost set changed: the caller publishes at once
+  EXPECT_EQ(bed.sup.watch(bed.now + 0.02), 0u);
+  const nb::BedStatus status = bed.run(0.1);
+  // The cells hold their gas and keep their targets: the plan goes on, the bed alarms.
+  EXPECT_TRUE(status.faulty_cells.empty());
+  EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
+  ASSERT_FALSE(status.alarms.empty());
+  EXPECT_EQ(status.alarms.front(),
+            "hardware link lost (cells holding their gas, mode SAFE): cells 3 (airbag_1_0), 4 (airbag_1_1)");
+  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "hardware link lost"));
+  bed.run(0.5);
+  EXPECT_FALSE(bed.logged(nb::BedEvent::Kind::kCellFailed, "hardware link lost"));  // logged once
+  const nb::BedReport report = bed.sup.report(bed.now);
+  EXPECT_EQ(report.severity, nb::Severity::kError);
+  EXPECT_EQ(report.cells[3].severity, nb::Severity::kError);
+  EXPECT_EQ(report.cells[3].message, "hardware link lost, faults: command-timeout communication");
+  EXPECT_TRUE(contains(report.message,
+                       "6 cells, 0 not reporting, 2 with a lost hardware link, 0 with faults, 0 unverified; "
+                       "hardware link lost"))
+      << report.message;
+  // The link back: the alarm ends.
+  bed.faults[3] = bed.faults[4] = 0;
+  EXPECT_TRUE(bed.run(0.1).alarms.empty());
+  EXPECT_EQ(bed.sup.report(bed.now).severity, nb::Severity::kOk);
+}
+
+TEST(BedSupervisor, ARequestedPlanEndsACprItNeverHeardOfButAResumeOrAFailureDoNot) {
+  {  // resumed after a restart: no announcement (a CPR begun meanwhile may be running)
+    nb::BedSupervisorParams params;
+    params.startup_grace_s = 10.0;
+    Bed bed(params);
+    nb::ResumeRecord record;
+    record.running = {{"flat", {}, {}}, kStartS - 4.0};
+    ASSERT_TRUE(bed.sup.resume(record, bed.now).ok);
+    EXPECT_FALSE(bed.sup.takeOutput().cpr);
+    bed.silent[1] = true;  // a failure's safe_level does not announce either
+    bed.run(10.5);
+    EXPECT_EQ(bed.sup.step(bed.now).plan, nb::PlanKind::kSafeLevel);
+    EXPECT_FALSE(bed.sup.takeOutput().cpr);
+    // A nurse's plan does: CPR off, once.
+    ASSERT_TRUE(bed.posture("flat").ok);
+    ASSERT_TRUE(bed.out.cpr);
+    EXPECT_FALSE(*bed.out.cpr);
+    ASSERT_TRUE(bed.posture("flat", {"height_m"}, {"0.08"}).ok);
+    EXPECT_FALSE(bed.out.cpr);
+  }
+  {  // manual heights too
+    Bed bed;
+    bed.run(0.5);
+    ASSERT_TRUE(bed.setHeights({0}, {0.08}).ok);
+    ASSERT_TRUE(bed.out.cpr);
+    EXPECT_FALSE(*bed.out.cpr);
+  }
 }
 
 // ---- leak alarm -------------------------------------------------------------------------------
@@ -377,7 +510,7 @@ TEST(BedSupervisor, CprRefusesManualHeights) {
 TEST(BedSupervisor, CellsDeadDuringCprDoNotEndIt) {
   Bed bed;
   ASSERT_TRUE(bed.posture("cpr").ok);
-  bed.run(0.2);
+  bed.run(2.2);
   bed.silent[0] = true;
   const nb::BedStatus status = bed.run(1.0);
   EXPECT_EQ(status.dead_cells, std::vector<std::uint32_t>{0});
@@ -405,7 +538,7 @@ TEST(BedSupervisor, EveryRefusedHeightRequestSaysWhyAndChangesNothing) {
   };
   Bed bed;
   ASSERT_TRUE(bed.posture("flat").ok);
-  bed.run(0.5);
+  bed.run(2.5);
   bed.silent[4] = true;
   bed.connected[5] = false;
   bed.run(0.6);
@@ -443,6 +576,30 @@ TEST(BedSupervisor, EveryRefusedPostureRequestSaysWhyAndChangesNothing) {
   const nb::BedStatus status = bed.run(0.1);
   EXPECT_EQ(status.plan, nb::PlanKind::kFlat);
   EXPECT_NEAR(status.elapsed_s, 0.6, 1e-6);
+}
+
+TEST(BedSupervisor, HugeUnicodeAndManyArgumentsAreRefusedWithoutQuotingThem) {
+  Bed bed;
+  ASSERT_TRUE(bed.posture("flat").ok);
+  const std::string huge(40000, '9');
+  const std::vector<std::tuple<std::string, std::vector<std::string>, std::vector<std::string>, std::string>> cases{
+      {huge, {}, {}, "the plan name has 40000 characters (at most 64)"},
+      {"fl\xc3\xa4t", {}, {}, "the plan name holds a character that is not printable ASCII (byte 195 at 2)"},
+      {"flat", {"height_m"}, {huge}, "the value of 'height_m' has 40000 characters (at most 256)"},
+      {"flat", {"height_m"}, {"\xef\xbc\x90.\xef\xbc\x91"}, "the value of 'height_m' holds a character"},
+      {"flat", {std::string("h\0", 2)}, {"0.1"}, "argument 1's name holds a character that is not printable"},
+      {"flat", std::vector<std::string>(33, "height_m"), std::vector<std::string>(33, "0.1"),
+       "33 arguments (a plan takes at most 32)"},
+      {"flat", {"height_m"}, {std::string(200, '1')}, "height_m must be a number of at most 64 characters"},
+  };
+  for (const auto& [plan, keys, values, message] : cases) {
+    const nb::RequestResult r = bed.posture(plan, keys, values);
+    EXPECT_FALSE(r.ok);
+    EXPECT_TRUE(contains(r.message, message)) << r.message;
+    EXPECT_LT(r.message.size(), 200u);
+    EXPECT_TRUE(bed.out.commands.empty() && !bed.out.resume_record);
+  }
+  EXPECT_EQ(bed.run(0.1).plan, nb::PlanKind::kFlat);
 }
 
 TEST(BedSupervisor, AcceptedRequestsStartTheirPlanAndSaveIt) {
@@ -619,7 +776,7 @@ TEST(BedSupervisor, InvalidTunablesAreRefusedNamingTheKeyAndChangeNothing) {
   // Nothing changed in what the bed does: a flat plan at the old nominal height; a cell silent
   // for 1 s is dead under the old 0.5 s timeout, not alive under the refused 2 s.
   ASSERT_TRUE(bed.posture("flat").ok);
-  EXPECT_EQ(bed.run(0.1).parameters, "height_m=0.1");
+  EXPECT_EQ(bed.run(2.1).parameters, "height_m=0.1");
   bed.silent[0] = true;
   EXPECT_EQ(bed.run(1.0).dead_cells, std::vector<std::uint32_t>{0});
 }

@@ -257,6 +257,30 @@ TEST(AirbagOnHardware, ALostLinkFlagsStopsCommandingAndResumesToTheKeptSetpoint)
   EXPECT_NEAR(rig.plant->variables().height_m, 0.09, 0.003);
 }
 
+TEST(AirbagOnHardware, CommandsWhileTheLinkIsDownKeepTheCellSafeAndActWhenItIsBack) {
+  CuttableCell rig(0.05, 15.6, 0.09);
+  rig.runTo(0.3);
+  rig.hw->cut = true;
+  rig.runTo(0.5);
+  // The bed manager's resent setpoints and heartbeats keep coming: the cell stays SAFE.
+  EXPECT_EQ(rig.cell->requestHeight(0.07, rig.t), "");
+  rig.cell->heartbeat(rig.t);
+  rig.runTo(1.0);
+  EXPECT_EQ(rig.cell->mode(), nb::AirbagMode::kSafe);
+  EXPECT_EQ(rig.hw->writes_while_cut, 0);
+  EXPECT_NEAR(rig.cell->setpoint(), 0.07, 1e-12);
+  EXPECT_EQ(rig.cell->requestPressure(3000.0, rig.t), "");
+  EXPECT_EQ(rig.cell->mode(), nb::AirbagMode::kSafe);
+  rig.cell->setCpr(true, rig.t);
+  EXPECT_EQ(rig.cell->mode(), nb::AirbagMode::kSafe);
+  rig.cell->setCpr(false, rig.t);
+  EXPECT_EQ(rig.cell->requestHeight(0.08, rig.t), "");
+  rig.hw->cut = false;
+  rig.runTo(6.0);
+  EXPECT_EQ(rig.cell->mode(), nb::AirbagMode::kHeight);
+  EXPECT_NEAR(rig.plant->variables().height_m, 0.08, 0.003);
+}
+
 TEST(AirbagOnHardware, ABriefLinkLossKeepsALightCellsGas) {
   // The plate alone (0.6 N) held at 75 mm rests at ~46 Pa. A 50 ms bus timeout: when the link
   // returns the cell still holds its gas (the valves were shut), and the estimate must say so.

@@ -36,6 +36,9 @@ TEST(GasVerifierParams, RefusesBadValuesNamingThem) {
   // The gas check after a lost link: a short vent, not an emptying.
   expectRefused("resume_vent_s", &nb::GasVerifierParams::resume_vent_s, {-0.01, 0.5, std::nan("")});
   expectRefused("reanchor_below_m", &nb::GasVerifierParams::reanchor_below_m, {-0.01, std::nan("")});
+  expectRefused("verify_hold_s", &nb::GasVerifierParams::verify_hold_s, {-0.1, 5.0, std::nan("")});
+  expectRefused("verify_tolerance_pa", &nb::GasVerifierParams::verify_tolerance_pa, {0.0, std::nan("")});
+  expectRefused("verify_tolerance_rel", &nb::GasVerifierParams::verify_tolerance_rel, {-0.1, 1.0});
   EXPECT_TRUE(nb::GasVerifierParams{}.validate().ok());
 }
 
@@ -141,4 +144,69 @@ TEST(GasVerifier, ALinkCheckEndsAtTheReanchorAndAtAGroundedReading) {
   nb::GasVerifier none(off);
   none.linkRestored();
   EXPECT_EQ(none.linkCheckValves(0.0, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet);
+}
+
+/// Runs the link check's hold (verify_hold_s) at `pressure_pa`; every period's valves must be
+/// shut and the gas unverified meanwhile.
+void runHold(nb::GasVerifier* gas, nb::CellObserver* observer, double pressure_pa) {
+  const int periods = static_cast<int>(std::lround(gas->params().verify_hold_s / kPeriod));
+  for (int i = 0; i < periods; ++i) {
+    EXPECT_TRUE(gas->unverified()) << i;
+    const nb::ValveOpenings v = gas->linkCheckValves(i * kPeriod, kPeriod, pressure_pa, observer, kWanted);
+    EXPECT_EQ(v.inlet + v.vent, 0.0) << "both valves shut through the hold, period " << i;
+  }
+}
+
+TEST(GasVerifier, ALostLinkLeavesTheGasUnverifiedUntilItsCheckEnds) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  EXPECT_FALSE(gas.unverified());
+  gas.linkLost(1500.0);
+  EXPECT_TRUE(gas.unverified()) << "while the link is down";
+  gas.linkRestored();
+  runHold(&gas, &observer, 1480.0);
+  EXPECT_FALSE(gas.holdMismatched());
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
+  EXPECT_TRUE(gas.unverified()) << "the vent check still runs";
+  double t = 1.0;
+  for (int i = 0; i < 10; ++i, t += kPeriod)
+    EXPECT_EQ(gas.linkCheckValves(t, kPeriod, 1480.0, &observer, kWanted).inlet, 0.0);
+  gas.note(reanchored());
+  EXPECT_EQ(gas.linkCheckValves(t, kPeriod, 1480.0, &observer, kWanted).inlet, kWanted.inlet);
+  EXPECT_FALSE(gas.unverified());
+}
+
+TEST(GasVerifier, APressureThatMovedOverALostLinkSendsTheCellToBeFoundFlat) {
+  // A terminal restarted empty: the plate lies on the bed, the cell reads its own pressure.
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.linkLost(1500.0);
+  gas.linkRestored();
+  runHold(&gas, &observer, 12.0);
+  EXPECT_TRUE(gas.holdMismatched());
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kUnverified);
+  bool found = true;
+  const nb::ValveOpenings v = gas.findingValves(kPeriod, &observer, kWanted, &found);
+  EXPECT_EQ(v.inlet, 0.0);
+  EXPECT_EQ(v.vent, 1.0) << "vented until found flat";
+  EXPECT_TRUE(gas.unverified());
+  gas.note(reanchored());
+  gas.findingValves(kPeriod, &observer, kWanted, &found);
+  EXPECT_TRUE(found);
+  EXPECT_FALSE(gas.unverified());
+}
+
+TEST(GasVerifier, ASuspectedGasIsFoundFlatAgainBeforeItIsTrusted) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.suspect();
+  EXPECT_TRUE(gas.unverified());
+  bool found = true;
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).vent, 1.0);
+  EXPECT_TRUE(gas.findingGas());
+  gas.note(reanchored());
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).inlet, 0.0);
+  EXPECT_TRUE(found);
+  EXPECT_FALSE(gas.unverified());
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).inlet, kWanted.inlet);
 }

@@ -117,7 +117,8 @@ TEST(AirbagParamsIo, StructureSelectionFromTheParameterServerResolvesAgainstConf
     nb::airbagParamsFrom(nb::flattenYamlText("cell:\n  structure:\n    type: balloon\n", "node.yaml"), "node.yaml");
     FAIL() << "an unknown structure type was accepted";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("structure_type must be 'pillow', 'table' or 'bellows', got 'balloon'"),
+    EXPECT_NE(std::string(e.what()).find(
+                  "structure_type must be 'pillow', 'table', 'fold_table' or 'bellows', got 'balloon'"),
               std::string::npos)
         << e.what();
   }

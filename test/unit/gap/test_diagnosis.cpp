@@ -357,7 +357,8 @@ d = json.loads(text)
 def keys(obj, expected, where):
     assert isinstance(obj, dict), where + ": not an object"
     assert set(obj) == set(expected), where + ": keys " + repr(sorted(obj)) + " != " + repr(sorted(expected))
-keys(d, ["format", "dataset", "runs", "noise", "localization", "candidates", "verdict", "shrinkage"], "top level")
+keys(d, ["format", "dataset", "runs", "noise", "localization", "events", "candidates", "verdict", "shrinkage"], "top level")
+assert isinstance(d["events"], list)
 assert d["format"] == "nursing_bed_gap_report/1", d["format"]
 assert d["dataset"] == 'rig "B" \\ 2024', repr(d["dataset"])
 keys(d["runs"], ["fit", "withheld"], "runs")

@@ -1,6 +1,7 @@
 // Replaying runs through the model, phases, noise estimate and where the gap lies.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -33,6 +34,25 @@ TEST(GapReplay, PhasesFollowTheProtocol) {
   EXPECT_EQ(phase_at(20.0), nb::RunPhase::kHold);
   EXPECT_EQ(phase_at(36.0), nb::RunPhase::kVent);
   EXPECT_EQ(ph.back(), nb::RunPhase::kLanded);
+}
+
+TEST(GapReplay, AMeteredRunWithoutHeightLandsWhenTheVentHasEmptiedIt) {
+  // Without height readings the landing shows as the vent's flow and pressure falling to zero;
+  // replayed past it, the meter's noise would be drawn out of the few mL left.
+  const nb::RunData with_height = synthRun({}, 1.0);
+  nb::RunData run = with_height;
+  for (double& h : run.h_m) h = NAN;
+  const std::vector<nb::RunPhase> by_height = nb::classifyPhases(with_height), by_flow = nb::classifyPhases(run);
+  auto first_landed = [&](const std::vector<nb::RunPhase>& ph) {
+    const auto it = std::find(ph.begin(), ph.end(), nb::RunPhase::kLanded);
+    return it == ph.end() ? NAN : run.t_s[it - ph.begin()];
+  };
+  ASSERT_TRUE(std::isfinite(first_landed(by_height)));
+  EXPECT_NEAR(first_landed(by_flow), first_landed(by_height), 0.3);
+  const nb::Replay rep = nb::replayRun(run, nb::CellParams{}, {});
+  ASSERT_TRUE(rep.ok) << rep.message;
+  // Within a few noise floors (30 Pa) of a range of several kPa.
+  EXPECT_LT(nb::runResidual(run, rep).nrmse_p, 0.01);
 }
 
 TEST(GapReplay, NominalModelReplaysNominalDataExactly) {

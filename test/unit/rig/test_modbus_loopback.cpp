@@ -454,3 +454,109 @@ TEST(RigEmulator, ListensOnLoopbackOnly) {
     nb::test::expectContains(e.what(), {"outside", "127.0.0.1", "192.168.1.5"});
   }
 }
+
+namespace {
+
+nb::RigFaultRequest faultRequest(const std::string& fault, std::vector<std::uint32_t> ids, double value = 0.0) {
+  nb::RigFaultRequest r;
+  r.fault = fault;
+  r.cell_ids = std::move(ids);
+  r.value = value;
+  return r;
+}
+
+}  // namespace
+
+TEST_F(ModbusLoopback, AnOffsetOrFrozenSensorShowsInTheReadingsOfItsCellsOnly) {
+  std::string applied;
+  ASSERT_TRUE(emulator_->inject(faultRequest("sensor_offset", {0}, 2000.0), &applied).ok());
+  EXPECT_EQ(applied, "sensor_offset on cells 0");
+  ASSERT_TRUE(
+      waitFor([&] { return cells_[0]->read(0.0).gauge_pressure_pa.value > truth(0).gauge_pressure_pa + 1900.0; }, 2.0));
+  EXPECT_NEAR(cells_[1]->read(0.0).gauge_pressure_pa.value, truth(1).gauge_pressure_pa, 40.0) << "cell 1 untouched";
+  ASSERT_TRUE(emulator_->inject(faultRequest("frozen_sensor", {2}), &applied).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const double frozen = cells_[2]->read(0.0).gauge_pressure_pa.value;
+  emulator_->setLoad(2, 40.0);  // the cell's pressure moves; its reading must not
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(cells_[2]->read(0.0).gauge_pressure_pa.value, frozen);
+  EXPECT_GT(std::fabs(truth(2).gauge_pressure_pa - frozen), 500.0);
+  ASSERT_TRUE(emulator_->inject(faultRequest("clear", {0, 2})).ok());
+  EXPECT_TRUE(waitFor([&] { return std::fabs(cells_[2]->read(0.0).gauge_pressure_pa.value - frozen) > 500.0; }, 2.0));
+  EXPECT_EQ(emulator_->faults(0).offset_pa, 0.0);
+}
+
+TEST_F(ModbusLoopback, ARestartSilencesTheTerminalAndEmptiesItsCellsOrKeepsThem) {
+  const double kept_before = truth(2).gas_mass_kg;
+  nb::RigFaultRequest keep = faultRequest("restart", {2}, 0.5);
+  keep.keep_gas = true;
+  ASSERT_TRUE(emulator_->inject(keep).ok());
+  EXPECT_NEAR(truth(2).gas_mass_kg, kept_before, 1e-3 * kept_before);
+  ASSERT_TRUE(emulator_->inject(faultRequest("restart", {0}, 0.5)).ok());
+  EXPECT_GT(truth(0).height_m, 0.04) << "emptied only once its terminal is silent";
+  ASSERT_TRUE(waitFor([this] { return cellsRead(nb::LinkState::kDown, 0, 2); }, 2.0));
+  EXPECT_TRUE(waitFor([this] { return truth(0).height_m < 1e-3; }, 1.0)) << "emptied: flat";
+  EXPECT_GT(truth(1).height_m, 0.04) << "a cell not named keeps its gas";
+  EXPECT_TRUE(waitFor([this] { return allUp(); }, 3.0)) << "back after the silence";
+}
+
+TEST_F(ModbusLoopback, ABadFaultRequestIsRefusedNamingWhatIsWrongAndChangesNothing) {
+  const struct {
+    nb::RigFaultRequest request;
+    const char* says;
+  } bad[] = {
+      {faultRequest("melt", {0}), "unknown fault 'melt' (one of clear,"},
+      {faultRequest("sensor_offset", {9}, 100.0), "cell 9 is not served"},
+      {faultRequest("sensor_offset", {0}, 1e9), "sensor_offset value"},
+      {faultRequest("sensor_offset", {0}, std::nan("")), "sensor_offset value"},
+      {faultRequest("leak", {0}, -1e-8), "leak value must be an area"},
+      {faultRequest("stuck_open", {0}), "valve must be inlet or vent"},
+      {faultRequest("drop_replies", {0}, 1.5), "probability in [0, 1]"},
+      {faultRequest("delay_replies", {0}, 0.5), "delay_s must lie in"},
+      {faultRequest("restart", {0}, 1e6), "restart value"},
+  };
+  for (const auto& b : bad) {
+    const nb::Status s = emulator_->inject(b.request);
+    EXPECT_FALSE(s.ok()) << b.says;
+    EXPECT_NE(s.message().find(b.says), std::string::npos) << s.message();
+  }
+  nb::RigFaultRequest both = faultRequest("leak", {0}, 5e-8);
+  both.random_cells = 2;
+  EXPECT_NE(emulator_->inject(both).message().find("not both"), std::string::npos);
+  const nb::CellFaults f = emulator_->faults(0);
+  EXPECT_EQ(f.stuck_inlet + f.stuck_vent, -2);
+  EXPECT_FALSE(f.frozen);
+  EXPECT_EQ(f.offset_pa + f.leak_area_m2, 0.0);
+  EXPECT_TRUE(allUp());
+}
+
+TEST(RigFaults, AStuckValveOrALeakChangesWhatTheValvesPass) {
+  nb::CellFaults f;
+  const nb::ValveOpenings cmd{0.3, 0.0, false};
+  EXPECT_EQ(f.apply(cmd, 1.5e-5).inlet, 0.3);
+  f.stuck_inlet = 0;
+  f.stuck_vent = 1;
+  EXPECT_EQ(f.apply(cmd, 1.5e-5).inlet, 0.0);
+  EXPECT_EQ(f.apply(cmd, 1.5e-5).vent, 1.0);
+  nb::CellFaults leak;
+  leak.leak_area_m2 = 5e-8;
+  EXPECT_NEAR(leak.apply(cmd, 1.5e-5).vent, 5e-8 / 1.5e-5, 1e-15);
+}
+
+TEST(RigFaults, RandomCellsAreDrawnReproduciblyBySeed) {
+  const std::vector<std::uint32_t> served{0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+  nb::RigFaultRequest r;
+  r.fault = "leak";
+  r.value = 5e-8;
+  r.random_cells = 5;
+  nb::RigFaultKind kind{};
+  ASSERT_TRUE(nb::checkRigFault(r, served, 1.5e-5, &kind).ok());
+  EXPECT_EQ(kind, nb::RigFaultKind::kLeak);
+  std::mt19937 a(42), b(42), c(43);
+  const auto first = nb::rigFaultCells(r, served, &a);
+  EXPECT_EQ(first.size(), 5u);
+  EXPECT_EQ(first, nb::rigFaultCells(r, served, &b));
+  EXPECT_NE(first, nb::rigFaultCells(r, served, &c));
+  r.random_cells = 0;
+  EXPECT_EQ(nb::rigFaultCells(r, served, &a), served) << "no cells named: every cell";
+}

@@ -23,8 +23,10 @@
 namespace nursing_bed {
 
 struct BedSupervisorParams {
-  double cell_timeout_s = 0.5;       ///< a cell silent this long is dead [s]
-  double startup_grace_s = 10.0;     ///< cells that never reported are dead only this long after the start [s]
+  double cell_timeout_s = 0.45;  ///< a cell silent this long is dead [s] (watched at ~50 Hz: dead within 0.5 s)
+  /// Cells are judged once every cell reports, or this long after the start: a cell that never
+  /// reported is dead only then (a loaded machine takes seconds to load a whole bed) [s].
+  double startup_grace_s = 60.0;
   double resend_s = 1.0;             ///< setpoints and vents are repeated this often [s]
   double leak_alarm_error_m = 0.01;  ///< a cell this far below its target ... [m]
   double leak_alarm_s = 15.0;        ///< ... for this long raises the leak alarm [s]
@@ -54,6 +56,7 @@ struct BedStatus {
   double tilt_deg = 0.0;                 ///< lateral turn commanded now [deg]
   std::vector<double> target_heights_m;  ///< by cell id; NaN where none (venting)
   std::vector<std::uint32_t> dead_cells, faulty_cells;
+  std::vector<std::uint32_t> unverified_cells;  ///< reporting cells whose estimated height is not proven
   double largest_state_gap_s = 0.0;  ///< longest wait between two states of one cell since the plan started [s]
   std::vector<std::string> alarms;
 };
@@ -61,7 +64,7 @@ struct BedStatus {
 /// The bed on diagnostics: a summary and one report per cell (by id).
 struct BedReport {
   Severity severity = Severity::kOk;  ///< error when a cell is not reporting, warn on faults or alarms
-  std::string message;                ///< "N cells, D not reporting, F with faults[; first alarm]"
+  std::string message;                ///< "N cells, D not reporting, F with faults, U unverified[; first alarm]"
   std::vector<std::string> alarms;
   std::string plan;  ///< "plan (phase)[, resumed ...]"; "" when no plan runs
   std::vector<CellReport> cells;
@@ -104,6 +107,10 @@ class BedSupervisor {
   void onCpr(bool on, double now_s);
   /// One plan step at `now_s`: watches the cells, evaluates the plan, queues the commands.
   BedStatus step(double now_s);
+  /// Watches the cells at `now_s` between plan steps (a dead cell is acted on sooner than the
+  /// plan rate allows): levels the bed if a cell failed. Returns how many newly failed, plus one
+  /// when the set of cells with a lost hardware link changed.
+  std::size_t watch(double now_s);
   /// What the calls since the last takeOutput() want done.
   SupervisorOutput takeOutput();
   /// Diagnostics at `now_s`.
@@ -125,11 +132,13 @@ class BedSupervisor {
   /// After a plan starts or resumes: every target sent again, CPR announced, the record saved.
   void started();
   void announceCpr(bool on);
+  /// After a requested plan: CPR announced off when no announcement was ever made.
+  void endUnknownCpr();
   void saveResume();
   /// Height the bed levels at when a cell fails: the healthy cells' mean within the plan limits
   /// (the nominal height when none is known).
   double safeLevel() const;
-  void watchCells(double now_s);
+  std::size_t watchCells(double now_s);
   /// The current targets with `ids` set to `heights_m` (the others: the plan's target, else
   /// what was sent, else the measured height, within the plan limits).
   std::vector<double> customTargets(const std::vector<std::uint32_t>& ids, const std::vector<double>& heights_m) const;
@@ -141,6 +150,7 @@ class BedSupervisor {
   CellCommander commander_;
   PlanRunner runner_;
   std::vector<std::string> alarms_;
+  std::string link_lost_;  ///< the cells whose hardware link was lost at the last watch
   PlanTargets last_targets_;
   double last_step_s_ = CellSnapshot::kNone;
   int cpr_announced_ = -1;  ///< last CPR announcement (-1: none)

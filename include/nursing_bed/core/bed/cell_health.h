@@ -1,9 +1,10 @@
 // Health of the bed's cells as the bed supervisor sees them (ROS-free): each cell's last state,
-// which cells are dead (silent past a timeout; cells that never reported only after a start-up
-// grace) or faulty (a sensor or model fault), and each cell's condition for diagnostics. Times
+// which cells are dead (silent past a timeout, judged only once the start-up is over) or faulty
+// (a sensor or model fault), and each cell's condition for diagnostics. Times
 // are seconds on the caller's clock, simulated or wall.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -33,6 +34,7 @@ struct CellSnapshot {
   double gauge_pressure_pa = kNone;   ///< for messages [Pa]
   double external_load_n = kNone;     ///< for messages [N]
   double seen_s = kNone;              ///< when the state arrived [s]; NaN: never
+  bool unverified = false;            ///< its estimated height is not proven
 };
 
 /// How serious a condition is (a cell's or the bed's, on diagnostics; an event's in the log).
@@ -46,8 +48,11 @@ struct CellReport {
 
 class CellHealthWatcher {
  public:
-  /// `cells` by id; a cell is dead when silent for more than `timeout_s`, or, never having
-  /// reported, more than `startup_grace_s` after `started_s`.
+  /// `cells` by id; a cell is dead when silent for more than `timeout_s`. No cell is judged
+  /// until the start-up is over: 2 s after every cell first reports at once (cells still being
+  /// loaded stall the ones loaded before them, and the last ones stall a moment after their
+  /// first state), or `startup_grace_s` after `started_s`, whichever is first; silences count
+  /// from then.
   CellHealthWatcher(std::vector<BedCell> cells, double timeout_s, double startup_grace_s, double started_s);
 
   /// Keeps a cell's state (and the longest wait between two of its states); false, and nothing
@@ -66,6 +71,8 @@ class CellHealthWatcher {
   bool faulty(std::uint32_t id) const { return faulty_.at(id); }
   std::vector<std::uint32_t> deadCells() const;
   std::vector<std::uint32_t> faultyCells() const;
+  /// Reporting cells whose estimated height is not proven (CellSnapshot::unverified).
+  std::vector<std::uint32_t> unverifiedCells() const;
   /// The reported heights by cell id (NaN where none arrived) [m].
   std::vector<double> heights() const;
   /// Mean reported height of the cells neither dead nor faulty; nullopt when there is none [m].
@@ -78,14 +85,22 @@ class CellHealthWatcher {
   /// A new silence after which a cell is dead (> 0, checked by the caller) [s]; the next
   /// watch() applies it.
   void setTimeout(double timeout_s) { timeout_s_ = timeout_s; }
+  /// The start-up is over: cells are judged (see the constructor).
+  bool judging() const { return std::isfinite(judged_from_s_); }
 
  private:
   std::vector<BedCell> cells_;
   std::vector<CellSnapshot> states_;
   std::vector<bool> dead_, faulty_;
   double timeout_s_, startup_grace_s_, started_s_;
+  double judged_from_s_ = std::numeric_limits<double>::quiet_NaN();  ///< when the start-up ended
   double largest_gap_s_ = 0.0;
 };
+
+/// The fault bits that make a cell faulty for the bed (it is levelled around it). A lost
+/// hardware link is not one: the cell holds its gas and resumes the plan when the link returns,
+/// while the bed raises an alarm (BedSupervisor).
+constexpr std::uint32_t kFaultsThatFailACell = kFaultSensor | kFaultModel | kFaultInconsistent;
 
 /// The names of the fault bits set in `faults`, each after a space (" sensor overpressure").
 std::string faultNames(std::uint32_t faults);

@@ -15,6 +15,7 @@
 #include "nursing_bed/core/control/safety_layer.h"
 #include "nursing_bed/core/hardware/simulated_cell_hardware.h"
 #include "nursing_bed/core/observer/cell_observer.h"
+#include "nursing_bed/core/observer/consistency_monitor.h"
 
 namespace nursing_bed {
 
@@ -45,6 +46,9 @@ enum AirbagFault : std::uint32_t {
   /// CellReadings::device_reset): the cell was reset (flat, valves shut), mode SAFE.
   kFaultModel = 16,
   kFaultCommunication = 32,  ///< the hardware link is down: valves not commanded, setpoint kept
+  /// The readings persistently disagree with the observer (ConsistencyMonitor): the gas is
+  /// found again (vented flat) before the cell is inflated; cleared once it is.
+  kFaultInconsistent = 64,
 };
 
 /// Where AirbagCell's height comes from (the AirbagState message's HEIGHT_ constants).
@@ -54,7 +58,8 @@ enum class HeightSource : std::uint8_t { kMeasured = 0, kEstimated = 1 };
 /// parameter set and the effects diagnosed for the bed, else the nominal cell).
 struct AirbagObserverSetup {
   CellObserverParams params;
-  GasVerifierParams gas_check;  ///< the cell's checks of the observer's gas (keys under observer/)
+  GasVerifierParams gas_check;       ///< the cell's checks of the observer's gas (keys under observer/)
+  ConsistencyMonitorParams monitor;  ///< the readings against the observer (keys under observer/monitor_)
   CellParams model;
   std::vector<CellEffectPtr> effects;
   bool force = false;  ///< run it (and report its height) even when a height sensor is fitted
@@ -63,7 +68,7 @@ struct AirbagObserverSetup {
 /// One cell's mode and the wiring of its parts: the height controller, the pressure mode, the
 /// safety layer, the gas check and the observer over the hardware.
 /// Size: the airbag node's and the bed's whole interface to a cell (commands and state
-/// queries, ~45 one-line methods) and the wiring's ~19 members; the logic lives in the parts.
+/// queries, ~45 one-line methods) and the wiring's ~21 members; the logic lives in the parts.
 class AirbagCell {
  public:
   /// The simulated cell (plant and sensors, `effects` hidden in the plant) run in lockstep with
@@ -167,6 +172,12 @@ class AirbagCell {
   bool anchoringGas() const { return gas_.anchoringGas(); }
   /// The checks of the observer's gas (with their parameters).
   const GasVerifier& gasVerifier() const { return gas_; }
+  /// The reported height is an estimate whose gas is not proven (a lost link not yet checked,
+  /// an inconsistency, a reset over real hardware not yet found flat): the cell is never
+  /// inflated meanwhile, only held or vented to find its gas.
+  bool heightUnverified() const { return observer_ && use_estimate_ && gas_.unverified(); }
+  /// The readings against the observer (null when the height is measured).
+  const ConsistencyMonitor* monitor() const { return observer_ ? &monitor_ : nullptr; }
 
  private:
   void controlStep();
@@ -187,6 +198,9 @@ class AirbagCell {
   /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
   void onLink(const CellReadings& readings);
+  /// The consistency monitor on this period's readings (the height before the observer's
+  /// step was `height_before_m`); an inconsistency suspects the gas and flags the cell.
+  void monitorStep(const ObserverEvents& events, double height_before_m, double dt_s);
   /// The observer's inputs over a period with the link down.
   ObserverInputs linkDownInputs(const CellReadings& readings) const;
   /// The gas check's valve filters (GasVerifier) over the mode's valves, where an observer
@@ -196,6 +210,8 @@ class AirbagCell {
   /// CPR's vent goes to the vacuum source where the hardware has one, else to the atmosphere.
   bool ventToVacuum() const { return mode_ == AirbagMode::kVent && capabilities_.vent_vacuum; }
   void resetControl(double load_n);
+  /// Takes a commanded mode (held for the link's return while it is down).
+  void enterMode(AirbagMode mode);
   /// The mode a cleared fault returns to: pressure, height or idle by the setpoint held.
   AirbagMode resumedMode() const;
   /// After the hardware reported a device reset (the simulated plant's failed solve, reset flat
@@ -228,6 +244,8 @@ class AirbagCell {
   HardwareCapabilities capabilities_;  ///< the hardware's, read once (they do not change)
   SafetyLayer safety_;                 ///< sensor range, command watchdog, relief
   GasVerifier gas_;                    ///< what the observer's gas is worth, and its checks
+  ConsistencyMonitor monitor_;         ///< the readings against the observer's belief
+  double recent_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< readings, filtered
 };
 
 }  // namespace nursing_bed

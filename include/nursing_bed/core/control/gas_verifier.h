@@ -4,6 +4,7 @@
 // short vent and a re-anchor test). AirbagCell applies them after its mode's valves.
 #pragma once
 
+#include <limits>
 #include <string>
 
 #include "nursing_bed/core/io/status.h"
@@ -23,6 +24,15 @@ struct GasVerifierParams {
   /// the target. The gas the moves before left uncounted is gone before the low hold and the
   /// next rise; 0: never [m].
   double reanchor_below_m = 0.035;
+  /// After a lost link both valves stay shut this long and the mean pressure is compared
+  /// with the last one before the loss: the gas kept at the height kept holds the load kept
+  /// at that pressure. Outside the tolerance the gas is found again by venting flat; 0: no
+  /// comparison [s].
+  double verify_hold_s = 0.2;
+  /// The comparison's tolerance: the larger of this and verify_tolerance_rel of the pressure
+  /// before the loss [Pa].
+  double verify_tolerance_pa = 300.0;
+  double verify_tolerance_rel = 0.15;  ///< see verify_tolerance_pa [-]
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
@@ -46,8 +56,15 @@ class GasVerifier {
   void reset(bool verified);
   /// Takes the observer's findings of one step (a re-anchor ends a search for the flat cell).
   void note(const ObserverEvents& events);
-  /// The link is back: the gas is checked before the controller acts again (resume_vent_s).
-  void linkRestored() { check_pending_ = params_.resume_vent_s > 0.0; }
+  /// The link is lost; `reference_pa` is the mean pressure before (NaN: unknown). The gas is
+  /// unverified until the check after the link is back.
+  void linkLost(double reference_pa);
+  /// The link is back: the gas is checked before the controller acts again (a hold compared
+  /// with the pressure before the loss, then resume_vent_s).
+  void linkRestored();
+  /// Something showed the gas inventory wrong (a consistency monitor, a device or sensor
+  /// fault): unverified until the cell is found flat again; it vents to flat when commanded.
+  void suspect();
   /// A new height target `target_m` while the (tracked) height is `height_m`: lowered into the
   /// low band from above it, the cell is to pass through flat; raised out of it before that, it
   /// need not.
@@ -56,6 +73,11 @@ class GasVerifier {
   void pressureRequested();
 
   GasKnowledge knowledge() const { return gas_; }
+  /// The gas (and the height from it) is not proven: lost link not yet checked, suspected, or
+  /// reset over real hardware and not yet found flat. The cell is then never inflated.
+  bool unverified() const;
+  /// The last link check's hold found the pressure inconsistent with the gas kept.
+  bool holdMismatched() const { return hold_mismatch_; }
   /// Commanded before the observer found the cell flat after a reset: its gas (and height) is
   /// unknown, and it vents flat before it is controlled.
   bool findingGas() const { return gas_ == GasKnowledge::kFinding; }
@@ -74,6 +96,12 @@ class GasVerifier {
                               bool* found_after_vent);
 
  private:
+  /// The short vent of the link check (resume_vent_s) begins.
+  void startVentCheck();
+  /// The comparison's hold: both valves shut; at its end the gas is suspected or the vent
+  /// check begins.
+  ValveOpenings holdValves(double period_s, double gauge_pressure_pa);
+
   GasVerifierParams params_;
   GasKnowledge gas_ = GasKnowledge::kKnown;
   bool found_flat_ = false;         ///< re-anchored since the search (or the anchoring) began
@@ -81,6 +109,13 @@ class GasVerifier {
   double check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double check_until_s_ = -1.0;     ///< valves kept shut until then for the re-anchor test [s]
   bool check_reanchored_ = false;   ///< re-anchored since the check's test began
+  bool link_lost_ = false;          ///< the link was lost and the check has not ended
+  double reference_pa_ =
+      std::numeric_limits<double>::quiet_NaN();  ///< mean pressure before the loss (NaN: unknown) [Pa]
+  double hold_left_s_ = 0.0;                     ///< time of the comparison's hold still to run [s]
+  double hold_sum_pa_ = 0.0;                     ///< readings summed over the hold
+  long hold_count_ = 0;
+  bool hold_mismatch_ = false;  ///< the last hold did not match the pressure before the loss
 };
 
 }  // namespace nursing_bed

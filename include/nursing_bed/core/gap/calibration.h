@@ -35,10 +35,16 @@ struct CalibrationParamDef {
   bool log_scale = false;
   /// Only runs driven through the model's own valves (no flow meter) tell it.
   bool valve_driven_only = false;
+  /// The structure it belongs to: "pillow" (every structure but a bellows: the film and gusset
+  /// of the pillow, the loading plate), "bellows", "airway" (a cell with a series airway), or
+  /// empty (any structure).
+  std::string structure;
 };
 
 /// film_stiffness_scale, gusset_height_m, dead_volume_m3, plate_mass_kg, inlet_area_m2,
-/// vent_area_m2, regulator_time_constant_s.
+/// vent_area_m2, regulator_time_constant_s; for a bellows compliance_m3_pa and
+/// plate_damping_n_s_m (dead_volume_m3 is the bellows' then); the series airway's
+/// airway_resistance_pa_s_m3, airway_quadratic_resistance_pa_s2_m6, airway_volume_m3.
 const std::vector<CalibrationParamDef>& calibrationCatalog();
 /// Catalogue entry by name; throws std::invalid_argument naming the known parameters otherwise.
 const CalibrationParamDef& calibrationParam(const std::string& name);
@@ -57,12 +63,23 @@ CellParams applyCalibration(const std::map<std::string, double>& values, const C
 /// Whether the run has no height reading at all (pressure sensors only).
 bool runHasNoHeight(const RunData& run);
 
-/// The parameters the runs can tell: the four of every run, plus the valves' (and regulator's)
-/// when a run is valve-driven, the vent's when a run vents through an unmetered valve.
-std::vector<std::string> defaultCalibrationParams(const std::vector<RunData>& runs);
-/// Checks `names` against the catalogue and the runs: throws std::invalid_argument naming an
-/// unknown parameter, or a valve parameter asked of runs that are all flow-metered.
-void checkCalibrationParams(const std::vector<std::string>& names, const std::vector<RunData>& runs);
+/// Whether catalogue entry `d` belongs to the structure of `nominal` (CalibrationParamDef::structure).
+bool calibrationParamApplies(const CalibrationParamDef& d, const CellParams& nominal);
+
+/// The parameters the runs can tell on the structure of `nominal`: those of its structure
+/// (film_stiffness_scale, gusset_height_m, dead_volume_m3, plate_mass_kg for the pillow;
+/// compliance_m3_pa, dead_volume_m3, plate_damping_n_s_m for a bellows), plus the valves' (and
+/// regulator's) when a run is valve-driven, the vent's when a run vents through an unmetered
+/// valve,
+/// and the airway's resistances (and circuit volume, when it has one) when `nominal` has a series
+/// airway, its resistance then standing for the plate's damping.
+std::vector<std::string> defaultCalibrationParams(const std::vector<RunData>& runs,
+                                                  const CellParams& nominal = CellParams{});
+/// Checks `names` against the catalogue, the runs and the structure: throws
+/// std::invalid_argument naming an unknown parameter, a valve parameter asked of runs that are
+/// all flow-metered, or a parameter of another structure.
+void checkCalibrationParams(const std::vector<std::string>& names, const std::vector<RunData>& runs,
+                            const CellParams& nominal = CellParams{});
 
 /// One calibrated parameter in the report.
 struct CalibratedParam {

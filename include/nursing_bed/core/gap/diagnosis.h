@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/localisation.h"
 #include "nursing_bed/core/gap/replay.h"
 #include "nursing_bed/core/gap/run_data.h"
 #include "nursing_bed/core/physics/cell_model.h"
@@ -83,6 +84,16 @@ struct DiagnosisOptions {
   /// ones this many range widths) before the fit is called implausible.
   double plausible_slack = 3.0;
 
+  // The model-form floor (doc/gap_real_recordings.md): a recording of real hardware never fits
+  // the model to the noise. "on": when no candidate explains the gap by the rules above, the
+  // calibrated nominal model's chi2/n on the fit runs is taken as the floor of the model's form,
+  // chi2 is counted in units of it, and a candidate is named when it is significant in those
+  // units and removes at least floor_removed of the calibrated model's chi2 on the fit runs and
+  // on the withheld runs. "auto": on when every run was imported from a recording (gap import's
+  // import_mapping metadata); synthetic and bag runs keep the rules above alone. "off": never.
+  std::string model_floor = "auto";
+  double floor_removed = 0.5;
+
   /// Called with one line per step ("fitting leak ... 3/7"). May be empty.
   std::function<void(const std::string&)> progress;
 };
@@ -131,6 +142,8 @@ struct DiagnosisReport {
   bool roles_chosen = false;  ///< true: no roles were given, the diagnosis chose them
   double noise_p_pa = 0.0, noise_h_m = 0.0;
   std::vector<GapShare> localization;
+  /// Where in time the nominal model and each run part (re-anchored windows; localisation.h).
+  std::vector<GapEvent> events;
   double nominal_chi2_per_sample = 0.0;  ///< fit runs, in noise-floor units
   double nominal_fit_nrmse = 0.0;
   double nominal_withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs (NaN: none)
@@ -172,6 +185,19 @@ struct Verdict {
 /// pairs only where no single explains the gap, near ties decided by the withheld runs.
 Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
                       const DiagnosisOptions& options);
+
+/// The decision above the model-form floor (DiagnosisOptions::model_floor): the floor is the
+/// calibrated nominal model's chi2/n (fit runs; withheld runs apart), at least 1; the first
+/// candidate in BIC order (singles before pairs) that lowers BIC by significant_bic_drop with
+/// chi2 counted in floor units, and removes floor_removed of the floor's chi2 on the fit runs
+/// and on the withheld runs, is named ("explained"); else "none" (what remains is the model's
+/// form). The reasons give the floor and each significant candidate's share removed.
+Verdict decideVerdictAboveFloor(const std::vector<CandidateFit>& candidates, const NominalScore& nominal,
+                                const DiagnosisOptions& options);
+/// Whether `options.model_floor` applies to runs whose metadata are `metas` ("auto": every run
+/// imported, i.e. with import_mapping metadata). Throws std::invalid_argument for another word.
+bool modelFloorApplies(const DiagnosisOptions& options,
+                       const std::vector<const std::map<std::string, std::string>*>& metas);
 
 /**
  * Diagnoses `runs` (each with a role "fit"/"withheld", or all without one; then about a

@@ -48,6 +48,10 @@ PreparedRuns prepareRuns(std::vector<RunData> runs);
 /// The candidate list of `options` (every catalogue candidate when empty); throws
 /// std::invalid_argument naming an unknown one.
 std::vector<std::string> candidateList(const DiagnosisOptions& options);
+/// `candidates` less those that assume a structure other than that of `nominal`
+/// (EffectSpec::structure), each left out with a line in `notes`.
+std::vector<std::string> candidatesForStructure(const std::vector<std::string>& candidates, const CellParams& nominal,
+                                                std::vector<std::string>* notes);
 
 /// The nominal replay of every run; fills `report`'s runs (before), noise and localization.
 /// Throws std::invalid_argument with the replay's message when one fails.
@@ -142,9 +146,11 @@ bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFi
 /// `chi2`) the baseline the candidates are fitted on and compared with; scores the withheld runs.
 void rebaseNoiseModel(NoiseModel* noise, const std::map<std::string, double>& calibration, double chi2);
 
-/// The cell parameters to calibrate: options.calibration_params (checked against the runs), or
-/// defaultCalibrationParams(); none when options.calibrate is false. Throws std::invalid_argument.
-std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options);
+/// The cell parameters to calibrate: options.calibration_params (checked against the runs and
+/// the structure of `nominal`), or defaultCalibrationParams(); none when options.calibrate is
+/// false. Throws std::invalid_argument.
+std::vector<std::string> calibrationList(const PreparedRuns& prepared, const DiagnosisOptions& options,
+                                         const CellParams& nominal);
 
 /// Indices into `fits` of the fits of `effects` effects (failed ones left out) that
 /// refitBestJointly() refits: the `pool` best by BIC (chi2 + k ln n), then every other one that
@@ -183,7 +189,10 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
 /// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,
 /// and their chi2 lower by min_withheld_gain), else the moves are dropped; reasons added.
-void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report);
+/// `above_floor` (a recording judged above its model-form floor, decideVerdictAboveFloor()):
+/// removing floor_removed of the withheld runs' chi2 also holds up.
+void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report,
+                            bool above_floor = false);
 
 /// The calibrated model alone: its nrmse on fit and withheld runs, and the calibrated parameter
 /// file (report->calibrated_yaml; the cell's own settings with the moved values).

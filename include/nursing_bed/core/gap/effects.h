@@ -43,6 +43,9 @@ struct EffectSpec {
   /// off value (inflow_bias).
   std::string switch_param;
   std::vector<EffectParamSpec> params;
+  /// The cell structure it assumes (CellParams::structure_type), empty for any: the diagnosis
+  /// does not fit it on another structure and says so.
+  std::string structure;
 
   /// Every parameter at its off value.
   std::map<std::string, double> offParams() const;

@@ -110,8 +110,14 @@ struct FitOutcome {
   std::string message;
 };
 
+/// Axes of `model` that the fit runs cannot tell from the cell's own parameters, held at their
+/// off value: a flow meter's scale error (inflow_bias) on runs without a height reading of a cell
+/// with a compliance, whose pressure follows V/C with V the metered volume, so that reading
+/// (1 + k) times the flow is a compliance C (1 + k) (doc/gap_real_recordings.md).
+std::vector<int> heldAxes(const FitData& fit, const ModelSpec& model);
+
 /// Levenberg-Marquardt (Ceres) from the best one (two, with two or more parameters) of
-/// `starts`; the best result.
+/// `starts`, the heldAxes() at their off value; the best result.
 FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
                     int max_iterations);
 

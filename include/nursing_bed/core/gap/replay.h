@@ -25,7 +25,8 @@ const char* phaseName(RunPhase phase);
 /// valve-driven run): inflating while the inflow exceeds 2 % of its
 /// peak (deploy while the pressure is below a quarter of the inflation's peak pressure, then
 /// pressurize), venting from the first clearly negative inflow, hold in between; landed once
-/// the measured height is below 3 mm during the vent.
+/// the measured height is below 3 mm during the vent, or, for a metered run without height
+/// readings, once the vent's flow and pressure stay at zero within the noise for 0.5 s.
 std::vector<RunPhase> classifyPhases(const RunData& run);
 
 /// A run replayed through a model: the simulated readings at the measured times.

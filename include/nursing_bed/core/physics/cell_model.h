@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/physics/airway.h"
 #include "nursing_bed/core/physics/bellows_structure.h"
 #include "nursing_bed/core/physics/cell_effect.h"
 #include "nursing_bed/core/physics/cell_structure.h"
@@ -30,10 +31,14 @@ struct CellParams {
   PillowParams structure;  ///< geometry and film
   /// Structure model: "pillow" (PillowStructure from `structure`), "table" (a
   /// TabulatedStructure read from structure_table_file, e.g. written by fe_airbag; the film
-  /// shape then relaxes in structure.film_relaxation_time_s) or "bellows" (from `bellows`).
+  /// shape then relaxes in structure.film_relaxation_time_s), "fold_table" (two FE tables, folded
+  /// and open at the middle connection, with hysteresis) or "bellows" (from `bellows`).
   std::string structure_type = "pillow";
   BellowsParams bellows;             ///< used when structure_type is "bellows"
   std::string structure_table_file;  ///< table path (YAML keys structure/type, structure/table_file)
+  /// Series airway between the meter/sensor and the chamber (none by default); CellModel adds
+  /// it as the first effect when active.
+  AirwayParams airway;
 
   double plate_mass_kg = 0.6 / kGravity;     ///< loading plate (0.6 N, paper section 2.2)
   double plate_damping_n_s_m = 20.0;         ///< viscous damping of the plate guide

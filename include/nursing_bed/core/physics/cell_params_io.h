@@ -31,9 +31,10 @@ CellParams parseCellParamsYaml(const std::string& yaml_text, const std::string& 
 /**
  * The two text keys that select the structure (CellParams::structure_type, structure_table_file),
  * taken out of `flat` before the numeric table is applied:
- *   structure/type: pillow | table | bellows   which CellStructure the cell runs on (default
- *                                             pillow; bellows: the numbers under bellows/)
- *   structure/table_file: <path>      FE structure table (fe_airbag --mode table); a relative
+ *   structure/type: pillow | table | fold_table | bellows   which CellStructure the cell runs on
+ *                                     (default pillow; bellows: the numbers under bellows/)
+ *   structure/table_file: <path>      FE structure table (fe_airbag --mode table) or fold table
+ *                                     (scripts/fold_table.py); a relative
  *                                     path is taken from `base_dir` (the YAML's folder)
  * The YAML loaders here call it; `prefix` serves nested tables (e.g. "cell/").
  */

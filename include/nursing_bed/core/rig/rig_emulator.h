@@ -9,12 +9,15 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
 #include "nursing_bed/core/hardware/register_map.h"
 #include "nursing_bed/core/hardware/simulated_cell_hardware.h"
 #include "nursing_bed/core/hardware/thread_priority.h"
+#include "nursing_bed/core/io/status.h"
+#include "nursing_bed/core/rig/rig_faults.h"
 
 struct _modbus;
 struct _modbus_mapping_t;
@@ -22,8 +25,9 @@ struct _modbus_mapping_t;
 namespace nursing_bed {
 
 /// One terminal's Modbus TCP server (several clients at once) over a register image.
-/// Size: 17 members are one server's socket, clients, register image, coil timing and thread;
-/// splitting them would share the one lock the replies are made under across classes.
+/// Size: 19 members are one server's socket, clients, register image, coil timing, injected
+/// faults and thread; splitting them would share the one lock the replies are made under
+/// across classes.
 class RigTerminalServer {
  public:
   /// Throws std::runtime_error when the host is not a loopback address or the port is taken.
@@ -59,6 +63,12 @@ class RigTerminalServer {
   /// Fault injection: the next `requests` requests are answered `delay_s` late (the server
   /// stalls meanwhile, as an overloaded terminal would).
   void answerLate(long requests, double delay_s);
+  /// Fault injection: from now on each request goes unanswered with probability
+  /// `drop_probability`, else is answered `delay_s` late with probability `delay_probability`,
+  /// drawn from a generator seeded with `seed` (0 and 0: every request answered at once).
+  void setReplyFaults(double drop_probability, double delay_probability, double delay_s, std::uint32_t seed);
+  /// Fault injection: no request is answered for `seconds` (a terminal restarting).
+  void silenceFor(double seconds);
   const TerminalMap& map() const { return map_; }
 
  private:
@@ -86,6 +96,14 @@ class RigTerminalServer {
   std::atomic<long> requests_{0};
   std::atomic<long> unanswered_{0}, late_{0};
   std::atomic<double> late_delay_s_{0.0};
+  /// Injected reply faults (setReplyFaults, silenceFor), drawn on the server's thread.
+  struct ReplyFaults {
+    double drop_probability = 0.0, delay_probability = 0.0, delay_s = 0.0;
+    std::chrono::steady_clock::time_point silent_until{};
+    std::mt19937 rng;
+  };
+  ReplyFaults reply_faults_;
+  std::mutex reply_faults_mutex_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
   ThreadScheduling scheduling_;
@@ -100,6 +118,7 @@ struct RigEmulatorOptions {
   /// physics does not pause: a simulation starved for tens of ms serves the same pressure
   /// while its valves (on the servers' real-time threads) pass gas, which no real sensor does.
   int realtime_priority = 0;
+  std::uint32_t fault_seed = 1;  ///< draws of the injected faults (random cells, dropped replies)
 };
 
 /// What a test may know and a controller may not.
@@ -136,13 +155,24 @@ class RigEmulator {
   /// How the simulation thread is scheduled (options' realtime_priority; scheduleRealtime).
   const ThreadScheduling& scheduling() const { return scheduling_; }
   const std::vector<std::unique_ptr<RigTerminalServer>>& servers() const { return servers_; }
+  /// Injects a fault (test and bench use only): success naming the cells it applies to, or an
+  /// error naming what is wrong in `request` (nothing changes then).
+  Status inject(const RigFaultRequest& request, std::string* applied = nullptr);
+  /// The faults acting on a cell (none for an id not served).
+  CellFaults faults(std::uint32_t cell_id) const;
 
  private:
   struct Cell {
     std::size_t terminal = 0;
     CellRegisters registers;
     std::unique_ptr<SimulatedCellHardware> hardware;
+    CellFaults faults;  ///< injected
+    /// A restart's emptying, due halfway through its silence (the link is down by then).
+    std::optional<std::chrono::steady_clock::time_point> empty_at;
   };
+  std::vector<std::uint32_t> servedIds() const;
+  /// The terminals' part of a checked request (replies, silence) for the cells `ids`.
+  void injectIntoTerminals(RigFaultKind kind, const RigFaultRequest& request, const std::vector<std::uint32_t>& ids);
   void run();
   void applyOutputs(RigTerminalServer& server, const std::vector<double>& coil_duty, Cell& cell);
   void publishInputs(RigTerminalServer& server, const Cell& cell);
@@ -161,6 +191,8 @@ class RigEmulator {
   std::atomic<bool> stop_{false};
   std::thread thread_;
   ThreadScheduling scheduling_;
+  std::mt19937 fault_rng_;  ///< random cells of injected faults (fault_seed)
+  long injections_ = 0;     ///< faults injected, for the terminals' seeds
 };
 
 }  // namespace nursing_bed

@@ -1,0 +1,157 @@
+#include "nursing_bed/core/physics/fold_table_structure.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace nursing_bed {
+namespace {
+
+constexpr double kShapeUnitPa = 1.0e4;  // q0: the relaxed pressure in 10 kPa, as TabulatedStructure's
+constexpr double kFoldDampingJs = 1.0;  // any positive value: ds/dt = foldRate whatever it is
+
+/// Linear interpolation of y over the strictly increasing x, clamped at the ends.
+double interpolate(const std::vector<double>& x, const std::vector<double>& y, double at) {
+  if (at <= x.front()) return y.front();
+  if (at >= x.back()) return y.back();
+  const std::size_t i = std::upper_bound(x.begin(), x.end(), at) - x.begin();
+  const double a = (at - x[i - 1]) / (x[i] - x[i - 1]);
+  return (1 - a) * y[i - 1] + a * y[i];
+}
+
+double logistic(double x) { return 1.0 / (1.0 + std::exp(-std::clamp(x, -50.0, 50.0))); }
+
+StructureTableData readTable(const YAML::Node& node, const std::string& name) {
+  if (!node) throw std::runtime_error("missing key '" + name + "'");
+  StructureTableData t;
+  for (const char* key : {"heights_m", "pressures_pa", "volume_m3", "plate_force_n"}) {
+    if (!node[key]) throw std::runtime_error("missing key '" + name + "/" + key + "'");
+  }
+  t.description = name;
+  t.heights_m = node["heights_m"].as<std::vector<double>>();
+  t.pressures_pa = node["pressures_pa"].as<std::vector<double>>();
+  t.volume_m3 = node["volume_m3"].as<std::vector<std::vector<double>>>();
+  t.plate_force_n = node["plate_force_n"].as<std::vector<std::vector<double>>>();
+  return t;
+}
+
+}  // namespace
+
+Status FoldTableData::validate() const {
+  for (const auto& [name, table] : {std::pair{"folded", &folded}, std::pair{"open", &open}}) {
+    const Status s = table->validate();
+    if (!s) return Status::error(std::string(name) + ": " + s.message());
+  }
+  const std::size_t n = snap_loads_n.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(snap_loads_n[i]) || (i > 0 && !(snap_loads_n[i] > snap_loads_n[i - 1])))
+      return Status::error("snap/loads_n must be finite and strictly increasing");
+  }
+  if (n < 1) return Status::error("snap/loads_n needs at least one load");
+  if (open_pa.size() != n || close_pa.size() != n)
+    return Status::error("snap/open_pa and snap/close_pa need one value per snap load");
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(open_pa[i]) || !std::isfinite(close_pa[i]) || close_pa[i] > open_pa[i])
+      return Status::error("snap/close_pa must be finite and not above snap/open_pa");
+  }
+  if (!(fold_time_s > 0.0 && std::isfinite(fold_time_s))) return Status::error("fold_time_s must be positive");
+  if (!(snap_width_pa > 0.0 && std::isfinite(snap_width_pa))) return Status::error("snap_width_pa must be positive");
+  return Status::success();
+}
+
+namespace {
+const FoldTableData& validated(const FoldTableData& d) {
+  const Status valid = d.validate();
+  if (!valid) throw std::invalid_argument("FoldTableStructure: " + valid.message());
+  return d;
+}
+}  // namespace
+
+FoldTableStructure::FoldTableStructure(FoldTableData data, double film_relaxation_time_s, double dead_volume_m3)
+    : data_(validated(data)),
+      folded_(data_.folded, film_relaxation_time_s, dead_volume_m3),
+      open_(data_.open, film_relaxation_time_s, dead_volume_m3) {}
+
+FoldTableData FoldTableStructure::load(const std::string& path) {
+  FoldTableData d;
+  try {
+    const YAML::Node root = YAML::LoadFile(path);
+    if (root["description"]) d.description = root["description"].as<std::string>();
+    d.folded = readTable(root["folded"], "folded");
+    d.open = readTable(root["open"], "open");
+    const YAML::Node snap = root["snap"];
+    for (const char* key : {"loads_n", "open_pa", "close_pa"}) {
+      if (!snap || !snap[key]) throw std::runtime_error(std::string("missing key 'snap/") + key + "'");
+    }
+    d.snap_loads_n = snap["loads_n"].as<std::vector<double>>();
+    d.open_pa = snap["open_pa"].as<std::vector<double>>();
+    d.close_pa = snap["close_pa"].as<std::vector<double>>();
+    if (root["fold_time_s"]) d.fold_time_s = root["fold_time_s"].as<double>();
+    if (root["snap_width_pa"]) d.snap_width_pa = root["snap_width_pa"].as<double>();
+  } catch (const std::exception& e) {
+    throw std::runtime_error("fold table " + path + ": " + e.what());
+  }
+  const Status valid = d.validate();
+  if (!valid) throw std::runtime_error("fold table " + path + ": " + valid.message());
+  return d;
+}
+
+std::array<double, kMaxShapeDofs> FoldTableStructure::restShape() const {
+  return {data_.folded.pressures_pa.front() / kShapeUnitPa, 0.0};
+}
+
+double FoldTableStructure::foldRate(double s, double gauge_pressure_pa, double height_m) const {
+  const double q = gauge_pressure_pa / kShapeUnitPa;
+  const double p = std::clamp(gauge_pressure_pa, data_.folded.pressures_pa.front(), data_.folded.pressures_pa.back());
+  // The load each branch would carry here: the snap pressures are the FE's per load.
+  const double load_folded = p * folded_.evaluate(height_m, &q).effective_area_m2;
+  const double load_open = p * open_.evaluate(height_m, &q).effective_area_m2;
+  const double w = data_.snap_width_pa;
+  const double a_open = logistic((gauge_pressure_pa - interpolate(data_.snap_loads_n, data_.open_pa, load_folded)) / w);
+  const double a_close = logistic((interpolate(data_.snap_loads_n, data_.close_pa, load_open) - gauge_pressure_pa) / w);
+  // Between the thresholds s = 0 and s = 1 are both stable (the cubic); past one the drive wins.
+  return (a_open * (1.0 - s) - a_close * s + 4.0 * s * (1.0 - s) * (s - 0.5)) / data_.fold_time_s;
+}
+
+StructureEval FoldTableStructure::evaluate(double height_m, const double* shape) const {
+  const double s = std::clamp(shape[1], 0.0, 1.0);
+  const StructureEval f = folded_.evaluate(height_m, shape);
+  const StructureEval o = open_.evaluate(height_m, shape);
+  auto mix = [s](double a, double b) { return (1.0 - s) * a + s * b; };
+  StructureEval e;
+  e.volume_m3 = mix(f.volume_m3, o.volume_m3);
+  e.effective_area_m2 = mix(f.effective_area_m2, o.effective_area_m2);
+  e.dvolume_dshape[0] = mix(f.dvolume_dshape[0], o.dvolume_dshape[0]);
+  e.elastic_force[0] = mix(f.elastic_force[0], o.elastic_force[0]);
+  e.shape_damping[0] = mix(f.shape_damping[0], o.shape_damping[0]);
+  e.contact_area_m2 = mix(f.contact_area_m2, o.contact_area_m2);
+  e.surface_area_m2 = mix(f.surface_area_m2, o.surface_area_m2);
+  // The fold moves at foldRate whatever the gas pressure's mismatch with q0: its residual
+  // depends on s, q0 and h only, so the film balance (relaxedShape) solves it beside q0. The
+  // coordinate is taken unclamped there: past 0 or 1 the cubic pulls it back (a flat drive would
+  // leave the Newton solve without a slope). dV/ds is not reported: the volume itself blends
+  // the tables (the pressure follows it), but the snap's volume change does no p dV work.
+  e.shape_damping[1] = kFoldDampingJs;
+  e.elastic_force[1] = -kFoldDampingJs * foldRate(shape[1], shape[0] * kShapeUnitPa, height_m);
+  return e;
+}
+
+double FoldTableStructure::heightLimit(const double* shape) const {
+  return std::min(folded_.heightLimit(shape), open_.heightLimit(shape));
+}
+
+bool FoldTableStructure::withinLimits(double height_m, const double* shape) const {
+  return folded_.withinLimits(height_m, shape) && open_.withinLimits(height_m, shape);
+}
+
+std::string FoldTableStructure::describe() const {
+  std::ostringstream s;
+  s << "FE fold table (folded and open branches, " << data_.snap_loads_n.size()
+    << " snap loads): " << data_.description;
+  return s.str();
+}
+
+}  // namespace nursing_bed
