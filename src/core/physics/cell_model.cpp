@@ -17,6 +17,10 @@ namespace {
 // second order for any Jacobian approximation, so the Jacobian may be reused across steps.
 constexpr double kRos2Gamma = 1.0 + 0.70710678118654752440;
 
+// Sub-steps longer than this take a Jacobian of their own state: several times the time
+// constants of the cell's stiff modes (the plate on its gas spring, the film's relaxation).
+constexpr double kFreshJacobianStepS = 5.0e-3;
+
 }  // namespace
 
 std::string CellParams::validate() const {
@@ -610,7 +614,12 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
       refreshVariables(in);
     }
     const StateVector f0 = rate_at_state_;
-    if (!jacobian_fresh_ && steps_since_jacobian_ >= params_.jacobian_refresh_steps) updateJacobian(in);
+    // Steps of several default steps make the stiff modes (the plate on its gas spring, the
+    // film, the gas through an open orifice) |h lambda| >> 1; only a Jacobian of the current
+    // state damps them there, one a few steps old leaves them ringing from step to step.
+    const bool long_step = hs > kFreshJacobianStepS;
+    if (!jacobian_fresh_ && (long_step || steps_since_jacobian_ >= params_.jacobian_refresh_steps))
+      updateJacobian(in);
     StateVector next;
     const double err = attemptStep(hs, in, f0, &next);
     if (err <= 1.0 || hs < 1e-9) {
@@ -622,9 +631,10 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
       substep_s_ = h;
       rejections = 0;
     } else {
-      // Retry smaller, with a Jacobian taken at the current state.
+      // Retry at the size the estimate asks for (at most 0.9 of this one), with a Jacobian taken
+      // at the current state; halving regardless cycled through rejections on the way back up.
       if (!jacobian_fresh_) updateJacobian(in);
-      h = hs * std::clamp(0.9 / std::sqrt(err), 0.1, 0.5);
+      h = hs * std::clamp(0.9 / std::sqrt(err), 0.1, 0.9);
       if (++rejections > 60) throw std::runtime_error("CellModel::step: no step size meets the tolerance");
     }
   }
