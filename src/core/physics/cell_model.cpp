@@ -614,12 +614,11 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
       refreshVariables(in);
     }
     const StateVector f0 = rate_at_state_;
-    // Steps of several default steps make the stiff modes (the plate on its gas spring, the
-    // film, the gas through an open orifice) |h lambda| >> 1; only a Jacobian of the current
-    // state damps them there, one a few steps old leaves them ringing from step to step.
+    // Long steps make the stiff modes (the plate on its gas spring, the film, the gas through
+    // an open orifice) |h lambda| >> 1; only a Jacobian of the current state damps them there,
+    // one a few steps old leaves them ringing from step to step.
     const bool long_step = hs > kFreshJacobianStepS;
-    if (!jacobian_fresh_ && (long_step || steps_since_jacobian_ >= params_.jacobian_refresh_steps))
-      updateJacobian(in);
+    if (!jacobian_fresh_ && (long_step || steps_since_jacobian_ >= params_.jacobian_refresh_steps)) updateJacobian(in);
     StateVector next;
     const double err = attemptStep(hs, in, f0, &next);
     if (err <= 1.0 || hs < 1e-9) {

@@ -66,7 +66,7 @@ struct CellParams {
   /// Longest step advance() takes where the local error estimate allows it (a holding cell);
   /// never shorter than time_step_s.
   double max_time_step_s = 0.02;
-  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates
+  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates (steps > 5 ms: every one)
   double relative_tolerance = 1.0e-4;  ///< local error control of the sub-steps
 
   /// Empty when valid, else every problem found, separated by "; ".
@@ -112,8 +112,9 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
  *  - film shape q (CellStructure), relaxing viscously to its balance dW/dq = p_gauge dV/dq;
  *  - states of plugged-in effects.
  * Integrated with ROS2, a second-order L-stable linearly implicit (Rosenbrock-W) method whose
- * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps: the plate on its gas
- * spring and the film are stiff, the gas balances are not. A step of the default size is
+ * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps, and on every step longer
+ * than 5 ms (where only a current one damps the stiff modes): the plate on its gas spring and
+ * the film are stiff, the gas balances are not. A step of the default size is
  * split into sub-steps when the local error estimate (ROS2 against its embedded first-order
  * solution) exceeds the tolerance, as it does while the bag lifts off a bottomed plate.
  */
