@@ -98,8 +98,18 @@ class Runner:
         with self.lock:
             self.done += 1
             print("run_tests: [%d/%d] %s %s (%.0f s)" % (self.done, self.total, target[len(PREFIX):],
-                  "ok" if rc == 0 else "exit %d" % rc, time.time() - start), flush=True)
+                  outcome(log, rc), time.time() - start), flush=True)
         return rc
+
+
+def outcome(log, rc):
+    """The progress word for one target: catkin's test commands exit 0 even when a test fails,
+    so the log's own verdicts (rostest's RESULT, gtest's FAILED lines) are read too."""
+    if rc != 0:
+        return "exit %d" % rc
+    with open(log, errors="replace") as f:
+        text = f.read()
+    return "failed" if ("RESULT: FAIL" in text or "[  FAILED  ]" in text) else "ok"
 
 
 def run_pool(runner, targets, lanes, exclusive):
