@@ -192,8 +192,8 @@ TEST_F(RealFaultsFixture, AStuckShutInletAtItsNextMoveAndAStuckOpenInletAreFlagg
   const double open_flag_s = (ros::WallTime::now() - open_at).toSec();
   EXPECT_TRUE(waitFor([this] { return flagged(states_[0]); }, 5.0) == false) << "cell 0 flagged";
   EXPECT_NEAR(latestTruth(0), 0.06, 0.002);
-  std::printf("[          ] stuck-shut inlet flagged %.2f s into its move, stuck-open inlet after %.2f s\n", shut_flag_s,
-              open_flag_s);
+  std::printf("[          ] stuck-shut inlet flagged %.2f s into its move, stuck-open inlet after %.2f s\n",
+              shut_flag_s, open_flag_s);
 }
 
 }  // namespace test

@@ -291,7 +291,9 @@ TEST_F(ModbusLoopback, TheOnTimeIsHandedOutOverTheCallersPeriods) {
   std::printf("[          ] the coil was on %.4f s, the reads' means over the caller's periods give %.4f s\n", coil_s,
               counted_s);
   ASSERT_GT(coil_s, 0.15) << "the PWM'd inlet was on about half the time";
-  EXPECT_NEAR(counted_s, coil_s, 0.03 * coil_s) << "each pulse counted once";
+  // Counting over the real spans would be 5/8 of the coil's time; the band leaves room for the
+  // sleeps' jitter on a loaded machine.
+  EXPECT_NEAR(counted_s, coil_s, 0.08 * coil_s) << "each pulse counted once";
 }
 
 TEST_F(ModbusLoopback, OverALostLinkTheOutputsHeldUntilTheTerminalsWatchdogAreReported) {
