@@ -9,28 +9,13 @@
 #include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "rig_without_height_sensor.h"
 
 namespace nb = nursing_bed;
 
 namespace {
 
-/// A simulated rig without a height sensor, with the pressure input's noise and quantisation.
-std::shared_ptr<nb::SimulatedCellHardware> rigWithoutHeightSensor(const nb::AirbagCellParams& p, double height_m,
-                                                                  double load_n, double valve_dead_time_s = 0.0) {
-  nb::RigImperfections rig;
-  rig.height_sensor = false;
-  rig.adc_step_pa = 12.2;
-  rig.valve_dead_time_s = valve_dead_time_s;
-  auto hw = std::make_shared<nb::SimulatedCellHardware>(rig);
-  nb::HardwareConfig c;
-  c.control_period_s = p.control_period_s;
-  c.cell = p.cell;
-  c.pressure_noise_pa = 10.0;
-  c.initial_height_m = height_m;
-  c.load_n = load_n;
-  hw->configure(c);
-  return hw;
-}
+using nursing_bed::test::rigWithoutHeightSensor;
 
 /// Real-time-style hardware in front of a simulated plant (which runs on read(now)): the
 /// pressure and the supply pressure only, as a valve terminal reads them.

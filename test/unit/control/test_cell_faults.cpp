@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "rig_without_height_sensor.h"
 
 namespace nb = nursing_bed;
 
@@ -65,18 +66,7 @@ struct FaultyCell {
     nb::AirbagCellParams p;
     nb::AirbagObserverSetup observer;
     observer.params.valve_dead_time_s = 0.015;  // the valve's 10 ms and a reading one cycle old
-    nb::RigImperfections rig;
-    rig.height_sensor = false;
-    rig.adc_step_pa = 12.2;
-    rig.valve_dead_time_s = 0.01;
-    plant = std::make_shared<nb::SimulatedCellHardware>(rig);
-    nb::HardwareConfig c;
-    c.control_period_s = p.control_period_s;
-    c.cell = p.cell;
-    c.pressure_noise_pa = 10.0;
-    c.initial_height_m = height_m;
-    c.load_n = load_n;
-    plant->configure(c);
+    plant = nb::test::rigWithoutHeightSensor(p, height_m, load_n, 0.01);
     hw = std::make_shared<FaultyHardware>(plant);
     cell = std::make_unique<nb::AirbagCell>(p, hw, observer);
     cell->resetToHeight(height_m, load_n);
