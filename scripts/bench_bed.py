@@ -29,12 +29,12 @@ import json
 import math
 import re
 import os
-import signal
-import subprocess
 import sys
 import time
 
 import rospy
+
+from roslaunch_session import launched
 
 
 def descendants(pid):
@@ -215,10 +215,8 @@ def main():
         parser.error("--plan-arg wants key=value, got %s" % ", ".join(bad))
     n_cells = args.rows * args.cols
 
-    launch = subprocess.Popen(["roslaunch", "nursing_bed", args.launch, "rows:=%d" % args.rows,
-                               "cols:=%d" % args.cols] + launch_args,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=os.setsid)
-    try:
+    with launched(["roslaunch", "nursing_bed", args.launch, "rows:=%d" % args.rows,
+                   "cols:=%d" % args.cols] + launch_args) as launch:
         time.sleep(3.0)
         rospy.init_node("bench_bed", anonymous=True, disable_signals=True)
         counts, last, max_gap = {}, {}, {}
@@ -292,12 +290,6 @@ def main():
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(result, f, indent=2)
-    finally:
-        os.killpg(os.getpgid(launch.pid), signal.SIGINT)
-        try:
-            launch.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(os.getpgid(launch.pid), signal.SIGKILL)
 
 
 if __name__ == "__main__":

@@ -24,16 +24,15 @@ import bisect
 import collections
 import json
 import math
-import os
 import random
-import signal
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 
 import rospy
+
+from roslaunch_session import launched
 from nursing_bed.msg import BedHeights, BedState, RigTruth
 from nursing_bed.srv import InjectRigFault, SetPosture
 
@@ -296,10 +295,8 @@ def main():
     args, launch_args = parser.parse_known_args()
     n_cells = args.rows * args.cols
     extra = [] if (args.rows, args.cols) == (20, 9) else ["register_map:=" + small_map(args.rows, args.cols)]
-    launch = subprocess.Popen(["roslaunch", "nursing_bed", "real_bed.launch", "emulator:=true", "rows:=%d" % args.rows,
-                               "cols:=%d" % args.cols] + extra + launch_args,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=os.setsid)
-    try:
+    with launched(["roslaunch", "nursing_bed", "real_bed.launch", "emulator:=true", "rows:=%d" % args.rows,
+                   "cols:=%d" % args.cols] + extra + launch_args):
         time.sleep(3.0)
         rospy.init_node("soak", anonymous=True, disable_signals=True)
         score = Score(args.flag_slack_s)
@@ -316,12 +313,6 @@ def main():
         if args.json:
             with open(args.json, "w") as f:
                 json.dump(result, f, indent=2)
-    finally:
-        os.killpg(os.getpgid(launch.pid), signal.SIGINT)
-        try:
-            launch.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(os.getpgid(launch.pid), signal.SIGKILL)
 
 
 if __name__ == "__main__":
