@@ -82,8 +82,6 @@ double randomBadLoad(std::mt19937& rng) {
 
 class EdgesFixture : public PlanFixture {
  protected:
-  int cells() const { return rows_ * cols_; }
-
   std::set<std::string> nodes() {
     std::vector<std::string> list;
     ros::master::getNodes(list);
@@ -265,14 +263,7 @@ TEST_F(EdgesFixture, StrayPerCellPublishersNeitherMoveAnOwnedCellNorKeepCellsOut
   });
   ASSERT_EQ(std::system("rosnode kill /bed_manager > /dev/null 2>&1"), 0);
   const ros::WallTime killed = ros::WallTime::now();
-  const bool safe = waitFor(
-      [&] {
-        for (int id = 0; id < cells(); ++id)
-          if (states_[id].mode != AirbagState::MODE_SAFE || !(states_[id].faults & AirbagState::FAULT_COMMAND_TIMEOUT))
-            return false;
-        return true;
-      },
-      5.0);
+  const bool safe = everyCellSafeWithin(5.0);
   const double safe_s = (ros::WallTime::now() - killed).toSec();
   beat.stop();
   EXPECT_TRUE(safe) << "a stray heartbeat kept cells out of SAFE";
