@@ -320,3 +320,25 @@ TEST(ConsistencyMonitor, AHoldsSmallCorrectionsDoNotKeepTheHoldTestFromRunning) 
     EXPECT_EQ(flagged, corrections_pa > 0.0) << "hold_correction_pa " << corrections_pa << ": " << monitor.reason();
   }
 }
+
+TEST(ConsistencyMonitor, AValvePulseThatALoadShiftOutweighsIsNotJudged) {
+  // A patient's load on the plate rising 4 kPa/s as the vent opens (falling as the inlet
+  // does), from 50 ms before the pulse: the readings move against the pulse all along; a
+  // valve stuck shut under a steady load leaves them where they were.
+  for (const int direction : {1, -1}) {
+    for (const double rate_pa_s : {-4000.0, 0.0}) {
+      nb::ConsistencyMonitor monitor;
+      Sensor sensor(31);
+      runHolds(&monitor, &sensor, 0.5, 900.0, 100.0);
+      bool flagged = false;
+      for (int i = -10; i < 50 && !flagged; ++i) {
+        const double shift_pa = direction * std::max(-400.0, rate_pa_s * kPeriod * (i + 10));
+        nb::ConsistencySample s = sample(sensor.read(900.0 + shift_pa), i < 0 || i >= 10);
+        s.counted_step_pa = i >= 0 && i < 10 ? direction * 1000.0 : 0.0;
+        s.plate_period_s = 0.05;
+        flagged = monitor.update(s, kPeriod);
+      }
+      EXPECT_EQ(flagged, rate_pa_s == 0.0) << direction << " " << rate_pa_s << ": " << monitor.reason();
+    }
+  }
+}
