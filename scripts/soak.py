@@ -246,7 +246,7 @@ def run(args, score, n_cells):
     kinds = [f for f in FAULTS if not args.faults or fault_key(f) in args.faults or f[1] in args.faults]
     plans = [("alternating", ["pattern", "period_s"], ["1in3", str(args.plan_s)]),
              ("lateral_turn", ["side", "angle_deg", "ramp_s", "dwell_s"], ["left", "20", "30", str(args.plan_s / 2)])]
-    injections, recoveries, open_faults, faulted_until = [], [], [], {}
+    injections, recoveries, open_faults, faulted_until, n_faults = [], [], [], {}, 0
     t0 = rospy.get_time()
     next_plan, next_fault, plan_i = t0, (t0 + args.fault_every_s / 2) if args.fault_every_s > 0 else math.inf, 0
     score.recording = True
@@ -258,7 +258,9 @@ def run(args, score, n_cells):
             plan_i += 1
             next_plan = now + args.plan_s
         if now >= next_fault:
-            name, fault, valve, value = rng.choice(kinds)
+            # Named kinds in turn (each seen), else drawn from all.
+            name, fault, valve, value = kinds[n_faults % len(kinds)] if args.faults else rng.choice(kinds)
+            n_faults += 1
             cells = sorted(rng.sample(range(n_cells), min(args.fault_cells, n_cells)))
             if inject(fault, cells, valve, value):
                 open_faults.append((name, cells, now))
@@ -305,7 +307,7 @@ def main():
                         help="a fault about this often (+-25 %%); 0: none (the fault-free baseline)")
     parser.add_argument("--fault-cells", type=int, default=5)
     parser.add_argument("--faults", type=lambda s: s.split(","), default=[],
-                        help="the fault kinds drawn, comma-separated (e.g. leak,stuck_open:vent); default: all")
+                        help="the fault kinds, in turn, comma-separated (e.g. leak,stuck_open:vent); default: all, drawn")
     parser.add_argument("--fault-hold-s", type=float, default=60.0, help="a fault is cleared after this long")
     parser.add_argument("--flag-within-s", type=float, default=30.0, help="a fault's flag counts this long after it")
     parser.add_argument("--recover-s", type=float, default=60.0, help="flags this long after a clearing are not false")
