@@ -175,6 +175,7 @@ void BodyModel::buildSegment(Segment* seg) const {
       if (y <= -half_w || y >= half_w) continue;
       SubPoint sp;
       sp.u = y - seg->y_c;
+      sp.x = x;
       const double v = x - seg->x_c;
       sp.q = sp.u * sp.u / (2.0 * seg->radius_y) + v * v / (2.0 * seg->radius_x);
       sp.area = dx * dy;
@@ -431,6 +432,35 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
   state.roll_rad = trunk_mass > 0.0 ? trunk_roll / trunk_mass : 0.0;
   cellPressures(&state);
   return state;
+}
+
+std::vector<ContactPoint> BodyModel::contactMap(const std::vector<double>& cell_heights_m) const {
+  checkHeights(cell_heights_m);
+  const double k = params_.tissue_stiffness_pa_m;
+  const double x_vertex = 0.5 * grid_.lengthM() - params_.head_clearance_m;
+  std::vector<ContactPoint> out;
+  std::vector<double> surface;
+  for (std::size_t s = 0; s < segments_.size(); ++s) {
+    const Segment& seg = segments_[s];
+    if (!seg.on_bed) continue;
+    surfaceUnder(seg, cell_heights_m, &surface);
+    const double half_width = 0.5 * (seg.y1 - seg.y0);
+    for (std::size_t i = 0; i < seg.points.size(); ++i) {
+      const SubPoint& sp = seg.points[i];
+      const double underside = seg.z + seg.t * sp.u + sp.q;
+      const double d = surface[i] - underside;
+      ContactPoint c;
+      c.segment = static_cast<int>(s);
+      c.from_vertex_m = x_vertex - sp.x;
+      c.lateral_m = sp.u;
+      c.half_width_m = half_width;
+      c.area_m2 = sp.area;
+      c.pressure_pa = d > 0.0 ? k * d : 0.0;
+      c.skin_height_m = std::max(surface[i], underside);
+      out.push_back(c);
+    }
+  }
+  return out;
 }
 
 std::vector<int> BodyModel::rowsOf(const std::vector<int>& segment_indices) const {

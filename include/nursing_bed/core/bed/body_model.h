@@ -91,6 +91,20 @@ struct RegionPressures {
   double occiput = 0.0;  ///< under the head
 };
 
+/// One contact sub-point of the last solve: where it is on the body and what it bears. The
+/// body's interface-pressure map, at contact_resolution_m; tissue-load metrics are taken over it.
+struct ContactPoint {
+  int segment = 0;             ///< index in segmentTable()
+  double from_vertex_m = 0.0;  ///< along the body from the top of the head [m]
+  double lateral_m = 0.0;      ///< across the segment from its long axis, + to the patient's left [m]
+  double half_width_m = 0.0;   ///< the segment footprint's half width [m]
+  double area_m2 = 0.0;        ///< area the point stands for [m^2]
+  double pressure_pa = 0.0;    ///< interface pressure (0: no contact) [Pa]
+  /// Height of the skin above the bed base (cell height 0) here: the cell surface where the
+  /// point is in contact, the segment's underside where it is not [m].
+  double skin_height_m = 0.0;
+};
+
 /// The solved body on the cells.
 struct BodyState {
   std::vector<double> cell_load_n;            ///< by cell id: the body's share [N] (no plate weight)
@@ -131,6 +145,11 @@ class BodyModel {
   /// when the size is not grid.cells() or a height is not finite.
   BodyState solve(const std::vector<double>& cell_heights_m);
 
+  /// The contact sub-points of every segment on the bed at the poses of the last solve() on
+  /// `cell_heights_m` (pass the same heights); cheaper than solve() (no Newton), for
+  /// occasional tissue-load metrics. Throws std::invalid_argument as solve() does.
+  std::vector<ContactPoint> contactMap(const std::vector<double>& cell_heights_m) const;
+
   /// Forgets the warm start (the next solve starts from scratch).
   void reset();
 
@@ -156,6 +175,7 @@ class BodyModel {
  private:
   struct SubPoint {
     double u = 0.0;                        // y - y_c [m]
+    double x = 0.0;                        // along the bed [m]
     double q = 0.0;                        // (y - y_c)^2 / 2R_y + (x - x_c)^2 / 2R_x [m]
     double area = 0.0;                     // [m^2]
     std::uint32_t cell[4] = {0, 0, 0, 0};  // cells whose heights make the surface here
