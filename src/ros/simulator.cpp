@@ -313,7 +313,6 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
         params_.load_filter_time_s);
 
   tissue_ = std::make_unique<TissueLoadMeter>(params_.tissue_load, defaultTissueRegions());
-
   const std::size_t n = layout_.cells().size();
   heights_m_.assign(n, grid.min_height_m);
   reported_load_n_.assign(n, kNaN);

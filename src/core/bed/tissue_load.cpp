@@ -91,28 +91,36 @@ const std::vector<TissueRegion>& defaultTissueRegions() {
 
 std::vector<RegionLoad> measureRegions(const std::vector<ContactPoint>& points,
                                        const std::vector<TissueRegion>& regions, double height_m) {
+  // One pass over the points: each point's segment names the regions it may fall in.
+  std::vector<std::vector<std::size_t>> regions_of;
+  for (std::size_t r = 0; r < regions.size(); ++r)
+    for (int seg : regions[r].segments) {
+      if (seg < 0) continue;
+      if (static_cast<std::size_t>(seg) >= regions_of.size()) regions_of.resize(seg + 1);
+      regions_of[seg].push_back(r);
+    }
   std::vector<RegionLoad> out(regions.size());
-  for (std::size_t r = 0; r < regions.size(); ++r) {
-    const TissueRegion& region = regions[r];
-    RegionLoad& load = out[r];
-    load.margin_m = kInf;
-    bool seen = false;
-    for (const ContactPoint& p : points) {
-      if (std::find(region.segments.begin(), region.segments.end(), p.segment) == region.segments.end()) continue;
-      const double along = p.from_vertex_m / height_m;
-      const double across = p.half_width_m > 0.0 ? p.lateral_m / p.half_width_m : 0.0;
+  for (RegionLoad& load : out) load.margin_m = kInf;
+  for (const ContactPoint& p : points) {
+    if (p.segment < 0 || static_cast<std::size_t>(p.segment) >= regions_of.size()) continue;
+    const double along = p.from_vertex_m / height_m;
+    const double across = p.half_width_m > 0.0 ? p.lateral_m / p.half_width_m : 0.0;
+    for (std::size_t r : regions_of[p.segment]) {
+      const TissueRegion& region = regions[r];
       // Half-open windows: a point on a shared edge belongs to one region only.
       if (along < region.from_vertex_min_h || along >= region.from_vertex_max_h) continue;
       if (across < region.lateral_min || across >= region.lateral_max) continue;
-      seen = true;
+      RegionLoad& load = out[r];
       load.margin_m = std::min(load.margin_m, p.skin_height_m);
       if (!(p.pressure_pa > 0.0)) continue;
       load.peak_pressure_pa = std::max(load.peak_pressure_pa, p.pressure_pa);
       load.contact_area_m2 += p.area_m2;
       load.force_n += p.pressure_pa * p.area_m2;
     }
+  }
+  for (RegionLoad& load : out) {
     if (load.contact_area_m2 > 0.0) load.mean_pressure_pa = load.force_n / load.contact_area_m2;
-    if (!seen) load.margin_m = kNaN;
+    if (std::isinf(load.margin_m)) load.margin_m = kNaN;  // no point of the region on the bed
   }
   return out;
 }
