@@ -32,7 +32,8 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const std::set<std::string> kPatientKeys = {"mass_kg",          "height_m",
                                             "head_clearance_m", "tissue_stiffness_pa_m",
                                             "lateral_offset_m", "contact_resolution_m",
-                                            "smooth_cover",     "max_roll_rad"};
+                                            "smooth_cover",     "max_roll_rad",
+                                            "articulated",      "joint_stiffness_n_m"};
 
 /// Reads `key` when it is set; throws naming it when it has the wrong type.
 template <typename T>
@@ -264,6 +265,8 @@ SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
   readParam(pnh, "patient/contact_resolution_m", &p.patient.contact_resolution_m);
   readParam(pnh, "patient/smooth_cover", &p.patient.smooth_cover);
   readParam(pnh, "patient/max_roll_rad", &p.patient.max_roll_rad);
+  readParam(pnh, "patient/articulated", &p.patient.articulated);
+  readParam(pnh, "patient/joint_stiffness_n_m", &p.patient.joint_stiffness_n_m);
   return p;
 }
 

@@ -40,8 +40,9 @@ constexpr int kMeterEvery = 25;       // body steps per tissue-load sample (2 Hz
 // The bed: cells, body and the running plan, stepped together in simulated time.
 class Bed {
  public:
-  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa)
-      : grid_(grid), config_(config), body_(nb::PatientParams{}, grid) {
+  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+      const nb::PatientParams& patient = nb::PatientParams{})
+      : grid_(grid), config_(config), body_(patient, grid) {
     nb::AirbagCellParams p;
     p.cell.supply_pressure_pa = supply_pa;
     for (int i = 0; i < grid.cells(); ++i) {
@@ -179,8 +180,9 @@ Json regionDoses(const nb::TissueLoadMeter& meter) {
 }
 
 /// 1. Flat bed: peaks after settling.
-Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
-  Bed bed(grid, config, supply_pa);
+Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+             const nb::PatientParams& patient) {
+  Bed bed(grid, config, supply_pa, patient);
   bed.start({"flat", {}, {}});
   bed.run(15.0);
   const nb::BodyState& s = bed.body();
@@ -245,10 +247,11 @@ Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
 }
 
 /// 3. Lateral turn: body roll at the end of the ramp (+ 10 s) per requested angle.
-Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
+Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+                  const nb::PatientParams& patient) {
   Json turns = Json::array();
   for (int angle = 5; angle <= 30; angle += 5) {
-    Bed bed(grid, config, supply_pa);
+    Bed bed(grid, config, supply_pa, patient);
     bed.start({"flat", {}, {}});
     bed.run(10.0);
     const double ramp = std::max(config.turn_ramp_s, angle / config.max_tilt_rate_deg_s);
@@ -290,9 +293,10 @@ Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, double supp
 }
 
 constexpr const char* kSynopsis =
-    "usage: bed_study --out DIR [--period S]\n"
+    "usage: bed_study --out DIR [--period S] [--articulated]\n"
     "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
-    "DIR/bed_study.json.";
+    "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
+    "lateral turns only (DIR/bed_study_articulated.json).";
 
 }  // namespace
 
@@ -306,6 +310,8 @@ int main(int argc, char** argv) {
   app.add_option("--period", period_s, "period of the alternating plans [s]")
       ->type_name("S")
       ->check(tools::positiveNumber());
+  bool articulated = false;
+  app.add_flag("--articulated", articulated, "the articulated patient: flat bed and lateral turns only");
   const int parsed = tools::parseCommandLine(app, argc, argv);
   if (parsed != tools::kRun) return parsed;
 
@@ -313,11 +319,20 @@ int main(int argc, char** argv) {
   const nb::BedGrid grid;
   const nb::PlanConfig config;
   Json study;
-  study["flat"] = flatBed(grid, config, supply_pa);
+  if (articulated) {
+    nb::PatientParams patient;
+    patient.articulated = true;
+    study["flat"] = flatBed(grid, config, supply_pa, patient);
+    study["lateral_turn"] = lateralTurns(grid, config, supply_pa, patient);
+    std::ofstream(std::filesystem::path(out_dir) / "bed_study_articulated.json") << study.dump(2) << "\n";
+    std::cout << "wrote " << out_dir << "/bed_study_articulated.json\n";
+    return 0;
+  }
+  study["flat"] = flatBed(grid, config, supply_pa, nb::PatientParams{});
   Json& share = study["share_above_32mmhg"];
   for (const std::string plan : {"flat", "1in2", "1in3"})
     share[plan] = shareAbove32(grid, config, supply_pa, period_s, plan);
-  study["lateral_turn"] = lateralTurns(grid, config, supply_pa);
+  study["lateral_turn"] = lateralTurns(grid, config, supply_pa, nb::PatientParams{});
   study["cpr_seconds"] = cprTimes(grid, config, supply_pa);
   std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << study.dump(2) << "\n";
   std::cout << "wrote " << out_dir << "/bed_study.json\n";
