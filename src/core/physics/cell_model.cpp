@@ -678,7 +678,8 @@ bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
   return same(a.inlet_opening, b.inlet_opening) && same(a.vent_opening, b.vent_opening) &&
          same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) && same(a.load_n, b.load_n) &&
          same(a.supply_pressure_pa, b.supply_pressure_pa) && a.prescribed_inflow == b.prescribed_inflow &&
-         same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) && a.inlet_closed == b.inlet_closed;
+         same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) && a.inlet_closed == b.inlet_closed &&
+         same(a.flow_gauge_pressure_pa, b.flow_gauge_pressure_pa);
 }
 
 Readings CellModel::measure() const {
