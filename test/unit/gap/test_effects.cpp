@@ -275,8 +275,10 @@ TEST(GapEffects, SensorLagDelaysTheMeasuredPressure) {
   }
   EXPECT_GT(largest_lag, 2000.0);  // rising pressure reads low, worst where dp/dt is large
   EXPECT_NEAR(at(s, kHoldStart + 3.0).m.gauge_pressure_pa, at(s, kHoldStart + 3.0).v.gauge_pressure_pa, 1.0);
-  // The true cell is the nominal one.
-  EXPECT_NEAR(at(s, 10.0).v.height_m, at(nominal(), 10.0).v.height_m, 1e-7);
+  // The true cell is the nominal one. The lag's state joins the step control, so the two runs
+  // take different steps; each is accurate to the integrator's relative tolerance (1e-4 of
+  // 1 cm + h per step in height), so they agree to a micron, not to the last digits.
+  EXPECT_NEAR(at(s, 10.0).v.height_m, at(nominal(), 10.0).v.height_m, 1e-6);
 }
 
 TEST(GapEffects, SupplyLineReadsHighWhileFlowingAndDropsWhenTheFlowStops) {
