@@ -389,7 +389,8 @@ int runCalibrate(const AnalysisArgs& a) {
 
 void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
   defineCommon(sub, a);
-  sub.add_option("--effects", a->effects, "candidates to try, comma-separated (default: all seven and the channel "
+  sub.add_option("--effects", a->effects,
+                 "candidates to try, comma-separated (default: all seven and the channel "
                  "distortions of the runs' channels)")
       ->type_name("NAME,NAME...");
   sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");

@@ -200,8 +200,7 @@ std::map<std::string, std::map<std::string, double>> parseDistortion(const std::
                                   " (known: " + knownKinds(channel) + ")");
     if (eq == std::string::npos)
       throw std::invalid_argument("distortion '" + text + "': " + kind + " needs a value (" + kind + "=value)");
-    if (!kinds.insert(kind).second)
-      throw std::invalid_argument("distortion '" + text + "': " + kind + " given twice");
+    if (!kinds.insert(kind).second) throw std::invalid_argument("distortion '" + text + "': " + kind + " given twice");
     const std::string value = item.substr(eq + 1);
     double v = 0.0;
     const char* begin = value.data();
@@ -257,7 +256,8 @@ void distortSeries(const std::string& kind, double value, const std::vector<doub
 
 void undistortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x) {
   if (kind == "shift") return shiftSeries(-value, t, x);
-  if (kind == "lag") throw std::invalid_argument("a lag of a measured input cannot be undone (it differentiates noise)");
+  if (kind == "lag")
+    throw std::invalid_argument("a lag of a measured input cannot be undone (it differentiates noise)");
   for (std::size_t i = 0; i < x->size(); ++i) {
     double& v = (*x)[i];
     if (!std::isfinite(v)) continue;

@@ -280,9 +280,8 @@ class ResidualEvaluator {
     std::lock_guard<std::mutex> lock(base_mutex_);
     if (base_) return;
     auto replays = std::make_shared<std::vector<Replay>>(fit_.runs.size());
-    parallelFor(static_cast<int>(fit_.runs.size()), fit_.threads, [&](int r) {
-      (*replays)[r] = replayRun(*fit_.runs[r].data, params, {}, fit_.runs[r].max_substeps);
-    });
+    parallelFor(static_cast<int>(fit_.runs.size()), fit_.threads,
+                [&](int r) { (*replays)[r] = replayRun(*fit_.runs[r].data, params, {}, fit_.runs[r].max_substeps); });
     base_ = replays;
   }
 
@@ -309,7 +308,7 @@ class ResidualEvaluator {
 
   const FitData& fit_;
   const ModelSpec& model_;
-  std::vector<int> offset_;  ///< each run's first residual slot
+  std::vector<int> offset_;   ///< each run's first residual slot
   bool output_only_ = false;  ///< output-side channel distortions only: base_ transformed
   std::shared_ptr<const std::vector<Replay>> base_;
   std::mutex base_mutex_;

@@ -199,8 +199,7 @@ void verdictSection(std::ostream& m, const DiagnosisReport& r) {
   if (r.status == "explained") {
     m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "), ";
     for (const auto& d : r.verdict_distortions) m << "**" << d << "**, ";
-    m
-      << (r.calibration.anyMoved() ? "on top of the calibrated " + calibrationText(r.calibration) + ". "
+    m << (r.calibration.anyMoved() ? "on top of the calibrated " + calibrationText(r.calibration) + ". "
                                    : "no model parameter needed recalibration. ");
     m << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
       << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)
