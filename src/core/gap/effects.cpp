@@ -45,9 +45,35 @@ EffectParamSpec param(const std::string& name, const std::string& unit, const st
   return p;
 }
 
-std::vector<EffectSpec> makeCatalog() {
-  constexpr bool kCandidate = true, kTestOnly = false;  // test-only: out-of-library effects for the blind check
+/// Out-of-library effects for the blind check: the generator plants them, the diagnosis never fits them.
+std::vector<EffectSpec> testOnlyEffects() {
+  constexpr bool kTestOnly = false;
   return {
+      {"ambient_drift",
+       kTestOnly,
+       "gas exchanges heat (8 W/(m^2 K)) with surroundings whose temperature drifts linearly",
+       "pressure drifts during hold, up or down, steadily over the whole run",
+       "drift_k_s",
+       {param("drift_k_s", "K/s", "drift rate of the surroundings' temperature", 0.0, 0.02, 0.1, false, -1.0, 1.0,
+              true)},
+       "",
+       "",
+       ""},
+      {"pressure_offset_drift",
+       kTestOnly,
+       "the pressure sensor's zero drifts linearly with time",
+       "pressure reading offset growing linearly with time, whatever the cell does",
+       "drift_pa_s",
+       {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)},
+       "",
+       "",
+       ""},
+  };
+}
+
+std::vector<EffectSpec> makeCatalog() {
+  constexpr bool kCandidate = true;
+  std::vector<EffectSpec> catalog{
       {"heat_transfer",
        kCandidate,
        "gas exchanges heat with the film at ambient temperature: Q = h_c A_surface (T_amb - T)",
@@ -119,26 +145,9 @@ std::vector<EffectSpec> makeCatalog() {
        "",
        "",
        ""},
-      {"ambient_drift",
-       kTestOnly,
-       "gas exchanges heat (8 W/(m^2 K)) with surroundings whose temperature drifts linearly",
-       "pressure drifts during hold, up or down, steadily over the whole run",
-       "drift_k_s",
-       {param("drift_k_s", "K/s", "drift rate of the surroundings' temperature", 0.0, 0.02, 0.1, false, -1.0, 1.0,
-              true)},
-       "",
-       "",
-       ""},
-      {"pressure_offset_drift",
-       kTestOnly,
-       "the pressure sensor's zero drifts linearly with time",
-       "pressure reading offset growing linearly with time, whatever the cell does",
-       "drift_pa_s",
-       {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)},
-       "",
-       "",
-       ""},
   };
+  for (auto& e : testOnlyEffects()) catalog.push_back(std::move(e));
+  return catalog;
 }
 
 }  // namespace

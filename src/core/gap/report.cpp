@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/effects.h"
 
 namespace nursing_bed {
@@ -58,8 +59,9 @@ std::string paramsText(const std::map<std::string, double>& params) {
   std::string s;
   for (const auto& [k, v] : params) {
     std::string unit;
-    for (const auto& e : effectCatalog())
-      if (const EffectParamSpec* p = e.param(k)) unit = p->unit == "-" ? "" : " " + p->unit;
+    for (const auto* catalog : {&effectCatalog(), &distortionCatalog()})
+      for (const auto& e : *catalog)
+        if (const EffectParamSpec* p = e.param(k)) unit = p->unit == "-" ? "" : " " + p->unit;
     s += (s.empty() ? "" : ", ") + k + " = " + general(v) + unit;
   }
   return s;
