@@ -183,8 +183,9 @@ TEST(ChannelDistortion, SynthPlantsDistortionsOnTheTrueReadings) {
   EXPECT_EQ(planted.effect_names, std::vector<std::string>{"pressure_sensor_lag"});
   const nb::RunData& a = clean.runs[1];
   const nb::RunData& b = planted.runs[1];
-  // The sensor lag's state changes the integrator's steps by microns (the gain: millimetres).
-  for (std::size_t i = 0; i < a.size(); i += 37) EXPECT_NEAR(b.h_m[i], 0.96 * a.h_m[i], 1e-6);
+  // The sensor lag's extra state changes the integrator's steps, which moves the plate within
+  // the step tolerance (a few microns); a wrong gain would be off by millimetres.
+  for (std::size_t i = 0; i < a.size(); i += 37) EXPECT_NEAR(b.h_m[i], 0.96 * a.h_m[i], 5e-6);
   EXPECT_DOUBLE_EQ(b.load_n, a.load_n + 0.5);
   EXPECT_NE(nb::test::slurp(fs::path(o.out_dir) / "truth.json").find("\"channel\": \"height\""), std::string::npos);
 }
