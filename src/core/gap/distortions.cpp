@@ -1,7 +1,6 @@
 #include "nursing_bed/core/gap/distortions.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <iomanip>
 #include <set>
@@ -9,6 +8,7 @@
 #include <stdexcept>
 
 #include "nursing_bed/core/gap/replay.h"
+#include "nursing_bed/core/io/number_text.h"
 
 namespace nursing_bed {
 namespace {
@@ -203,11 +203,7 @@ std::map<std::string, std::map<std::string, double>> parseDistortion(const std::
     if (!kinds.insert(kind).second) throw std::invalid_argument("distortion '" + text + "': " + kind + " given twice");
     const std::string value = item.substr(eq + 1);
     double v = 0.0;
-    const char* begin = value.data();
-    const char* end = value.data() + value.size();
-    if (begin != end && *begin == '+') ++begin;
-    const auto res = std::from_chars(begin, end, v);
-    if (value.empty() || res.ec != std::errc() || res.ptr != end || !std::isfinite(v))
+    if (!parseFiniteNumber(value, &v))
       throw std::invalid_argument("distortion '" + text + "': " + kind + " value '" + value +
                                   "' is not a finite number");
     out[m->effect][m->param] = v;

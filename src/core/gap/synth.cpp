@@ -19,6 +19,7 @@
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/io/number_text.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
 #include "nursing_bed/core/physics/pillow_structure.h"
@@ -90,11 +91,7 @@ SynthEffectRequest parseEffectRequest(const std::string& text) {
                                   ")");
     }
     double v = 0.0;
-    const char* begin = value.data();
-    const char* end = value.data() + value.size();
-    if (begin != end && *begin == '+') ++begin;
-    const auto res = std::from_chars(begin, end, v);
-    if (value.empty() || res.ec != std::errc() || res.ptr != end || !std::isfinite(v))
+    if (!parseFiniteNumber(value, &v))
       throw std::invalid_argument("effect '" + r.name + "': parameter " + key + ": '" + value +
                                   "' is not a finite number");
     if (r.params.count(key)) throw std::invalid_argument("effect '" + r.name + "': parameter " + key + " given twice");
