@@ -170,7 +170,20 @@ TEST_F(EdgesFixture, FuzzedArgumentsToEveryServiceAndTopicAreRefusedAndChangeNot
   for (const char* s : {"/bed_manager/set_posture", "/bed_manager/set_airbag_heights"})
     ASSERT_TRUE(ros::service::waitForService(s, ros::Duration(5.0)));
   const std::set<std::string> nodes_before = nodes();
-  const std::string before = stateText();
+  // The reference is a steady state: the setpoint ramp and mode may still end after the heights settle.
+  std::string before = stateText();
+  ros::WallTime steady_since = ros::WallTime::now();
+  ASSERT_TRUE(waitFor(
+      [&] {
+        const std::string now = stateText();
+        if (now != before) {
+          before = now;
+          steady_since = ros::WallTime::now();
+        }
+        return (ros::WallTime::now() - steady_since).toSec() >= 1.0;
+      },
+      10.0))
+      << "the bed did not hold a steady state before the fuzzing: " << before;
   const auto counts_before = counts_;
   // Topics: every per-cell topic and the bed-wide ones, from this (stray) node.
   std::vector<ros::Publisher> loads, setpoints, vents, heartbeats;
