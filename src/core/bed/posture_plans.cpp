@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <set>
@@ -10,6 +9,7 @@
 #include <stdexcept>
 
 #include "nursing_bed/core/io/errors.h"
+#include "nursing_bed/core/io/number_text.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
@@ -271,19 +271,8 @@ class AlternatingPlan : public PosturePlan {
 }  // namespace
 
 bool parseDecimal(const std::string& text, double* value) {
-  // [sign] digits [. digits] [e [sign] digits]: std::from_chars over the whole text, without
-  // recursion; longer than any double needs is refused (a huge argument must not cost a stack).
-  if (text.empty() || text.size() > kMaxNumberChars) return false;
-  const char* first = text.data();
-  const char* last = text.data() + text.size();
-  if (*first == '+' || *first == '-') ++first;  // one sign; from_chars takes only '-'
-  if (first == last || !(std::isdigit(static_cast<unsigned char>(*first)) || *first == '.')) return false;
-  if (text[0] == '-') --first;
-  double v = 0.0;
-  const auto [end, error] = std::from_chars(first, last, v, std::chars_format::general);
-  if (error != std::errc() || end != last || !std::isfinite(v)) return false;
-  *value = v;
-  return true;
+  // Longer than any double needs is refused before parsing: a huge argument must not cost time.
+  return !text.empty() && text.size() <= kMaxNumberChars && parseFiniteNumber(text, value);
 }
 
 std::vector<double> rollSlopeWeights(const BedGrid& grid, const BodyFootprint& body, double support_half_width_m) {

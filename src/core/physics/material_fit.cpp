@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -13,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/number_text.h"
 #include "nursing_bed/core/physics/units.h"
 
 namespace nursing_bed {
@@ -41,17 +41,6 @@ std::string headerName(const std::string& field) {
   std::transform(name.begin(), name.end(), name.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return name;
-}
-
-/// Parses a whole field as a finite number.
-bool parseNumber(const std::string& field, double* value) {
-  if (field.empty()) return false;
-  errno = 0;
-  char* end = nullptr;
-  const double v = std::strtod(field.c_str(), &end);
-  if (end != field.c_str() + field.size() || errno == ERANGE || !std::isfinite(v)) return false;
-  *value = v;
-  return true;
 }
 
 /// Index of whichever of the two names the header has; -1 if neither. Throws if both or repeated.
@@ -118,7 +107,7 @@ TensileData readTensileCsv(const std::string& path) {
     const int cols[2] = {stretch_col, stress_col};
     for (int k = 0; k < 2; ++k) {
       const auto c = static_cast<std::size_t>(cols[k]);
-      if (!parseNumber(fields[c], &values[k]))
+      if (!parseFiniteNumber(fields[c], &values[k]))
         throw std::runtime_error(where + ": column '" + names[c] + "': '" + fields[c] + "' is not a finite number");
     }
     const double stretch = strain_given ? 1.0 + values[0] : values[0];
