@@ -5,7 +5,8 @@
 // doc/bed_study.md: peak interface pressures on the flat bed, the share of time each region
 // spends above 32 mmHg under alternating 1-in-2 and 1-in-3 with the tissue-load metrics per
 // region (core TissueLoadMeter), the body roll per requested turn angle, and the CPR time from
-// every plan.
+// every plan. With --plans, only the support table: the chosen plans side by side on the same
+// patient (tissue-load metrics per region over a long run).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -90,6 +91,15 @@ class Bed {
   void run(double duration) {
     run(duration, [](double) {});
   }
+  /// Total area of the body's contact points on the last solve [m^2].
+  double contactAreaM2() const {
+    double area = 0.0;
+    for (const nb::ContactPoint& p : body_.contactMap(heights_))
+      if (p.pressure_pa > 0.0) area += p.area_m2;
+    return area;
+  }
+  /// The running plan's phase.
+  std::string phase() const { return plan_ ? plan_->targets(t_ - plan_start_).phase : ""; }
 
   const nb::BodyState& body() const { return state_; }
   /// The default regions' loads on the last solve.
@@ -105,8 +115,19 @@ class Bed {
   double time() const { return t_; }
 
  private:
+  // What a bed senses, as the bed manager gets it: each cell's gauge pressure and the load its
+  // controller estimates from it (plate weight included), no simulator truth.
+  nb::SensedCells sensed() const {
+    nb::SensedCells s;
+    for (const auto& c : cells_) {
+      s.gauge_pressure_pa.push_back(c->measurement().gauge_pressure_pa);
+      s.load_n.push_back(c->loadEstimate());
+    }
+    return s;
+  }
+
   void applyPlan() {
-    const nb::PlanTargets tg = plan_->targets(t_ - plan_start_);
+    const nb::PlanTargets tg = plan_->sensedTargets(t_ - plan_start_, sensed());
     for (int i = 0; i < grid_.cells(); ++i) {
       if (tg.vent_all) {
         if (!vented_) cells_[i]->requestVent(t_);
@@ -292,11 +313,53 @@ Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, double supp
   return seconds_from;
 }
 
+/// The requests of the plans the support table can compare.
+const std::map<std::string, nb::PlanRequest>& comparablePlans() {
+  static const std::map<std::string, nb::PlanRequest> plans = {
+      {"flat", {"flat", {}, {}}},
+      {"alternating_1in2", {"alternating", {{"pattern", "1in2"}}, {}}},
+      {"alternating_1in3", {"alternating", {{"pattern", "1in3"}}, {}}},
+      {"lateral_turn_30", {"lateral_turn", {{"side", "left"}, {"angle_deg", "30"}, {"return", "no"}}, {}}},
+      {"adaptive", {"adaptive", {}, {}}},
+  };
+  return plans;
+}
+
+/// 5. One plan on the patient: settled on the flat bed, then `warmup_s` under the plan (its
+/// transition), then `duration_s` measured: per region the highest peak, the share of time
+/// above 32 mmHg, the dose per hour, the lowest margin; the body's mean contact area.
+Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+                const nb::PatientParams& patient, const std::string& name, double warmup_s, double duration_s) {
+  Bed bed(grid, config, supply_pa, patient);
+  bed.start({"flat", {}, {}});
+  bed.run(15.0);
+  bed.start(comparablePlans().at(name));
+  bed.run(warmup_s);
+  nb::TissueLoadMeter meter(nb::TissueLoadParams{}, nb::defaultTissueRegions());
+  double area_sum = 0.0;
+  int samples = 0;
+  std::map<std::string, double> phase_s;
+  bed.run(duration_s, [&](double) {
+    if (++samples % kMeterEvery != 0) return;
+    meter.sample(bed.regionLoads(), kMeterEvery * kBodyStepS);
+    area_sum += bed.contactAreaM2();
+    phase_s[bed.phase()] += kMeterEvery * kBodyStepS;
+  });
+  const double area_cm2 = 1e4 * area_sum / (samples / kMeterEvery);
+  std::printf("%s (%.0f s after a %.0f s warm-up): body contact area %.0f cm^2\n", name.c_str(), duration_s, warmup_s,
+              area_cm2);
+  Json out = {{"contact_area_cm2", number(area_cm2)}, {"regions", regionDoses(meter)}};
+  for (const auto& [phase, seconds] : phase_s) out["phase_s"][phase] = number(seconds);
+  return out;
+}
+
 constexpr const char* kSynopsis =
-    "usage: bed_study --out DIR [--period S] [--articulated]\n"
+    "usage: bed_study --out DIR [--period S] [--articulated] [--plans LIST [--duration S] [--warmup S]]\n"
     "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
     "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
-    "lateral turns only (DIR/bed_study_articulated.json).";
+    "lateral turns only (DIR/bed_study_articulated.json). With --plans (comma-separated: flat,\n"
+    "alternating_1in2, alternating_1in3, lateral_turn_30, adaptive), only the support table of\n"
+    "those plans (DIR/bed_study_support.json), on the articulated patient with --articulated.";
 
 }  // namespace
 
@@ -312,6 +375,20 @@ int main(int argc, char** argv) {
       ->check(tools::positiveNumber());
   bool articulated = false;
   app.add_flag("--articulated", articulated, "the articulated patient: flat bed and lateral turns only");
+  std::vector<std::string> plans;
+  double duration_s = 3600.0, warmup_s = 300.0;
+  std::vector<std::string> plan_names;
+  for (const auto& p : comparablePlans()) plan_names.push_back(p.first);
+  app.add_option("--plans", plans, "only the support table, for these plans")
+      ->delimiter(',')
+      ->type_name("LIST")
+      ->check(CLI::IsMember(plan_names));
+  app.add_option("--duration", duration_s, "support table: measured time per plan [s]")
+      ->type_name("S")
+      ->check(tools::positiveNumber());
+  app.add_option("--warmup", warmup_s, "support table: time under the plan before measuring [s]")
+      ->type_name("S")
+      ->check(CLI::NonNegativeNumber);
   const int parsed = tools::parseCommandLine(app, argc, argv);
   if (parsed != tools::kRun) return parsed;
 
@@ -319,6 +396,18 @@ int main(int argc, char** argv) {
   const nb::BedGrid grid;
   const nb::PlanConfig config;
   Json study;
+  if (!plans.empty()) {
+    nb::PatientParams patient;
+    patient.articulated = articulated;
+    study["patient"] = articulated ? "articulated" : "free segments";
+    study["warmup_s"] = warmup_s;
+    study["duration_s"] = duration_s;
+    for (const std::string& name : plans)
+      study["plans"][name] = supportRow(grid, config, supply_pa, patient, name, warmup_s, duration_s);
+    std::ofstream(std::filesystem::path(out_dir) / "bed_study_support.json") << study.dump(2) << "\n";
+    std::cout << "wrote " << out_dir << "/bed_study_support.json\n";
+    return 0;
+  }
   if (articulated) {
     nb::PatientParams patient;
     patient.articulated = true;

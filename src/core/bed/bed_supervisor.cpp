@@ -231,6 +231,17 @@ std::size_t BedSupervisor::watchCells(double now_s) {
   return failed.size() + link_changed;
 }
 
+SensedCells BedSupervisor::sensed() const {
+  SensedCells s;
+  for (const BedCell& c : health_.cells()) {
+    // A dead or faulty cell's last readings are not evidence of the load on it now.
+    const bool trusted = !health_.dead(c.id) && !health_.faulty(c.id);
+    s.gauge_pressure_pa.push_back(trusted ? health_.state(c.id).gauge_pressure_pa : CellSnapshot::kNone);
+    s.load_n.push_back(trusted ? health_.state(c.id).external_load_n : CellSnapshot::kNone);
+  }
+  return s;
+}
+
 BedStatus BedSupervisor::step(double now_s) {
   // The cells' command watchdog: fed while the supervisor runs the bed (has a plan).
   out_.heartbeat = out_.heartbeat || runner_.running();
@@ -241,7 +252,7 @@ BedStatus BedSupervisor::step(double now_s) {
   status.largest_state_gap_s = health_.largestGapS();
   if (runner_.running()) {
     bool reverted = false;
-    const PlanTargets t = runner_.targets(now_s, &reverted);
+    const PlanTargets t = runner_.targets(now_s, &reverted, sensed());
     if (reverted) {
       saveResume();
       commander_.resendAll();

@@ -56,11 +56,11 @@ bool PlanRunner::resume(const ResumeRecord& record, double now_s, std::vector<st
   return true;
 }
 
-PlanTargets PlanRunner::targets(double now_s, bool* reverted) {
+PlanTargets PlanRunner::targets(double now_s, bool* reverted, const SensedCells& sensed) {
   *reverted = false;
   if (!running_.plan) return PlanTargets{};
   const double elapsed_s = now_s - running_.start_s;
-  PlanTargets t = running_.plan->targets(elapsed_s);
+  PlanTargets t = running_.plan->sensedTargets(elapsed_s, sensed);
   if (!(t.finished && runs(PlanKind::kMaxInflate))) return t;
   // Back to what max_inflate interrupted, where it left off: its clock stood still meanwhile.
   if (interrupted_.plan)
@@ -68,7 +68,7 @@ PlanTargets PlanRunner::targets(double now_s, bool* reverted) {
   else running_ = safeLevel(config_.nominal_height_m, now_s);
   interrupted_ = RunningPlan{};
   *reverted = true;
-  return running_.plan->targets(now_s - running_.start_s);
+  return running_.plan->sensedTargets(now_s - running_.start_s, sensed);
 }
 
 ResumeRecord PlanRunner::record() const {

@@ -32,6 +32,7 @@ Status PlanConfig::validate() const {
                "alternating_period_s too short for the transition");
   errors.addIf(static_head_rows < 0, "static_head_rows must be >= 0");
   errors.addIf(!(max_inflate_timeout_s > 0.0), "max_inflate_timeout_s must be positive");
+  errors.addNested(adaptive.validate(min_height_m, nominal_height_m, max_height_m, "adaptive/"));
   return errors.status();
 }
 
@@ -268,6 +269,35 @@ class AlternatingPlan : public PosturePlan {
   int head_rows_;
 };
 
+// Adaptive support: the cells' heights from what they sense (AdaptiveSupport holds the policy
+// and its state, which the sensed readings advance).
+class AdaptivePlan : public PosturePlan {
+ public:
+  AdaptivePlan(const PlanConfig& c, const BedGrid& g, const AdaptiveSupportParams& p)
+      : support_(p, g, c.min_height_m, c.nominal_height_m, c.max_height_m) {}
+  PlanKind kind() const override { return PlanKind::kAdaptive; }
+  PlanTargets targets(double) const override {
+    PlanTargets t;
+    t.heights_m = support_.targets();
+    t.phase = phase_;
+    return t;
+  }
+  PlanTargets sensedTargets(double elapsed_s, const SensedCells& sensed) override {
+    support_.update(elapsed_s, sensed, &phase_);
+    return targets(elapsed_s);
+  }
+  std::string describe() const override {
+    const AdaptiveSupportParams& p = support_.params();
+    return "heel_height_m=" + fmt(p.heel_height_m) + " margin_height_m=" + fmt(p.margin_height_m) +
+           " level_range_m=" + fmt(p.level_range_m) + " relief_budget_s=" + fmt(p.relief_budget_s) +
+           " relief_s=" + fmt(p.relief_s) + " dose_limit=" + fmt(p.dose_limit);
+  }
+
+ private:
+  AdaptiveSupport support_;
+  std::string phase_ = "surveying";
+};
+
 }  // namespace
 
 bool parseDecimal(const std::string& text, double* value) {
@@ -323,7 +353,12 @@ const ParamTable<PlanConfig>& planConfigFields() {
       NB_FIELD("max_inflate_timeout_s", "default time before max_inflate reverts [s]", p.max_inflate_timeout_s),
   };
 #undef NB_FIELD
-  return fields;
+  static const ParamTable<P> with_adaptive = [] {
+    ParamTable<P> t = fields;
+    appendNested(&t, adaptiveSupportFields(), "adaptive/", [](P& p) -> AdaptiveSupportParams& { return p.adaptive; });
+    return t;
+  }();
+  return with_adaptive;
 }
 
 const std::map<std::string, std::string>& planHelp() {
@@ -335,6 +370,9 @@ const std::map<std::string, std::string>& planHelp() {
       {planKindName(PlanKind::kMaxInflate), "[timeout_s=S]"},
       {planKindName(PlanKind::kCpr), "(no arguments)"},
       {planKindName(PlanKind::kCustom), "heights_m = one height per cell, by cell id"},
+      {planKindName(PlanKind::kAdaptive),
+       "[heel_height_m=H] [margin_height_m=H] [level_range_m=M] [relief_budget_s=S] [relief_s=S] [dose_limit=D] "
+       "(any key of plans/adaptive/ without '/')"},
   };
   return help;
 }
@@ -395,6 +433,19 @@ std::unique_ptr<PosturePlan> makeAlternating(const PlanConfig& config, const Bed
   return std::make_unique<AlternatingPlan>(config, grid, groups, period, low, high, static_cast<int>(head));
 }
 
+// Any plans/adaptive/ key without a '/' may be given as an argument; the whole set is then
+// validated as the configuration is.
+std::unique_ptr<PosturePlan> makeAdaptive(const PlanConfig& config, const BedGrid& grid, Args& args) {
+  AdaptiveSupportParams p = config.adaptive;
+  for (const auto& field : adaptiveSupportFields()) {
+    if (field.key.find('/') != std::string::npos) continue;
+    field.set(p, args.number(field.key, field.get(p), -1e9, 1e9));
+  }
+  const Status valid = p.validate(config.min_height_m, config.nominal_height_m, config.max_height_m);
+  if (!valid.ok()) args.fail(valid.message());
+  return std::make_unique<AdaptivePlan>(config, grid, p);
+}
+
 // The kind a request names, when it is one makePlan builds (safe_level is the manager's own).
 PlanKind requestedKind(const std::string& name) {
   const std::optional<PlanKind> kind = planKindFromName(name);
@@ -417,13 +468,14 @@ std::string planKindName(PlanKind kind) {
     case PlanKind::kCpr: return "cpr";
     case PlanKind::kCustom: return "custom";
     case PlanKind::kSafeLevel: return "safe_level";
+    case PlanKind::kAdaptive: return "adaptive";
   }
   return "";
 }
 
 std::optional<PlanKind> planKindFromName(const std::string& name) {
   for (PlanKind k : {PlanKind::kFlat, PlanKind::kLateralTurn, PlanKind::kAlternating, PlanKind::kMaxInflate,
-                     PlanKind::kCpr, PlanKind::kCustom, PlanKind::kSafeLevel})
+                     PlanKind::kCpr, PlanKind::kCustom, PlanKind::kSafeLevel, PlanKind::kAdaptive})
     if (planKindName(k) == name) return k;
   return std::nullopt;
 }
@@ -450,6 +502,7 @@ std::unique_ptr<PosturePlan> makePlan(const PlanRequest& req, const PlanConfig& 
       case PlanKind::kCustom: plan = makeCustom(req, config, grid, args); break;
       case PlanKind::kLateralTurn: plan = makeLateralTurn(config, grid, body, args); break;
       case PlanKind::kAlternating: plan = makeAlternating(config, grid, args); break;
+      case PlanKind::kAdaptive: plan = makeAdaptive(config, grid, args); break;
       case PlanKind::kSafeLevel: break;  // refused by requestedKind
     }
     args.finish();

@@ -560,7 +560,10 @@ TEST(BedSupervisor, EveryRefusedPostureRequestSaysWhyAndChangesNothing) {
   const std::vector<Case> cases = {
       {"lateral_turn", {"side", "side"}, {"left", "right"}, "argument 'side' is given twice"},
       {"flat", {"height_m", "ramp_s"}, {"0.1"}, "2 keys but 1 values"},
-      {"sit_up", {}, {}, "unknown plan 'sit_up' (known: alternating, cpr, custom, flat, lateral_turn, max_inflate)"},
+      {"sit_up",
+       {},
+       {},
+       "unknown plan 'sit_up' (known: adaptive, alternating, cpr, custom, flat, lateral_turn, max_inflate)"},
       {"safe_level", {}, {}, "unknown plan 'safe_level'"},
       {"flat", {"height_m"}, {"0x10"}, "flat: height_m must be a number"},
   };

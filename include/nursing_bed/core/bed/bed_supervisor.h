@@ -139,6 +139,8 @@ class BedSupervisor {
   /// (the nominal height when none is known).
   double safeLevel() const;
   std::size_t watchCells(double now_s);
+  /// The cells' last gauge pressures and load estimates (NaN for dead or faulty cells).
+  SensedCells sensed() const;
   /// The current targets with `ids` set to `heights_m` (the others: the plan's target, else
   /// what was sent, else the measured height, within the plan limits).
   std::vector<double> customTargets(const std::vector<std::uint32_t>& ids, const std::vector<double>& heights_m) const;

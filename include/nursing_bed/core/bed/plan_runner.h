@@ -29,8 +29,8 @@ struct ResumeRecord {
 
 /// A plan with its start and the request that made it.
 struct RunningPlan {
-  std::shared_ptr<const PosturePlan> plan;  ///< null: none
-  double start_s = 0.0;                     ///< [s]
+  std::shared_ptr<PosturePlan> plan;  ///< null: none (shared: a max_inflate keeps what it interrupted)
+  double start_s = 0.0;               ///< [s]
   PlanRequest request;
 };
 
@@ -53,8 +53,9 @@ class PlanRunner {
   bool resume(const ResumeRecord& record, double now_s, std::vector<std::string>* refused);
   /// The targets at `now_s`. A max_inflate that has run its course first reverts (*reverted):
   /// to the plan it interrupted, shifted so that it carries on where it left off, else to
-  /// safe_level at the nominal height.
-  PlanTargets targets(double now_s, bool* reverted);
+  /// safe_level at the nominal height. `sensed`: what the cells sense now, for plans that act
+  /// on it (PosturePlan::sensedTargets).
+  PlanTargets targets(double now_s, bool* reverted, const SensedCells& sensed = SensedCells{});
 
   bool running() const { return static_cast<bool>(running_.plan); }
   /// A plan of this kind runs.

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/core/bed/adaptive_support.h"
 #include "nursing_bed/core/bed/bed_grid.h"
 #include "nursing_bed/core/io/param_table.h"
 #include "nursing_bed/core/io/status.h"
@@ -38,6 +39,7 @@ struct PlanConfig {
   double alternating_transition_s = 5.0;  ///< the rising group gets this long before the next one lowers [s]
   int static_head_rows = 2;               ///< head rows that alternating leaves at the nominal height
   double max_inflate_timeout_s = 900.0;   ///< default time before max_inflate reverts [s]
+  AdaptiveSupportParams adaptive;         ///< the adaptive plan's defaults (`plans/adaptive/...`)
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
 };
@@ -52,10 +54,10 @@ struct BodyFootprint {
 
 /// The kinds of plan. Requests and the saved resume record name them by planKindName(); inside
 /// the core they are compared as this type only.
-enum class PlanKind { kFlat, kLateralTurn, kAlternating, kMaxInflate, kCpr, kCustom, kSafeLevel };
+enum class PlanKind { kFlat, kLateralTurn, kAlternating, kMaxInflate, kCpr, kCustom, kSafeLevel, kAdaptive };
 
 /// The name a plan kind has in requests, ~state and the resume record ("flat", "lateral_turn",
-/// "alternating", "max_inflate", "cpr", "custom", "safe_level").
+/// "alternating", "max_inflate", "cpr", "custom", "safe_level", "adaptive").
 std::string planKindName(PlanKind kind);
 /// The kind named `name`; nullopt when no kind has that name.
 std::optional<PlanKind> planKindFromName(const std::string& name);
@@ -85,6 +87,12 @@ class PosturePlan {
   std::string name() const { return planKindName(kind()); }
   /// Targets `elapsed_s` after the plan started.
   virtual PlanTargets targets(double elapsed_s) const = 0;
+  /// Targets `elapsed_s` after the plan started, given what the cells sense now; called once
+  /// per plan step, in time order. Plans that do not act on the cells' readings give targets().
+  virtual PlanTargets sensedTargets(double elapsed_s, const SensedCells& sensed) {
+    (void)sensed;
+    return targets(elapsed_s);
+  }
   /// The plan's parameters after defaults, as "key=value ...".
   virtual std::string describe() const = 0;
 };

@@ -1,0 +1,120 @@
+// Adaptive support (ROS-free): cell heights set from what the cells sense, each cell's gauge
+// pressure and the observer's estimate of its load, without a pressure mat or the simulator's
+// truth. After a survey on a level bed it reads where the body lies from the load map (head at
+// the head end, trunk rows loaded in the midline, legs loaded on two columns, heels at the foot
+// end), then floats the heels, keeps the cells under the trunk and pelvis above a bottoming-out
+// height, levels the trunk's load between neighbouring cells, and relieves the head, the upper
+// trunk and the pelvis in turn before a time budget or a dose on the tolerance curve runs out.
+// Its targets move at a bounded rate; the bed supervisor's rate limits (height and roll slope)
+// apply on top. Reference: doc/bed_manager.md, "adaptive".
+//
+// Units: SI throughout (m, N, Pa, s); the dose is dimensionless (1: the curve's limit).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/bed/bed_grid.h"
+#include "nursing_bed/core/bed/tissue_load.h"
+#include "nursing_bed/core/io/param_table.h"
+#include "nursing_bed/core/io/status.h"
+
+namespace nursing_bed {
+
+/// What the cells sense, by cell id (NaN: unknown).
+struct SensedCells {
+  std::vector<double> gauge_pressure_pa;  ///< each cell's gauge pressure [Pa]
+  std::vector<double> load_n;             ///< the observer's estimate of the load on each cell [N]
+};
+
+/// Parameters of the adaptive plan (config/bed_manager.yaml, `plans/adaptive/...`).
+struct AdaptiveSupportParams {
+  double survey_s = 20.0;        ///< the bed stays level this long before the load map is read [s]
+  double contact_load_n = 1.0;   ///< a cell sensing more than this is under the body [N]
+  double head_length_m = 0.25;   ///< loaded rows this close to the head end are the head [m]
+  double heel_zone_m = 0.15;     ///< loaded leg rows this close to the foot end are the heels [m]
+  double pelvis_length_m = 0.2;  ///< the last trunk rows over this length are the pelvis [m]
+  double heel_height_m = 0.03;   ///< floated heel cells' height [m]
+  /// Lowest height of a cell under the trunk or pelvis: its bottoming-out margin [m].
+  double margin_height_m = 0.08;
+  double level_gain_m_n_s = 2e-5;   ///< levelling: height change per N of excess load per s [m/(N s)]
+  double level_range_m = 0.03;      ///< levelling moves a cell at most this far from the nominal height [m]
+  double relief_budget_s = 1800.0;  ///< a region is relieved after this long under load ... [s]
+  double dose_limit = 0.25;         ///< ... or sooner, when its sensed dose reaches this [-]
+  double relief_s = 120.0;          ///< a relief lasts this long [s]
+  double relief_drop_m = 0.02;      ///< relieved cells go this much lower, their neighbour rows higher [m]
+  double max_rate_m_s = 0.002;      ///< fastest change of a target [m/s]
+  ToleranceCurve tolerance;         ///< the sensed dose's tolerance curve (tissue_load.h defaults)
+
+  /// Success when valid within the plan heights [min_height_m, nominal_height_m,
+  /// max_height_m], else an error naming every bad field, `key_prefix` before each key.
+  Status validate(double min_height_m, double nominal_height_m, double max_height_m,
+                  const std::string& key_prefix = "") const;
+};
+
+/// Keys of AdaptiveSupportParams ("survey_s", ..., "tolerance/exponent").
+const ParamTable<AdaptiveSupportParams>& adaptiveSupportFields();
+
+/// Where the body lies, read off a load map. Rows are sorted; cells are ids.
+struct BodyLayout {
+  int first_row = 0, last_row = 0;  ///< loaded rows, head end to foot end
+  int midline_col = 0;              ///< the load-weighted middle column
+  std::vector<int> head_rows, trunk_rows, pelvis_rows, heel_rows;
+  std::vector<std::uint32_t> heel_cells;   ///< loaded cells of the heel rows
+  std::vector<std::uint32_t> trunk_cells;  ///< trunk rows, loaded columns and one either side
+};
+
+/// The layout `loads` (by cell id [N]) show, or nullopt when no body or no trunk is sensed.
+/// Trunk rows carry their row's largest load in the midline column; leg rows carry it on two
+/// columns either side of it.
+std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector<double>& loads_n,
+                                          const AdaptiveSupportParams& params);
+
+/// The load per cell the plan uses: the observer's estimate, else gauge pressure x face area,
+/// else 0.
+std::vector<double> sensedLoads(const BedGrid& grid, const SensedCells& sensed);
+
+/// The adaptive plan's controller: called once per plan step, in time order.
+class AdaptiveSupport {
+ public:
+  /// `params` valid for the plan heights (checked by the caller).
+  AdaptiveSupport(const AdaptiveSupportParams& params, const BedGrid& grid, double min_height_m,
+                  double nominal_height_m, double max_height_m);
+
+  /// The targets `elapsed_s` after the start from what the cells sense now; *phase says what
+  /// it does ("surveying", "adapting", "relieving pelvis").
+  std::vector<double> update(double elapsed_s, const SensedCells& sensed, std::string* phase);
+
+  /// The last targets (nominal before the first update) [m].
+  const std::vector<double>& targets() const { return heights_m_; }
+  const std::optional<BodyLayout>& layout() const { return layout_; }
+  const AdaptiveSupportParams& params() const { return params_; }
+
+ private:
+  /// A region relieved in turn: its cells, the time it has been loaded, its sensed dose.
+  struct Region {
+    std::string name;
+    std::vector<int> rows;
+    double loaded_s = 0.0, dose = 0.0;
+  };
+  void buildRegions();
+  void level(const std::vector<double>& loads, double dt_s);
+  void account(const std::vector<double>& loads, double elapsed_s, double dt_s);
+  /// The heights wanted now: nominal + levelling, heels floated, relief, floors.
+  std::vector<double> wanted() const;
+  double regionPressurePa(const Region& region, const std::vector<double>& loads) const;
+
+  AdaptiveSupportParams params_;
+  BedGrid grid_;
+  double min_height_m_, nominal_height_m_, max_height_m_;
+  std::optional<BodyLayout> layout_;
+  std::vector<double> offset_m_;   ///< levelling offsets from nominal, by cell id
+  std::vector<double> heights_m_;  ///< targets sent, by cell id
+  std::vector<Region> regions_;
+  int relieving_ = -1;  ///< index in regions_ (-1: none)
+  double relief_end_s_ = 0.0, last_elapsed_s_ = 0.0;
+};
+
+}  // namespace nursing_bed

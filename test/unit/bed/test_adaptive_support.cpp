@@ -1,0 +1,315 @@
+// The adaptive plan: where it reads the body from a load map, what it does to the heels, the
+// trunk and the pelvis, its relief rotation, its parameters, and how the supervisor runs it.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/bed/adaptive_support.h"
+#include "nursing_bed/core/bed/bed_supervisor.h"
+#include "nursing_bed/core/bed/body_model.h"
+#include "nursing_bed/core/bed/posture_plans.h"
+#include "nursing_bed/core/bed/tissue_load.h"
+#include "nursing_bed/core/physics/units.h"
+
+namespace nb = nursing_bed;
+
+namespace {
+
+constexpr double kStepS = 0.1;  // the bed manager's plan rate
+
+// The loads [N] the articulated 70 kg, 1.70 m patient puts on a level 20 x 9 bed at 0.10 m,
+// rows 0-17 (head first), columns 1-7 (the outer columns carry nothing).
+const double kSupineLoads[18][7] = {
+    {0.0, 0.0, 0.5, 4.1, 0.5, 0.0, 0.0},    {0.0, 0.0, 4.3, 31.1, 4.3, 0.0, 0.0},
+    {0.0, 0.0, 1.1, 8.7, 1.1, 0.0, 0.0},    {0.1, 0.9, 3.7, 12.3, 3.7, 0.9, 0.1},
+    {1.0, 5.8, 13.4, 38.2, 13.4, 5.8, 1.0}, {1.2, 7.2, 12.8, 36.1, 12.8, 7.2, 1.2},
+    {0.5, 3.6, 17.8, 35.4, 17.8, 3.6, 0.5}, {0.7, 4.4, 11.8, 26.2, 11.8, 4.4, 0.7},
+    {0.6, 4.3, 14.9, 35.4, 14.9, 4.3, 0.6}, {0.3, 2.1, 9.0, 8.5, 9.0, 2.1, 0.3},
+    {0.4, 3.1, 18.3, 10.7, 18.3, 3.1, 0.4}, {0.0, 0.9, 18.2, 10.7, 18.2, 0.9, 0.0},
+    {0.0, 0.2, 8.0, 4.3, 8.0, 0.2, 0.0},    {0.0, 0.1, 6.1, 3.0, 6.1, 0.1, 0.0},
+    {0.0, 0.2, 10.7, 5.4, 10.7, 0.2, 0.0},  {0.0, 0.1, 7.1, 3.5, 7.1, 0.1, 0.0},
+    {0.0, 0.0, 5.0, 2.3, 5.0, 0.0, 0.0},    {0.0, 0.0, 4.0, 1.8, 4.0, 0.0, 0.0},
+};
+
+nb::SensedCells supineSensed(const nb::BedGrid& grid) {
+  nb::SensedCells s;
+  s.load_n.assign(grid.cells(), 0.0);
+  s.gauge_pressure_pa.assign(grid.cells(), NAN);
+  for (int r = 0; r < 18; ++r)
+    for (int c = 1; c <= 7; ++c) s.load_n[grid.id(r, c)] = kSupineLoads[r][c - 1];
+  return s;
+}
+
+const nb::PlanConfig kConfig;
+
+nb::AdaptiveSupport support(const nb::AdaptiveSupportParams& p = kConfig.adaptive) {
+  return nb::AdaptiveSupport(p, nb::BedGrid{}, kConfig.min_height_m, kConfig.nominal_height_m, kConfig.max_height_m);
+}
+
+/// Runs `s` from `from_s` to `to_s` at the plan rate on constant readings; the phases seen, in order.
+std::vector<std::string> run(nb::AdaptiveSupport* s, const nb::SensedCells& sensed, double from_s, double to_s) {
+  std::vector<std::string> phases;
+  std::string phase;
+  for (double t = from_s; t <= to_s + 1e-9; t += kStepS) {
+    s->update(t, sensed, &phase);
+    if (phases.empty() || phases.back() != phase) phases.push_back(phase);
+  }
+  return phases;
+}
+
+}  // namespace
+
+TEST(AdaptiveSupport, ReadsTheHeadTrunkPelvisAndHeelsOffTheLoadMap) {
+  const nb::BedGrid grid;
+  const auto layout = nb::inferBodyLayout(grid, supineSensed(grid).load_n, kConfig.adaptive);
+  ASSERT_TRUE(layout);
+  EXPECT_EQ(layout->midline_col, 4);
+  EXPECT_EQ(layout->head_rows, (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(layout->trunk_rows, (std::vector<int>{3, 4, 5, 6, 7, 8}));
+  EXPECT_EQ(layout->pelvis_rows, (std::vector<int>{7, 8}));
+  EXPECT_EQ(layout->heel_rows, (std::vector<int>{16, 17}));
+}
+
+TEST(AdaptiveSupport, FindsTheBodyWhereverItLiesOnTheBed) {
+  // The same body two rows further down and one column to the left: the layout moves with it.
+  const nb::BedGrid grid;
+  nb::SensedCells shifted;
+  shifted.load_n.assign(grid.cells(), 0.0);
+  for (int r = 0; r < 18; ++r)
+    for (int c = 1; c <= 7; ++c)
+      if (r + 2 < grid.rows && c + 1 < grid.cols) shifted.load_n[grid.id(r + 2, c + 1)] = kSupineLoads[r][c - 1];
+  const auto layout = nb::inferBodyLayout(grid, shifted.load_n, kConfig.adaptive);
+  ASSERT_TRUE(layout);
+  EXPECT_EQ(layout->midline_col, 5);
+  EXPECT_EQ(layout->pelvis_rows, (std::vector<int>{9, 10}));
+  EXPECT_EQ(layout->heel_rows, (std::vector<int>{18, 19}));
+}
+
+TEST(AdaptiveSupport, LowersTheHeelCellsWhenTheLoadMapShowsHeels) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupport s = support();
+  run(&s, supineSensed(grid), 0.0, 120.0);
+  const nb::AdaptiveSupportParams& p = kConfig.adaptive;
+  for (int r : {16, 17})
+    for (int c : {3, 5}) EXPECT_NEAR(s.targets()[grid.id(r, c)], p.heel_height_m, 1e-9) << r << "," << c;
+  for (int c = 0; c < grid.cols; ++c)  // the calves stay, and take the feet's load
+    EXPECT_NEAR(s.targets()[grid.id(14, c)], kConfig.nominal_height_m, 1e-9);
+}
+
+TEST(AdaptiveSupport, HoldsTheBedLevelWhileSurveyingAndWithoutABody) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupport s = support();
+  EXPECT_EQ(run(&s, supineSensed(grid), 0.0, kConfig.adaptive.survey_s - 1.0).back(), "surveying");
+  for (double h : s.targets()) EXPECT_EQ(h, kConfig.nominal_height_m);
+  nb::AdaptiveSupport empty = support();
+  nb::SensedCells nothing;
+  nothing.load_n.assign(grid.cells(), 0.0);
+  EXPECT_EQ(run(&empty, nothing, 0.0, 60.0).back(), "level: no body sensed");
+  for (double h : empty.targets()) EXPECT_EQ(h, kConfig.nominal_height_m);
+}
+
+TEST(AdaptiveSupport, LevelsTheTrunkButKeepsItAboveTheBottomingOutMargin) {
+  // A sacrum carrying far more than its neighbours: levelling lowers it and raises them, but
+  // never below the margin height, also while the pelvis is relieved.
+  const nb::BedGrid grid;
+  nb::SensedCells sensed = supineSensed(grid);
+  sensed.load_n[grid.id(8, 4)] = 300.0;
+  nb::AdaptiveSupportParams p = kConfig.adaptive;
+  p.level_range_m = 0.05;  // levelling alone would go to 0.05 m
+  p.relief_budget_s = 900.0;
+  nb::AdaptiveSupport s = support(p);
+  double lowest_sacrum = 1.0;
+  std::string phase;
+  for (double t = 0.0; t <= 1200.0; t += kStepS) {
+    s.update(t, sensed, &phase);
+    lowest_sacrum = std::min(lowest_sacrum, s.targets()[grid.id(8, 4)]);
+  }
+  EXPECT_NEAR(lowest_sacrum, p.margin_height_m, 1e-9);
+  EXPECT_GT(s.targets()[grid.id(8, 3)], kConfig.nominal_height_m);  // its neighbours take the load
+  for (int r = 3; r <= 8; ++r)
+    for (int c = 0; c < grid.cols; ++c) EXPECT_GE(s.targets()[grid.id(r, c)], p.margin_height_m - 1e-12);
+}
+
+TEST(AdaptiveSupport, RelievesThePelvisUpperTrunkAndHeadInTurnWithinTheBudget) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupportParams p = kConfig.adaptive;
+  p.relief_budget_s = 300.0;
+  p.relief_s = 30.0;
+  p.level_gain_m_n_s = 0.0;  // relief only
+  nb::AdaptiveSupport s = support(p);
+  const std::vector<std::string> phases = run(&s, supineSensed(grid), 0.0, 440.0);
+  const std::vector<std::string> expected = {
+      "surveying", "adapting",       "relieving pelvis", "adapting", "relieving upper trunk",
+      "adapting",  "relieving head", "adapting"};
+  EXPECT_EQ(phases, expected);
+  // During the pelvis's relief its rows are lower, the rows either side higher.
+  nb::AdaptiveSupport again = support(p);
+  run(&again, supineSensed(grid), 0.0, p.survey_s + p.relief_budget_s / 3.0 + 20.0);
+  EXPECT_LT(again.targets()[grid.id(7, 2)], kConfig.nominal_height_m);
+  EXPECT_GT(again.targets()[grid.id(9, 2)], kConfig.nominal_height_m);
+  EXPECT_GT(again.targets()[grid.id(6, 2)], kConfig.nominal_height_m);
+}
+
+TEST(AdaptiveSupport, RelievesARegionSoonerWhenItsSensedDoseReachesTheLimit) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupportParams p = kConfig.adaptive;
+  p.relief_budget_s = 1e6;  // only the dose can make a relief due
+  p.dose_limit = 0.01;
+  nb::SensedCells sensed = supineSensed(grid);
+  sensed.load_n[grid.id(1, 4)] = 120.0;  // the occiput at ~90 mmHg over its cell: ~5 h on the curve
+  nb::AdaptiveSupport s = support(p);
+  const std::vector<std::string> phases = run(&s, sensed, 0.0, p.survey_s + 400.0);
+  ASSERT_GE(phases.size(), 3u);
+  EXPECT_EQ(phases[2], "relieving head");
+  EXPECT_EQ(std::count(phases.begin(), phases.end(), "relieving pelvis"), 0);
+}
+
+TEST(AdaptiveSupport, NeverMovesATargetFasterThanItsRate) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupport s = support();
+  std::vector<double> before = s.targets();
+  std::string phase;
+  for (double t = 0.0; t <= 300.0; t += kStepS) {
+    s.update(t, supineSensed(grid), &phase);
+    for (int i = 0; i < grid.cells(); ++i)
+      ASSERT_LE(std::fabs(s.targets()[i] - before[i]), kConfig.adaptive.max_rate_m_s * kStepS + 1e-12);
+    before = s.targets();
+  }
+}
+
+TEST(AdaptiveSupport, FloatsTheArticulatedPatientsHeelsFromItsOwnLoadMap) {
+  // Closed loop on the articulated body: the cells reach their targets, and the plan senses
+  // the loads the body puts on them. The heels float (their weight goes to the calves) and the
+  // skin stays clear of the bed base.
+  const nb::BedGrid grid;
+  nb::PatientParams patient;
+  patient.articulated = true;
+  nb::BodyModel body(patient, grid);
+  nb::AdaptiveSupport s = support();
+  std::vector<double> heights(grid.cells(), kConfig.nominal_height_m);
+  nb::SensedCells sensed;
+  std::string phase;
+  nb::BodyState state;
+  for (double t = 0.0; t <= 150.0; t += kStepS) {
+    state = body.solve(heights);
+    sensed.load_n = state.cell_load_n;
+    heights = s.update(t, sensed, &phase);
+  }
+  state = body.solve(heights);
+  EXPECT_LT(nb::paToMmHg(state.peak_pressure_pa.heels), 10.0);
+  const auto regions = nb::measureRegions(body.contactMap(heights), nb::defaultTissueRegions(), patient.height_m);
+  for (const nb::RegionLoad& r : regions)
+    if (std::isfinite(r.margin_m)) {
+      EXPECT_GE(r.margin_m, 0.025);
+    }
+}
+
+TEST(AdaptivePlan, IsMadeFromTheRegistryWithItsArguments) {
+  std::string why;
+  const auto plan = nb::makePlan({"adaptive", {{"heel_height_m", "0.04"}, {"relief_s", "60"}}, {}}, kConfig,
+                                 nb::BedGrid{}, nb::BodyFootprint{}, &why);
+  ASSERT_TRUE(plan) << why;
+  EXPECT_EQ(plan->name(), "adaptive");
+  EXPECT_NE(plan->describe().find("heel_height_m=0.04"), std::string::npos);
+  EXPECT_NE(plan->describe().find("relief_s=60"), std::string::npos);
+}
+
+TEST(AdaptivePlan, RefusesBadArgumentsWithTheReason) {
+  const std::vector<std::pair<std::map<std::string, std::string>, std::string>> bad = {
+      {{{"heel_height_m", "0.5"}}, "heel_height_m must lie in"},
+      {{{"margin_height_m", "0.001"}}, "margin_height_m must lie in"},
+      {{{"relief_s", "nan"}}, "relief_s must be finite"},
+      {{{"relief_budget_s", "10"}}, "relief_budget_s must exceed relief_s"},
+      {{{"max_rate_m_s", "0"}}, "max_rate_m_s must be positive"},
+      {{{"level_range_m", "0.2"}}, "level_range_m must lie in"},
+      {{{"bogus", "1"}}, "does not take 'bogus'"},
+  };
+  for (const auto& [args, reason] : bad) {
+    std::string why;
+    EXPECT_FALSE(nb::makePlan({"adaptive", args, {}}, kConfig, nb::BedGrid{}, nb::BodyFootprint{}, &why));
+    EXPECT_NE(why.find(reason), std::string::npos) << why;
+  }
+}
+
+TEST(AdaptivePlan, RefusesABadConfigurationNamingTheKey) {
+  nb::PlanConfig config;
+  config.adaptive.heel_height_m = 0.2;
+  config.adaptive.tolerance.exponent = -1.0;
+  const nb::Status s = config.validate();
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("adaptive/heel_height_m"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("adaptive/tolerance"), std::string::npos) << s.message();
+  // Every key is in the parameter table, so YAML and the parameter server reach it.
+  int adaptive_keys = 0;
+  for (const auto& f : nb::planConfigFields()) adaptive_keys += f.key.rfind("adaptive/", 0) == 0;
+  EXPECT_EQ(adaptive_keys, static_cast<int>(nb::adaptiveSupportFields().size()));
+}
+
+namespace {
+
+// A supervisor over the 20 x 9 bed whose cells report the supine loads at 0.10 m.
+struct SupervisedBed {
+  nb::BedGrid grid;
+  std::vector<nb::BedCell> cells;
+  nb::BedSupervisor sup;
+  double now = 100.0;
+
+  static std::vector<nb::BedCell> cellsOf(const nb::BedGrid& g) {
+    std::vector<nb::BedCell> out;
+    for (int i = 0; i < g.cells(); ++i)
+      out.push_back(
+          {static_cast<std::uint32_t>(i), "cell_" + std::to_string(i), "link", g.min_height_m, g.max_height_m});
+    return out;
+  }
+  SupervisedBed() : cells(cellsOf(grid)), sup(nb::BedSupervisorParams{}, grid, cellsOf(grid), now) {}
+  void report() {
+    const nb::SensedCells sensed = supineSensed(grid);
+    for (int i = 0; i < grid.cells(); ++i) {
+      nb::CellSnapshot s;
+      s.id = static_cast<std::uint32_t>(i);
+      s.height_m = 0.10;
+      s.height_sd_m = 0.001;
+      s.gauge_pressure_pa = 3000.0;
+      s.external_load_n = sensed.load_n[i];
+      s.seen_s = now;
+      sup.onCellState(s);
+    }
+  }
+  nb::BedStatus stepFor(double seconds) {
+    nb::BedStatus status;
+    for (double end = now + seconds; now < end - 1e-9; now += kStepS) {
+      report();
+      status = sup.step(now);
+    }
+    return status;
+  }
+};
+
+}  // namespace
+
+TEST(AdaptivePlan, RunsUnderTheSupervisorAndABadRequestKeepsIt) {
+  SupervisedBed bed;
+  ASSERT_TRUE(bed.sup.setPosture("adaptive", {}, {}, {}, bed.now).ok);
+  nb::BedStatus status = bed.stepFor(60.0);
+  EXPECT_EQ(status.plan, nb::PlanKind::kAdaptive);
+  EXPECT_EQ(status.phase, "adapting");
+  EXPECT_LT(status.target_heights_m[bed.grid.id(17, 3)], bed.sup.params().plans.nominal_height_m);
+  const nb::RequestResult refused = bed.sup.setPosture("adaptive", {"heel_height_m"}, {"0.9"}, {}, bed.now);
+  EXPECT_FALSE(refused.ok);
+  EXPECT_NE(refused.message.find("heel_height_m"), std::string::npos) << refused.message;
+  status = bed.stepFor(1.0);
+  EXPECT_EQ(status.plan, nb::PlanKind::kAdaptive);
+  EXPECT_EQ(status.phase, "adapting");  // the same plan, not restarted
+}
+
+TEST(AdaptivePlan, GivesWayToCpr) {
+  SupervisedBed bed;
+  ASSERT_TRUE(bed.sup.setPosture("adaptive", {}, {}, {}, bed.now).ok);
+  bed.stepFor(30.0);
+  bed.sup.onCpr(true, bed.now);
+  EXPECT_EQ(bed.stepFor(0.2).plan, nb::PlanKind::kCpr);
+}
