@@ -417,6 +417,8 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   sample.noise_sd_pa = observer_->estimate().pressure_noise_pa;
   const ObserverInputs& applied = observer_->appliedInputs();
   sample.valves_shut = applied.valves.inlet == 0.0 && applied.valves.vent == 0.0;
+  sample.inlet_opening = applied.valves.inlet;
+  sample.vent_opening = applied.valves.vent;
   // A re-anchor proves the gas (the cell found flat) whatever it corrected; a weight bound
   // only pulls the estimate to a bound, so a large one shows the inventory wrong.
   if (events.weight_bounded && !events.reanchored)

@@ -180,17 +180,19 @@ TEST(CellFaults, SmallMovesOfAHealthyCellUnderLoadsFromThePlateAloneUpAreNeverFl
     FaultyCell c(0.06, load_n);
     int flags = 0;
     bool was = false;
+    std::string reason;
     for (int i = 0; i < 40; ++i) {
       const double target = 0.06 + 0.001 * (i % 8) * ((i / 8) % 2 ? 1 : -1) + (i % 2) * 0.0005 * (i % 5);
       ASSERT_EQ(c.cell->requestHeight(target, c.t), "");
       for (const double end = c.t + 1.5; c.t < end;) {
         c.runTo(c.t + 0.005);
         const bool now = (c.cell->faults() & nb::kFaultInconsistent) != 0;
+        if (now && !was) reason = c.cell->monitor()->reason();
         flags += now && !was;
         was = now;
       }
     }
-    EXPECT_EQ(flags, 0) << "under " << load_n << " N";
+    EXPECT_EQ(flags, 0) << "under " << load_n << " N: " << reason;
   }
 }
 
@@ -238,4 +240,46 @@ TEST(CellFaults, AVentStuckOpenKeepsTheCellFlaggedThroughItsRefillsUntilAHoldPro
   EXPECT_EQ(c.cell->faults() & nb::kFaultInconsistent, 0u);
   EXPECT_NEAR(c.cell->measurement().height_m, c.plant->variables().height_m, 0.002);
   EXPECT_NEAR(c.plant->variables().height_m, 0.088, 0.003);
+}
+
+namespace {
+/// Ramps the cell's target from `from_m` to `to_m` over 60 s in small steps, as a turn does (the
+/// controller's pulses then are far below the response test's); returns the time to the first
+/// FAULT_INCONSISTENT after the ramp began (-1: none).
+double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double from_m, double to_m) {
+  FaultyCell c(from_m, load_n);
+  EXPECT_EQ(c.cell->requestHeight(from_m, 0.0), "");
+  c.runTo(6.0);
+  c.hw->stuck_inlet = stuck_inlet;
+  c.hw->stuck_vent = stuck_vent;
+  const double t0 = c.t;
+  for (double s = 0.0; s <= 60.0; s += 0.1) {
+    EXPECT_EQ(c.cell->requestHeight(from_m + (to_m - from_m) * s / 60.0, c.t), "");
+    for (const double end = c.t + 0.1; c.t < end - 1e-9;) {
+      c.runTo(c.t + 0.005);
+      if (c.cell->faults() & nb::kFaultInconsistent) return c.t - t0;
+    }
+  }
+  return -1.0;
+}
+}  // namespace
+
+TEST(CellFaults, AValveStuckShutUnderASlowRampIsFlaggedAsAFailureToReachTarget) {
+  // A 40 mm ramp over a minute: each pulse is a few pascals at fixed volume, none judged alone;
+  // summed, a working valve moves the pressure along the structure and a stuck one does not.
+  for (const double load_n : {15.6, 36.0}) {
+    const double inlet_s = rampedFlagSeconds(load_n, 0, -1, 0.05, 0.09);
+    const double vent_s = rampedFlagSeconds(load_n, -1, 0, 0.09, 0.05);
+    std::printf("[faults] under %.1f N on a 60 s ramp: stuck-shut inlet flagged after %.1f s, vent after %.1f s\n",
+                load_n, inlet_s, vent_s);
+    EXPECT_GE(inlet_s, 0.0) << "inlet under " << load_n << " N";
+    EXPECT_GE(vent_s, 0.0) << "vent under " << load_n << " N";
+  }
+}
+
+TEST(CellFaults, AHealthyCellOnASlowRampIsNeverFlagged) {
+  for (const double load_n : {0.6, 5.0, 15.6, 36.0}) {
+    EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.05, 0.09), 0.0) << "up under " << load_n << " N";
+    EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.09, 0.05), 0.0) << "down under " << load_n << " N";
+  }
 }
