@@ -275,11 +275,16 @@ TEST(CellFaults, AValveStuckShutUnderASlowRampIsFlaggedAsAFailureToReachTarget) 
     EXPECT_GE(inlet_s, 0.0) << "inlet under " << load_n << " N";
     EXPECT_GE(vent_s, 0.0) << "vent under " << load_n << " N";
   }
+  // Half as fast: about 0.1 s of inlet in the minute, summed over the whole ramp.
+  const double slow_s = rampedFlagSeconds(15.6, 0, -1, 0.07, 0.09);
+  std::printf("[faults] under 15.6 N on a 20 mm ramp over 60 s: stuck-shut inlet flagged after %.1f s\n", slow_s);
+  EXPECT_GE(slow_s, 0.0);
 }
 
 TEST(CellFaults, AHealthyCellOnASlowRampIsNeverFlagged) {
   for (const double load_n : {0.6, 5.0, 15.6, 36.0}) {
     EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.05, 0.09), 0.0) << "up under " << load_n << " N";
     EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.09, 0.05), 0.0) << "down under " << load_n << " N";
+    EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.07, 0.09), 0.0) << "slowly up under " << load_n << " N";
   }
 }

@@ -78,7 +78,7 @@ struct ConsistencyMonitorParams {
   double progress_min_pa = 15.0;
   /// The valve's time is summed over at most this long (a body's slow load changes move the
   /// pressure over longer spans) [s].
-  double progress_window_s = 20.0;
+  double progress_window_s = 60.0;
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
