@@ -318,7 +318,7 @@ ValveOpenings AirbagCell::gasCheckValves(double now_s, double gauge_pressure_pa,
   // Its integral ran on the flat start's error through the vent: restart it.
   if (found_after_vent && controller_.hasTarget()) controller_.setTarget(controller_.target());
   // The safe band of an unproven estimate: held or vented, never inflated.
-  if (use_estimate_ && gas_.unverified()) return ValveOpenings{0.0, valves.vent, valves.vent_to_vacuum};
+  if (use_estimate_ && gas_.gasUnknown()) return ValveOpenings{0.0, valves.vent, valves.vent_to_vacuum};
   return valves;
 }
 
@@ -417,6 +417,8 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   sample.noise_sd_pa = observer_->estimate().pressure_noise_pa;
   const ObserverInputs& applied = observer_->appliedInputs();
   sample.valves_shut = applied.valves.inlet == 0.0 && applied.valves.vent == 0.0;
+  sample.inlet_opening = applied.valves.inlet;
+  sample.vent_opening = applied.valves.vent;
   // A re-anchor proves the gas (the cell found flat) whatever it corrected; a weight bound
   // only pulls the estimate to a bound, so a large one shows the inventory wrong.
   if (events.weight_bounded && !events.reanchored)
@@ -425,13 +427,18 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   sample.load_n = observer_->estimate().load_n;
   sample.plate_period_s = platePeriod();
   // A gas already unproven (a lost link, a reset) is being found: no height to contradict.
-  sample.height_m = gas_.unverified() ? 0.0 : observer_->estimate().height_m;
+  sample.height_m = gas_.gasUnknown() ? 0.0 : observer_->estimate().height_m;
   sample.flat_pressure_pa = observer_->flatPressure();
   if (monitor_.update(sample, dt_s)) {
     faults_ |= kFaultInconsistent;
-    gas_.suspect();
+    gas_.suspectInconsistent();
   }
-  // Found flat again (or the gas otherwise proven): consistent from here.
+  // Found flat again: the count holds from there and the tests run again, but the fault stays
+  // until a hold at height has proved the valves keep the gas.
+  if ((faults_ & kFaultInconsistent) && monitor_.inconsistent() && !gas_.gasUnknown()) monitor_.clear();
+  const bool correcting = sample.counted_step_pa != 0.0 &&
+                          std::fabs(sample.counted_step_pa) < monitor_.params().hold_correction_pa;
+  gas_.noteHold(sample.valves_shut || correcting, p, observer_->estimate().height_m, dt_s);
   if ((faults_ & kFaultInconsistent) && !gas_.unverified()) {
     faults_ &= ~kFaultInconsistent;
     monitor_.clear();

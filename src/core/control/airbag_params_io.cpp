@@ -94,6 +94,20 @@ ParamTable<GasVerifierParams> makeGasCheckFields() {
                    [](G& p) -> double& { return p.verify_tolerance_pa; }),
       realField<G>("verify_tolerance_rel", "that comparison's tolerance as a fraction of the pressure, if larger [-]",
                    [](G& p) -> double& { return p.verify_tolerance_rel; }),
+      realField<G>("prove_hold_s",
+                   "after an inconsistency the cell, found flat and refilled, stays unverified until a hold at "
+                   "height this long keeps its pressure; 0 = found flat proves it [s]",
+                   [](G& p) -> double& { return p.prove_hold_s; }),
+      realField<G>("prove_settle_s", "that hold counts after the valves have been held this long [s]",
+                   [](G& p) -> double& { return p.prove_settle_s; }),
+      realField<G>("prove_tolerance_pa",
+                   "that hold's least tolerance between the mean pressures of its two halves; a larger change "
+                   "re-finds the gas by venting flat [Pa]",
+                   [](G& p) -> double& { return p.prove_tolerance_pa; }),
+      realField<G>("prove_tolerance_rel", "that tolerance as a fraction of the pressure, if larger [-]",
+                   [](G& p) -> double& { return p.prove_tolerance_rel; }),
+      realField<G>("prove_min_height_m", "only a hold with the estimate above this proves the gas [m]",
+                   [](G& p) -> double& { return p.prove_min_height_m; }),
   };
 }
 

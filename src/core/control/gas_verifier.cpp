@@ -22,6 +22,16 @@ Status GasVerifierParams::validate() const {
                "verify_tolerance_pa must be finite and > 0, got ", verify_tolerance_pa);
   errors.addIf(!(verify_tolerance_rel >= 0.0 && verify_tolerance_rel < 1.0),
                "verify_tolerance_rel must lie in [0, 1), got ", verify_tolerance_rel);
+  errors.addIf(!(prove_hold_s >= 0.0 && prove_hold_s <= 30.0), "prove_hold_s must lie in [0, 30] s, got ",
+               prove_hold_s);
+  errors.addIf(!(prove_settle_s >= 0.0 && prove_settle_s <= 5.0), "prove_settle_s must lie in [0, 5] s, got ",
+               prove_settle_s);
+  errors.addIf(!(prove_tolerance_pa > 0.0 && std::isfinite(prove_tolerance_pa)),
+               "prove_tolerance_pa must be finite and > 0, got ", prove_tolerance_pa);
+  errors.addIf(!(prove_tolerance_rel >= 0.0 && prove_tolerance_rel < 1.0),
+               "prove_tolerance_rel must lie in [0, 1), got ", prove_tolerance_rel);
+  errors.addIf(!(prove_min_height_m >= 0.0 && std::isfinite(prove_min_height_m)),
+               "prove_min_height_m must be finite and >= 0, got ", prove_min_height_m);
   return errors.status();
 }
 
@@ -46,6 +56,9 @@ void GasVerifier::reset(bool verified) {
   reference_pa_ = std::numeric_limits<double>::quiet_NaN();
   hold_left_s_ = 0.0;
   hold_mismatch_ = false;
+  must_prove_ = false;
+  proof_ = ProofHold{};
+  failed_proofs_ = 0;
 }
 
 void GasVerifier::linkLost(double reference_pa) {
@@ -68,7 +81,49 @@ void GasVerifier::suspect() {
   found_flat_ = false;
 }
 
-bool GasVerifier::unverified() const {
+void GasVerifier::suspectInconsistent() {
+  suspect();
+  must_prove_ = params_.prove_hold_s > 0.0;
+  proof_ = ProofHold{};
+}
+
+void GasVerifier::noteHold(bool holding, double gauge_pressure_pa, double height_m, double dt_s) {
+  // Found flat proves the count from there, not the valves: a vent stuck open lets the refilled
+  // plate sink again under an estimate that stays. Held at height, gas that leaves (or enters)
+  // moves the pressure along the structure at a rate no constant load does, so the second half
+  // of a hold reads what the first read only when the gas stays.
+  if (!proving()) return;
+  const bool counts = holding && std::isfinite(gauge_pressure_pa) && height_m > params_.prove_min_height_m;
+  if (!counts) {
+    proof_ = ProofHold{};
+    return;
+  }
+  proof_.held_s += dt_s;
+  const double into_s = proof_.held_s - params_.prove_settle_s;
+  if (into_s <= 0.0) return;
+  if (into_s <= 0.5 * params_.prove_hold_s) {
+    proof_.first_pa += gauge_pressure_pa;
+    ++proof_.first_n;
+  } else {
+    proof_.second_pa += gauge_pressure_pa;
+    ++proof_.second_n;
+  }
+  if (into_s < params_.prove_hold_s || proof_.first_n == 0 || proof_.second_n == 0) return;
+  const double first = proof_.first_pa / proof_.first_n, second = proof_.second_pa / proof_.second_n;
+  const double tolerance = std::max(params_.prove_tolerance_pa, params_.prove_tolerance_rel * std::fabs(first));
+  proof_ = ProofHold{};
+  if (std::fabs(second - first) <= tolerance) {
+    // The valves keep the gas now, but a fault that ended during the refill left its gas
+    // uncounted (a vent open against the inlet): one more flat cell counts it afresh.
+    must_prove_ = false;
+    suspect();
+    return;
+  }
+  ++failed_proofs_;
+  suspect();  // the gas moved under a hold: found flat again, and proved again
+}
+
+bool GasVerifier::gasUnknown() const {
   if (gas_ == GasKnowledge::kUnverified || gas_ == GasKnowledge::kFinding) return true;
   return link_lost_ || check_pending_ || hold_left_s_ > 0.0 || check_vent_left_s_ > 0.0 || check_until_s_ >= 0.0;
 }

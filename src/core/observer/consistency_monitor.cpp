@@ -33,6 +33,11 @@ Status ConsistencyMonitorParams::validate() const {
   nonNegative("max_load_n", max_load_n);
   nonNegative("landed_height_m", landed_height_m);
   positive("landed_time_s", landed_time_s);
+  nonNegative("progress_inlet_s", progress_inlet_s);
+  nonNegative("progress_vent_s", progress_vent_s);
+  errors.addIf(!(progress_rel > 0.0 && progress_rel < 1.0), "progress_rel must lie in (0, 1), got ", progress_rel);
+  positive("progress_min_pa", progress_min_pa);
+  positive("progress_window_s", progress_window_s);
   return errors.status();
 }
 
@@ -72,6 +77,8 @@ bool ConsistencyMonitor::update(const ConsistencySample& sample, double dt_s) {
         << 1e3 * sample.height_m << " mm: gas left uncounted";
   } else if (const std::string silent = response_.update(sample, dt_s, params_); !silent.empty()) {
     why << silent;
+  } else if (const std::string stalled = progress_.update(sample, dt_s, params_); !stalled.empty()) {
+    why << stalled;
   } else if (innovation(sample, dt_s)) {
     why << "pressure " << sample.gauge_pressure_pa << " Pa departs from the hold's " << reference_pa_
         << " Pa with both valves shut (CUSUM " << cusum() << " Pa s)";
@@ -142,6 +149,7 @@ bool ConsistencyMonitor::landed(const ConsistencySample& sample, double dt_s) {
 
 void ConsistencyMonitor::interrupt() {
   response_.restart();
+  progress_.restart();
   have_reading_ = false;
   same_for_s_ = 0.0;
   shut_for_s_ = 0.0;
@@ -213,6 +221,61 @@ void ValveResponseCheck::restart() {
   pre_count_ = 0;
   pre_next_ = 0;
   recent_.fill(0.0);
+}
+
+std::string ValveProgressCheck::update(const ConsistencySample& sample, double dt_s,
+                                       const ConsistencyMonitorParams& params) {
+  // The readings' mean over about 0.2 s: a few pascals of noise against the tens a working
+  // valve moves the pressure by over its summed time.
+  constexpr double kMeanTimeS = 0.2;
+  const double p = sample.gauge_pressure_pa;
+  mean_pa_ = have_mean_ ? mean_pa_ + (p - mean_pa_) * std::min(1.0, dt_s / kMeanTimeS) : p;
+  have_mean_ = true;
+  const bool rest = sample.inlet_opening == 0.0 && sample.vent_opening == 0.0;
+  rest_s_ = rest ? rest_s_ + dt_s : 0.0;
+  // Either valve moves the pressure: the other's sum starts again when it opens.
+  if (sample.vent_opening > 0.0) inlet_.active = false;
+  if (sample.inlet_opening > 0.0) vent_.active = false;
+  std::string why = step(&inlet_, +1, sample.inlet_opening, params.progress_inlet_s, dt_s, params);
+  if (why.empty()) why = step(&vent_, -1, sample.vent_opening, params.progress_vent_s, dt_s, params);
+  return why;
+}
+
+std::string ValveProgressCheck::step(Window* w, int direction, double opening, double limit_s, double dt_s,
+                                     const ConsistencyMonitorParams& params) {
+  if (limit_s <= 0.0) return "";
+  if (opening > 0.0 && !w->active) *w = Window{true, 0.0, 0.0, mean_pa_, 0.0};
+  if (!w->active) return "";
+  w->open_s += opening * dt_s;
+  w->span_s += dt_s;
+  // The furthest its way: a fast move's plate still swings when the valves rest, and a
+  // pulse moves the pressure at fixed volume before the plate takes it up.
+  w->best_pa = std::max(w->best_pa, direction * (mean_pa_ - w->start_pa));
+  if (w->span_s > params.progress_window_s) {
+    w->active = false;  // too slow to tell from a body's load changes
+    return "";
+  }
+  // Judged once its valve has rested a few of the plate's swings (tens of ms each): a slow
+  // ramp's pulses come every few tenths of a second and never let it settle for long.
+  constexpr double kRestS = 0.1;
+  if (w->open_s < limit_s || rest_s_ < kRestS) return "";
+  w->active = false;
+  // A vent shows nothing at ambient; a light plate's pressure hardly moves along the structure.
+  const double needed_pa = params.progress_rel * w->start_pa;
+  const double moved_pa = w->best_pa;
+  if (needed_pa < params.progress_min_pa || moved_pa >= needed_pa) return "";
+  std::ostringstream why;
+  why << "failure to reach target: the " << (direction > 0 ? "inlet" : "vent") << " was counted open " << w->open_s
+      << " s over " << w->span_s << " s but the pressure moved " << moved_pa << " Pa its way from " << w->start_pa
+      << " Pa (less than " << needed_pa << " Pa): a valve that does not open";
+  return why.str();
+}
+
+void ValveProgressCheck::restart() {
+  inlet_ = Window{};
+  vent_ = Window{};
+  have_mean_ = false;
+  rest_s_ = 0.0;
 }
 
 double ConsistencyMonitor::cusum() const { return std::max(up_pa_s_, down_pa_s_); }

@@ -39,6 +39,11 @@ TEST(GasVerifierParams, RefusesBadValuesNamingThem) {
   expectRefused("verify_hold_s", &nb::GasVerifierParams::verify_hold_s, {-0.1, 5.0, std::nan("")});
   expectRefused("verify_tolerance_pa", &nb::GasVerifierParams::verify_tolerance_pa, {0.0, std::nan("")});
   expectRefused("verify_tolerance_rel", &nb::GasVerifierParams::verify_tolerance_rel, {-0.1, 1.0});
+  expectRefused("prove_hold_s", &nb::GasVerifierParams::prove_hold_s, {-1.0, 60.0, std::nan("")});
+  expectRefused("prove_settle_s", &nb::GasVerifierParams::prove_settle_s, {-0.1, 10.0, std::nan("")});
+  expectRefused("prove_tolerance_pa", &nb::GasVerifierParams::prove_tolerance_pa, {0.0, -5.0, std::nan("")});
+  expectRefused("prove_tolerance_rel", &nb::GasVerifierParams::prove_tolerance_rel, {-0.1, 1.0, std::nan("")});
+  expectRefused("prove_min_height_m", &nb::GasVerifierParams::prove_min_height_m, {-0.01, std::nan("")});
   EXPECT_TRUE(nb::GasVerifierParams{}.validate().ok());
 }
 
@@ -209,4 +214,68 @@ TEST(GasVerifier, ASuspectedGasIsFoundFlatAgainBeforeItIsTrusted) {
   EXPECT_TRUE(found);
   EXPECT_FALSE(gas.unverified());
   EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).inlet, kWanted.inlet);
+}
+
+namespace {
+/// Found flat after an inconsistency: the gas is known again from the flat cell.
+void findFlat(nb::GasVerifier* gas, nb::CellObserver* observer) {
+  bool found = false;
+  gas->findingValves(kPeriod, observer, kWanted, &found);
+  gas->note(reanchored());
+  gas->findingValves(kPeriod, observer, kWanted, &found);
+  ASSERT_TRUE(found);
+}
+}  // namespace
+
+TEST(GasVerifier, AnInconsistentCellFoundFlatStaysUnverifiedUntilAHoldAtHeightKeepsItsPressure) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.suspectInconsistent();
+  findFlat(&gas, &observer);
+  EXPECT_FALSE(gas.gasUnknown()) << "found flat: refilled";
+  EXPECT_TRUE(gas.unverified()) << "but not proved";
+  EXPECT_TRUE(gas.proving());
+  bool found = true;
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).inlet, kWanted.inlet);
+  // Held at a flat cell's height, or moving: nothing proved.
+  for (int i = 0; i < 500; ++i) gas.noteHold(true, 900.0, 0.005, kPeriod);
+  for (int i = 0; i < 500; ++i) gas.noteHold(i % 50 != 0, 900.0, 0.06, kPeriod);
+  EXPECT_TRUE(gas.unverified());
+  const int periods = static_cast<int>((gas.params().prove_settle_s + gas.params().prove_hold_s) / kPeriod) + 2;
+  for (int i = 0; i < periods; ++i) gas.noteHold(true, 900.0 + (i % 2 ? 8.0 : -8.0), 0.06, kPeriod);
+  EXPECT_FALSE(gas.proving()) << "a steady hold at height proves the valves";
+  EXPECT_TRUE(gas.gasUnknown()) << "and the gas is counted afresh from one more flat cell";
+  EXPECT_EQ(gas.failedProofs(), 0);
+  findFlat(&gas, &observer);
+  EXPECT_FALSE(gas.unverified());
+}
+
+TEST(GasVerifier, AHoldWhosePressureSinksSendsTheCellFlatAgain) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  gas.suspectInconsistent();
+  findFlat(&gas, &observer);
+  // A plate sinking on a vent stuck open: its pressure falls along the structure.
+  const int periods = static_cast<int>((gas.params().prove_settle_s + gas.params().prove_hold_s) / kPeriod) + 2;
+  for (int i = 0; i < periods; ++i) gas.noteHold(true, 1500.0 - 300.0 * i * kPeriod, 0.08, kPeriod);
+  EXPECT_EQ(gas.failedProofs(), 1);
+  EXPECT_TRUE(gas.gasUnknown()) << "vented flat again";
+  bool found = true;
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).vent, 1.0);
+  findFlat(&gas, &observer);
+  EXPECT_TRUE(gas.unverified()) << "and proved again";
+}
+
+TEST(GasVerifier, ASuspicionWithoutAnInconsistencyNeedsNoHold) {
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifierParams p;
+  nb::GasVerifier gas(p);
+  gas.suspect();
+  findFlat(&gas, &observer);
+  EXPECT_FALSE(gas.unverified());
+  p.prove_hold_s = 0.0;
+  nb::GasVerifier found_flat_proves(p);
+  found_flat_proves.suspectInconsistent();
+  findFlat(&found_flat_proves, &observer);
+  EXPECT_FALSE(found_flat_proves.unverified()) << "prove_hold_s 0: found flat proves the gas";
 }

@@ -68,6 +68,12 @@ TEST(ConsistencyMonitorParams, RefusesBadValuesNamingThem) {
   expectRefused("load_rate_pa_s", &nb::ConsistencyMonitorParams::load_rate_pa_s, -1.0);
   expectRefused("landed_height_m", &nb::ConsistencyMonitorParams::landed_height_m, -0.01);
   expectRefused("landed_time_s", &nb::ConsistencyMonitorParams::landed_time_s, 0.0);
+  expectRefused("progress_inlet_s", &nb::ConsistencyMonitorParams::progress_inlet_s, -0.01);
+  expectRefused("progress_vent_s", &nb::ConsistencyMonitorParams::progress_vent_s, std::nan(""));
+  expectRefused("progress_rel", &nb::ConsistencyMonitorParams::progress_rel, 0.0);
+  expectRefused("progress_rel", &nb::ConsistencyMonitorParams::progress_rel, 1.0);
+  expectRefused("progress_min_pa", &nb::ConsistencyMonitorParams::progress_min_pa, 0.0);
+  expectRefused("progress_window_s", &nb::ConsistencyMonitorParams::progress_window_s, -1.0);
   EXPECT_TRUE(nb::ConsistencyMonitorParams{}.validate().ok());
 }
 

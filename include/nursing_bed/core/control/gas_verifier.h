@@ -33,6 +33,20 @@ struct GasVerifierParams {
   /// before the loss [Pa].
   double verify_tolerance_pa = 300.0;
   double verify_tolerance_rel = 0.15;  ///< see verify_tolerance_pa [-]
+  /// After an inconsistency the cell found flat is refilled but stays unverified until a hold
+  /// at height proves its gas: the valves held (shut, or a hold's small corrections) this long
+  /// after prove_settle_s with the plate above prove_min_height_m, the mean pressure of its
+  /// second half within the tolerance of its first half's. A plate sinking on a vent stuck open
+  /// fails it (and is vented flat again). A hold that keeps its pressure sends the cell flat
+  /// once more (a fault that ended during the refill left gas uncounted), after which it is
+  /// trusted; 0: found flat proves the gas [s].
+  double prove_hold_s = 2.0;
+  double prove_settle_s = 0.3;  ///< the plate rings this long after a valve edge before the hold counts [s]
+  /// The hold's tolerance: the larger of this and prove_tolerance_rel of its first half's mean [Pa].
+  double prove_tolerance_pa = 100.0;
+  double prove_tolerance_rel = 0.05;  ///< see prove_tolerance_pa [-]
+  /// Only a hold with the estimate above this proves the gas (a flat cell shows no leak) [m].
+  double prove_min_height_m = 0.015;
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
@@ -62,9 +76,16 @@ class GasVerifier {
   /// The link is back: the gas is checked before the controller acts again (a hold compared
   /// with the pressure before the loss, then resume_vent_s).
   void linkRestored();
-  /// Something showed the gas inventory wrong (a consistency monitor, a device or sensor
-  /// fault): unverified until the cell is found flat again; it vents to flat when commanded.
+  /// Something showed the gas inventory wrong (a device or sensor fault): unverified until the
+  /// cell is found flat again; it vents to flat when commanded.
   void suspect();
+  /// The readings contradicted the gas (a consistency monitor): as suspect(), and once found
+  /// flat and refilled still unverified until a hold at height proves the valves keep the gas
+  /// (prove_hold_s), then found flat once more.
+  void suspectInconsistent();
+  /// One period of the readings for the proof's hold: `holding` when the valves are shut or
+  /// only correct the hold, `height_m` the estimate. A failed hold suspects the gas again.
+  void noteHold(bool holding, double gauge_pressure_pa, double height_m, double dt_s);
   /// A new height target `target_m` while the (tracked) height is `height_m`: lowered into the
   /// low band from above it, the cell is to pass through flat; raised out of it before that, it
   /// need not.
@@ -74,8 +95,16 @@ class GasVerifier {
 
   GasKnowledge knowledge() const { return gas_; }
   /// The gas (and the height from it) is not proven: lost link not yet checked, suspected, or
-  /// reset over real hardware and not yet found flat. The cell is then never inflated.
-  bool unverified() const;
+  /// reset over real hardware and not yet found flat, or found flat after an inconsistency and
+  /// not yet proved by a hold at height.
+  bool unverified() const { return gasUnknown() || must_prove_; }
+  /// Unverified and not yet found flat (or the link check under way): the cell is then never
+  /// inflated, only held or vented, and its height is no reference for the landed test.
+  bool gasUnknown() const;
+  /// Found flat after an inconsistency, refilled, and waiting for a hold that proves the gas.
+  bool proving() const { return must_prove_ && gas_ == GasKnowledge::kKnown; }
+  /// Holds that failed to prove the gas since the last reset.
+  int failedProofs() const { return failed_proofs_; }
   /// The last link check's hold found the pressure inconsistent with the gas kept.
   bool holdMismatched() const { return hold_mismatch_; }
   /// Commanded before the observer found the cell flat after a reset: its gas (and height) is
@@ -116,6 +145,15 @@ class GasVerifier {
   double hold_sum_pa_ = 0.0;                     ///< readings summed over the hold
   long hold_count_ = 0;
   bool hold_mismatch_ = false;  ///< the last hold did not match the pressure before the loss
+  /// The proof's hold after an inconsistency (prove_hold_s).
+  struct ProofHold {
+    double held_s = 0.0;               ///< held this long, the settling included [s]
+    double first_pa = 0.0, second_pa = 0.0;  ///< the readings summed over each half
+    long first_n = 0, second_n = 0;
+  };
+  bool must_prove_ = false;  ///< an inconsistency is to be disproved by a hold at height
+  ProofHold proof_;
+  int failed_proofs_ = 0;
 };
 
 }  // namespace nursing_bed

@@ -64,6 +64,21 @@ struct ConsistencyMonitorParams {
   /// few millimetres a re-anchor corrects after a healthy move; 0: off [m].
   double landed_height_m = 0.015;
   double landed_time_s = 0.2;  ///< that long (the readings' mean over a quarter of it) [s]
+  /// Failure to reach target: an inlet counted open this long in all (its pulses summed, a slow
+  /// ramp's small ones included) must have raised the pressure by progress_rel of where it
+  /// was once the valves have rested 0.1 s: the plate it lifts climbs the structure, whose
+  /// pressure under a steady load rises about 1.3 % per millimetre, while a valve stuck shut
+  /// leaves it where it was; 0: off [s].
+  double progress_inlet_s = 0.035;
+  /// The same for a vent (the pressure must fall); vents pass less than the supply's inlet [s].
+  double progress_vent_s = 0.1;
+  double progress_rel = 0.03;  ///< the least relative rise (fall) asked of that much valve time [-]
+  /// Judged only where progress_rel of the pressure is at least this (a light plate's pressure
+  /// hardly moves along the structure) [Pa].
+  double progress_min_pa = 15.0;
+  /// The valve's time is summed over at most this long (a body's slow load changes move the
+  /// pressure over longer spans) [s].
+  double progress_window_s = 60.0;
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
@@ -84,6 +99,7 @@ struct ConsistencySample {
   /// Period of the plate (with its load) on its gas spring, 2 pi sqrt(M / k) with
   /// k = gamma p A^2 / V, at the observer's estimate; 0: unknown (plate on the bed) [s].
   double plate_period_s = 0.0;
+  double inlet_opening = 0.0, vent_opening = 0.0;  ///< the valves acting over the period (0..1) [-]
   double height_m = 0.0;  ///< the observer's height estimate [m]
   /// Mean gauge pressure under which the observer takes a cell with its inlet shut for flat
   /// (CellObserver::flatPressure); 0: unknown, the landed test off [Pa].
@@ -114,8 +130,35 @@ class ValveResponseCheck {
   bool slow_enough_ = false;  ///< its plate swings slowly enough to show the gas
 };
 
+/// One job: failure to reach target. Each valve's counted opening time is summed over its
+/// pulses (the other valve's opening starts the sum again); once it reaches its limit and the
+/// valves have rested 0.1 s, the pressure's mean must have moved its way (at its furthest) by progress_rel
+/// of its mean before the first pulse.
+class ValveProgressCheck {
+ public:
+  /// One period; returns a non-empty reason when a valve's summed opening did not move the pressure.
+  std::string update(const ConsistencySample& sample, double dt_s, const ConsistencyMonitorParams& params);
+  void restart();
+
+ private:
+  struct Window {
+    bool active = false;
+    double open_s = 0.0;    ///< the valve's opening summed over the window [s]
+    double span_s = 0.0;    ///< the window's length [s]
+    double start_pa = 0.0;  ///< the mean pressure before its first pulse [Pa]
+    double best_pa = 0.0;   ///< the furthest the mean moved its way since [Pa]
+  };
+  /// Sums one valve's opening; judges its window once it has run long enough and settled.
+  std::string step(Window* w, int direction, double opening, double limit_s, double dt_s,
+                   const ConsistencyMonitorParams& params);
+  Window inlet_, vent_;
+  double mean_pa_ = 0.0;  ///< the readings' running mean [Pa]
+  bool have_mean_ = false;
+  double rest_s_ = 0.0;  ///< both valves shut this long [s]
+};
+
 /**
- * Seven tests:
+ * Eight tests:
  *  - frozen: the raw reading unchanged for frozen_s;
  *  - jump: a settled plate's reading moves more than jump_pa from one reading to the next (a
  *    controller reacts to the first reading of a jump at once, so a test over time would see
@@ -131,7 +174,9 @@ class ValveResponseCheck {
  *    that moved the readings by less than response_sds (ValveResponseCheck): a valve stuck shut;
  *  - load: the observer's load estimate above max_load_n (gas passing a shut valve);
  *  - landed: the readings flat (below the observer's flat pressure) under an estimate
- *    above landed_height_m (gas gone uncounted).
+ *    above landed_height_m (gas gone uncounted);
+ *  - progress: a valve counted open long enough, over its pulses, without the pressure
+ *    moving its way (ValveProgressCheck): failure to reach target, a valve stuck shut.
  * Once inconsistent it stays so until clear() (the cell's gas re-verified).
  */
 class ConsistencyMonitor {
@@ -163,6 +208,7 @@ class ConsistencyMonitor {
 
   ConsistencyMonitorParams params_;
   ValveResponseCheck response_;
+  ValveProgressCheck progress_;
   std::string reason_;
   double last_reading_pa_ = 0.0;
   bool have_reading_ = false;
