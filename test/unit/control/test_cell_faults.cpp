@@ -62,9 +62,14 @@ class FaultyHardware : public nb::CellHardware {
 
 /// A cell resting at `height_m` under `load_n` on faulty hardware, controlled every 5 ms.
 struct FaultyCell {
-  FaultyCell(double height_m, double load_n) {
+  /// `progress_check`: the failure-to-reach-target test on, at the values that suit the model.
+  FaultyCell(double height_m, double load_n, bool progress_check = false) {
     nb::AirbagCellParams p;
     nb::AirbagObserverSetup observer;
+    if (progress_check) {
+      observer.monitor.progress_inlet_s = 0.035;
+      observer.monitor.progress_vent_s = 0.1;
+    }
     observer.params.valve_dead_time_s = 0.015;  // the valve's 10 ms and a reading one cycle old
     // The plant is the truth: integrated well below the pressure input's 12.2 Pa step, so which
     // side of a step a reading falls on is the physics' (the default tolerance, 1e-4 of the
@@ -247,7 +252,7 @@ namespace {
 /// controller's pulses then are far below the response test's); returns the time to the first
 /// FAULT_INCONSISTENT after the ramp began (-1: none).
 double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double from_m, double to_m) {
-  FaultyCell c(from_m, load_n);
+  FaultyCell c(from_m, load_n, /*progress_check=*/true);
   EXPECT_EQ(c.cell->requestHeight(from_m, 0.0), "");
   c.runTo(6.0);
   c.hw->stuck_inlet = stuck_inlet;
