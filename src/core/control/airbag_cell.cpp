@@ -436,8 +436,8 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   // Found flat again: the count holds from there and the tests run again, but the fault stays
   // until a hold at height has proved the valves keep the gas.
   if ((faults_ & kFaultInconsistent) && monitor_.inconsistent() && !gas_.gasUnknown()) monitor_.clear();
-  const bool correcting = sample.counted_step_pa != 0.0 &&
-                          std::fabs(sample.counted_step_pa) < monitor_.params().hold_correction_pa;
+  const bool correcting =
+      sample.counted_step_pa != 0.0 && std::fabs(sample.counted_step_pa) < monitor_.params().hold_correction_pa;
   gas_.noteHold(sample.valves_shut || correcting, p, observer_->estimate().height_m, dt_s);
   if ((faults_ & kFaultInconsistent) && !gas_.unverified()) {
     faults_ &= ~kFaultInconsistent;

@@ -235,8 +235,10 @@ TEST(CellFaults, AVentStuckOpenKeepsTheCellFlaggedThroughItsRefillsUntilAHoldPro
   ASSERT_GE(c.runTo(c.t + 6.0), 0.0);
   double worst = 0.0;
   c.runTo(c.t + 30.0, &worst);
-  std::printf("[faults] vent stuck open 30 s at 88 mm under 15.6 N, once flagged: worst unflagged error %.1f mm, %d failed proofs\n",
-              1e3 * worst, c.cell->gasVerifier().failedProofs());
+  std::printf(
+      "[faults] vent stuck open 30 s at 88 mm under 15.6 N, once flagged: worst unflagged error %.1f mm, %d failed "
+      "proofs\n",
+      1e3 * worst, c.cell->gasVerifier().failedProofs());
   EXPECT_LT(worst, 0.006) << "an estimate wrong by more than 6 mm was not flagged";
   EXPECT_TRUE(c.cell->heightUnverified()) << "still flagged while the vent is stuck";
   c.hw->stuck_vent = -1;

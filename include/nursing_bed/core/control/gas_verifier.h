@@ -147,7 +147,7 @@ class GasVerifier {
   bool hold_mismatch_ = false;  ///< the last hold did not match the pressure before the loss
   /// The proof's hold after an inconsistency (prove_hold_s).
   struct ProofHold {
-    double held_s = 0.0;               ///< held this long, the settling included [s]
+    double held_s = 0.0;                     ///< held this long, the settling included [s]
     double first_pa = 0.0, second_pa = 0.0;  ///< the readings summed over each half
     long first_n = 0, second_n = 0;
   };

@@ -102,7 +102,7 @@ struct ConsistencySample {
   /// k = gamma p A^2 / V, at the observer's estimate; 0: unknown (plate on the bed) [s].
   double plate_period_s = 0.0;
   double inlet_opening = 0.0, vent_opening = 0.0;  ///< the valves acting over the period (0..1) [-]
-  double height_m = 0.0;  ///< the observer's height estimate [m]
+  double height_m = 0.0;                           ///< the observer's height estimate [m]
   /// Mean gauge pressure under which the observer takes a cell with its inlet shut for flat
   /// (CellObserver::flatPressure); 0: unknown, the landed test off [Pa].
   double flat_pressure_pa = 0.0;
