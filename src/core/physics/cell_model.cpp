@@ -47,7 +47,7 @@ std::string CellParams::validate() const {
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
   positive("bed_contact_stiffness_n_m", bed_contact_stiffness_n_m);
-  non_negative("bed_contact_damping_n_s_m", bed_contact_damping_n_s_m);
+  non_negative("bed_contact_damping_s_m", bed_contact_damping_s_m);
   non_negative("supply_pressure_pa", supply_pressure_pa);
   non_negative("regulator_time_constant_s", regulator_time_constant_s);
   non_negative("inlet_area_m2", inlet_area_m2);
@@ -78,11 +78,11 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
   if (params.structure_type == "table")
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
-                                                params.structure.dead_volume_m3);
+                                                params.structure.dead_volume_m3, params.structure.fold_fraction);
   if (params.structure_type == "fold_table")
     return std::make_shared<FoldTableStructure>(FoldTableStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
-                                                params.structure.dead_volume_m3);
+                                                params.structure.dead_volume_m3, params.structure.fold_fraction);
   if (params.structure_type == "bellows") return std::make_shared<BellowsStructure>(params.bellows);
   return std::make_shared<PillowStructure>(params.structure);
 }
@@ -117,12 +117,12 @@ void CellModel::reset(double load_n) {
   state_.setZero(n);
   const auto rest = structure_->restShape();
   for (int i = 0; i < shape_dofs_; ++i) state_[kShape + i] = rest[i];
-  const double volume = structure_->evaluate(0.0, rest.data()).volume_m3;
+  // A bottomed-out plate rests on the contact spring, the gas at ambient in the flat cell there.
+  state_[kHeight] = -load_n / params_.bed_contact_stiffness_n_m;
+  const double volume = structure_->evaluate(state_[kHeight], rest.data()).volume_m3;
   const double mass = massFromState(params_.gas, params_.ambient_pressure_pa, params_.ambient_temperature_k, volume);
   state_[kMass] = mass;
   state_[kEnergy] = mass * params_.gas.cv() * params_.ambient_temperature_k;
-  // A bottomed-out plate rests on the contact spring.
-  state_[kHeight] = -load_n / params_.bed_contact_stiffness_n_m;
   state_[kRegulator] = 0.0;
   time_ = 0.0;
   last_inputs_ = CellInputs{};
@@ -172,6 +172,8 @@ inline void stateVariables(const CellParams& params, const CellStructure& struct
   const GasProperties& gas = params.gas;
   CellVariables& v = *out;
   v.time_s = time_s;
+  // Floors for a trial stage of the integrator only: the gas never leaves the flat cell's folded
+  // volume, whose few mg no valve empties (they stop at their back pressure).
   v.mass_kg = std::max(x[CellModel::kMass], 1e-12);
   v.internal_energy_j = std::max(x[CellModel::kEnergy], 1e-9);
   v.height_m = x[CellModel::kHeight];
@@ -294,8 +296,10 @@ inline void plateRates(const CellParams& params, const CellInputs& in, const Eff
   CellVariables& v = *out;
   v.bed_contact_force_n = 0.0;
   if (v.height_m < 0.0) {
+    // Hunt-Crossley contact k x (1 + alpha dx/dt), x = -h: no force at first touch, and a heavy
+    // plate that lands fast stays down instead of bouncing off the bed (it cannot pull).
     v.bed_contact_force_n = std::max(
-        0.0, -params.bed_contact_stiffness_n_m * v.height_m - params.bed_contact_damping_n_s_m * v.velocity_m_s);
+        0.0, -params.bed_contact_stiffness_n_m * v.height_m * (1.0 - params.bed_contact_damping_s_m * v.velocity_m_s));
   }
   const double net_force = v.gauge_pressure_pa * v.structure.effective_area_m2 - in.load_n -
                            params.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n + terms.plate_force_n +
