@@ -18,11 +18,9 @@ namespace {
 constexpr double kPeriodS = 0.005;
 constexpr double kTargetM = 0.10;
 constexpr double kNearM = 0.002;  // "at its target": within 2 mm
-/// The lowest the plate may go: the folded films and the bed under the largest accepted load at
-/// rest, and half as much again as a plate carrying it lands.
-double bedLimit(const nb::AirbagCell& cell) {
-  return -1.5 * cell.params().safety.max_load_n / cell.params().cell.bed_contact_stiffness_n_m;
-}
+// The lowest the plate may go: the folded films and the bed compress ~0.5 mm under 1000 N at
+// rest and ~1.6 mm as a plate carrying it lands; -5 to -12 mm went through them.
+constexpr double kBedM = -0.002;
 
 /// Extremes of the gas and the plate over a run.
 struct Extremes {
@@ -158,7 +156,7 @@ TEST_P(LoadSteps, KeepTheGasAndPlatePhysicalAndTheCellRecovers) {
       e.h_max_m * 1e3, e.outside_limits, kTargetM * 1e3, back_s);
   EXPECT_GE(e.t_min_k, 230.0);
   EXPECT_LE(e.t_max_k, 400.0);
-  EXPECT_GE(e.h_min_m, bedLimit(rig.cell()));
+  EXPECT_GE(e.h_min_m, kBedM);
   EXPECT_EQ(e.outside_limits, 0);
   EXPECT_GT(e.mass_min_kg, 0.0);
   if (step.ramp_s >= 0.05) {
@@ -191,7 +189,7 @@ TEST(FlatCell, PoundingWithTheLargestLoadLeavesTheCellWhole) {
   EXPECT_GE(e.t_min_k, 230.0);
   EXPECT_LE(e.t_max_k, 400.0);
   EXPECT_LE(e.p_max_pa, 1.1 * rig.cell().params().safety.relief_pressure_pa);
-  EXPECT_GE(e.h_min_m, bedLimit(rig.cell()));
+  EXPECT_GE(e.h_min_m, kBedM);
   EXPECT_EQ(e.outside_limits, 0);
   EXPECT_LT(back_s, 30.0);
   EXPECT_EQ(rig.cell().faults(), 0u);

@@ -42,9 +42,8 @@ struct CellParams {
   double plate_mass_kg = 0.6 / kGravity;  ///< loading plate (0.6 N, paper section 2.2)
   double plate_damping_n_s_m = 20.0;      ///< viscous damping of the plate guide
   /// Folded film stack and bed under a bottomed plate (h < 0). With the folds' depth delta
-  /// (FlatFold) it sets the largest load the gas lifts off the flat cell smoothly, k delta;
-  /// heavier loads lift off with a snap at up to k delta exp(F / (k delta) - 1) / A_flat.
-  double bed_contact_stiffness_n_m = 2.0e5;
+  /// (FlatFold) it sets the largest load the gas lifts off the flat cell smoothly, k delta.
+  double bed_contact_stiffness_n_m = 2.0e6;
   /// Hunt-Crossley damping alpha of that contact: force k x (1 + alpha dx/dt) at depth x = -h
   /// [s/m]; a landing faster than about 1/alpha is nearly plastic.
   double bed_contact_damping_s_m = 30.0;
