@@ -6,7 +6,6 @@ Prints the eq. 24 RMS (x read as bar, 14-28 kPa, 10.6 N) of each reading's FE h(
 transients' figures, and the fold-table cells' agreement with the FE (within 3 mm); writes
 cell_geometry_hp.png, cell_geometry_transient.png and fold_check_<geometry>.png beside the CSVs.
 """
-import csv
 import glob
 import os
 import sys
@@ -16,19 +15,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-EQ24 = [-4.603e5, 4.099e5, -1.349e5, 1.955e4, -9.741e2]  # paper eq. 24, x read as bar
+from plot_fe import eq24_mm, rows  # noqa: E402  (the same paper curve and CSV reader)
+
 READINGS = {"pillows_n12": "flat pillows", "gusseted_g27_n12": "gusseted, g = 27 mm"}
 LOADS = [0.6, 10.6, 15.6, 20.6]
-
-
-def eq24_mm(p_pa):
-    x = np.asarray(p_pa) * 1e-5
-    return sum(c * x ** (4 - i) for i, c in enumerate(EQ24))
-
-
-def rows(path):
-    with open(path) as f:
-        return list(csv.DictReader(f))
 
 
 def rising(d, tag, load):

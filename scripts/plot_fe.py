@@ -13,13 +13,14 @@ import sys
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 # Paper eq. 24 with x read as bar (doc/paper_targets.md, target 7).
 EQ24 = [-4.603e5, 4.099e5, -1.349e5, 1.955e4, -9.741e2]
 
 
 def eq24_mm(p_pa):
-    x = p_pa * 1e-5
+    x = np.asarray(p_pa) * 1e-5
     return sum(c * x ** (4 - i) for i, c in enumerate(EQ24))
 
 

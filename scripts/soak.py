@@ -28,6 +28,7 @@ import random
 import statistics
 import sys
 import tempfile
+import threading
 import time
 
 import rospy
@@ -49,13 +50,18 @@ FAULTS = [  # (name, fault, valve, value)
 ]
 
 
-def small_map(rows, cols):
+def fault_key(fault):
+    """A fault kind's name for --faults: the emulator's fault, with its valve where it has one."""
+    return fault[1] + (":" + fault[2] if fault[2] else "")
+
+
+def small_map(rows, cols, port):
     """A one-terminal register map of rows x cols cells, laid out as the shipped map's blocks."""
     n = rows * cols
     text = """terminals:
   - name: bed
     host: 127.0.0.1
-    port: 15120
+    port: %d
     unit_id: 1
     response_timeout_s: 0.05
     link_loss_after_s: 0.2
@@ -67,7 +73,7 @@ def small_map(rows, cols):
     supply_pressure: {input_register: 1000, scale_pa: 1.0, offset_pa: -10000.0}
     cell_block: {first_cell: 0, count: %d, valves: coil, inlet_start: 0, vent_start: %d, pressure_start: 0,
                  pressure_scale_pa: 1.0, pressure_offset_pa: -10000.0}
-""" % (n, max(100, n))
+""" % (port, n, max(100, n))
     f = tempfile.NamedTemporaryFile("w", suffix=".yaml", prefix="soak_map_", delete=False)
     f.write(text)
     f.close()
@@ -89,6 +95,7 @@ class Score:
         self.flagged_now = set()
         self.recording = False
         self.t0 = 0.0
+        self.lock = threading.Lock()  # the subscribers' threads share the deques
         self.subs = [rospy.Subscriber("/rig_emulator/truth", RigTruth, self.on_truth, queue_size=50),
                      rospy.Subscriber("/bed_manager/heights", BedHeights, self.on_heights, queue_size=50),
                      rospy.Subscriber("/bed_manager/state", BedState, self.on_state, queue_size=50)]
@@ -96,18 +103,24 @@ class Score:
     def on_state(self, msg):
         flagged = set(msg.faulty_cells) | set(msg.unverified_cells)
         t = msg.header.stamp.to_sec()
-        if self.recording:
-            self.flag_onsets += [(t, c) for c in flagged - self.flagged_now]
-        self.flagged_now = flagged
-        self.flags.append((t, flagged))
+        with self.lock:
+            if self.recording:
+                self.flag_onsets += [(t, c) for c in flagged - self.flagged_now]
+            self.flagged_now = flagged
+            self.flags.append((t, flagged))
 
     def on_truth(self, msg):
-        self.truth.append((msg.header.stamp.to_sec(), list(msg.height_m)))
-        self.settle()
+        with self.lock:
+            self.truth.append((msg.header.stamp.to_sec(), list(msg.height_m)))
+            self.settle()
 
     def on_heights(self, msg):
         if not self.recording:
             return
+        with self.lock:
+            self.add_heights(msg)
+
+    def add_heights(self, msg):
         for cell, (stamp, height) in enumerate(zip(msg.stamps, msg.height_m)):
             t = stamp.to_sec()
             if t > self.last_stamp.get(cell, 0.0) and math.isfinite(height):
@@ -217,10 +230,12 @@ def summarise(score, injections, recoveries, wall_s, faulted_until):
 
 def first_flag(score, cell, since, timeout_s):
     t_end = since + timeout_s
-    for t, c in score.flag_onsets:
+    with score.lock:
+        onsets, flags = list(score.flag_onsets), list(score.flags)
+    for t, c in onsets:
         if c == cell and since <= t <= t_end:
             return t - since
-    for t, f in score.flags:
+    for t, f in flags:
         if since <= t <= t_end and cell in f:
             return t - since
     return None
@@ -228,9 +243,10 @@ def first_flag(score, cell, since, timeout_s):
 
 def run(args, score, n_cells):
     rng = random.Random(args.seed)
+    kinds = [f for f in FAULTS if not args.faults or fault_key(f) in args.faults or f[1] in args.faults]
     plans = [("alternating", ["pattern", "period_s"], ["1in3", str(args.plan_s)]),
              ("lateral_turn", ["side", "angle_deg", "ramp_s", "dwell_s"], ["left", "20", "30", str(args.plan_s / 2)])]
-    injections, recoveries, open_faults, faulted_until = [], [], [], {}
+    injections, recoveries, open_faults, faulted_until, n_faults = [], [], [], {}, 0
     t0 = rospy.get_time()
     next_plan, next_fault, plan_i = t0, (t0 + args.fault_every_s / 2) if args.fault_every_s > 0 else math.inf, 0
     score.recording = True
@@ -242,7 +258,9 @@ def run(args, score, n_cells):
             plan_i += 1
             next_plan = now + args.plan_s
         if now >= next_fault:
-            name, fault, valve, value = rng.choice(FAULTS)
+            # Named kinds in turn (each seen), else drawn from all.
+            name, fault, valve, value = kinds[n_faults % len(kinds)] if args.faults else rng.choice(kinds)
+            n_faults += 1
             cells = sorted(rng.sample(range(n_cells), min(args.fault_cells, n_cells)))
             if inject(fault, cells, valve, value):
                 open_faults.append((name, cells, now))
@@ -266,11 +284,13 @@ def run(args, score, n_cells):
         inject("clear", cells)
         for c in cells:
             injections.append((name, c, at, first_flag(score, c, at, args.flag_within_s)))
-    score.recording = False
+    with score.lock:
+        score.recording = False
+        flags = list(score.flags)
     # Recovery: from the clearing to the cell's first bed state without its flag.
     times = []
     for cell, cleared in recoveries:
-        later = [t for t, f in score.flags if t >= cleared and cell not in f]
+        later = [t for t, f in flags if t >= cleared and cell not in f]
         if later:
             times.append(later[0] - cleared)
     return summarise(score, injections, times, rospy.get_time() - t0, faulted_until)
@@ -286,15 +306,22 @@ def main():
     parser.add_argument("--fault-every-s", type=float, default=120.0,
                         help="a fault about this often (+-25 %%); 0: none (the fault-free baseline)")
     parser.add_argument("--fault-cells", type=int, default=5)
+    parser.add_argument("--faults", type=lambda s: s.split(","), default=[],
+                        help="the fault kinds, in turn, comma-separated (e.g. leak,stuck_open:vent); default: all, drawn")
     parser.add_argument("--fault-hold-s", type=float, default=60.0, help="a fault is cleared after this long")
     parser.add_argument("--flag-within-s", type=float, default=30.0, help="a fault's flag counts this long after it")
     parser.add_argument("--recover-s", type=float, default=60.0, help="flags this long after a clearing are not false")
     parser.add_argument("--flag-slack-s", type=float, default=0.25, help="a flag counts this close to a height's stamp")
     parser.add_argument("--startup-timeout", type=float, default=300.0)
+    parser.add_argument("--port", type=int, default=15120, help="the small bed's Modbus TCP port (one free on this host)")
     parser.add_argument("--json", default="")
     args, launch_args = parser.parse_known_args()
+    known = {fault_key(f) for f in FAULTS} | {f[1] for f in FAULTS}
+    unknown = [k for k in args.faults if k not in known]
+    if unknown:
+        parser.error("--faults: unknown kind(s) %s; known: %s" % (", ".join(unknown), ", ".join(sorted(known))))
     n_cells = args.rows * args.cols
-    extra = [] if (args.rows, args.cols) == (20, 9) else ["register_map:=" + small_map(args.rows, args.cols)]
+    extra = [] if (args.rows, args.cols) == (20, 9) else ["register_map:=" + small_map(args.rows, args.cols, args.port)]
     with launched(["roslaunch", "nursing_bed", "real_bed.launch", "emulator:=true", "rows:=%d" % args.rows,
                    "cols:=%d" % args.cols] + extra + launch_args):
         time.sleep(3.0)

@@ -16,9 +16,11 @@
 #include <sstream>
 
 #include "nursing_bed/InterfacePressure.h"
+#include "nursing_bed/TissueLoad.h"
 #include "nursing_bed/core/io/errors.h"
 #include "nursing_bed/core/physics/units.h"
 #include "nursing_bed/ros/names.h"
+#include "nursing_bed/ros/ros_params.h"
 
 namespace nursing_bed {
 
@@ -30,7 +32,8 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const std::set<std::string> kPatientKeys = {"mass_kg",          "height_m",
                                             "head_clearance_m", "tissue_stiffness_pa_m",
                                             "lateral_offset_m", "contact_resolution_m",
-                                            "smooth_cover",     "max_roll_rad"};
+                                            "smooth_cover",     "max_roll_rad",
+                                            "articulated",      "joint_stiffness_n_m"};
 
 /// Reads `key` when it is set; throws naming it when it has the wrong type.
 template <typename T>
@@ -212,6 +215,9 @@ Status SimulatorParams::validate() const {
   errors.addIf(!(load_filter_time_s >= 0.0 && load_filter_time_s <= 10.0), "~load_filter_time_s must lie in [0, 10] s");
   errors.addIf(!(plate_weight_n >= 0.0 && std::isfinite(plate_weight_n)), "~plate_weight_n must be >= 0 N");
   errors.addIf(!(marker_rate_hz > 0.0 && marker_rate_hz <= rate_hz), "~marker_rate_hz must lie in (0, rate_hz]");
+  errors.addIf(!(tissue_load_rate_hz > 0.0 && tissue_load_rate_hz <= rate_hz),
+               "~tissue_load_rate_hz must lie in (0, rate_hz]");
+  errors.addNested(tissue_load.validate(), "~tissue_load/: ");
   errors.addIf(!(cell_timeout_s > 0.0), "~cell_timeout_s must be positive");
   errors.addIf(!(startup_wait_s >= 0.0), "~startup_wait_s must be >= 0");
   errors.addIf(!(clock_speed > 0.0 && clock_speed <= 100.0), "~clock_speed must lie in (0, 100]");
@@ -232,6 +238,13 @@ SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
   readParam(pnh, "publish_clock", &p.publish_clock);
   readParam(pnh, "clock_speed", &p.clock_speed);
   readParam(pnh, "clock_step_s", &p.clock_step_s);
+  readParam(pnh, "tissue_load_rate_hz", &p.tissue_load_rate_hz);
+  try {
+    applyFlatParams(flattenRosParams(pnh, "tissue_load"), "parameters " + pnh.resolveName("tissue_load"),
+                    tissueLoadParamFields(), &p.tissue_load);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(std::string("simulator: ") + e.what());
+  }
   XmlRpc::XmlRpcValue patient;
   if (pnh.getParam("patient", patient)) {
     if (patient.getType() != XmlRpc::XmlRpcValue::TypeStruct)
@@ -252,6 +265,8 @@ SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
   readParam(pnh, "patient/contact_resolution_m", &p.patient.contact_resolution_m);
   readParam(pnh, "patient/smooth_cover", &p.patient.smooth_cover);
   readParam(pnh, "patient/max_roll_rad", &p.patient.max_roll_rad);
+  readParam(pnh, "patient/articulated", &p.patient.articulated);
+  readParam(pnh, "patient/joint_stiffness_n_m", &p.patient.joint_stiffness_n_m);
   return p;
 }
 
@@ -300,6 +315,7 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
         "loop through the cells may ring (doc/simulator.md)",
         params_.load_filter_time_s);
 
+  tissue_ = std::make_unique<TissueLoadMeter>(params_.tissue_load, defaultTissueRegions());
   const std::size_t n = layout_.cells().size();
   heights_m_.assign(n, grid.min_height_m);
   reported_load_n_.assign(n, kNaN);
@@ -313,6 +329,7 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
   roll_pub_ = private_nh_.advertise<std_msgs::Float64>(sim_names::kBodyRoll, 2);
   pressure_pub_ = private_nh_.advertise<InterfacePressure>(sim_names::kInterfacePressure, 2);
   markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>(sim_names::kBedMarkers, 2);
+  tissue_pub_ = private_nh_.advertise<TissueLoad>(sim_names::kTissueLoad, 2);
   tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
 
   const std::vector<int> rows = body_->footprintRows();
@@ -478,6 +495,7 @@ void Simulator::step(const ros::Time& now) {
     ROS_WARN_THROTTLE(10.0, "simulator: the body's equilibrium did not converge (%d iterations)", state.iterations);
   publishLoads(state, cells.reported, now);
   publishViews(state, cells.heights, now);
+  updateTissueLoad(cells.heights, now);
   recordStepTime((ros::WallTime::now() - wall_start).toSec(), state.iterations);
 }
 
@@ -512,6 +530,46 @@ void Simulator::publishPressure(const BodyState& s, const ros::Time& now) {
   m.body_roll_rad = s.roll_rad;
   m.total_load_n = s.total_load_n;
   pressure_pub_.publish(out);
+}
+
+void Simulator::updateTissueLoad(const std::vector<double>& heights, const ros::Time& now) {
+  if (last_tissue_.isZero() || now < last_tissue_) {
+    last_tissue_ = now;  // the first snapshot, or time went back (a restarted /clock): no interval yet
+    tissue_->sample(measureRegions(body_->contactMap(heights), tissue_->regions(), params_.patient.height_m), 0.0);
+    publishTissueLoad(now);
+    return;
+  }
+  const double dt = (now - last_tissue_).toSec();
+  if (dt < 1.0 / params_.tissue_load_rate_hz - 0.5 / params_.rate_hz) return;
+  tissue_->sample(measureRegions(body_->contactMap(heights), tissue_->regions(), params_.patient.height_m), dt);
+  last_tissue_ = now;
+  publishTissueLoad(now);
+}
+
+void Simulator::publishTissueLoad(const ros::Time& now) {
+  const boost::shared_ptr<TissueLoad> out = boost::make_shared<TissueLoad>();
+  TissueLoad& m = *out;
+  m.header.stamp = now;
+  m.header.frame_id = BedLayout::kBedLink;
+  m.threshold_pa = tissue_->params().threshold_pa;
+  m.observed_s = tissue_->observedS();
+  for (std::size_t r = 0; r < tissue_->regions().size(); ++r) {
+    const RegionDose& d = tissue_->doses()[r];
+    m.region.push_back(tissue_->regions()[r].name);
+    m.peak_pressure_pa.push_back(d.now.peak_pressure_pa);
+    m.peak_pressure_mmhg.push_back(paToMmHg(d.now.peak_pressure_pa));
+    m.mean_pressure_pa.push_back(d.now.mean_pressure_pa);
+    m.mean_pressure_mmhg.push_back(paToMmHg(d.now.mean_pressure_pa));
+    m.contact_area_m2.push_back(d.now.contact_area_m2);
+    m.force_n.push_back(d.now.force_n);
+    m.margin_m.push_back(d.now.margin_m);
+    m.min_margin_m.push_back(d.min_margin_m);
+    m.max_peak_pressure_mmhg.push_back(paToMmHg(d.max_peak_pressure_pa));
+    m.time_above_threshold_s.push_back(d.time_above_s);
+    m.share_above_threshold.push_back(m.observed_s > 0.0 ? d.time_above_s / m.observed_s : 0.0);
+    m.dose.push_back(d.dose);
+  }
+  tissue_pub_.publish(out);
 }
 
 void Simulator::publishMarkers(const BodyState& s, const std::vector<double>& heights, const ros::Time& now) {

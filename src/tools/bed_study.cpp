@@ -3,8 +3,9 @@
 // controllers, the bed manager's plans, and the body model coupled to the cells the way the
 // simulator node couples them. Writes DIR/bed_study.json and prints the tables of
 // doc/bed_study.md: peak interface pressures on the flat bed, the share of time each region
-// spends above 32 mmHg under alternating 1-in-2 and 1-in-3, the body roll per requested turn
-// angle, and the CPR time from every plan.
+// spends above 32 mmHg under alternating 1-in-2 and 1-in-3 with the tissue-load metrics per
+// region (core TissueLoadMeter), the body roll per requested turn angle, and the CPR time from
+// every plan.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,7 @@
 
 #include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/core/bed/posture_plans.h"
+#include "nursing_bed/core/bed/tissue_load.h"
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/physics/units.h"
 #include "tool_cli.h"
@@ -29,17 +31,18 @@ namespace nb = nursing_bed;
 
 namespace {
 
-constexpr double kCapillaryClosingPa = 32.0 * nb::kPaPerMmHg;  // 4.27 kPa
 constexpr double kPlateWeightN = 0.6;
 constexpr double kBodyStepS = 0.02;   // the simulator node's rate (50 Hz)
 constexpr double kPlanStepS = 0.1;    // the bed manager's rate (10 Hz)
 constexpr double kLoadFilterS = 0.1;  // the simulator node's load filter
+constexpr int kMeterEvery = 25;       // body steps per tissue-load sample (2 Hz)
 
 // The bed: cells, body and the running plan, stepped together in simulated time.
 class Bed {
  public:
-  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa)
-      : grid_(grid), config_(config), body_(nb::PatientParams{}, grid) {
+  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+      const nb::PatientParams& patient = nb::PatientParams{})
+      : grid_(grid), config_(config), body_(patient, grid) {
     nb::AirbagCellParams p;
     p.cell.supply_pressure_pa = supply_pa;
     for (int i = 0; i < grid.cells(); ++i) {
@@ -70,12 +73,12 @@ class Bed {
     while (t_ < end - 1e-9) {
       if (plan_ && std::fmod(t_ + 1e-9, kPlanStepS) < kBodyStepS) applyPlan();
       t_ += kBodyStepS;
-      std::vector<double> heights(grid_.cells());
+      heights_.resize(grid_.cells());
       for (int i = 0; i < grid_.cells(); ++i) {
         cells_[i]->advanceTo(t_);
-        heights[i] = std::max(0.0, cells_[i]->variables().height_m);
+        heights_[i] = std::max(0.0, cells_[i]->variables().height_m);
       }
-      state_ = body_.solve(heights);
+      state_ = body_.solve(heights_);
       const double a = kBodyStepS / kLoadFilterS;
       for (int i = 0; i < grid_.cells(); ++i) {
         loads_[i] += a * (state_.cell_load_n[i] - loads_[i]);
@@ -89,6 +92,10 @@ class Bed {
   }
 
   const nb::BodyState& body() const { return state_; }
+  /// The default regions' loads on the last solve.
+  std::vector<nb::RegionLoad> regionLoads() const {
+    return nb::measureRegions(body_.contactMap(heights_), nb::defaultTissueRegions(), body_.params().height_m);
+  }
   const nb::BodyModel& model() const { return body_; }
   double maxHeight() const {
     double h = 0.0;
@@ -116,7 +123,7 @@ class Bed {
   nb::BodyModel body_;
   nb::BodyFootprint footprint_;
   std::vector<std::unique_ptr<nb::AirbagCell>> cells_;
-  std::vector<double> loads_, last_sent_;
+  std::vector<double> loads_, last_sent_, heights_;
   std::unique_ptr<nb::PosturePlan> plan_;
   nb::BodyState state_;
   double t_ = 0.0, plan_start_ = 0.0;
@@ -135,9 +142,47 @@ Json regions(double sacrum, double heels, double occiput) {
   return {{"sacrum", number(sacrum)}, {"heels", number(heels)}, {"occiput", number(occiput)}};
 }
 
+/// Every region's snapshot: peak and mean pressure, contact area, force, bottoming-out margin.
+Json regionSnapshot(const std::vector<nb::RegionLoad>& loads) {
+  Json out = Json::object();
+  std::printf("  %-17s %10s %10s %10s %8s %10s\n", "region", "peak mmHg", "mean mmHg", "area cm^2", "force N",
+              "margin mm");
+  for (std::size_t r = 0; r < loads.size(); ++r) {
+    const nb::RegionLoad& l = loads[r];
+    const std::string& name = nb::defaultTissueRegions()[r].name;
+    std::printf("  %-17s %10.1f %10.1f %10.0f %8.1f %10.1f\n", name.c_str(), mmhg(l.peak_pressure_pa),
+                mmhg(l.mean_pressure_pa), 1e4 * l.contact_area_m2, l.force_n, 1e3 * l.margin_m);
+    out[name] = {{"peak_mmhg", number(mmhg(l.peak_pressure_pa))},
+                 {"mean_mmhg", number(mmhg(l.mean_pressure_pa))},
+                 {"contact_area_cm2", number(1e4 * l.contact_area_m2)},
+                 {"force_n", number(l.force_n)},
+                 {"margin_mm", number(1e3 * l.margin_m)}};
+  }
+  return out;
+}
+
+/// Every region's accumulated metrics: share of the time above the threshold, dose per hour,
+/// highest peak, lowest margin.
+Json regionDoses(const nb::TissueLoadMeter& meter) {
+  Json out = Json::object();
+  std::printf("  %-17s %10s %12s %14s %14s\n", "region", "share >32", "dose per h", "max peak mmHg", "min margin mm");
+  for (std::size_t r = 0; r < meter.regions().size(); ++r) {
+    const nb::RegionDose& d = meter.doses()[r];
+    const double share = d.time_above_s / meter.observedS(), per_hour = d.dose * 3600.0 / meter.observedS();
+    std::printf("  %-17s %9.0f%% %12.4f %14.1f %14.1f\n", meter.regions()[r].name.c_str(), 100 * share, per_hour,
+                mmhg(d.max_peak_pressure_pa), 1e3 * d.min_margin_m);
+    out[meter.regions()[r].name] = {{"share_above_threshold", number(share)},
+                                    {"dose_per_hour", number(per_hour)},
+                                    {"max_peak_mmhg", number(mmhg(d.max_peak_pressure_pa))},
+                                    {"min_margin_mm", number(1e3 * d.min_margin_m)}};
+  }
+  return out;
+}
+
 /// 1. Flat bed: peaks after settling.
-Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
-  Bed bed(grid, config, supply_pa);
+Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+             const nb::PatientParams& patient) {
+  Bed bed(grid, config, supply_pa, patient);
   bed.start({"flat", {}, {}});
   bed.run(15.0);
   const nb::BodyState& s = bed.body();
@@ -150,7 +195,8 @@ Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double suppl
   return {{"peak_mmhg",
            regions(mmhg(s.peak_pressure_pa.sacrum), mmhg(s.peak_pressure_pa.heels), mmhg(s.peak_pressure_pa.occiput))},
           {"cell_peak_mmhg", regions(mmhg(s.peak_cell_pressure_pa.sacrum), mmhg(s.peak_cell_pressure_pa.heels),
-                                     mmhg(s.peak_cell_pressure_pa.occiput))}};
+                                     mmhg(s.peak_cell_pressure_pa.occiput))},
+          {"regions", regionSnapshot(bed.regionLoads())}};
 }
 
 /// 2. Share of time above 32 mmHg per region under `plan` ("flat", "1in2", "1in3"), at the
@@ -167,13 +213,17 @@ Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
   const std::vector<int> rows[3] = {bed.model().pelvisRows(), bed.model().heelRows(), bed.model().headRows()};
   std::vector<double> above(grid.cells(), 0.0), loaded(grid.cells(), 0.0);
   int samples = 0;
+  nb::TissueLoadMeter meter(nb::TissueLoadParams{}, nb::defaultTissueRegions());
+  const double threshold_pa = meter.params().threshold_pa;  // 32 mmHg
   bed.run(plan == "flat" ? 60.0 : period_s, [&](double) {
     const std::vector<double>& peak = bed.body().cell_peak_pressure_pa;
     for (int i = 0; i < grid.cells(); ++i) {
-      above[i] += peak[i] > kCapillaryClosingPa;
+      above[i] += peak[i] > threshold_pa;
       loaded[i] += peak[i] > 0.0;
     }
     ++samples;
+    // The regions at 2 Hz, as the simulator samples them: loads that change over seconds.
+    if (samples % kMeterEvery == 0) meter.sample(bed.regionLoads(), kMeterEvery * kBodyStepS);
   });
   double share[3] = {0, 0, 0};
   for (int k = 0; k < 3; ++k) {
@@ -191,14 +241,17 @@ Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
                   ? "flat bed (0.12 m)"
                   : ("alternating " + plan + ", period " + std::to_string(static_cast<int>(period_s)) + " s").c_str(),
               100 * share[0], 100 * share[1], 100 * share[2]);
-  return regions(share[0], share[1], share[2]);
+  Json out = regions(share[0], share[1], share[2]);
+  out["regions"] = regionDoses(meter);
+  return out;
 }
 
 /// 3. Lateral turn: body roll at the end of the ramp (+ 10 s) per requested angle.
-Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
+Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+                  const nb::PatientParams& patient) {
   Json turns = Json::array();
   for (int angle = 5; angle <= 30; angle += 5) {
-    Bed bed(grid, config, supply_pa);
+    Bed bed(grid, config, supply_pa, patient);
     bed.start({"flat", {}, {}});
     bed.run(10.0);
     const double ramp = std::max(config.turn_ramp_s, angle / config.max_tilt_rate_deg_s);
@@ -240,9 +293,10 @@ Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, double supp
 }
 
 constexpr const char* kSynopsis =
-    "usage: bed_study --out DIR [--period S]\n"
+    "usage: bed_study --out DIR [--period S] [--articulated]\n"
     "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
-    "DIR/bed_study.json.";
+    "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
+    "lateral turns only (DIR/bed_study_articulated.json).";
 
 }  // namespace
 
@@ -256,6 +310,8 @@ int main(int argc, char** argv) {
   app.add_option("--period", period_s, "period of the alternating plans [s]")
       ->type_name("S")
       ->check(tools::positiveNumber());
+  bool articulated = false;
+  app.add_flag("--articulated", articulated, "the articulated patient: flat bed and lateral turns only");
   const int parsed = tools::parseCommandLine(app, argc, argv);
   if (parsed != tools::kRun) return parsed;
 
@@ -263,11 +319,20 @@ int main(int argc, char** argv) {
   const nb::BedGrid grid;
   const nb::PlanConfig config;
   Json study;
-  study["flat"] = flatBed(grid, config, supply_pa);
+  if (articulated) {
+    nb::PatientParams patient;
+    patient.articulated = true;
+    study["flat"] = flatBed(grid, config, supply_pa, patient);
+    study["lateral_turn"] = lateralTurns(grid, config, supply_pa, patient);
+    std::ofstream(std::filesystem::path(out_dir) / "bed_study_articulated.json") << study.dump(2) << "\n";
+    std::cout << "wrote " << out_dir << "/bed_study_articulated.json\n";
+    return 0;
+  }
+  study["flat"] = flatBed(grid, config, supply_pa, nb::PatientParams{});
   Json& share = study["share_above_32mmhg"];
   for (const std::string plan : {"flat", "1in2", "1in3"})
     share[plan] = shareAbove32(grid, config, supply_pa, period_s, plan);
-  study["lateral_turn"] = lateralTurns(grid, config, supply_pa);
+  study["lateral_turn"] = lateralTurns(grid, config, supply_pa, nb::PatientParams{});
   study["cpr_seconds"] = cprTimes(grid, config, supply_pa);
   std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << study.dump(2) << "\n";
   std::cout << "wrote " << out_dir << "/bed_study.json\n";

@@ -14,6 +14,7 @@
 #include <iostream>
 #include <map>
 #include <set>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/log_import.h"
 #include "nursing_bed/core/gap/paper_study.h"
@@ -57,6 +59,18 @@ std::string effectList() {
   return s;
 }
 
+std::string distortionList() {
+  std::string s;
+  for (const auto& m : nb::distortionMembers()) {
+    const nb::EffectParamSpec* p = nb::effectSpec(m.effect).param(m.param);  // the kind's parameter
+    std::ostringstream line;
+    line << "  " << m.channel << ":" << m.kind << "=VALUE [" << p->unit << "], admissible " << p->min_value << " .. "
+         << p->max_value << "\n";
+    s += line.str();
+  }
+  return s;
+}
+
 double parseNumber(const std::string& option, const std::string& text) {
   double v = 0.0;
   const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
@@ -68,12 +82,13 @@ double parseNumber(const std::string& option, const std::string& text) {
 /// `gap synth`'s options as given; checked by synthOptions.
 struct SynthArgs {
   std::string out_dir, seed = "1", noise_scale = "1", protocol = "standard";
-  std::vector<std::string> effects, airbag_params;
+  std::vector<std::string> effects, distortions, airbag_params;
   bool no_flow_meter = false, no_height = false;
 };
 
 constexpr const char* kSynthSynopsis =
-    "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--seed N]\n"
+    "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--distort CHANNEL:KIND=VALUE]...\n"
+    "                 [--seed N]\n"
     "                 [--noise-scale S] [--protocol standard|small] [--airbag-param NAME=VALUE]...\n"
     "                 [--no-flow-meter] [--no-height]\n"
     "Simulates the run-data protocol (paper-shaped inflow, 60 s hold with the inlet closed,\n"
@@ -86,6 +101,10 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
                                 "a truth effect, repeatable; parameters not given are drawn from the seed within "
                                 "their plausible range (e.g. --effect leak:leak_area_m2=1e-8)"))
       ->type_name("NAME[:param=value,...]");
+  tools::takeAll(sub.add_option("--distort", a->distortions,
+                                "a channel distortion, repeatable: pressure, height, inflow or load with gain, "
+                                "offset, drift, shift or lag (e.g. --distort height:gain=-0.04)"))
+      ->type_name("CHANNEL:KIND=VALUE[,KIND=VALUE]");
   sub.add_option("--seed", a->seed, "random seed for drawn parameters and noise")->type_name("N");
   sub.add_option("--noise-scale", a->noise_scale, "multiplies every sensor noise and quantisation step (0: exact)")
       ->type_name("S");
@@ -102,7 +121,9 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
       "--no-flow-meter", a->no_flow_meter,
       "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (doc/formats/run_data.md)");
   sub.add_flag("--no-height", a->no_height, "no height sensor: h_m left out");
-  sub.footer("effects and their parameters:\n" + effectList());
+  // The distortions first: scripts read the effects from "effects and their parameters:" on.
+  sub.footer("distortions (--distort; diagnosed as the candidates <channel>_<kind>):\n" + distortionList() +
+             "effects and their parameters:\n" + effectList());
 }
 
 /// The synthesis options from the command line; a UsageError naming the option when a value is
@@ -118,6 +139,14 @@ nb::SynthOptions synthOptions(const SynthArgs& a) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--effect ") + v + ": " + e.what());
     }
+  }
+  for (const std::string& v : a.distortions) {
+    try {
+      nb::parseDistortion(v);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--distort: ") + e.what());
+    }
+    o.distortions.push_back(v);
   }
   const double seed = parseNumber("--seed", a.seed);
   if (seed < 0.0 || seed > 4294967295.0 || seed != std::floor(seed))
@@ -155,6 +184,13 @@ int runSynth(const SynthArgs& args) {
       nb::resolveSynthEffects(o.effects, o.seed, &names, &params, &effects);
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string("--effect: ") + e.what());
+    }
+    std::vector<nb::SynthEffectRequest> requests = o.effects;
+    nb::SynthResult planned;
+    try {
+      nb::synthDistortions(o.distortions, &requests, &planned);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--distort: ") + e.what());
     }
   }
   nb::synthesizeDataset(o);
@@ -353,7 +389,9 @@ int runCalibrate(const AnalysisArgs& a) {
 
 void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
   defineCommon(sub, a);
-  sub.add_option("--effects", a->effects, "candidates to try, comma-separated (default: all seven)")
+  sub.add_option("--effects", a->effects,
+                 "candidates to try, comma-separated (default: all seven and the channel "
+                 "distortions of the runs' channels)")
       ->type_name("NAME,NAME...");
   sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");
   sub.add_option("--model-floor", a->model_floor,
@@ -369,7 +407,8 @@ int runDiagnose(const AnalysisArgs& a) {
   options.model_floor = a.model_floor;
   if (!a.effects.empty())
     options.candidates = nameList("--effects", a.effects, [](const std::string& name) {
-      const auto known = nb::candidateEffectNames();
+      auto known = nb::candidateEffectNames();
+      for (const auto& e : nb::distortionCatalog()) known.push_back(e.name);
       if (std::find(known.begin(), known.end(), name) == known.end())
         throw UsageError("--effects: '" + name + "' is not a candidate effect; candidates:\n" + effectList());
     });

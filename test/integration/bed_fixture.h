@@ -77,6 +77,22 @@ class BedFixture : public ::testing::Test {
     return condition();
   }
 
+  int cells() const { return rows_ * cols_; }
+
+  /// Waits until every cell is SAFE with its command timeout flagged (the bed manager gone);
+  /// returns whether that held within `timeout_s`.
+  bool everyCellSafeWithin(double timeout_s) {
+    return waitFor(
+        [&] {
+          for (int id = 0; id < cells(); ++id)
+            if (!states_.count(id) || states_[id].mode != AirbagState::MODE_SAFE ||
+                !(states_[id].faults & AirbagState::FAULT_COMMAND_TIMEOUT))
+              return false;
+          return true;
+        },
+        timeout_s);
+  }
+
   /// Holds when every cell in `targets` (id -> height) has been within tol of it for `hold_s`.
   bool settle(const std::map<uint32_t, double>& targets, double tol_m, double hold_s, double timeout_s) {
     ros::WallTime inside_since;

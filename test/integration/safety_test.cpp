@@ -27,8 +27,6 @@ std::string cellName(int row, int col) { return "/airbag_" + std::to_string(row)
 
 class SafetyFixture : public PlanFixture {
  protected:
-  int cells() const { return rows_ * cols_; }
-
   /// Every cell healthy: reporting, no sensor or model fault, holding a height.
   std::string unhealthy() {
     for (int id = 0; id < cells(); ++id) {
@@ -340,14 +338,7 @@ TEST_F(SafetyFixture, BedManagerKilledCellsHoldCprWorksAndTheRestartResumesThePl
   ASSERT_TRUE(settle(uniform(0.08), 2e-3, 0.3, 25.0));
   killBedManager();
   const ros::WallTime killed = ros::WallTime::now();
-  const bool held = waitFor(
-      [&] {
-        for (int id = 0; id < cells(); ++id)
-          if (states_[id].mode != AirbagState::MODE_SAFE || !(states_[id].faults & AirbagState::FAULT_COMMAND_TIMEOUT))
-            return false;
-        return true;
-      },
-      4.0);
+  const bool held = everyCellSafeWithin(4.0);
   const double safe_s = (ros::WallTime::now() - killed).toSec();
   EXPECT_TRUE(held) << "not every cell went SAFE";
   EXPECT_LE(safe_s, 2.0);

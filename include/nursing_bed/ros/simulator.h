@@ -1,7 +1,8 @@
 // The simulator: a patient lying on the bed (core BodyModel) coupled to the airbag nodes. Each
 // step it reads every cell's height from its AirbagState, rests the body on the cells, and
 // publishes each cell's load on /airbag_loads, the interface pressure, the body's roll, rviz
-// markers and tf frames of the body. Optionally it is the clock (/clock, faster than real time)
+// markers and tf frames of the body, and at ~tissue_load_rate_hz the tissue-load metrics per
+// body region (core TissueLoadMeter). Optionally it is the clock (/clock, faster than real time)
 // for tests. Same class as node (simulator_node) and nodelet (nursing_bed/SimulatorNodelet).
 // Interface, model and coupling: doc/simulator.md.
 #pragma once
@@ -20,6 +21,7 @@
 
 #include "nursing_bed/AirbagState.h"
 #include "nursing_bed/core/bed/body_model.h"
+#include "nursing_bed/core/bed/tissue_load.h"
 #include "nursing_bed/core/io/status.h"
 #include "nursing_bed/ros/bed_layout.h"
 
@@ -29,6 +31,7 @@ namespace sim_names {
 constexpr const char* kBedMarkers = "/bed_markers";               // visualization_msgs/MarkerArray, bed_link
 constexpr const char* kBodyRoll = "body_roll";                    // ~body_roll: std_msgs/Float64 [rad]
 constexpr const char* kInterfacePressure = "interface_pressure";  // ~interface_pressure: nursing_bed/InterfacePressure
+constexpr const char* kTissueLoad = "tissue_load";                // ~tissue_load: nursing_bed/TissueLoad
 constexpr const char* kBodyLink = "body_link";                    // tf frame at the pelvis
 }  // namespace sim_names
 
@@ -38,14 +41,16 @@ struct SimulatorParams {
   std::string robot_description = "robot_description";  ///< ~robot_description_param
   std::string cells_ns = "/";                           ///< ~cells_ns: where the airbag_<r>_<c> nodes live
   double rate_hz = 50.0;                                ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
-  double load_filter_time_s = 0.1;  ///< ~load_filter_time_s: first-order filter on the published loads [s]
-  double plate_weight_n = 0.6;      ///< ~plate_weight_n: added to every cell's load [N]
-  double marker_rate_hz = 10.0;     ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
-  double cell_timeout_s = 1.0;      ///< ~cell_timeout_s: warn when a cell is silent this long [s]
-  double startup_wait_s = 5.0;      ///< ~startup_wait_s: wait this long for every cell's first state [s]
-  bool publish_clock = false;       ///< ~publish_clock: publish /clock (for use_sim_time runs)
-  double clock_speed = 1.0;         ///< ~clock_speed: simulated seconds per wall second
-  double clock_step_s = 0.005;      ///< ~clock_step_s: /clock increment [s]
+  double load_filter_time_s = 0.1;   ///< ~load_filter_time_s: first-order filter on the published loads [s]
+  double plate_weight_n = 0.6;       ///< ~plate_weight_n: added to every cell's load [N]
+  double marker_rate_hz = 10.0;      ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
+  double cell_timeout_s = 1.0;       ///< ~cell_timeout_s: warn when a cell is silent this long [s]
+  double startup_wait_s = 5.0;       ///< ~startup_wait_s: wait this long for every cell's first state [s]
+  bool publish_clock = false;        ///< ~publish_clock: publish /clock (for use_sim_time runs)
+  double clock_speed = 1.0;          ///< ~clock_speed: simulated seconds per wall second
+  double clock_step_s = 0.005;       ///< ~clock_step_s: /clock increment [s]
+  double tissue_load_rate_hz = 1.0;  ///< ~tissue_load_rate_hz: metrics sampled and published [Hz]
+  TissueLoadParams tissue_load;      ///< ~tissue_load/...: threshold_pa, tolerance/... (config/tissue_load.yaml)
 
   /// Success when valid, else an error with every problem found.
   Status validate() const;
@@ -90,11 +95,15 @@ class Simulator {
   void publishPressure(const BodyState& state, const ros::Time& now);
   void publishMarkers(const BodyState& state, const std::vector<double>& heights, const ros::Time& now);
   void publishTf(const BodyState& state, const ros::Time& now);
+  /// At ~tissue_load_rate_hz: the regions' loads on the last solve into the meter, published.
+  void updateTissueLoad(const std::vector<double>& heights, const ros::Time& now);
+  void publishTissueLoad(const ros::Time& now);
 
   ros::NodeHandle nh_, private_nh_;
   SimulatorParams params_;
   BedLayout layout_;
   std::unique_ptr<BodyModel> body_;
+  std::unique_ptr<TissueLoadMeter> tissue_;
 
   std::mutex state_mutex_;               // guards the cells' last states (callbacks on any thread)
   std::vector<double> heights_m_;        // by cell id
@@ -104,12 +113,12 @@ class Simulator {
   std::mutex step_mutex_;                // one step at a time
   std::vector<double> filtered_load_n_;  // by cell id, plate included: what /airbag_loads says
   bool started_ = false;
-  ros::Time start_, last_step_, last_markers_;
+  ros::Time start_, last_step_, last_markers_, last_tissue_;
   double step_time_sum_s_ = 0.0, step_time_max_s_ = 0.0;
   long steps_ = 0;
 
   std::vector<ros::Subscriber> state_subs_;
-  ros::Publisher loads_pub_, roll_pub_, pressure_pub_, markers_pub_, clock_pub_;
+  ros::Publisher loads_pub_, roll_pub_, pressure_pub_, markers_pub_, clock_pub_, tissue_pub_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
   ros::Timer timer_;
   std::thread clock_thread_;

@@ -108,6 +108,8 @@ Status PatientParams::validate() const {
                "contact_resolution_m must lie in [0.002, 0.05] m (got ", contact_resolution_m, ")");
   errors.addIf(!(max_roll_rad > 0.0 && max_roll_rad <= 1.4), "max_roll_rad must lie in (0, 1.4] rad (got ",
                max_roll_rad, ")");
+  errors.addIf(!(joint_stiffness_n_m >= 1e3 && joint_stiffness_n_m <= 1e7),
+               "joint_stiffness_n_m must lie in [1e3, 1e7] N/m (got ", joint_stiffness_n_m, ")");
   return errors.status();
 }
 
@@ -157,6 +159,10 @@ BodyModel::BodyModel(const PatientParams& params, const BedGrid& grid) : params_
     segments_[seg.spec.parent].carried_n += seg.carried_n;
     seg.carried_n = 0.0;
   }
+  if (params_.articulated) {
+    joints_.emplace(x_vertex, params_.lateral_offset_m, H, params_.joint_stiffness_n_m);
+    calibrateJoints();
+  }
 }
 
 void BodyModel::buildSegment(Segment* seg) const {
@@ -175,7 +181,9 @@ void BodyModel::buildSegment(Segment* seg) const {
       if (y <= -half_w || y >= half_w) continue;
       SubPoint sp;
       sp.u = y - seg->y_c;
+      sp.x = x;
       const double v = x - seg->x_c;
+      sp.v = v;
       sp.q = sp.u * sp.u / (2.0 * seg->radius_y) + v * v / (2.0 * seg->radius_x);
       sp.area = dx * dy;
       // Continuous cell coordinates: row r at x(r), col c at y(c).
@@ -212,7 +220,11 @@ void BodyModel::buildSegment(Segment* seg) const {
 double BodyModel::weightN() const { return params_.mass_kg * kGravity; }
 
 void BodyModel::reset() {
-  for (Segment& seg : segments_) seg.warm = false;
+  for (Segment& seg : segments_) {
+    seg.warm = false;
+    seg.s = 0.0;
+  }
+  articulated_warm_ = false;
 }
 
 BodyModel::Evaluation BodyModel::evaluate(const Segment& seg, const std::vector<double>& surface, double z,
@@ -354,7 +366,7 @@ void BodyModel::restOnCells(const Segment& seg, const std::vector<double>& surfa
   double force = 0.0, moment = 0.0, peak = 0.0;
   for (std::size_t i = 0; i < seg.points.size(); ++i) {
     const SubPoint& sp = seg.points[i];
-    const double d = surface[i] - seg.z - seg.t * sp.u - sp.q;
+    const double d = surface[i] - seg.z - seg.t * sp.u - seg.s * sp.v - sp.q;
     if (d <= 0.0) continue;
     const double f = k * sp.area * d;
     force += f;
@@ -368,6 +380,7 @@ void BodyModel::restOnCells(const Segment& seg, const std::vector<double>& surfa
   }
   pose->z_m = seg.z;
   pose->roll_rad = std::atan(seg.t);
+  pose->pitch_rad = std::atan(seg.s);
   pose->support_n = force;
   pose->moment_residual_nm = moment;
   pose->peak_pressure_pa = peak;
@@ -406,6 +419,15 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
   state.cell_pressure_pa.assign(n, 0.0);
   state.cell_peak_pressure_pa.assign(n, 0.0);
   std::vector<double> surface, loads;
+  std::vector<std::vector<double>> surfaces;
+  if (joints_) {
+    surfaces.resize(segments_.size());
+    for (std::size_t i = 0; i < segments_.size(); ++i)
+      if (segments_[i].on_bed) surfaceUnder(segments_[i], cell_heights_m, &surfaces[i]);
+    bool ok = false;
+    state.iterations += solveArticulated(surfaces, &ok);
+    state.converged = ok;
+  }
   double trunk_roll = 0.0, trunk_mass = 0.0;
   for (Segment& seg : segments_) {
     SegmentPose pose = segmentPose(seg);
@@ -417,10 +439,14 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
       state.segments.push_back(pose);
       continue;
     }
-    surfaceUnder(seg, cell_heights_m, &surface);
-    bool ok = false;
-    state.iterations += solveSegment(&seg, surface, &ok);
-    state.converged = state.converged && ok;
+    if (joints_) {
+      surface = surfaces[&seg - segments_.data()];
+    } else {
+      surfaceUnder(seg, cell_heights_m, &surface);
+      bool ok = false;
+      state.iterations += solveSegment(&seg, surface, &ok);
+      state.converged = state.converged && ok;
+    }
     restOnCells(seg, surface, &loads, &pose, &state);
     if (seg.spec.trunk) {
       trunk_roll += seg.mass_kg * pose.roll_rad;
@@ -431,6 +457,171 @@ BodyState BodyModel::solve(const std::vector<double>& cell_heights_m) {
   state.roll_rad = trunk_mass > 0.0 ? trunk_roll / trunk_mass : 0.0;
   cellPressures(&state);
   return state;
+}
+
+void BodyModel::calibrateJoints() {
+  // Free segments on a flat bed (their equilibrium does not depend on its height).
+  const std::vector<double> flat(static_cast<std::size_t>(grid_.cells()),
+                                 0.5 * (grid_.min_height_m + grid_.max_height_m));
+  std::vector<double> surface;
+  std::vector<JointSegment> dofs(segments_.size());
+  int n = 0;
+  for (std::size_t i = 0; i < segments_.size(); ++i) {
+    dofs[i].x_c = segments_[i].x_c;
+    dofs[i].y_c = segments_[i].y_c;
+    if (segments_[i].on_bed) dofs[i].dof = 3 * n++;
+  }
+  Eigen::VectorXd poses = Eigen::VectorXd::Zero(3 * n);
+  for (std::size_t i = 0; i < segments_.size(); ++i) {
+    Segment& seg = segments_[i];
+    if (!seg.on_bed) continue;
+    surfaceUnder(seg, flat, &surface);
+    bool ok = false;
+    solveSegment(&seg, surface, &ok);
+    poses.segment<3>(dofs[i].dof) << seg.z, seg.t, 0.0;
+  }
+  joints_->calibrate(dofs, poses);
+  reset();
+}
+
+double BodyModel::articulatedPotential(const std::vector<JointSegment>& dofs,
+                                       const std::vector<std::vector<double>>& surfaces, const Eigen::VectorXd& poses,
+                                       Eigen::VectorXd* gradient, Eigen::MatrixXd* hessian) const {
+  // Per segment: weight at the footprint centre, m g z, and the Winkler layer's k/2 sum a d+^2
+  // with d = h - (z + t u + s v + q), linear in (z, t, s): convex, as the joints' potential.
+  const double k = params_.tissue_stiffness_pa_m;
+  double energy = 0.0;
+  if (gradient) gradient->setZero(poses.size());
+  if (hessian) hessian->setZero(poses.size(), poses.size());
+  for (std::size_t i = 0; i < segments_.size(); ++i) {
+    const Segment& seg = segments_[i];
+    const int o = dofs[i].dof;
+    if (o < 0) continue;
+    const double z = poses(o), t = poses(o + 1), s = poses(o + 2);
+    // Sums of a d (1, u, v) and a (1, u, v)(1, u, v)^T over the points in contact.
+    double e = 0.0, f = 0.0, fu = 0.0, fv = 0.0, a = 0.0, au = 0.0, av = 0.0, auu = 0.0, auv = 0.0, avv = 0.0;
+    for (std::size_t p = 0; p < seg.points.size(); ++p) {
+      const SubPoint& sp = seg.points[p];
+      const double d = surfaces[i][p] - z - t * sp.u - s * sp.v - sp.q;
+      if (d <= 0.0) continue;
+      const double ad = sp.area * d;
+      e += ad * d;
+      f += ad;
+      fu += ad * sp.u;
+      fv += ad * sp.v;
+      if (!hessian) continue;
+      a += sp.area;
+      au += sp.area * sp.u;
+      av += sp.area * sp.v;
+      auu += sp.area * sp.u * sp.u;
+      auv += sp.area * sp.u * sp.v;
+      avv += sp.area * sp.v * sp.v;
+    }
+    energy += seg.carried_n * z + 0.5 * k * e;
+    if (!gradient) continue;
+    gradient->segment<3>(o) += Eigen::Vector3d(seg.carried_n - k * f, -k * fu, -k * fv);
+    if (!hessian) continue;
+    Eigen::Matrix3d h;
+    h << a, au, av, au, auu, auv, av, auv, avv;
+    hessian->block<3, 3>(o, o) += k * h;
+  }
+  joints_->accumulate(dofs, poses, &energy, gradient, hessian);
+  return energy;
+}
+
+int BodyModel::solveArticulated(const std::vector<std::vector<double>>& surfaces, bool* converged) {
+  int iterations = 0;
+  std::vector<JointSegment> dofs(segments_.size());
+  int n = 0;
+  for (std::size_t i = 0; i < segments_.size(); ++i) {
+    Segment& seg = segments_[i];
+    dofs[i].x_c = seg.x_c;
+    dofs[i].y_c = seg.y_c;
+    if (!seg.on_bed) continue;
+    dofs[i].dof = 3 * n++;
+    if (!articulated_warm_) {  // cold: start from the free segments
+      bool ok = false;
+      iterations += solveSegment(&seg, surfaces[i], &ok);
+      seg.s = 0.0;
+    }
+  }
+  Eigen::VectorXd x(3 * n), g, dx;
+  Eigen::MatrixXd hess;
+  for (std::size_t i = 0; i < segments_.size(); ++i)
+    if (dofs[i].dof >= 0) x.segment<3>(dofs[i].dof) << segments_[i].z, segments_[i].t, segments_[i].s;
+  const double t_max = std::tan(params_.max_roll_rad);
+  // Force residuals within this fraction of the weight, moments within it times weight x 1 m.
+  const double tol = 1e-9 * weightN();
+  *converged = false;
+  for (int it = 0; it < kMaxIterations; ++it, ++iterations) {
+    const double energy = articulatedPotential(dofs, surfaces, x, &g, &hess);
+    if (g.lpNorm<Eigen::Infinity>() <= tol) {
+      *converged = true;
+      break;
+    }
+    // Positive semi-definite (a segment off the cells is held by its joints only): a little
+    // regularisation keeps the factorisation defined without changing the solution.
+    hess.diagonal().array() += 1e-9 * hess.diagonal().maxCoeff();
+    dx = -hess.ldlt().solve(g);
+    const double slope = g.dot(dx);
+    if (!(slope < 0.0)) dx = -g / hess.diagonal().maxCoeff();  // not a descent direction: gradient step
+    double alpha = 1.0;
+    Eigen::VectorXd xn;
+    bool accepted = false;
+    for (int ls = 0; ls < 40; ++ls, alpha *= 0.5) {
+      xn = x + alpha * dx;
+      for (int r = 1; r < xn.size(); r += 3) xn(r) = std::clamp(xn(r), -t_max, t_max);
+      const double en = articulatedPotential(dofs, surfaces, xn, nullptr, nullptr);
+      if (en <= energy + 1e-4 * alpha * g.dot(dx) + 1e-12 * std::abs(energy)) {
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) break;
+    x = xn;
+  }
+  for (std::size_t i = 0; i < segments_.size(); ++i) {
+    if (dofs[i].dof < 0) continue;
+    Segment& seg = segments_[i];
+    seg.z = x(dofs[i].dof);
+    seg.t = x(dofs[i].dof + 1);
+    seg.s = x(dofs[i].dof + 2);
+    seg.warm = true;
+  }
+  articulated_warm_ = true;
+  return iterations;
+}
+
+std::vector<ContactPoint> BodyModel::contactMap(const std::vector<double>& cell_heights_m) const {
+  checkHeights(cell_heights_m);
+  const double k = params_.tissue_stiffness_pa_m;
+  const double x_vertex = 0.5 * grid_.lengthM() - params_.head_clearance_m;
+  std::vector<ContactPoint> out;
+  std::size_t total = 0;
+  for (const Segment& seg : segments_) total += seg.points.size();
+  out.reserve(total);
+  std::vector<double> surface;
+  for (std::size_t s = 0; s < segments_.size(); ++s) {
+    const Segment& seg = segments_[s];
+    if (!seg.on_bed) continue;
+    surfaceUnder(seg, cell_heights_m, &surface);
+    const double half_width = 0.5 * (seg.y1 - seg.y0);
+    for (std::size_t i = 0; i < seg.points.size(); ++i) {
+      const SubPoint& sp = seg.points[i];
+      const double underside = seg.z + seg.t * sp.u + seg.s * sp.v + sp.q;
+      const double d = surface[i] - underside;
+      ContactPoint c;
+      c.segment = static_cast<int>(s);
+      c.from_vertex_m = x_vertex - sp.x;
+      c.lateral_m = sp.u;
+      c.half_width_m = half_width;
+      c.area_m2 = sp.area;
+      c.pressure_pa = d > 0.0 ? k * d : 0.0;
+      c.skin_height_m = std::max(surface[i], underside);
+      out.push_back(c);
+    }
+  }
+  return out;
 }
 
 std::vector<int> BodyModel::rowsOf(const std::vector<int>& segment_indices) const {

@@ -424,6 +424,9 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   sample.counted_step_pa = countedStepPa(events, before);
   sample.load_n = observer_->estimate().load_n;
   sample.plate_period_s = platePeriod();
+  // A gas already unproven (a lost link, a reset) is being found: no height to contradict.
+  sample.height_m = gas_.unverified() ? 0.0 : observer_->estimate().height_m;
+  sample.flat_pressure_pa = observer_->flatPressure();
   if (monitor_.update(sample, dt_s)) {
     faults_ |= kFaultInconsistent;
     gas_.suspect();

@@ -7,6 +7,7 @@
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/distortions.h"
 
 namespace nursing_bed {
 namespace gap {
@@ -259,6 +260,17 @@ bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFi
     const double bic = f.outcome.chi2 + f.model.axes.size() * log_n;
     const double held = withheldChi2(noise, {}, buildEffects(f.model, values));
     const double held_gain = (cal_held - held) * noise.heldResidualCount();
+    if (isDistortionEffect(f.model.effects[0]) && std::fabs(bic - cal_bic) < options.near_tie_bic &&
+        std::fabs(held_gain) < options.min_withheld_gain) {
+      // A channel distortion that fits fit and withheld runs as well as the moves: the runs
+      // cannot tell a sensor's error from the cell's parameters, and the report says so.
+      std::string moved_names;
+      for (const auto& [name, value] : moved) moved_names += (moved_names.empty() ? "" : ", ") + name;
+      c->summary.notes.push_back("cannot tell apart: " + moved_names + " vs " +
+                                 describeDistortion(f.model.effects[0], values) + " (BIC " + fmt(bic - cal_bic) +
+                                 ", withheld chi2 " + fmt(-held_gain) + " against the calibration)");
+      continue;
+    }
     if (!(bic < cal_bic) || !(held_gain >= options.min_withheld_gain)) continue;
     c->summary.notes.push_back(joinNames(f.model.effects) +
                                " alone, on the nominal cell, fits the runs better than the "

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/progress.h"
 
 namespace nursing_bed {
@@ -27,7 +28,17 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// parameters line up with the singles' fits).
 std::ptrdiff_t catalogPosition(const std::string& name) {
   const auto& c = effectCatalog();
-  return std::find_if(c.begin(), c.end(), [&](const EffectSpec& e) { return e.name == name; }) - c.begin();
+  const auto& d = distortionCatalog();
+  const auto i = std::find_if(c.begin(), c.end(), [&](const EffectSpec& e) { return e.name == name; }) - c.begin();
+  if (i < static_cast<std::ptrdiff_t>(c.size())) return i;
+  return i + (std::find_if(d.begin(), d.end(), [&](const EffectSpec& e) { return e.name == name; }) - d.begin());
+}
+
+/// An effect of the physical catalogue (effectCatalog(); its two channel-distortion members
+/// included), not one of the distortion catalogue's.
+bool isPhysicalCatalogEffect(const std::string& name) {
+  const auto& c = effectCatalog();
+  return std::any_of(c.begin(), c.end(), [&](const EffectSpec& e) { return e.name == name; });
 }
 
 /// Indices of the fitted singles, best (lowest BIC) first, failed fits last.
@@ -328,8 +339,17 @@ std::vector<std::pair<int, int>> pairsToFit(const std::vector<ModelFit>& fits, c
     if (fits[i].outcome.ok) ok.push_back(i);
   std::vector<std::pair<int, int>> pairs;
   if (ok.empty() || fits[ok[0]].outcome.chi2 / n <= within_chi2) return pairs;
-  for (int a = 0; a < std::min<int>(pool, ok.size()); ++a)
-    for (std::size_t b = a + 1; b < ok.size(); ++b) pairs.emplace_back(ok[a], ok[b]);
+  // Partners: every physical effect, and the best kPairedDistortions channel distortions of the
+  // new family (there are many; a pair of two costs a fit of its own each).
+  constexpr int kPairedDistortions = 3;
+  for (int a = 0; a < std::min<int>(pool, ok.size()); ++a) {
+    int distortions = 0;
+    for (std::size_t b = a + 1; b < ok.size(); ++b) {
+      const bool distortion = !isPhysicalCatalogEffect(fits[ok[b]].model.effects[0]);
+      if (distortion && distortions++ >= kPairedDistortions) continue;
+      pairs.emplace_back(ok[a], ok[b]);
+    }
+  }
   return pairs;
 }
 
@@ -504,6 +524,33 @@ Verdict judgeCandidates(const std::vector<CandidateFit>& candidates, const Nomin
   verdict.status = above.status;
   verdict.winner = above.winner;
   return verdict;
+}
+
+/// The named channel distortions of `winner` (fitted as `model`) in words, with standard errors
+/// from the covariance of its fit (scaled by chi2/n where above 1).
+std::vector<std::string> describeDistortions(const gap::NoiseModel& noise, const gap::ModelSpec& model,
+                                             const CandidateFit& winner) {
+  using namespace gap;
+  std::vector<std::string> out;
+  if (std::none_of(winner.effects.begin(), winner.effects.end(), isDistortionEffect)) return out;
+  std::map<std::string, double> values = winner.params;
+  values.insert(winner.calibration.begin(), winner.calibration.end());
+  for (const auto& a : model.axes)
+    if (!values.count(a.spec.name)) values[a.spec.name] = a.spec.off_value;
+  std::map<std::string, double> se;
+  Eigen::MatrixXd cov;
+  const std::vector<double> u = coordinatesOf(model, values);
+  if (fitCovariance(noise.fit, model, u, &cov)) {
+    const double scale = std::sqrt(std::max(1.0, winner.chi2 / noise.fitResidualCount()));
+    for (std::size_t j = 0; j < model.axes.size(); ++j) {
+      const EffectParamSpec& p = model.axes[j].spec;
+      const double du = std::sqrt(cov(j, j)) * scale;
+      se[p.name] = p.log_scale ? values.at(p.name) * std::log(p.hi / p.lo) * du : (p.hi - p.lo) * du;
+    }
+  }
+  for (const auto& e : winner.effects)
+    if (isDistortionEffect(e)) out.push_back(describeDistortion(e, winner.params, se));
+  return out;
 }
 
 /// The runs prepared, replayed through the nominal model, and their noise model (the first
@@ -728,7 +775,14 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   const PreparedRuns& prepared = s.prepared;
   NoiseModel& noise = s.noise;
   std::vector<std::string> structure_notes;
-  const std::vector<std::string> candidates = candidatesForStructure(candidateList(options), params, &structure_notes);
+  std::vector<std::string> candidates = candidatesForStructure(candidateList(options), params, &structure_notes);
+  if (options.candidates.empty()) {
+    // The channel distortions of the channels these runs have (distortions.h).
+    std::vector<const RunData*> all;
+    for (const auto& r : prepared.runs) all.push_back(&r);
+    const std::vector<std::string> distortions = distortionCandidatesFor(all);
+    candidates.insert(candidates.end(), distortions.begin(), distortions.end());
+  }
   const FittedModels fitted = fitModels(s, candidates, options, &clock);
   const std::vector<ModelFit>& fits = fitted.fits;
   const CalibrationFit& calibration = fitted.calibration;
@@ -753,7 +807,11 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     // A joint refit may have moved every parameter back to nominal (w.joint false): its summary
     // still replaces the calibration-only one the winner was not fitted with.
     if (joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
+    rep.verdict_distortions = describeDistortions(noise, scored[verdict.winner].second, w);
+    for (const auto& d : rep.verdict_distortions) rep.reasons.push_back("channel distortion named: " + d);
   }
+  for (const auto& note : rep.calibration.notes)
+    if (note.rfind("cannot tell apart: ", 0) == 0) rep.reasons.push_back(note);
   settleCalibratedStatus(noise, options, &rep, above_floor);
   shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);
   calibratedOutcome(prepared, noise, params, &rep);

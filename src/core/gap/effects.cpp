@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/orifice.h"
 #include "nursing_bed/core/physics/pillow_structure.h"
@@ -44,9 +45,35 @@ EffectParamSpec param(const std::string& name, const std::string& unit, const st
   return p;
 }
 
-std::vector<EffectSpec> makeCatalog() {
-  constexpr bool kCandidate = true, kTestOnly = false;  // test-only: out-of-library effects for the blind check
+/// Out-of-library effects for the blind check: the generator plants them, the diagnosis never fits them.
+std::vector<EffectSpec> testOnlyEffects() {
+  constexpr bool kTestOnly = false;
   return {
+      {"ambient_drift",
+       kTestOnly,
+       "gas exchanges heat (8 W/(m^2 K)) with surroundings whose temperature drifts linearly",
+       "pressure drifts during hold, up or down, steadily over the whole run",
+       "drift_k_s",
+       {param("drift_k_s", "K/s", "drift rate of the surroundings' temperature", 0.0, 0.02, 0.1, false, -1.0, 1.0,
+              true)},
+       "",
+       "",
+       ""},
+      {"pressure_offset_drift",
+       kTestOnly,
+       "the pressure sensor's zero drifts linearly with time",
+       "pressure reading offset growing linearly with time, whatever the cell does",
+       "drift_pa_s",
+       {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)},
+       "",
+       "",
+       ""},
+  };
+}
+
+std::vector<EffectSpec> makeCatalog() {
+  constexpr bool kCandidate = true;
+  std::vector<EffectSpec> catalog{
       {"heat_transfer",
        kCandidate,
        "gas exchanges heat with the film at ambient temperature: Q = h_c A_surface (T_amb - T)",
@@ -54,6 +81,8 @@ std::vector<EffectSpec> makeCatalog() {
        "heat_transfer_coefficient_w_m2_k",
        {param("heat_transfer_coefficient_w_m2_k", "W/(m^2 K)", "heat transfer coefficient h_c", 0.0, 2.0, 25.0, true,
               0.0, 500.0)},
+       "",
+       "",
        ""},
       {"leak",
        kCandidate,
@@ -61,6 +90,8 @@ std::vector<EffectSpec> makeCatalog() {
        "pressure and height keep falling during hold",
        "leak_area_m2",
        {param("leak_area_m2", "m^2", "effective leak area Cd*A", 0.0, 3e-9, 5e-8, true, 0.0, 1e-5)},
+       "",
+       "",
        ""},
       {"membrane_viscoelasticity",
        kCandidate,
@@ -71,14 +102,18 @@ std::vector<EffectSpec> makeCatalog() {
               60.0, true, 0.01, 3600.0),
         param("relative_stiffness", "-", "branch stiffness g relative to the film's elastic law", 0.0, 0.1, 0.5, true,
               0.0, 5.0)},
-       "pillow"},
+       "pillow",
+       "",
+       ""},
       {"pressure_sensor_lag",
        kCandidate,
        "first-order lag of the pressure reading (sensor, tubing)",
        "pressure trace phase-shifted, worst where dp/dt is large",
        "time_constant_s",
        {param("time_constant_s", "s", "time constant of the reading", 0.0, 0.05, 1.0, true, 0.0, 10.0)},
-       ""},
+       "",
+       "pressure",
+       "lag"},
       {"supply_line",
        kCandidate,
        "tube between meter/valve and cell: isothermal dead volume and an orifice; pressure read in it",
@@ -88,6 +123,8 @@ std::vector<EffectSpec> makeCatalog() {
         param("line_area_m2", "m^2",
               "effective area Cd*A between line and cell (any value is off when the volume is 0)", 1e-5, 2e-6, 3e-5,
               true, 1e-7, 1e-3)},
+       "",
+       "",
        ""},
       {"inflow_bias",
        kCandidate,
@@ -96,30 +133,21 @@ std::vector<EffectSpec> makeCatalog() {
        "",
        {param("scale_error", "-", "relative scale error k of the flow meter", 0.0, -0.15, 0.15, false, -0.5, 0.5),
         param("offset_kg_s", "kg/s", "zero offset b of the flow meter", 0.0, -2e-5, 2e-5, false, -1e-3, 1e-3)},
-       ""},
+       "",
+       "inflow",
+       "gain+offset"},
       {"plate_friction",
        kCandidate,
        "Coulomb friction in the plate guide, F = -F_c tanh(v / 1 mm/s)",
        "pressure offset +-F_c/A_eff that flips sign with the motion; h(p) loop widens",
        "friction_force_n",
        {param("friction_force_n", "N", "Coulomb friction force F_c", 0.0, 0.6, 3.0, true, 0.0, 50.0)},
-       ""},
-      {"ambient_drift",
-       kTestOnly,
-       "gas exchanges heat (8 W/(m^2 K)) with surroundings whose temperature drifts linearly",
-       "pressure drifts during hold, up or down, steadily over the whole run",
-       "drift_k_s",
-       {param("drift_k_s", "K/s", "drift rate of the surroundings' temperature", 0.0, 0.02, 0.1, false, -1.0, 1.0,
-              true)},
-       ""},
-      {"pressure_offset_drift",
-       kTestOnly,
-       "the pressure sensor's zero drifts linearly with time",
-       "pressure reading offset growing linearly with time, whatever the cell does",
-       "drift_pa_s",
-       {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)},
+       "",
+       "",
        ""},
   };
+  for (auto& e : testOnlyEffects()) catalog.push_back(std::move(e));
+  return catalog;
 }
 
 }  // namespace
@@ -143,7 +171,15 @@ const std::vector<EffectSpec>& effectCatalog() {
   return catalog;
 }
 
-const EffectSpec& effectSpec(const std::string& name) { return catalogEntry(effectCatalog(), name, "effect"); }
+const EffectSpec& effectSpec(const std::string& name) {
+  for (const auto* catalog : {&effectCatalog(), &distortionCatalog()})
+    for (const auto& e : *catalog)
+      if (e.name == name) return e;
+  std::vector<EffectSpec> all = effectCatalog();
+  all.insert(all.end(), distortionCatalog().begin(), distortionCatalog().end());
+  catalogEntry(all, name, "effect");  // throws, naming every known effect
+  throw std::logic_error("effectSpec: '" + name + "' not found");
+}
 
 std::vector<std::string> candidateEffectNames() {
   std::vector<std::string> out;
@@ -181,6 +217,10 @@ CellEffectPtr makeEffect(const std::string& name, const std::map<std::string, do
   if (name == "plate_friction") return std::make_shared<PlateFrictionEffect>(v("friction_force_n"));
   if (name == "ambient_drift") return std::make_shared<AmbientDriftEffect>(v("drift_k_s"));
   if (name == "pressure_offset_drift") return std::make_shared<PressureOffsetDriftEffect>(v("drift_pa_s"));
+  if (!spec.channel.empty()) {
+    const EffectParamSpec& p = spec.params.front();
+    return std::make_shared<ChannelDistortionEffect>(name, spec.channel, spec.kind, p.name, v(p.name.c_str()));
+  }
   throw std::logic_error("makeEffect: catalogue effect '" + name + "' has no factory");
 }
 

@@ -2,6 +2,7 @@
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/distortions.h"
 
 #include <ceres/ceres.h>
 
@@ -133,9 +134,17 @@ namespace {
 
 /// One run's whitened residuals (2 per sample) into `out`; false when its replay failed (its
 /// samples then count as kFailedResidual floors off).
+/// `base`, when given, is the run's replay without `effects`, which are output-side channel
+/// distortions only: their readings are then `base`'s transformed, with no new replay.
 bool runResiduals(const FitData::Run& r, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                  double* out) {
-  const Replay rep = replayRun(*r.data, params, effects, r.max_substeps);
+                  double* out, const Replay* base = nullptr) {
+  Replay rep;
+  if (base) {
+    rep = *base;
+    applyOutputDistortions(effects, r.data->t_s, &rep.p_gauge_pa, &rep.h_m);
+  } else {
+    rep = replayRun(*r.data, params, effects, r.max_substeps);
+  }
   const int m = static_cast<int>(r.index.size());
   Eigen::Map<Eigen::VectorXd> e(out, 2 * m);
   bool ok = true;
@@ -192,11 +201,21 @@ class ResidualEvaluator {
   ResidualEvaluator(const FitData& fit, const ModelSpec& model) : fit_(fit), model_(model) {
     offset_.push_back(0);
     for (const auto& r : fit.runs) offset_.push_back(offset_.back() + 2 * static_cast<int>(r.index.size()));
+    output_only_ = model.calibration.empty() && !model.effects.empty() &&
+                   std::all_of(model.effects.begin(), model.effects.end(), [](const std::string& e) {
+                     const EffectSpec& spec = effectSpec(e);
+                     return (spec.channel == "pressure" || spec.channel == "height") && e != "pressure_sensor_lag";
+                   });
   }
   /// One for a solve of its own, starting with what `probe` remembers and no replays counted
   /// (a solve's own memory: what it finds there does not depend on another solve beside it).
   explicit ResidualEvaluator(const ResidualEvaluator& probe)
-      : fit_(probe.fit_), model_(probe.model_), offset_(probe.offset_), entries_(probe.entries_) {}
+      : fit_(probe.fit_),
+        model_(probe.model_),
+        offset_(probe.offset_),
+        output_only_(probe.output_only_),
+        base_(probe.base_),
+        entries_(probe.entries_) {}
 
   /// Residuals at each of `points` into outs[i] (residualCount() values each); ok[i] false where
   /// the model is not admitted there or a replay failed.
@@ -219,11 +238,13 @@ class ResidualEvaluator {
       }
     }
     const int runs = static_cast<int>(fit_.runs.size());
+    if (output_only_ && !misses.empty()) baseReplays(misses.front().params);
     std::vector<char> run_ok(misses.size() * runs, 1);
     parallelFor(static_cast<int>(run_ok.size()), fit_.threads, [&](int task) {
       const Miss& m = misses[task / runs];
       const int r = task % runs;
-      run_ok[task] = runResiduals(fit_.runs[r], m.params, m.effects, outs[m.point] + offset_[r]);
+      const Replay* base = base_ ? &(*base_)[r] : nullptr;
+      run_ok[task] = runResiduals(fit_.runs[r], m.params, m.effects, outs[m.point] + offset_[r], base);
     });
     for (std::size_t k = 0; k < misses.size(); ++k) {
       const std::size_t i = misses[k].point;
@@ -253,6 +274,17 @@ class ResidualEvaluator {
     bool ok = false;
   };
 
+  /// The fit runs replayed once without effects on `params` (the same at every point of a model
+  /// without free calibrated parameters), for a model of output-side distortions only.
+  void baseReplays(const CellParams& params) {
+    std::lock_guard<std::mutex> lock(base_mutex_);
+    if (base_) return;
+    auto replays = std::make_shared<std::vector<Replay>>(fit_.runs.size());
+    parallelFor(static_cast<int>(fit_.runs.size()), fit_.threads,
+                [&](int r) { (*replays)[r] = replayRun(*fit_.runs[r].data, params, {}, fit_.runs[r].max_substeps); });
+    base_ = replays;
+  }
+
   bool recall(const std::vector<double>& u, double* out, char* ok) const {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const Entry& e : entries_)
@@ -276,7 +308,10 @@ class ResidualEvaluator {
 
   const FitData& fit_;
   const ModelSpec& model_;
-  std::vector<int> offset_;  ///< each run's first residual slot
+  std::vector<int> offset_;   ///< each run's first residual slot
+  bool output_only_ = false;  ///< output-side channel distortions only: base_ transformed
+  std::shared_ptr<const std::vector<Replay>> base_;
+  std::mutex base_mutex_;
   mutable std::mutex mutex_;
   std::deque<Entry> entries_;
   std::atomic<int> replays_{0};

@@ -1,5 +1,7 @@
 #include "nursing_bed/core/gap/replay.h"
 
+#include "nursing_bed/core/gap/distortions.h"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -198,8 +200,10 @@ void valveInputs(const RunData& run, std::size_t i, CellInputs* in) {
 
 }  // namespace
 
-Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                 long max_substeps, IntervalShape shape) {
+namespace {
+
+Replay replayThroughModel(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                          long max_substeps, IntervalShape shape) {
   Replay out;
   out.phases = classifyPhases(run);
   const std::size_t n = run.size();
@@ -267,6 +271,23 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
     out.ok = false;
     out.message = run.name + ": replay failed: " + e.what();
   }
+  return out;
+}
+
+}  // namespace
+
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps, IntervalShape shape) {
+  // Channel distortions (distortions.h) act on the inputs before and on the readings after the
+  // model; in the model they add nothing.
+  const bool inputs = std::any_of(effects.begin(), effects.end(), [](const CellEffectPtr& e) {
+    const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get());
+    return d && !d->outputSide();
+  });
+  RunData corrected;
+  if (inputs) applyInputDistortions(effects, &(corrected = run));
+  Replay out = replayThroughModel(inputs ? corrected : run, params, effects, max_substeps, shape);
+  applyOutputDistortions(effects, run.t_s, &out.p_gauge_pa, &out.h_m);
   return out;
 }
 

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/effects.h"
 
 namespace nursing_bed {
@@ -58,8 +59,9 @@ std::string paramsText(const std::map<std::string, double>& params) {
   std::string s;
   for (const auto& [k, v] : params) {
     std::string unit;
-    for (const auto& e : effectCatalog())
-      if (const EffectParamSpec* p = e.param(k)) unit = p->unit == "-" ? "" : " " + p->unit;
+    for (const auto* catalog : {&effectCatalog(), &distortionCatalog()})
+      for (const auto& e : *catalog)
+        if (const EffectParamSpec* p = e.param(k)) unit = p->unit == "-" ? "" : " " + p->unit;
     s += (s.empty() ? "" : ", ") + k + " = " + general(v) + unit;
   }
   return s;
@@ -197,8 +199,9 @@ void calibrationSection(std::ostream& m, const DiagnosisReport& r) {
 void verdictSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## Verdict\n\n";
   if (r.status == "explained") {
-    m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "), "
-      << (r.calibration.anyMoved() ? "on top of the calibrated " + calibrationText(r.calibration) + ". "
+    m << "**Explained by " << effectsText(r.verdict_effects) << "** (" << paramsText(r.verdict_params) << "), ";
+    for (const auto& d : r.verdict_distortions) m << "**" << d << "**, ";
+    m << (r.calibration.anyMoved() ? "on top of the calibrated " + calibrationText(r.calibration) + ". "
                                    : "no model parameter needed recalibration. ");
     m << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
       << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)

@@ -1,5 +1,7 @@
 #include "nursing_bed/core/gap/synth.h"
 
+#include "nursing_bed/core/gap/distortions.h"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -17,6 +19,7 @@
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/io/number_text.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
 #include "nursing_bed/core/physics/pillow_structure.h"
@@ -88,11 +91,7 @@ SynthEffectRequest parseEffectRequest(const std::string& text) {
                                   ")");
     }
     double v = 0.0;
-    const char* begin = value.data();
-    const char* end = value.data() + value.size();
-    if (begin != end && *begin == '+') ++begin;
-    const auto res = std::from_chars(begin, end, v);
-    if (value.empty() || res.ec != std::errc() || res.ptr != end || !std::isfinite(v))
+    if (!parseFiniteNumber(value, &v))
       throw std::invalid_argument("effect '" + r.name + "': parameter " + key + ": '" + value +
                                   "' is not a finite number");
     if (r.params.count(key)) throw std::invalid_argument("effect '" + r.name + "': parameter " + key + " given twice");
@@ -228,6 +227,36 @@ double advanceMetered(CellModel* model, const SynthProtocol& protocol, double t,
   return t < protocol.inflate_s - 1e-9 ? 1.0 : (t < hold_end - 1e-9 ? 0.0 : -1.0);
 }
 
+/// The planted channel distortions (distortions.h) on the true readings, before the noise: what
+/// the distorted sensors report, the recorded load and the flow meter's reading.
+void distortRecording(const std::vector<CellEffectPtr>& effects, RunData* run) {
+  applyOutputDistortions(effects, run->t_s, &run->p_gauge_pa, &run->h_m);
+  for (const auto& e : effects) {
+    const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get());
+    if (!d || d->outputSide()) continue;
+    if (d->channel() == "inflow") distortSeries(d->kind(), d->value(), run->t_s, &run->mdot_in_kg_s);
+    if (d->channel() == "load") {
+      std::vector<double> load{run->load_n};
+      distortSeries(d->kind(), d->value(), {run->t_s.front()}, &load);
+      run->load_n = load[0];
+      run->meta["load_n"] = shortNumber(load[0]);
+    }
+  }
+}
+
+/// Sensor noise and quantisation on every reading, drawn per sample in the order pressure,
+/// height, the flow's relative and absolute parts.
+void addSensorNoise(const SensorNoise& noise, std::mt19937* rng, RunData* run) {
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (std::size_t i = 0; i < run->size(); ++i) {
+    run->p_gauge_pa[i] = quantise(run->p_gauge_pa[i] + noise.pressure_sd_pa * gauss(*rng), noise.pressure_step_pa);
+    run->h_m[i] = quantise(run->h_m[i] + noise.height_sd_m * gauss(*rng), noise.height_step_m);
+    const double relative = noise.flow_relative_sd * gauss(*rng);
+    double& flow = run->mdot_in_kg_s[i];
+    flow = quantise(flow * (1.0 + relative) + noise.flow_sd_kg_s * gauss(*rng), noise.flow_step_kg_s);
+  }
+}
+
 }  // namespace
 
 RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectPtr>& effects,
@@ -250,7 +279,6 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
   for (auto* v : {&run.t_s, &run.mdot_in_kg_s, &run.p_gauge_pa, &run.h_m, &run.valve_cmd})
     v->reserve(static_cast<std::size_t>(n_total + 1));
 
-  std::normal_distribution<double> gauss(0.0, 1.0);
   CellInputs in;
   in.load_n = plan.load_n;
   for (long i = 0; i <= n_total; ++i) {
@@ -261,22 +289,20 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
     else if (i > 0) command = advanceMetered(&model, protocol, t, inflow, &in);
     else command = 1.0;
     const Readings m = model.measure();
-    double pressure = m.gauge_pressure_pa, height = m.height_m, flow = m.inflow_kg_s;
-    if (rng) {
-      pressure = quantise(pressure + noise.pressure_sd_pa * gauss(*rng), noise.pressure_step_pa);
-      height = quantise(height + noise.height_sd_m * gauss(*rng), noise.height_step_m);
-      const double relative = noise.flow_relative_sd * gauss(*rng);
-      flow = quantise(flow * (1.0 + relative) + noise.flow_sd_kg_s * gauss(*rng), noise.flow_step_kg_s);
-    }
     run.t_s.push_back(t);
-    run.mdot_in_kg_s.push_back(protocol.valve_driven ? std::numeric_limits<double>::quiet_NaN() : flow);
-    run.p_gauge_pa.push_back(pressure);
-    run.h_m.push_back(height);
+    run.mdot_in_kg_s.push_back(m.inflow_kg_s);
+    run.p_gauge_pa.push_back(m.gauge_pressure_pa);
+    run.h_m.push_back(m.height_m);
     // Metered: the command in force from this sample on; valve-driven: the mean opening over
     // the interval that ends here (doc/formats/run_data.md).
     run.valve_cmd.push_back(command);
   }
-  if (protocol.valve_driven) run.p_supply_gauge_pa.assign(run.size(), p.supply_pressure_pa);
+  distortRecording(effects, &run);
+  if (rng) addSensorNoise(noise, rng, &run);
+  if (protocol.valve_driven) {
+    run.mdot_in_kg_s.assign(run.size(), std::numeric_limits<double>::quiet_NaN());
+    run.p_supply_gauge_pa.assign(run.size(), p.supply_pressure_pa);
+  }
   return run;
 }
 
@@ -315,6 +341,8 @@ void sayProtocol(const SynthOptions& o, const SynthResult& result) {
   if (result.effect_names.empty()) *o.progress << " none (nominal model)";
   for (std::size_t i = 0; i < result.effect_names.size(); ++i)
     *o.progress << " " << describeEffect(result.effect_names[i], result.effect_params[i]);
+  for (std::size_t i = 0; i < result.distortion_names.size(); ++i)
+    *o.progress << " " << describeDistortion(result.distortion_names[i], result.distortion_params[i]);
   *o.progress << "\n";
 }
 
@@ -391,6 +419,15 @@ void writeTruthJson(const SynthOptions& o, const SynthResult& result, const Sens
   j["noise_scale"] = o.noise_scale;
   j["noise"] = noiseJson(noise);
   j["effects"] = effectsJson(result);
+  Json distortions = Json::array();
+  for (std::size_t i = 0; i < result.distortion_names.size(); ++i) {
+    const EffectSpec& spec = effectSpec(result.distortion_names[i]);
+    distortions.push_back({{"name", spec.name},
+                           {"channel", spec.channel},
+                           {"kind", spec.kind},
+                           {"params", numbers(result.distortion_params[i])}});
+  }
+  j["distortions"] = distortions;
   j["airbag_params"] = numbers(o.airbag_params);
   j["flow_meter"] = o.flow_meter;
   j["height_sensor"] = o.height_sensor;
@@ -406,6 +443,35 @@ void writeTruthJson(const SynthOptions& o, const SynthResult& result, const Sens
 }
 
 }  // namespace
+
+std::vector<CellEffectPtr> synthDistortions(const std::vector<std::string>& texts,
+                                            std::vector<SynthEffectRequest>* requests, SynthResult* result) {
+  std::map<std::string, std::map<std::string, double>> planted;
+  for (const auto& text : texts)
+    for (const auto& [effect, params] : parseDistortion(text))
+      if (!planted.emplace(effect, params).second)
+        throw std::invalid_argument("gap synth: distortion '" + text + "': " + effect + " planted twice");
+  std::vector<CellEffectPtr> out;
+  for (const auto& [effect, params] : planted) {
+    const EffectSpec& spec = effectSpec(effect);
+    if (spec.channel == "valve_cmd" || spec.channel == "supply")
+      throw std::invalid_argument("gap synth: the " + spec.channel +
+                                  " channel cannot be planted (the protocols' runs are metered or keep their "
+                                  "valve record exact); plantable: pressure, height, inflow, load");
+    if (std::any_of(requests->begin(), requests->end(), [&](const SynthEffectRequest& r) { return r.name == effect; }))
+      throw std::invalid_argument("gap synth: " + effect + " given both as --effect and as --distort");
+    // The physical catalogue's members (pressure_sensor_lag, inflow_bias) are effects of the model.
+    if (std::any_of(effectCatalog().begin(), effectCatalog().end(),
+                    [&](const EffectSpec& e) { return e.name == effect; })) {
+      requests->push_back({effect, params});
+      continue;
+    }
+    out.push_back(makeEffect(effect, params));
+    result->distortion_names.push_back(effect);
+    result->distortion_params.push_back(params);
+  }
+  return out;
+}
 
 CellParams rigAirbag(const CellParams& model, const std::map<std::string, double>& differences) {
   CellParams rig = model;
@@ -440,7 +506,10 @@ SynthResult synthesizeDataset(const SynthOptions& o) {
   result.protocol = synthProtocol(o.protocol, rig);
   result.protocol.valve_driven = !o.flow_meter;
   std::vector<CellEffectPtr> effects;
-  resolveSynthEffects(o.effects, o.seed, &result.effect_names, &result.effect_params, &effects);
+  std::vector<SynthEffectRequest> requests = o.effects;
+  const std::vector<CellEffectPtr> distortions = synthDistortions(o.distortions, &requests, &result);
+  resolveSynthEffects(requests, o.seed, &result.effect_names, &result.effect_params, &effects);
+  effects.insert(effects.end(), distortions.begin(), distortions.end());
 
   std::error_code ec;
   fs::create_directories(o.out_dir, ec);

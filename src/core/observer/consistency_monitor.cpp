@@ -19,6 +19,8 @@ Status ConsistencyMonitorParams::validate() const {
   nonNegative("frozen_s", frozen_s);
   nonNegative("settle_s", settle_s);
   positive("reference_time_s", reference_time_s);
+  nonNegative("load_rate_pa_s", load_rate_pa_s);
+  nonNegative("hold_correction_pa", hold_correction_pa);
   nonNegative("drift_sds", drift_sds);
   nonNegative("min_drift_pa", min_drift_pa);
   positive("cusum_threshold_pa_s", cusum_threshold_pa_s);
@@ -29,6 +31,8 @@ Status ConsistencyMonitorParams::validate() const {
   nonNegative("response_window_s", response_window_s);
   nonNegative("response_min_period_s", response_min_period_s);
   nonNegative("max_load_n", max_load_n);
+  nonNegative("landed_height_m", landed_height_m);
+  positive("landed_time_s", landed_time_s);
   return errors.status();
 }
 
@@ -62,6 +66,10 @@ bool ConsistencyMonitor::update(const ConsistencySample& sample, double dt_s) {
   } else if (params_.max_load_n > 0.0 && sample.load_n > params_.max_load_n) {
     why << "the observer's load " << sample.load_n << " N exceeds any a cell carries (" << params_.max_load_n
         << " N): the pressure is more than its counted gas can hold";
+  } else if (landed(sample, dt_s)) {
+    why << "the pressure reads a flat cell (mean " << landed_mean_pa_ << " Pa for " << params_.landed_time_s
+        << " s, flat below " << sample.flat_pressure_pa << ") while the gas counted holds the plate at "
+        << 1e3 * sample.height_m << " mm: gas left uncounted";
   } else if (const std::string silent = response_.update(sample, dt_s, params_); !silent.empty()) {
     why << silent;
   } else if (innovation(sample, dt_s)) {
@@ -90,7 +98,11 @@ bool ConsistencyMonitor::innovation(const ConsistencySample& sample, double dt_s
   // Page's CUSUM: g+ = max(0, g+ + (nu - k) dt), g- likewise for -nu, with nu the reading less
   // the hold's running mean and k the drift the noise is allowed. Nothing counts until the
   // plate has settled after the last valve edge.
-  shut_for_s_ = sample.valves_shut ? shut_for_s_ + dt_s : 0.0;
+  // A hold's small corrections (a fraction of a reading sd at fixed volume) do not end it: a
+  // controller nudging its estimate would otherwise keep the test from ever running.
+  const bool holding = sample.valves_shut || (sample.counted_step_pa != 0.0 &&
+                                              std::fabs(sample.counted_step_pa) < params_.hold_correction_pa);
+  shut_for_s_ = holding ? shut_for_s_ + dt_s : 0.0;
   if (shut_for_s_ < params_.settle_s) {
     have_reference_ = false;
     up_pa_s_ = down_pa_s_ = 0.0;
@@ -108,7 +120,24 @@ bool ConsistencyMonitor::innovation(const ConsistencySample& sample, double dt_s
   down_pa_s_ = std::max(0.0, down_pa_s_ + (-nu - k) * dt_s);
   if (cusum() >= params_.cusum_threshold_pa_s) return true;
   reference_pa_ += (p - reference_pa_) * std::min(1.0, dt_s / params_.reference_time_s);
+  // A load change: the part of the departure beyond the noise, followed at the rate a body
+  // can load the cell. A step of S Pa then adds (S - k)^2 / (2 load_rate) to the CUSUM.
+  const double beyond = std::fabs(nu) - k;
+  if (beyond > 0.0) reference_pa_ += std::copysign(std::min(beyond, params_.load_rate_pa_s * dt_s), nu);
   return false;
+}
+
+bool ConsistencyMonitor::landed(const ConsistencySample& sample, double dt_s) {
+  // The observer's own flat test (its mean below flat_pressure_pa) under an estimate that has
+  // the plate lifted, for landed_time_s: the readings' mean over a quarter of it (one noisy
+  // reading is not a flat cell). The plate alone lifted reads at least twice flat_pressure_pa.
+  const double w = std::min(1.0, dt_s / (0.25 * params_.landed_time_s));
+  landed_mean_pa_ = landed_for_s_ < 0.0 ? sample.gauge_pressure_pa
+                                        : landed_mean_pa_ + (sample.gauge_pressure_pa - landed_mean_pa_) * w;
+  const bool lifted = params_.landed_height_m > 0.0 && sample.height_m > params_.landed_height_m;
+  const bool flat = sample.flat_pressure_pa > 0.0 && std::fabs(landed_mean_pa_) < sample.flat_pressure_pa;
+  landed_for_s_ = lifted && flat ? std::max(0.0, landed_for_s_) + dt_s : 0.0;
+  return landed_for_s_ >= params_.landed_time_s;
 }
 
 void ConsistencyMonitor::interrupt() {
@@ -118,6 +147,7 @@ void ConsistencyMonitor::interrupt() {
   shut_for_s_ = 0.0;
   have_reference_ = false;
   up_pa_s_ = down_pa_s_ = 0.0;
+  landed_for_s_ = -1.0;
 }
 
 void ConsistencyMonitor::clear() {
@@ -148,7 +178,10 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
     // A vent can take the pressure down to ambient at most: a plate that rests at a few
     // reading sds (a light one) has no room to show its vent working.
     const bool room = (direction_ > 0 || baseline_pa_ >= 2.0 * needed_pa) && slow_enough_;
-    if (params.response_min_pa > 0.0 && std::fabs(counted_pa_) >= params.response_min_pa && room &&
+    // A valve that does not open leaves the readings where they were; readings that stayed
+    // against the pulse by more than that all along (a load shifting meanwhile) do not judge it.
+    const bool still = best_pa_ > -needed_pa;
+    if (params.response_min_pa > 0.0 && std::fabs(counted_pa_) >= params.response_min_pa && room && still &&
         best_pa_ < needed_pa) {
       std::ostringstream w;
       w << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << std::fabs(counted_pa_)

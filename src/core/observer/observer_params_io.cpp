@@ -37,6 +37,14 @@ ParamTable<ConsistencyMonitorParams> makeMonitorFields() {
       field("frozen_s", "the same raw reading this long is a frozen sensor; 0 = off [s]", &M::frozen_s),
       field("settle_s", "both valves shut this long before a hold's pressure is tested [s]", &M::settle_s),
       field("reference_time_s", "time constant of the hold's reference pressure [s]", &M::reference_time_s),
+      field("load_rate_pa_s",
+            "the hold's reference follows the readings beyond the noise at up to this rate (a body's load "
+            "changing); 0 = the hold's mean alone [Pa/s]",
+            &M::load_rate_pa_s),
+      field("hold_correction_pa",
+            "a valve period counted to move the pressure less than this at fixed volume does not end a hold; 0 = "
+            "any does [Pa]",
+            &M::hold_correction_pa),
       field("drift_sds", "innovation within this many reading sds is noise [-]", &M::drift_sds),
       field("min_drift_pa", "least innovation the CUSUM counts [Pa]", &M::min_drift_pa),
       field("cusum_threshold_pa_s", "CUSUM of the innovation that is a persistent inconsistency [Pa s]",
@@ -53,6 +61,9 @@ ParamTable<ConsistencyMonitorParams> makeMonitorFields() {
             &M::response_min_period_s),
       field("max_load_n", "an observer load estimate above this shows the gas count wrong; 0 = off [N]",
             &M::max_load_n),
+      field("landed_height_m", "the readings flat under an estimate above this shows gas gone uncounted; 0 = off [m]",
+            &M::landed_height_m),
+      field("landed_time_s", "the readings flat that long under a lifted estimate is that test [s]", &M::landed_time_s),
   };
 }
 

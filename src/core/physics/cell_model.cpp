@@ -17,6 +17,10 @@ namespace {
 // second order for any Jacobian approximation, so the Jacobian may be reused across steps.
 constexpr double kRos2Gamma = 1.0 + 0.70710678118654752440;
 
+// Sub-steps longer than this take a Jacobian of their own state: several times the time
+// constants of the cell's stiff modes (the plate on its gas spring, the film's relaxation).
+constexpr double kFreshJacobianStepS = 5.0e-3;
+
 }  // namespace
 
 std::string CellParams::validate() const {
@@ -61,6 +65,7 @@ std::string CellParams::validate() const {
   check(relief_critical_ratio >= 0.0 && relief_critical_ratio < 1.0, "relief_critical_ratio", relief_critical_ratio,
         "must lie in [0, 1)");
   check(time_step_s > 0.0 && time_step_s <= 0.05, "time_step_s", time_step_s, "must lie in (0, 0.05] s");
+  check(max_time_step_s > 0.0 && max_time_step_s <= 0.1, "max_time_step_s", max_time_step_s, "must lie in (0, 0.1] s");
   check(jacobian_refresh_steps >= 1 && jacobian_refresh_steps <= 100, "jacobian_refresh_steps", jacobian_refresh_steps,
         "must lie in 1..100");
   check(relative_tolerance >= 1e-10 && relative_tolerance <= 1e-1, "relative_tolerance", relative_tolerance,
@@ -316,6 +321,113 @@ inline void regulatorRate(const CellParams& params, const CellInputs& in, const 
   }
 }
 
+/// Typical magnitude of each state: finite-difference increments and error tolerances.
+StateVector stateScales(int n, int shape_dofs) {
+  StateVector scale = StateVector::Constant(n, 1e-3);
+  scale[CellModel::kMass] = 1e-4;
+  scale[CellModel::kEnergy] = 10.0;
+  scale[CellModel::kHeight] = 1e-2;
+  scale[CellModel::kVelocity] = 1.0;
+  scale[CellModel::kRegulator] = 1e3;
+  for (int i = 0; i < shape_dofs; ++i) scale[CellModel::kShape + i] = 1.0;
+  return scale;
+}
+
+/// Net mass [kg/s] and energy [W] flows through the valves, leak and relief at `v`: the part
+/// of the nominal rate that depends on the gas pressure, temperature and regulator pressure.
+struct BoundaryFlows {
+  double mass_kg_s = 0.0;
+  double energy_w = 0.0;
+};
+
+inline BoundaryFlows boundaryFlows(const CellParams& params, const CellInputs& in, CellVariables v) {
+  const double cp = params.gas.cp();
+  const double flow_pressure_pa = flowPressure(params, in, v);
+  const double inflow_enthalpy_w = inletFlow(params, in, flow_pressure_pa, &v);
+  const Outflows o = outflows(params, in, flow_pressure_pa, &v);
+  const double outflow_enthalpy_w = o.vent.mass_flow_kg_s * cp * o.vent.upstream_temperature_k +
+                                    o.leak.mass_flow_kg_s * cp * o.leak.upstream_temperature_k +
+                                    o.relief_kg_s * cp * v.temperature_k;
+  return {v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - o.relief_kg_s, inflow_enthalpy_w - outflow_enthalpy_w};
+}
+
+/// Slopes of the boundary flows (mass, energy) with respect to pressure, temperature and
+/// regulator pressure, by forward differences of the flows alone.
+struct FlowSlopes {
+  double mass_p = 0.0, energy_p = 0.0;
+  double mass_t = 0.0, energy_t = 0.0;
+  double mass_r = 0.0, energy_r = 0.0;
+};
+
+FlowSlopes flowSlopes(const CellParams& params, const CellInputs& in, const CellVariables& v, bool regulator_state) {
+  const BoundaryFlows base = boundaryFlows(params, in, v);
+  FlowSlopes s;
+  CellVariables w = v;
+  const double dp = 1e-7 * v.pressure_pa;
+  w.pressure_pa += dp;
+  w.gauge_pressure_pa += dp;
+  const BoundaryFlows at_p = boundaryFlows(params, in, w);
+  s.mass_p = (at_p.mass_kg_s - base.mass_kg_s) / dp;
+  s.energy_p = (at_p.energy_w - base.energy_w) / dp;
+  w = v;
+  const double dt = 1e-7 * v.temperature_k;
+  w.temperature_k += dt;
+  const BoundaryFlows at_t = boundaryFlows(params, in, w);
+  s.mass_t = (at_t.mass_kg_s - base.mass_kg_s) / dt;
+  s.energy_t = (at_t.energy_w - base.energy_w) / dt;
+  if (regulator_state) {
+    w = v;
+    const double dr = 1e-7 * std::max(std::fabs(v.regulator_pressure_pa), 1e3);
+    w.regulator_pressure_pa += dr;
+    const BoundaryFlows at_r = boundaryFlows(params, in, w);
+    s.mass_r = (at_r.mass_kg_s - base.mass_kg_s) / dr;
+    s.energy_r = (at_r.energy_w - base.energy_w) / dr;
+  }
+  return s;
+}
+
+/// How one state moves the variables the nominal rate is built from: pressure, temperature,
+/// regulator pressure and the structure (its fields' derivatives, in a StructureEval).
+struct ColumnSlopes {
+  double pressure = 0.0;
+  double temperature = 0.0;
+  double regulator = 0.0;
+  StructureEval structure;  // d(field)/dx_j; all zero unless x_j is the height or a shape
+};
+
+ColumnSlopes columnSlopes(const CellParams& params, const CellStructure& structure, int shape_dofs,
+                          const CellVariables& v, int j) {
+  ColumnSlopes c;
+  if (j == CellModel::kMass) {
+    c.temperature = -v.temperature_k / v.mass_kg;
+  } else if (j == CellModel::kEnergy) {
+    c.pressure = v.pressure_pa / v.internal_energy_j;
+    c.temperature = v.temperature_k / v.internal_energy_j;
+  } else if (j == CellModel::kRegulator) {
+    c.regulator = params.regulator_time_constant_s > 0.0 ? 1.0 : 0.0;
+  } else if (j == CellModel::kHeight || (j >= CellModel::kShape && j < CellModel::kShape + shape_dofs)) {
+    // The structure's second derivatives by forward differences of its evaluation.
+    double height = v.height_m;
+    std::array<double, kMaxShapeDofs> shape = v.shape;
+    const double delta = j == CellModel::kHeight ? 1e-7 * std::max(std::fabs(height), 1e-2)
+                                                 : 1e-7 * std::max(std::fabs(shape[j - CellModel::kShape]), 1.0);
+    (j == CellModel::kHeight ? height : shape[j - CellModel::kShape]) += delta;
+    const StructureEval a = structure.evaluate(height, shape.data());
+    const StructureEval& b = v.structure;
+    StructureEval& d = c.structure;
+    d.volume_m3 = (a.volume_m3 - b.volume_m3) / delta;
+    d.effective_area_m2 = (a.effective_area_m2 - b.effective_area_m2) / delta;
+    d.plate_force_n = (a.plate_force_n - b.plate_force_n) / delta;
+    for (int i = 0; i < shape_dofs; ++i) {
+      d.dvolume_dshape[i] = (a.dvolume_dshape[i] - b.dvolume_dshape[i]) / delta;
+      d.elastic_force[i] = (a.elastic_force[i] - b.elastic_force[i]) / delta;
+      d.shape_damping[i] = (a.shape_damping[i] - b.shape_damping[i]) / delta;
+    }
+    c.pressure = -v.pressure_pa * d.volume_m3 / b.volume_m3;
+  }
+  return c;
+}
+
 }  // namespace
 
 CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, const CellInputs& in,
@@ -334,15 +446,98 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
   return dx;
 }
 
-void CellModel::updateJacobian(const CellInputs& in, const StateVector& f0) {
-  const int n = stateSize();
-  jacobian_.resize(n, n);
+CellModel::StateMatrix CellModel::jacobian(double time_s, const StateVector& x, const CellInputs& in) const {
+  CellVariables v;
+  rate(time_s, x, in, &v);
+  return jacobianAt(time_s, x, in, v);
+}
+
+CellModel::StateMatrix CellModel::jacobianAt(double time_s, const StateVector& x, const CellInputs& in,
+                                             const CellVariables& v) const {
+  const int n = static_cast<int>(x.size());
+  const int nominal = kShape + shape_dofs_;
+  if (n == nominal && effects_.empty()) return nominalJacobian(in, v);
+  StateMatrix jac = StateMatrix::Zero(n, n);
+  jac.topLeftCorner(nominal, nominal) = nominalJacobian(in, v);
+  // What the effects add to the rate, by forward differences of that part alone (exactly zero
+  // for effects that add nothing, so those leave the nominal step unchanged).
+  const StateVector scale = stateScales(n, shape_dofs_);
+  const StateVector base = effectPart(time_s, x, in);
   for (int j = 0; j < n; ++j) {
-    StateVector xp = state_;
-    const double dxj = 1e-7 * std::max(std::fabs(state_[j]), scale_[j]);
+    StateVector xp = x;
+    const double dxj = 1e-7 * std::max(std::fabs(x[j]), scale[j]);
     xp[j] += dxj;
-    jacobian_.col(j) = (rate(time_, xp, in) - f0) / dxj;
+    jac.col(j) += (effectPart(time_s, xp, in) - base) / dxj;
   }
+  return jac;
+}
+
+CellModel::StateVector CellModel::effectPart(double time_s, const StateVector& x, const CellInputs& in) const {
+  CellVariables v;
+  stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, &v);
+  const double flow_pressure_pa = flowPressure(params_, in, v);
+  const double inflow_enthalpy_w = inletFlow(params_, in, flow_pressure_pa, &v);
+  const Outflows out = outflows(params_, in, flow_pressure_pa, &v);
+  StateVector with = StateVector::Zero(x.size());
+  StateVector without = StateVector::Zero(x.size());
+  const EffectTerms terms = effectTerms(effects_, effect_offsets_, shape_dofs_, params_, v, x, &with);
+  CellVariables nominal_vars = v;
+  gasRates(params_, shape_dofs_, inflow_enthalpy_w, out, EffectTerms{}, &nominal_vars, &without);
+  plateRates(params_, in, EffectTerms{}, &nominal_vars, &without);
+  gasRates(params_, shape_dofs_, inflow_enthalpy_w, out, terms, &v, &with);
+  plateRates(params_, in, terms, &v, &with);
+  return with - without;
+}
+
+CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const CellVariables& v) const {
+  const int n = kShape + shape_dofs_;
+  const StructureEval& s = v.structure;
+  const double p = v.pressure_pa;
+  const double pg = v.gauge_pressure_pa;
+  const bool regulator_state = params_.regulator_time_constant_s > 0.0;
+  const FlowSlopes flow = flowSlopes(params_, in, v, regulator_state);
+  // The film's rates and the volume rate at the state (gasRates without effect forces).
+  std::array<double, kMaxShapeDofs> shape_rate{};
+  double volume_rate = s.effective_area_m2 * v.velocity_m_s;
+  for (int i = 0; i < shape_dofs_; ++i) {
+    shape_rate[i] = -(s.elastic_force[i] - pg * s.dvolume_dshape[i]) / s.shape_damping[i];
+    volume_rate += s.dvolume_dshape[i] * shape_rate[i];
+  }
+  // The bed's Hunt-Crossley force F = -k h (1 - alpha v) acts while the plate presses into it
+  // (plateRates): dF/dh = -k (1 - alpha v), dF/dv = k alpha h.
+  const double k = params_.bed_contact_stiffness_n_m;
+  const double alpha = params_.bed_contact_damping_s_m;
+  const bool in_contact = v.height_m < 0.0 && 1.0 - alpha * v.velocity_m_s > 0.0;
+  StateMatrix jac = StateMatrix::Zero(n, n);
+  for (int j = 0; j < n; ++j) {
+    const ColumnSlopes c = columnSlopes(params_, *structure_, shape_dofs_, v, j);
+    const StructureEval& d = c.structure;
+    const double is_velocity = j == kVelocity ? 1.0 : 0.0;
+    jac(kMass, j) = flow.mass_p * c.pressure + flow.mass_t * c.temperature + flow.mass_r * c.regulator;
+    double volume_rate_slope = d.effective_area_m2 * v.velocity_m_s + s.effective_area_m2 * is_velocity;
+    for (int i = 0; i < shape_dofs_; ++i) {
+      const double imbalance = s.elastic_force[i] - pg * s.dvolume_dshape[i];
+      const double imbalance_slope = d.elastic_force[i] - c.pressure * s.dvolume_dshape[i] - pg * d.dvolume_dshape[i];
+      const double slope = -imbalance_slope / s.shape_damping[i] +
+                           imbalance * d.shape_damping[i] / (s.shape_damping[i] * s.shape_damping[i]);
+      jac(kShape + i, j) = slope;
+      volume_rate_slope += d.dvolume_dshape[i] * shape_rate[i] + s.dvolume_dshape[i] * slope;
+    }
+    jac(kEnergy, j) = flow.energy_p * c.pressure + flow.energy_t * c.temperature + flow.energy_r * c.regulator -
+                      c.pressure * volume_rate - p * volume_rate_slope;
+    jac(kHeight, j) = is_velocity;
+    double force_slope = c.pressure * s.effective_area_m2 + pg * d.effective_area_m2 + d.plate_force_n -
+                         params_.plate_damping_n_s_m * is_velocity;
+    if (in_contact && j == kHeight) force_slope -= k * (1.0 - alpha * v.velocity_m_s);
+    if (in_contact && j == kVelocity) force_slope += k * alpha * v.height_m;
+    jac(kVelocity, j) = force_slope / v.moving_mass_kg;
+  }
+  if (regulator_state) jac(kRegulator, kRegulator) = -1.0 / params_.regulator_time_constant_s;
+  return jac;
+}
+
+void CellModel::updateJacobian(const CellInputs& in) {
+  jacobian_ = jacobianAt(time_, state_, in, vars_);
   jacobian_fresh_ = true;
   steps_since_jacobian_ = 0;
   lu_dt_ = 0.0;
@@ -350,91 +545,125 @@ void CellModel::updateJacobian(const CellInputs& in, const StateVector& f0) {
 
 double CellModel::attemptStep(double dt, const CellInputs& in, const StateVector& f0, StateVector* next) {
   const int n = stateSize();
-  if (dt != lu_dt_) {
-    lu_.compute(StateMatrix::Identity(n, n) - kRos2Gamma * dt * jacobian_);
+  // ROS2 is second order with W = I - gamma dt A for any A: a factorisation made for a step
+  // within 25 % of this one (A = J times the ratio of the two) serves it as well.
+  if (!(dt <= 1.25 * lu_dt_ && dt >= 0.8 * lu_dt_)) {
+    step_matrix_.factor(jacobian_, kRos2Gamma * dt);
     lu_dt_ = dt;
   }
+  if (step_matrix_.size() == StepMatrix::kNominalStates) return attemptNominalStep(dt, in, f0, next);
   // Time-dependent input (a prescribed inflow series): its time derivative enters both stages.
-  StateVector ft = StateVector::Zero(n);
+  StateVector k1, k2;
   if (in.prescribed_inflow) {
     const double dt_fd = 1e-6;
-    ft = (rate(time_ + dt_fd, state_, in) - f0) / dt_fd;
+    const StateVector ft = (rate(time_ + dt_fd, state_, in) - f0) / dt_fd;
+    k1 = step_matrix_.solve(f0 + kRos2Gamma * dt * ft);
+    k2 = step_matrix_.solve(rate(time_ + dt, state_ + dt * k1, in) - 2.0 * k1 - kRos2Gamma * dt * ft);
+  } else {
+    k1 = step_matrix_.solve(f0);
+    k2 = step_matrix_.solve(rate(time_ + dt, state_ + dt * k1, in) - 2.0 * k1);
   }
-  const StateVector k1 = lu_.solve(f0 + kRos2Gamma * dt * ft);
-  const StateVector f1 = rate(time_ + dt, state_ + dt * k1, in);
-  const StateVector k2 = lu_.solve(f1 - 2.0 * k1 - kRos2Gamma * dt * ft);
   *next = state_ + dt * (1.5 * k1 + 0.5 * k2);
-  // Local error: the second-order solution minus the embedded first-order x + dt k1.
+  // Local error: the second-order solution minus the embedded first-order x + dt k1, filtered
+  // through W^-1 (Hairer and Wanner, Solving ODEs II, IV.8): the stiff components (the plate
+  // ringing on its gas spring) that the L-stable step damps no longer shrink the step.
+  const StateVector estimate = step_matrix_.solve(0.5 * dt * (k1 + k2));
   double sum = 0.0;
   for (int i = 0; i < n; ++i) {
     const double tol = params_.relative_tolerance * (scale_[i] + std::fabs(state_[i]));
-    const double e = 0.5 * dt * (k1[i] + k2[i]) / tol;
+    const double e = estimate[i] / tol;
     sum += e * e;
   }
   const double err = std::sqrt(sum / n);
   return std::isfinite(err) && next->allFinite() ? err : 1e10;
 }
 
-void CellModel::step(double dt, const CellInputs& in) {
-  const int n = stateSize();
-  if (scale_.size() != n) {
-    scale_.setConstant(n, 1e-3);
-    scale_[kMass] = 1e-4;
-    scale_[kEnergy] = 10.0;
-    scale_[kHeight] = 1e-2;
-    scale_[kVelocity] = 1.0;
-    scale_[kRegulator] = 1e3;
-    for (int i = 0; i < shape_dofs_; ++i) scale_[kShape + i] = 1.0;
+double CellModel::attemptNominalStep(double dt, const CellInputs& in, const StateVector& f0, StateVector* next) {
+  // attemptStep on fixed-size vectors: the same arithmetic without run-time sizes.
+  using Vector = StepMatrix::NominalVector;
+  constexpr int n = StepMatrix::kNominalStates;
+  const Vector x = state_.head<n>();
+  Vector ft = Vector::Zero();
+  if (in.prescribed_inflow) {
+    const double dt_fd = 1e-6;
+    ft = (rate(time_ + dt_fd, state_, in).head<n>() - f0.head<n>()) / dt_fd;
   }
-  double remaining = dt;
-  double h = substep_s_ > 0.0 ? std::min(substep_s_, dt) : dt;
+  const Vector k1 = step_matrix_.solveNominal(f0.head<n>() + kRos2Gamma * dt * ft);
+  const StateVector stage = x + dt * k1;
+  const Vector k2 = step_matrix_.solveNominal(rate(time_ + dt, stage, in).head<n>() - 2.0 * k1 - kRos2Gamma * dt * ft);
+  const Vector x_next = x + dt * (1.5 * k1 + 0.5 * k2);
+  *next = x_next;
+  const Vector estimate = step_matrix_.solveNominal(0.5 * dt * (k1 + k2));
+  const Vector tolerance = params_.relative_tolerance * (scale_.head<n>() + x.cwiseAbs());
+  const double err = std::sqrt((estimate.cwiseQuotient(tolerance)).squaredNorm() / n);
+  return std::isfinite(err) && x_next.allFinite() ? err : 1e10;
+}
+
+void CellModel::integrate(double duration_s, double max_step_s, const CellInputs& in) {
+  const int n = stateSize();
+  if (scale_.size() != n) scale_ = stateScales(n, shape_dofs_);
+  double remaining = duration_s;
+  double h = std::min(substep_s_ > 0.0 ? substep_s_ : params_.time_step_s, max_step_s);
   int rejections = 0;
   while (remaining > 1e-15) {
-    h = std::min(h, remaining);
-    if (remaining - h < 1e-3 * h) h = remaining;
-    // The rate at the current state is already known when the inputs did not change.
+    // The last sub-steps reach the end exactly, without a sliver of a step.
+    double hs = h;
+    if (remaining - hs < 1e-3 * hs) {
+      hs = remaining;
+    } else if (remaining - hs < 0.1 * hs) {
+      hs = 0.5 * remaining;
+    }
+    // The rate at the current state is already known when the inputs did not change. New
+    // inputs (a valve opening) take a new Jacobian: the error estimate, filtered through one
+    // made for the old inputs, let a flat cell's refill drift by tens of kelvin in one step.
     if (!sameInputs(in, last_inputs_) || rate_at_state_.size() != n) {
       last_inputs_ = in;
       refreshVariables(in);
+      jacobian_fresh_ = false;
+      steps_since_jacobian_ = 1 << 30;
     }
     const StateVector f0 = rate_at_state_;
-    if (!jacobian_fresh_ && steps_since_jacobian_ >= params_.jacobian_refresh_steps) updateJacobian(in, f0);
+    // Long steps make the stiff modes (the plate on its gas spring, the film, the gas through
+    // an open orifice) |h lambda| >> 1; only a Jacobian of the current state damps them there,
+    // one a few steps old leaves them ringing from step to step.
+    const bool long_step = hs > kFreshJacobianStepS;
+    if (!jacobian_fresh_ && (long_step || steps_since_jacobian_ >= params_.jacobian_refresh_steps)) updateJacobian(in);
     StateVector next;
-    const double err = attemptStep(h, in, f0, &next);
-    if (err <= 1.0 || h < 1e-9) {
-      state_ = next;
-      state_[kMass] = std::max(state_[kMass], 1e-12);
-      time_ += h;
-      refreshVariables(in);
-      remaining -= h;
-      if (++substeps_ > substep_budget_ && substep_budget_ > 0)
-        throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +
-                                 " integration steps (too stiff)");
-      jacobian_fresh_ = false;
-      ++steps_since_jacobian_;
-      // Grow towards the default step when the error allows.
-      const double grow = err > 1e-8 ? 0.9 / std::sqrt(err) : 4.0;
-      substep_s_ = std::min(dt, h * std::clamp(grow, 0.2, 4.0));
-      h = substep_s_;
+    const double err = attemptStep(hs, in, f0, &next);
+    if (err <= 1.0 || hs < 1e-9) {
+      double proposed = std::min(acceptSubstep(hs, err, next, in), max_step_s);
+      if (rejections > 0) proposed = std::min(proposed, hs);  // no growth right after a rejection
+      remaining -= hs;
+      // A sub-step shortened to reach the end says nothing against the size it was cut from.
+      h = hs < h ? std::max(proposed, std::min(h, proposed * 4.0)) : proposed;
+      substep_s_ = h;
       rejections = 0;
     } else {
-      // Retry smaller, with a Jacobian taken at the current state.
-      if (!jacobian_fresh_) updateJacobian(in, f0);
-      h *= std::clamp(0.9 / std::sqrt(err), 0.1, 0.5);
+      // Retry at the size the estimate asks for (at most 0.9 of this one), with a Jacobian taken
+      // at the current state; halving regardless cycled through rejections on the way back up.
+      if (!jacobian_fresh_) updateJacobian(in);
+      h = hs * std::clamp(0.9 / std::sqrt(err), 0.1, 0.9);
       if (++rejections > 60) throw std::runtime_error("CellModel::step: no step size meets the tolerance");
     }
   }
 }
 
+double CellModel::acceptSubstep(double h, double err, const StateVector& next, const CellInputs& in) {
+  state_ = next;
+  state_[kMass] = std::max(state_[kMass], 1e-12);
+  time_ += h;
+  refreshVariables(in);
+  if (++substeps_ > substep_budget_ && substep_budget_ > 0)
+    throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +
+                             " integration steps (too stiff)");
+  jacobian_fresh_ = false;
+  ++steps_since_jacobian_;
+  // Grow when the error allows, at most doubling.
+  return h * std::clamp(err > 1e-8 ? 0.9 / std::sqrt(err) : 2.0, 0.2, 2.0);
+}
+
 void CellModel::advance(double duration_s, const CellInputs& in) {
-  const double end = time_ + duration_s;
-  const double h = params_.time_step_s;
-  while (end - time_ > 1e-12) {
-    double dt = std::min(h, end - time_);
-    // Avoid a sliver of a last step: split the remainder instead.
-    if (end - time_ - dt < 0.1 * h && end - time_ > dt) dt = 0.5 * (end - time_);
-    step(dt, in);
-  }
+  integrate(duration_s, std::max(params_.time_step_s, params_.max_time_step_s), in);
 }
 
 void CellModel::setState(double time_s, const StateVector& state, bool keep_jacobian) {
@@ -458,7 +687,8 @@ bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
   return same(a.inlet_opening, b.inlet_opening) && same(a.vent_opening, b.vent_opening) &&
          same(a.vent_back_pressure_pa, b.vent_back_pressure_pa) && same(a.load_n, b.load_n) &&
          same(a.supply_pressure_pa, b.supply_pressure_pa) && a.prescribed_inflow == b.prescribed_inflow &&
-         same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) && a.inlet_closed == b.inlet_closed;
+         same(a.prescribed_inflow_kg_s, b.prescribed_inflow_kg_s) && a.inlet_closed == b.inlet_closed &&
+         same(a.flow_gauge_pressure_pa, b.flow_gauge_pressure_pa);
 }
 
 Readings CellModel::measure() const {

@@ -6,6 +6,32 @@
 namespace nursing_bed {
 namespace {
 
+// The constants of the nozzle law that depend only on the gas, computed once per gas (the
+// right-hand side evaluates the law several times per call, and each constant costs a pow).
+struct NozzleConstants {
+  double heat_capacity_ratio = 0.0;
+  double gas_constant = 0.0;
+  double critical_ratio = 0.0;   // (2/(g+1))^(g/(g-1))
+  double choked_factor = 0.0;    // sqrt(g/R) (2/(g+1))^((g+1)/(2(g-1)))
+  double subsonic_factor = 0.0;  // sqrt(2 g/((g-1) R))
+  double inverse_ratio = 0.0;    // 1/g
+};
+
+const NozzleConstants& nozzleConstants(const GasProperties& gas) {
+  thread_local NozzleConstants c;
+  if (c.heat_capacity_ratio != gas.heat_capacity_ratio || c.gas_constant != gas.gas_constant_j_kg_k) {
+    const double g = gas.heat_capacity_ratio;
+    const double r = gas.gas_constant_j_kg_k;
+    c.heat_capacity_ratio = g;
+    c.gas_constant = r;
+    c.critical_ratio = gas.criticalPressureRatio();
+    c.choked_factor = std::sqrt(g / r) * std::pow(2.0 / (g + 1.0), (g + 1.0) / (2.0 * (g - 1.0)));
+    c.subsonic_factor = std::sqrt(2.0 * g / ((g - 1.0) * r));
+    c.inverse_ratio = 1.0 / g;
+  }
+  return c;
+}
+
 // Subsonic flow function and its derivative with respect to the upstream pressure at fixed
 // downstream pressure; used to fit the smoothing cubic at the band edge.
 struct SubsonicEdge {
@@ -13,12 +39,12 @@ struct SubsonicEdge {
   double d_flow_d_pup;
 };
 
-SubsonicEdge subsonicWithSlope(const GasProperties& gas, double area, double p_up, double t_up, double p_down) {
-  const double g = gas.heat_capacity_ratio;
-  const double k = area * std::sqrt(2.0 * g / ((g - 1.0) * gas.gas_constant_j_kg_k * t_up));
+SubsonicEdge subsonicWithSlope(const NozzleConstants& c, double area, double p_up, double t_up, double p_down) {
+  const double g = c.heat_capacity_ratio;
+  const double k = area * c.subsonic_factor / std::sqrt(t_up);
   // Phi = p_up^2 (r^(2/g) - r^((g+1)/g)), r = p_down/p_up.
   const double r = p_down / p_up;
-  const double r_inv_g = std::pow(r, 1.0 / g);
+  const double r_inv_g = std::pow(r, c.inverse_ratio);
   const double term1 = p_up * p_up * r_inv_g * r_inv_g;  // p_up^(2-2/g) p_down^(2/g)
   const double term2 = p_up * p_up * r * r_inv_g;        // p_up^((g-1)/g) p_down^((g+1)/g)
   const double phi = std::max(term1 - term2, 1e-300);
@@ -29,16 +55,21 @@ SubsonicEdge subsonicWithSlope(const GasProperties& gas, double area, double p_u
 
 }  // namespace
 
-double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa, double t_up_k,
+namespace {
+
+double isentropicMassFlow(const NozzleConstants& c, double effective_area_m2, double p_up_pa, double t_up_k,
                           double p_down_pa) {
   if (effective_area_m2 <= 0.0 || p_up_pa <= 0.0 || p_down_pa >= p_up_pa) return 0.0;
-  const double g = gas.heat_capacity_ratio;
   const double r = std::max(p_down_pa, 0.0) / p_up_pa;
-  if (r <= gas.criticalPressureRatio()) {
-    return effective_area_m2 * p_up_pa * std::sqrt(g / (gas.gas_constant_j_kg_k * t_up_k)) *
-           std::pow(2.0 / (g + 1.0), (g + 1.0) / (2.0 * (g - 1.0)));
-  }
-  return subsonicWithSlope(gas, effective_area_m2, p_up_pa, t_up_k, p_down_pa).flow;
+  if (r <= c.critical_ratio) return effective_area_m2 * p_up_pa * c.choked_factor / std::sqrt(t_up_k);
+  return subsonicWithSlope(c, effective_area_m2, p_up_pa, t_up_k, p_down_pa).flow;
+}
+
+}  // namespace
+
+double isentropicMassFlow(const GasProperties& gas, double effective_area_m2, double p_up_pa, double t_up_k,
+                          double p_down_pa) {
+  return isentropicMassFlow(nozzleConstants(gas), effective_area_m2, p_up_pa, t_up_k, p_down_pa);
 }
 
 OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, double pressure_a_pa,
@@ -51,15 +82,16 @@ OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, doub
   out.upstream_temperature_k = sign > 0 ? temperature_a_k : temperature_b_k;
   if (effective_area_m2 <= 0.0 || dp == 0.0) return out;
 
+  const NozzleConstants& c = nozzleConstants(gas);
   const double adp = std::fabs(dp);
   if (adp >= linear_band_pa || linear_band_pa <= 0.0) {
-    out.choked = p_down / p_up <= gas.criticalPressureRatio();
-    out.mass_flow_kg_s = sign * isentropicMassFlow(gas, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
+    out.choked = p_down / p_up <= c.critical_ratio;
+    out.mass_flow_kg_s = sign * isentropicMassFlow(c, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
     return out;
   }
   // Inside the band: odd cubic matching the isentropic value M and slope S at |dp| = band.
   const SubsonicEdge edge =
-      subsonicWithSlope(gas, effective_area_m2, p_down + linear_band_pa, out.upstream_temperature_k, p_down);
+      subsonicWithSlope(c, effective_area_m2, p_down + linear_band_pa, out.upstream_temperature_k, p_down);
   const double x = adp / linear_band_pa;
   const double slope_x = edge.d_flow_d_pup * linear_band_pa;
   const double a = 0.5 * (3.0 * edge.flow - slope_x);

@@ -65,6 +65,9 @@ TEST(ConsistencyMonitorParams, RefusesBadValuesNamingThem) {
   expectRefused("response_window_s", &nb::ConsistencyMonitorParams::response_window_s, INFINITY);
   expectRefused("response_min_period_s", &nb::ConsistencyMonitorParams::response_min_period_s, -0.01);
   expectRefused("max_load_n", &nb::ConsistencyMonitorParams::max_load_n, std::nan(""));
+  expectRefused("load_rate_pa_s", &nb::ConsistencyMonitorParams::load_rate_pa_s, -1.0);
+  expectRefused("landed_height_m", &nb::ConsistencyMonitorParams::landed_height_m, -0.01);
+  expectRefused("landed_time_s", &nb::ConsistencyMonitorParams::landed_time_s, 0.0);
   EXPECT_TRUE(nb::ConsistencyMonitorParams{}.validate().ok());
 }
 
@@ -77,9 +80,11 @@ TEST(ConsistencyMonitor, TenMinutesOfNoisyHoldsAndValvePulsesRaiseNothing) {
   }
 }
 
-TEST(ConsistencyMonitor, APressureStepUnderASettledPlateIsFlaggedWithinASecond) {
+TEST(ConsistencyMonitor, UnderConstantLoadsAPressureStepUnderASettledPlateIsFlaggedWithinASecond) {
+  nb::ConsistencyMonitorParams constant_loads;
+  constant_loads.load_rate_pa_s = 0.0;                 // the hold's mean alone
   for (const double step : {1100.0, -900.0, 400.0}) {  // below the jump test: the CUSUM
-    nb::ConsistencyMonitor monitor;
+    nb::ConsistencyMonitor monitor(constant_loads);
     Sensor sensor(3);
     ASSERT_LT(runHolds(&monitor, &sensor, 5.0, 1500.0, 100.0), 0.0);
     const double flagged_at = runHolds(&monitor, &sensor, 5.0, 1500.0 + step, 100.0, 5.0);
@@ -206,4 +211,134 @@ TEST(ConsistencyMonitor, ALoadAboveAnyACellCarriesIsFlagged) {
   s.load_n = 350.0;
   EXPECT_TRUE(monitor.update(s, kPeriod));
   EXPECT_NE(monitor.reason().find("350 N"), std::string::npos) << monitor.reason();
+}
+
+TEST(ConsistencyMonitor, ALoadShiftingOnAHeldCellIsNotFlaggedAFasterThanBodyRiseIs) {
+  // A patient turning over a held cell: its pressure ramps up 3 kPa in 1.5 s, holds, falls
+  // 2.5 kPa in 1 s, then a quick shift of 2 kPa in 0.2 s, with breathing (+-200 Pa at
+  // 0.25 Hz) throughout.
+  auto patient = [](double t) {
+    double shift = 0.0;
+    if (t >= 3.0) shift = std::min(3000.0, 2000.0 * (t - 3.0));
+    if (t >= 7.0) shift = 3000.0 - std::min(2500.0, 2500.0 * (t - 7.0));
+    if (t >= 10.0) shift = 500.0 + std::min(2000.0, 10000.0 * (t - 10.0));
+    return 1500.0 + shift + 200.0 * std::sin(2.0 * M_PI * 0.25 * t);
+  };
+  nb::ConsistencyMonitorParams constant_loads;
+  constant_loads.load_rate_pa_s = 0.0;
+  for (const bool load_aware : {true, false}) {
+    nb::ConsistencyMonitor monitor(load_aware ? nb::ConsistencyMonitorParams{} : constant_loads);
+    Sensor sensor(17);
+    double t = 0.0;
+    for (; t < 14.0 && !monitor.update(sample(sensor.read(patient(t)), true), kPeriod); t += kPeriod) {
+    }
+    if (load_aware) {
+      EXPECT_GE(t, 14.0) << t << " s: " << monitor.reason();
+    } else {
+      EXPECT_LT(t, 14.0) << "the hold's mean alone takes a patient's shifts for faults";
+    }
+  }
+  // Gas passing a valve stuck open under a plate that reached the bag's top: 4.5 kPa in 50 ms.
+  nb::ConsistencyMonitor monitor;
+  Sensor sensor(23);
+  runHolds(&monitor, &sensor, 3.0, 1500.0, 100.0);
+  double t = 0.0;
+  for (; t < 1.0 && !monitor.update(sample(sensor.read(1500.0 + std::min(4500.0, 90000.0 * t)), true), kPeriod);
+       t += kPeriod) {
+  }
+  EXPECT_LT(t, 0.2) << "a rise faster than a body loads a cell not flagged";
+}
+
+namespace {
+
+/// A sample of a lifted estimate at `height_m` with the observer's flat pressure 20 Pa.
+nb::ConsistencySample lifted(double pressure_pa, double height_m, bool shut) {
+  nb::ConsistencySample s = sample(pressure_pa, shut);
+  s.height_m = height_m;
+  s.flat_pressure_pa = 20.0;
+  return s;
+}
+
+}  // namespace
+
+TEST(ConsistencyMonitor, FlatReadingsUnderALiftedEstimateAreFlaggedThePlateAloneLiftedIsNot) {
+  Sensor sensor(19);
+  {
+    // The plate alone lifted reads at least twice the flat pressure, venting (the vent open) or not.
+    nb::ConsistencyMonitor monitor;
+    for (double t = 0.0; t < 20.0; t += kPeriod)
+      ASSERT_FALSE(monitor.update(lifted(sensor.read(45.0), 0.08, std::fmod(t, 2.0) > 0.3), kPeriod))
+          << t << " s: " << monitor.reason();
+  }
+  {
+    // A flat cell whose estimate is near flat: a re-anchor's few millimetres, not a fault.
+    nb::ConsistencyMonitor monitor;
+    for (double t = 0.0; t < 5.0; t += kPeriod)
+      ASSERT_FALSE(monitor.update(lifted(sensor.read(0.0), 0.01, false), kPeriod)) << monitor.reason();
+  }
+  // The plate landed on a stuck-open vent under an estimate at 88 mm: its pressure collapses
+  // from 480 Pa within 0.1 s while the controller vents to bring the estimate down.
+  nb::ConsistencyMonitor monitor;
+  for (double t = 0.0; t < 2.0; t += kPeriod)
+    ASSERT_FALSE(monitor.update(lifted(sensor.read(480.0), 0.088, true), kPeriod)) << monitor.reason();
+  double t = 0.0;
+  for (; t < 2.0 && !monitor.update(lifted(sensor.read(480.0 * std::exp(-t / 0.02)), 0.089, t > 0.1), kPeriod);
+       t += kPeriod) {
+  }
+  EXPECT_LT(t, 0.6) << "a plate that landed under a lifted estimate not flagged";
+  EXPECT_NE(monitor.reason().find("reads a flat cell"), std::string::npos) << monitor.reason();
+  nb::ConsistencyMonitorParams off;
+  off.landed_height_m = 0.0;
+  nb::ConsistencyMonitor quiet(off);
+  for (t = 0.0; t < 2.0; t += kPeriod)
+    EXPECT_FALSE(quiet.update(lifted(sensor.read(0.0), 0.089, false), kPeriod)) << quiet.reason();
+}
+
+TEST(ConsistencyMonitor, AHoldsSmallCorrectionsDoNotKeepTheHoldTestFromRunning) {
+  // A plate sinking on a vent stuck open under a constant load: its pressure falls 1 kPa in
+  // 0.4 s while the controller nudges its estimate with a vent pulse worth 20 Pa every 0.1 s.
+  nb::ConsistencyMonitorParams constant_loads;
+  constant_loads.load_rate_pa_s = 0.0;
+  for (const double corrections_pa : {50.0, 0.0}) {
+    nb::ConsistencyMonitorParams p = constant_loads;
+    p.hold_correction_pa = corrections_pa;
+    nb::ConsistencyMonitor monitor(p);
+    Sensor sensor(29);
+    bool flagged = false;
+    for (double t = 0.0; t < 6.0 && !flagged; t += kPeriod) {
+      const double pressure = t < 4.0 ? 1500.0 : 1500.0 - std::min(1000.0, 2500.0 * (t - 4.0));
+      nb::ConsistencySample s = sample(sensor.read(pressure), true);
+      if (std::fmod(t, 0.1) < kPeriod) {
+        s.valves_shut = false;
+        s.counted_step_pa = -20.0;
+      }
+      flagged = monitor.update(s, kPeriod);
+      if (t < 4.0) {
+        ASSERT_FALSE(flagged) << t << " s: " << monitor.reason();
+      }
+    }
+    EXPECT_EQ(flagged, corrections_pa > 0.0) << "hold_correction_pa " << corrections_pa << ": " << monitor.reason();
+  }
+}
+
+TEST(ConsistencyMonitor, AValvePulseThatALoadShiftOutweighsIsNotJudged) {
+  // A patient's load on the plate rising 4 kPa/s as the vent opens (falling as the inlet
+  // does), from 50 ms before the pulse: the readings move against the pulse all along; a
+  // valve stuck shut under a steady load leaves them where they were.
+  for (const int direction : {1, -1}) {
+    for (const double rate_pa_s : {-4000.0, 0.0}) {
+      nb::ConsistencyMonitor monitor;
+      Sensor sensor(31);
+      runHolds(&monitor, &sensor, 0.5, 900.0, 100.0);
+      bool flagged = false;
+      for (int i = -10; i < 50 && !flagged; ++i) {
+        const double shift_pa = direction * std::max(-400.0, rate_pa_s * kPeriod * (i + 10));
+        nb::ConsistencySample s = sample(sensor.read(900.0 + shift_pa), i < 0 || i >= 10);
+        s.counted_step_pa = i >= 0 && i < 10 ? direction * 1000.0 : 0.0;
+        s.plate_period_s = 0.05;
+        flagged = monitor.update(s, kPeriod);
+      }
+      EXPECT_EQ(flagged, rate_pa_s == 0.0) << direction << " " << rate_pa_s << ": " << monitor.reason();
+    }
+  }
 }

@@ -10,10 +10,14 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include <Eigen/Dense>
+
 #include "nursing_bed/core/bed/bed_grid.h"
+#include "nursing_bed/core/bed/body_joints.h"
 #include "nursing_bed/core/io/status.h"
 
 namespace nursing_bed {
@@ -36,6 +40,12 @@ struct PatientParams {
   /// false: bare flat plates, each point on the plate of the cell under it (a staircase).
   bool smooth_cover = true;
   double max_roll_rad = 1.0;  ///< a segment's roll is bounded to +-this (it would roll off) [rad]
+  /// true: the segments are joined (BodyJoints: neck, spine, shoulders, elbows, wrists, hips,
+  /// knees, ankles) and pitch along the body; the whole body is solved at once. The joints' rest
+  /// pose is the body's on a flat bed, where both models agree. false: free segments.
+  bool articulated = false;
+  /// Stiffness holding a joint's two ends at one height [N/m] (articulated only).
+  double joint_stiffness_n_m = 1e5;
 
   /// Success when valid, else an error with every problem found, each naming the field.
   Status validate() const;
@@ -66,10 +76,11 @@ const std::vector<SegmentSpec>& segmentTable();
 // size: a plain record of one segment's pose, size and support for the simulator's outputs
 struct SegmentPose {
   std::string name;
-  double x_c_m = 0.0;     ///< apex of the underside (footprint centre) along the bed [m]
-  double y_c_m = 0.0;     ///< across the bed; the segment's long axis [m]
-  double z_m = 0.0;       ///< underside apex height above the bed surface [m]
-  double roll_rad = 0.0;  ///< about the long axis (+x); + lowers the patient's right side [rad]
+  double x_c_m = 0.0;      ///< apex of the underside (footprint centre) along the bed [m]
+  double y_c_m = 0.0;      ///< across the bed; the segment's long axis [m]
+  double z_m = 0.0;        ///< underside apex height above the bed surface [m]
+  double roll_rad = 0.0;   ///< about the long axis (+x); + lowers the patient's right side [rad]
+  double pitch_rad = 0.0;  ///< about the lateral axis; + raises the head end (articulated only) [rad]
   double mass_kg = 0.0;
   double length_m = 0.0;            ///< anatomical length [m]
   double width_m = 0.0;             ///< footprint width [m]
@@ -89,6 +100,20 @@ struct RegionPressures {
   double sacrum = 0.0;   ///< under the pelvis
   double heels = 0.0;    ///< under the feet
   double occiput = 0.0;  ///< under the head
+};
+
+/// One contact sub-point of the last solve: where it is on the body and what it bears. The
+/// body's interface-pressure map, at contact_resolution_m; tissue-load metrics are taken over it.
+struct ContactPoint {
+  int segment = 0;             ///< index in segmentTable()
+  double from_vertex_m = 0.0;  ///< along the body from the top of the head [m]
+  double lateral_m = 0.0;      ///< across the segment from its long axis, + to the patient's left [m]
+  double half_width_m = 0.0;   ///< the segment footprint's half width [m]
+  double area_m2 = 0.0;        ///< area the point stands for [m^2]
+  double pressure_pa = 0.0;    ///< interface pressure (0: no contact) [Pa]
+  /// Height of the skin above the bed base (cell height 0) here: the cell surface where the
+  /// point is in contact, the segment's underside where it is not [m].
+  double skin_height_m = 0.0;
 };
 
 /// The solved body on the cells.
@@ -121,6 +146,7 @@ struct BodyState {
  * hand -> forearm -> upper arm -> thorax). Limbs roll freely (each follows its own local slope);
  * the trunk segments and the head roll each on their own too, and the body's roll is the trunk's.
  */
+// size: 26 methods: the free and the articulated solve share the segments' contact geometry
 class BodyModel {
  public:
   /// Throws std::invalid_argument naming the problem when `params` are invalid or the trunk
@@ -130,6 +156,11 @@ class BodyModel {
   /// Rests the body on cells at `cell_heights_m` (by cell id, [m]); throws std::invalid_argument
   /// when the size is not grid.cells() or a height is not finite.
   BodyState solve(const std::vector<double>& cell_heights_m);
+
+  /// The contact sub-points of every segment on the bed at the poses of the last solve() on
+  /// `cell_heights_m` (pass the same heights); cheaper than solve() (no Newton), for
+  /// occasional tissue-load metrics. Throws std::invalid_argument as solve() does.
+  std::vector<ContactPoint> contactMap(const std::vector<double>& cell_heights_m) const;
 
   /// Forgets the warm start (the next solve starts from scratch).
   void reset();
@@ -156,6 +187,8 @@ class BodyModel {
  private:
   struct SubPoint {
     double u = 0.0;                        // y - y_c [m]
+    double x = 0.0;                        // along the bed [m]
+    double v = 0.0;                        // x - x_c [m]
     double q = 0.0;                        // (y - y_c)^2 / 2R_y + (x - x_c)^2 / 2R_x [m]
     double area = 0.0;                     // [m^2]
     std::uint32_t cell[4] = {0, 0, 0, 0};  // cells whose heights make the surface here
@@ -171,6 +204,7 @@ class BodyModel {
     bool on_bed = true;
     std::vector<SubPoint> points;
     double z = 0.0, t = 0.0;  // pose: apex height and tan(roll)
+    double s = 0.0;           // pitch slope dz/dx (articulated only; 0 for free segments)
     bool warm = false;
   };
   struct Evaluation {
@@ -195,10 +229,22 @@ class BodyModel {
                    SegmentPose* pose, BodyState* state) const;
   /// Cell pressures, total load and regional peaks from the cell loads and the segments.
   void cellPressures(BodyState* state) const;
+  // The articulated body (params_.articulated).
+  /// The joints' rest pose from the free segments on a flat bed.
+  void calibrateJoints();
+  /// Newton on the whole body's potential (contact, weight, joints) from the last poses (or the
+  /// free segments' when cold); returns iterations, sets *converged.
+  int solveArticulated(const std::vector<std::vector<double>>& surfaces, bool* converged);
+  /// The whole body's potential at `poses` (z, t, s per solved segment), its gradient and Hessian
+  /// (both null: the potential alone, for the line search).
+  double articulatedPotential(const std::vector<JointSegment>& dofs, const std::vector<std::vector<double>>& surfaces,
+                              const Eigen::VectorXd& poses, Eigen::VectorXd* gradient, Eigen::MatrixXd* hessian) const;
 
   PatientParams params_;
   BedGrid grid_;
   std::vector<Segment> segments_;
+  std::optional<BodyJoints> joints_;  // articulated only
+  bool articulated_warm_ = false;     // the segments' poses are the last articulated solve's
 };
 
 }  // namespace nursing_bed

@@ -158,6 +158,8 @@ struct DiagnosisReport {
   std::string status;                             ///< none, calibrated, explained, unexplained
   std::vector<std::string> verdict_effects;
   std::map<std::string, double> verdict_params;
+  /// The named channel distortions in words, with standard errors ("height: gain -4.1 % ± 0.3 %").
+  std::vector<std::string> verdict_distortions;
   std::vector<std::string> reasons;  ///< the decision in words, one line each
   // Shrinkage on the withheld runs: nominal vs verdict model (equal when nothing is named).
   double withheld_before = 0.0, withheld_after = 0.0;

@@ -46,6 +46,10 @@ struct EffectSpec {
   /// The cell structure it assumes (CellParams::structure_type), empty for any: the diagnosis
   /// does not fit it on another structure and says so.
   std::string structure;
+  /// A channel distortion (distortions.h): the channel it distorts and the kind ("gain+offset"
+  /// for inflow_bias); both empty for a physical effect.
+  std::string channel;
+  std::string kind;
 
   /// Every parameter at its off value.
   std::map<std::string, double> offParams() const;
@@ -69,7 +73,8 @@ const Entry& catalogEntry(const std::vector<Entry>& catalog, const std::string& 
 /// heat_transfer, leak, membrane_viscoelasticity, pressure_sensor_lag, supply_line,
 /// inflow_bias, plate_friction, ambient_drift, pressure_offset_drift.
 const std::vector<EffectSpec>& effectCatalog();
-/// Catalogue entry by name; throws std::invalid_argument naming the known effects otherwise.
+/// Catalogue entry by name, of this catalogue or of the channel distortions' (distortions.h);
+/// throws std::invalid_argument naming the known effects otherwise.
 const EffectSpec& effectSpec(const std::string& name);
 /// Names of the candidate effects, catalogue order.
 std::vector<std::string> candidateEffectNames();

@@ -92,6 +92,9 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
 struct SynthOptions {
   std::string out_dir;
   std::vector<SynthEffectRequest> effects;
+  /// Channel distortions to plant, "channel:kind=value[,...]" (parseDistortion(), distortions.h):
+  /// on the true readings before the noise, on the flow meter's reading and on the recorded load.
+  std::vector<std::string> distortions;
   std::uint32_t seed = 1;
   double noise_scale = 1.0;
   std::string protocol = "standard";
@@ -109,6 +112,10 @@ struct SynthOptions {
 struct SynthResult {
   std::vector<std::string> effect_names;                     ///< catalogue order
   std::vector<std::map<std::string, double>> effect_params;  ///< the truth, per effect
+  /// Planted channel distortions of the distortion catalogue (members of the effect catalogue,
+  /// pressure_sensor_lag and inflow_bias, are among the effects).
+  std::vector<std::string> distortion_names;
+  std::vector<std::map<std::string, double>> distortion_params;
   std::vector<RunData> runs;
   SynthProtocol protocol;
 };
@@ -120,6 +127,13 @@ void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::u
                          std::vector<std::string>* names, std::vector<std::map<std::string, double>>* params,
                          std::vector<CellEffectPtr>* effects);
 
+/// The channel distortions of `texts` (parseDistortion(), distortions.h): the physical
+/// catalogue's members (pressure:lag, inflow:gain/offset) appended to `requests` as effects, the
+/// others returned (ChannelDistortionEffect) and recorded in `result`. Throws
+/// std::invalid_argument naming a bad spec, a distortion planted twice or given as an effect
+/// too, or a channel gap synth cannot plant (valve_cmd, supply).
+std::vector<CellEffectPtr> synthDistortions(const std::vector<std::string>& texts,
+                                            std::vector<SynthEffectRequest>* requests, SynthResult* result);
 /// Effects from a list "NAME[:param=value,...][;NAME...]" (empty: none), parameters not given
 /// drawn from `seed`, checked, in catalogue order: how a simulated cell is given a hidden
 /// effect (the airbag node's ~effects). Throws std::invalid_argument naming what is wrong.

@@ -19,6 +19,15 @@ struct ConsistencyMonitorParams {
   double settle_s = 0.5;
   /// Time constant of the hold's reference pressure, the innovation's prediction [s].
   double reference_time_s = 2.0;
+  /// The fastest a body's moves change a held cell's pressure: beyond the noise the reference
+  /// follows the readings at up to this rate, so a load that shifts (a patient turning, a
+  /// neighbour moving under the body) moves it with the plate along the gas's isentrope,
+  /// while a sensor step or a plate that landed on a stuck-open vent (its pressure collapsing
+  /// at fixed volume) outruns it; 0: the hold's mean alone (constant loads) [Pa/s].
+  double load_rate_pa_s = 15000.0;
+  /// A period of one valve whose counted gas moves the pressure at fixed volume by less than
+  /// this (a hold's small corrections, gamma p dm / m) does not end the hold; 0: any does [Pa].
+  double hold_correction_pa = 50.0;
   /// Innovation within this many reading sds (and at least min_drift_pa) is noise [-].
   double drift_sds = 6.0;
   double min_drift_pa = 150.0;  ///< least innovation the CUSUM counts [Pa]
@@ -48,6 +57,13 @@ struct ConsistencyMonitorParams {
   /// counted gas cannot hold at any height the structure has, e.g. a valve passing gas
   /// while shut) shows the count wrong; 0: off [N].
   double max_load_n = 200.0;
+  /// A cell whose readings say flat for landed_time_s (their mean below the observer's flat
+  /// pressure: at most half what the plate alone needs to be lifted) while the gas counted
+  /// has the plate above landed_height_m lost gas uncounted (a vent stuck open, a
+  /// leak, a terminal that restarted empty): the plate landed under the estimate. Above the
+  /// few millimetres a re-anchor corrects after a healthy move; 0: off [m].
+  double landed_height_m = 0.015;
+  double landed_time_s = 0.2;  ///< that long (the readings' mean over a quarter of it) [s]
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
@@ -68,6 +84,10 @@ struct ConsistencySample {
   /// Period of the plate (with its load) on its gas spring, 2 pi sqrt(M / k) with
   /// k = gamma p A^2 / V, at the observer's estimate; 0: unknown (plate on the bed) [s].
   double plate_period_s = 0.0;
+  double height_m = 0.0;  ///< the observer's height estimate [m]
+  /// Mean gauge pressure under which the observer takes a cell with its inlet shut for flat
+  /// (CellObserver::flatPressure); 0: unknown, the landed test off [Pa].
+  double flat_pressure_pa = 0.0;
 };
 
 /// One job: whether a valve that was counted to pass gas moved the pressure at all. A valve
@@ -95,7 +115,7 @@ class ValveResponseCheck {
 };
 
 /**
- * Six tests:
+ * Seven tests:
  *  - frozen: the raw reading unchanged for frozen_s;
  *  - jump: a settled plate's reading moves more than jump_pa from one reading to the next (a
  *    controller reacts to the first reading of a jump at once, so a test over time would see
@@ -109,7 +129,9 @@ class ValveResponseCheck {
  *    larger than surprise_m: the estimate was that far wrong.
  *  - response: a valve pulse counted to move the pressure by response_min_pa at fixed volume
  *    that moved the readings by less than response_sds (ValveResponseCheck): a valve stuck shut;
- *  - load: the observer's load estimate above max_load_n (gas passing a shut valve).
+ *  - load: the observer's load estimate above max_load_n (gas passing a shut valve);
+ *  - landed: the readings flat (below the observer's flat pressure) under an estimate
+ *    above landed_height_m (gas gone uncounted).
  * Once inconsistent it stays so until clear() (the cell's gas re-verified).
  */
 class ConsistencyMonitor {
@@ -136,6 +158,8 @@ class ConsistencyMonitor {
   /// The jump test on this reading against the last (before frozen() takes it).
   bool jumped(const ConsistencySample& sample) const;
   bool innovation(const ConsistencySample& sample, double dt_s);
+  /// The landed test: the readings' running mean over landed_time_s flat under a lifted estimate.
+  bool landed(const ConsistencySample& sample, double dt_s);
 
   ConsistencyMonitorParams params_;
   ValveResponseCheck response_;
@@ -147,6 +171,8 @@ class ConsistencyMonitor {
   double reference_pa_ = 0.0;  ///< the hold's running mean (valid once the plate settled)
   bool have_reference_ = false;
   double up_pa_s_ = 0.0, down_pa_s_ = 0.0;  ///< the two CUSUMs [Pa s]
+  double landed_mean_pa_ = 0.0;             ///< the readings' running mean for the landed test [Pa]
+  double landed_for_s_ = -1.0;              ///< flat under a lifted estimate this long; < 0: no mean yet [s]
 };
 
 }  // namespace nursing_bed

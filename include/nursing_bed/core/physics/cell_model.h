@@ -13,6 +13,7 @@
 #include "nursing_bed/core/physics/cell_structure.h"
 #include "nursing_bed/core/physics/gas.h"
 #include "nursing_bed/core/physics/pillow_structure.h"
+#include "nursing_bed/core/physics/step_matrix.h"
 #include "nursing_bed/core/physics/time_series.h"
 #include "nursing_bed/core/physics/units.h"
 
@@ -65,8 +66,11 @@ struct CellParams {
   /// Opening 0..1 of the relief valve at `gauge_pressure_pa`.
   double reliefOpening(double gauge_pressure_pa) const;
 
-  double time_step_s = 2.0e-3;         ///< default (and largest) integration step
-  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates
+  double time_step_s = 2.0e-3;  ///< default integration step, the largest of step()
+  /// Longest step advance() takes where the local error estimate allows it (a holding cell);
+  /// never shorter than time_step_s.
+  double max_time_step_s = 0.02;
+  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates (steps > 5 ms: every one)
   double relative_tolerance = 1.0e-4;  ///< local error control of the sub-steps
 
   /// Empty when valid, else every problem found, separated by "; ".
@@ -112,17 +116,18 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
  *  - film shape q (CellStructure), relaxing viscously to its balance dW/dq = p_gauge dV/dq;
  *  - states of plugged-in effects.
  * Integrated with ROS2, a second-order L-stable linearly implicit (Rosenbrock-W) method whose
- * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps: the plate on its gas
- * spring and the film are stiff, the gas balances are not. A step of the default size is
+ * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps, and on every step longer
+ * than 5 ms (where only a current one damps the stiff modes): the plate on its gas spring and
+ * the film are stiff, the gas balances are not. A step of the default size is
  * split into sub-steps when the local error estimate (ROS2 against its embedded first-order
  * solution) exceeds the tolerance, as it does while the bag lifts off a bottomed plate.
  */
 // size: the model and its ROS2 integrator's step control, kept together on the hot path
 class CellModel {
  public:
-  static constexpr int kMaxStates = 24;
-  using StateVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxStates, 1>;
-  using StateMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxStates, kMaxStates>;
+  static constexpr int kMaxStates = kMaxCellStates;
+  using StateVector = CellStateVector;
+  using StateMatrix = CellStateMatrix;
   enum StateIndex { kMass = 0, kEnergy = 1, kHeight = 2, kVelocity = 3, kRegulator = 4, kShape = 5 };
 
   /// Throws std::invalid_argument when params.validate() fails. The default structure is a
@@ -140,10 +145,11 @@ class CellModel {
   void resetToEquilibrium(double height_m, double load_n,
                           double gas_temperature_k = std::numeric_limits<double>::quiet_NaN());
 
-  /// One step of `dt` (default params().time_step_s).
+  /// One step of `dt` (default params().time_step_s), in sub-steps no longer than `dt`.
   void step(const CellInputs& inputs) { step(params_.time_step_s, inputs); }
-  void step(double dt, const CellInputs& inputs);
-  /// Steps of the default size (the last one shortened) until `duration_s` has passed.
+  void step(double dt, const CellInputs& inputs) { integrate(dt, dt, inputs); }
+  /// Integrates until `duration_s` has passed, in steps the error estimate sizes, from the
+  /// default step up to params().max_time_step_s.
   void advance(double duration_s, const CellInputs& inputs);
 
   double time() const { return time_; }
@@ -168,12 +174,29 @@ class CellModel {
   static bool sameInputs(const CellInputs& a, const CellInputs& b);
   /// Right-hand side dx/dt at (t, x); fills `vars` when non-null.
   StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars = nullptr) const;
+  /// d rate / dx at (t, x), assembled from the model's equations (the flows' and the
+  /// structure's own slopes by differences of those parts alone); what effects add, by finite
+  /// differences of their part of the rate.
+  StateMatrix jacobian(double time_s, const StateVector& x, const CellInputs& inputs) const;
 
  private:
   void refreshVariables(const CellInputs& inputs);
-  void updateJacobian(const CellInputs& inputs, const StateVector& f0);
+  void updateJacobian(const CellInputs& inputs);
+  /// The nominal cell's Jacobian at the variables `v` of its state (no effects).
+  StateMatrix nominalJacobian(const CellInputs& inputs, const CellVariables& v) const;
+  /// jacobian() at the variables `v` of (t, x).
+  StateMatrix jacobianAt(double time_s, const StateVector& x, const CellInputs& inputs, const CellVariables& v) const;
+  /// The rate with the effects' terms minus the rate without them, at (t, x).
+  StateVector effectPart(double time_s, const StateVector& x, const CellInputs& inputs) const;
+  /// Sub-steps of at most `max_step_s` until `duration_s` has passed.
+  void integrate(double duration_s, double max_step_s, const CellInputs& inputs);
+  /// Accepts `next` as the state after a sub-step of `h` whose error norm was `err`; returns
+  /// the size proposed for the next sub-step.
+  double acceptSubstep(double h, double err, const StateVector& next, const CellInputs& inputs);
   /// One ROS2 attempt of size dt from the current state; returns the scaled error norm.
   double attemptStep(double dt, const CellInputs& inputs, const StateVector& f0, StateVector* next);
+  /// attemptStep for the nominal size (fixed-size vectors).
+  double attemptNominalStep(double dt, const CellInputs& inputs, const StateVector& f0, StateVector* next);
 
   CellParams params_;
   std::shared_ptr<const CellStructure> structure_;
@@ -189,7 +212,7 @@ class CellModel {
   bool jacobian_fresh_ = false;  // computed at the current state
   int steps_since_jacobian_ = 1 << 30;
   double lu_dt_ = 0.0;  // step size the factorisation was made for
-  Eigen::PartialPivLU<StateMatrix> lu_;
+  StepMatrix step_matrix_;
   StateVector scale_;       // typical magnitude of each state (FD increments, tolerances)
   double substep_s_ = 0.0;  // last accepted sub-step size
   long substeps_ = 0;

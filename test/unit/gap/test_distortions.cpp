@@ -1,0 +1,223 @@
+// Channel distortions: the transforms on hand-computable series, their specs, the channels a
+// dataset offers, the replay with them, planting them in gap synth, and one diagnosis.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/distortions.h"
+#include "nursing_bed/core/gap/replay.h"
+#include "nursing_bed/core/gap/synth.h"
+
+#include "../../test_helpers.h"
+
+namespace nb = nursing_bed;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::vector<double> kT{0.0, 1.0, 2.0, 3.0};
+
+std::vector<double> distorted(const std::string& kind, double value, std::vector<double> x) {
+  nb::distortSeries(kind, value, kT, &x);
+  return x;
+}
+
+void expectNear(const std::vector<double>& a, const std::vector<double>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-12) << "sample " << i;
+}
+
+std::string errorOf(const std::string& spec) {
+  try {
+    nb::parseDistortion(spec);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ChannelDistortion, GainOffsetAndDriftActOnEachSample) {
+  expectNear(distorted("gain", -0.5, {2.0, 4.0, 6.0, 8.0}), {1.0, 2.0, 3.0, 4.0});
+  expectNear(distorted("offset", 3.0, {2.0, 4.0, 6.0, 8.0}), {5.0, 7.0, 9.0, 11.0});
+  expectNear(distorted("drift", 0.5, {2.0, 4.0, 6.0, 8.0}), {2.0, 4.5, 7.0, 9.5});
+}
+
+TEST(ChannelDistortion, ShiftReadsTheTruthLateOrEarlyAndHoldsTheEnds) {
+  expectNear(distorted("shift", 0.5, {0.0, 2.0, 4.0, 6.0}), {0.0, 1.0, 3.0, 5.0});
+  expectNear(distorted("shift", -1.0, {0.0, 2.0, 4.0, 6.0}), {2.0, 4.0, 6.0, 6.0});
+}
+
+TEST(ChannelDistortion, LagIsTheExactFirstOrderResponseToALinearlyInterpolatedInput) {
+  // A ramp 0 -> 1 over the first second, then 1: tau = 1 s.
+  const double a = std::exp(-1.0);
+  const double y1 = a;  // 1 - tau + (0 - 0 + tau) e^-1
+  const double y2 = 1.0 + (y1 - 1.0) * a;
+  const double y3 = 1.0 + (y2 - 1.0) * a;
+  expectNear(distorted("lag", 1.0, {0.0, 1.0, 1.0, 1.0}), {0.0, y1, y2, y3});
+}
+
+TEST(ChannelDistortion, NaNSamplesStayNaN) {
+  for (const std::string kind : {"gain", "offset", "drift", "shift", "lag"}) {
+    const std::vector<double> y = distorted(kind, 0.1, {1.0, NAN, 2.0, 3.0});
+    EXPECT_TRUE(std::isnan(y[1])) << kind;
+    EXPECT_TRUE(std::isfinite(y[2])) << kind;
+  }
+}
+
+TEST(ChannelDistortion, UndistortInvertsEveryKindButTheLag) {
+  const std::vector<double> x{1.0, 2.5, 3.0, 2.0};
+  for (const std::string kind : {"gain", "offset", "drift", "shift"}) {
+    std::vector<double> y = x;
+    nb::distortSeries(kind, kind == "shift" ? 0.0 : 0.3, kT, &y);
+    nb::undistortSeries(kind, kind == "shift" ? 0.0 : 0.3, kT, &y);
+    expectNear(y, x);
+  }
+  std::vector<double> y = x;
+  EXPECT_THROW(nb::undistortSeries("lag", 0.2, kT, &y), std::invalid_argument);
+  std::vector<double> closed{0.0, 0.0, 1.0, 0.0};  // a closed inlet's zeroed flow passes no gas
+  nb::undistortSeries("drift", 0.5, kT, &closed);
+  expectNear(closed, {0.0, 0.0, 0.0, 0.0});
+}
+
+TEST(ChannelDistortion, SpecsNameTheEffectAndItsParameter) {
+  const auto h = nb::parseDistortion("height:gain=-0.04");
+  ASSERT_EQ(h.size(), 1u);
+  EXPECT_EQ(h.at("height_gain").at("height_gain"), -0.04);
+  const auto p = nb::parseDistortion("pressure:lag=0.2");
+  EXPECT_EQ(p.at("pressure_sensor_lag").at("time_constant_s"), 0.2);
+  const auto q = nb::parseDistortion("inflow:gain=0.05,shift=+0.08");
+  EXPECT_EQ(q.at("inflow_bias").at("scale_error"), 0.05);
+  EXPECT_EQ(q.at("inflow_bias").at("offset_kg_s"), 0.0);
+  EXPECT_EQ(q.at("inflow_shift").at("inflow_shift_s"), 0.08);
+}
+
+TEST(ChannelDistortion, BadSpecsAreRefusedNamingWhatIsWrong) {
+  EXPECT_NE(errorOf("hight:gain=0.1").find("unknown channel 'hight'"), std::string::npos);
+  EXPECT_NE(errorOf("load:shift=0.1").find("unknown kind 'shift' for channel load"), std::string::npos);
+  EXPECT_NE(errorOf("height").find("expected height:kind=value"), std::string::npos);
+  EXPECT_NE(errorOf("height:gain").find("gain needs a value"), std::string::npos);
+  EXPECT_NE(errorOf("height:gain=abc").find("'abc' is not a finite number"), std::string::npos);
+  EXPECT_NE(errorOf("height:gain=0.1,gain=0.2").find("gain given twice"), std::string::npos);
+  EXPECT_NE(errorOf("height:gain=2").find("outside the admissible range"), std::string::npos);
+  EXPECT_NE(errorOf("height:lag=-1").find("height_lag_s"), std::string::npos);
+}
+
+TEST(ChannelDistortion, DescriptionNamesChannelKindAndValue) {
+  EXPECT_EQ(nb::describeDistortion("height_gain", {{"height_gain", -0.041}}, {{"height_gain", 0.003}}),
+            "height: gain -4.1 % ± 0.3 %");
+  EXPECT_EQ(nb::describeDistortion("pressure_offset", {{"pressure_offset_pa", 250.0}}), "pressure: offset +250 Pa");
+  EXPECT_EQ(nb::describeDistortion("inflow_bias", {{"scale_error", 0.05}, {"offset_kg_s", 0.0}}),
+            "inflow: gain +5.0 %");
+  EXPECT_EQ(nb::describeDistortion("leak", {{"leak_area_m2", 1e-8}}), "");
+}
+
+TEST(ChannelDistortion, OnlyTheChannelsADatasetHasAreCandidates) {
+  nb::RunData metered;
+  metered.t_s = {0.0, 1.0};
+  metered.mdot_in_kg_s = {1e-4, 0.0};
+  metered.p_gauge_pa = {0.0, 100.0};
+  metered.h_m = {NAN, NAN};
+  auto has = [](const std::vector<std::string>& v, const std::string& x) {
+    return std::find(v.begin(), v.end(), x) != v.end();
+  };
+  const auto no_height = nb::distortionCandidatesFor({&metered});
+  EXPECT_TRUE(has(no_height, "pressure_gain"));
+  EXPECT_TRUE(has(no_height, "inflow_shift"));
+  EXPECT_TRUE(has(no_height, "load_offset"));
+  EXPECT_FALSE(has(no_height, "height_gain"));
+  EXPECT_FALSE(has(no_height, "valve_cmd_shift"));
+  EXPECT_FALSE(has(no_height, "pressure_sensor_lag"));  // a candidate of the physical catalogue already
+  metered.h_m = {0.0, 0.01};
+  EXPECT_TRUE(has(nb::distortionCandidatesFor({&metered}), "height_lag"));
+  nb::RunData valve = metered;
+  valve.mdot_in_kg_s = {NAN, NAN};
+  valve.valve_cmd = {1.0, 0.0};
+  valve.p_supply_gauge_pa = {2e4, 2e4};
+  const auto driven = nb::distortionCandidatesFor({&valve});
+  EXPECT_TRUE(has(driven, "valve_cmd_lag"));
+  EXPECT_TRUE(has(driven, "supply_gain"));
+  EXPECT_FALSE(has(driven, "inflow_drift"));
+}
+
+fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("gap_distort", name, false); }
+
+nb::SynthOptions exactSmall(const std::string& name) {
+  nb::SynthOptions o;
+  o.out_dir = tmpDir(name).string();
+  o.protocol = "small";
+  o.noise_scale = 0.0;
+  o.seed = 3;
+  return o;
+}
+
+TEST(ChannelDistortion, ReplayAppliesOutputAndInputDistortions) {
+  const nb::SynthResult clean = nb::synthesizeDataset(exactSmall("replay"));
+  const nb::RunData& run = clean.runs[0];
+  const nb::CellParams params;
+  const nb::Replay nominal = nb::replayRun(run, params, {});
+  const nb::Replay gained = nb::replayRun(run, params, {nb::makeEffect("height_gain", {{"height_gain", 0.1}})});
+  for (std::size_t i = 0; i < run.size(); i += 50)
+    if (std::isfinite(nominal.h_m[i])) {
+      EXPECT_DOUBLE_EQ(gained.h_m[i], 1.1 * nominal.h_m[i]);
+      EXPECT_DOUBLE_EQ(gained.p_gauge_pa[i], nominal.p_gauge_pa[i]);
+    }
+  // A recorded load 1 N high: the replay drives the model with the true (lower) load.
+  nb::RunData lighter = run;
+  lighter.load_n -= 1.0;
+  const nb::Replay corrected = nb::replayRun(run, params, {nb::makeEffect("load_offset", {{"load_offset_n", 1.0}})});
+  const nb::Replay direct = nb::replayRun(lighter, params, {});
+  for (std::size_t i = 0; i < run.size(); i += 50) EXPECT_EQ(corrected.p_gauge_pa[i], direct.p_gauge_pa[i]);
+}
+
+TEST(ChannelDistortion, SynthPlantsDistortionsOnTheTrueReadings) {
+  const nb::SynthResult clean = nb::synthesizeDataset(exactSmall("clean"));
+  nb::SynthOptions o = exactSmall("planted");
+  o.distortions = {"height:gain=-0.04", "load:offset=0.5", "pressure:lag=0.2"};
+  const nb::SynthResult planted = nb::synthesizeDataset(o);
+  ASSERT_EQ(planted.distortion_names, (std::vector<std::string>{"height_gain", "load_offset"}));
+  EXPECT_EQ(planted.effect_names, std::vector<std::string>{"pressure_sensor_lag"});
+  const nb::RunData& a = clean.runs[1];
+  const nb::RunData& b = planted.runs[1];
+  // The sensor lag's extra state changes the integrator's steps, which moves the plate within
+  // the step tolerance (a few microns); a wrong gain would be off by millimetres.
+  for (std::size_t i = 0; i < a.size(); i += 37) EXPECT_NEAR(b.h_m[i], 0.96 * a.h_m[i], 5e-6);
+  EXPECT_DOUBLE_EQ(b.load_n, a.load_n + 0.5);
+  EXPECT_NE(nb::test::slurp(fs::path(o.out_dir) / "truth.json").find("\"channel\": \"height\""), std::string::npos);
+}
+
+TEST(ChannelDistortion, SynthRefusesWhatItCannotPlantAndWritesNothing) {
+  nb::SynthOptions o = exactSmall("refused");
+  fs::remove_all(o.out_dir);
+  o.distortions = {"valve_cmd:shift=0.04"};
+  EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  o.distortions = {"height:gain=0.01", "height:gain=0.02"};
+  EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  o.distortions = {"pressure:lag=0.1"};
+  o.effects = {nb::parseEffectRequest("pressure_sensor_lag:time_constant_s=0.2")};
+  EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(o.out_dir));
+}
+
+TEST(ChannelDistortion, APlantedPressureOffsetIsNamedWithItsSize) {
+  nb::SynthOptions s = exactSmall("diagnose");
+  s.noise_scale = 1.0;
+  s.distortions = {"pressure:offset=300"};
+  nb::synthesizeDataset(s);
+  nb::DiagnosisOptions o;
+  o.candidates = {"leak", "pressure_offset"};
+  o.pair_pool = 0;
+  o.calibrate = false;
+  const nb::DiagnosisReport r = nb::diagnoseRuns(nb::readDataset(s.out_dir), s.params, o, s.out_dir);
+  EXPECT_EQ(r.status, "explained");
+  ASSERT_EQ(r.verdict_effects, std::vector<std::string>{"pressure_offset"});
+  EXPECT_NEAR(r.verdict_params.at("pressure_offset_pa"), 300.0, 75.0);
+  ASSERT_EQ(r.verdict_distortions.size(), 1u);
+  EXPECT_EQ(r.verdict_distortions[0].rfind("pressure: offset +", 0), 0u) << r.verdict_distortions[0];
+}
+
+}  // namespace
