@@ -614,8 +614,8 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
       hs = 0.5 * remaining;
     }
     // The rate at the current state is already known when the inputs did not change. New
-    // inputs (a valve opening) take a new Jacobian: the error estimate, filtered through one
-    // made for the old inputs, let a flat cell's refill drift by tens of kelvin in one step.
+    // inputs take a new Jacobian: the error estimate is filtered through (I - gamma h J)^-1,
+    // and a J made for other inputs (an inlet opened, a vent shut) hides the next steps' error.
     if (!sameInputs(in, last_inputs_) || rate_at_state_.size() != n) {
       last_inputs_ = in;
       refreshVariables(in);
