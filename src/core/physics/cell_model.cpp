@@ -51,7 +51,7 @@ std::string CellParams::validate() const {
   positive("plate_mass_kg", plate_mass_kg);
   non_negative("plate_damping_n_s_m", plate_damping_n_s_m);
   positive("bed_contact_stiffness_n_m", bed_contact_stiffness_n_m);
-  non_negative("bed_contact_damping_n_s_m", bed_contact_damping_n_s_m);
+  non_negative("bed_contact_damping_s_m", bed_contact_damping_s_m);
   non_negative("supply_pressure_pa", supply_pressure_pa);
   non_negative("regulator_time_constant_s", regulator_time_constant_s);
   non_negative("inlet_area_m2", inlet_area_m2);
@@ -83,11 +83,11 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
   if (params.structure_type == "table")
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
-                                                params.structure.dead_volume_m3);
+                                                params.structure.dead_volume_m3, params.structure.fold_fraction);
   if (params.structure_type == "fold_table")
     return std::make_shared<FoldTableStructure>(FoldTableStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
-                                                params.structure.dead_volume_m3);
+                                                params.structure.dead_volume_m3, params.structure.fold_fraction);
   if (params.structure_type == "bellows") return std::make_shared<BellowsStructure>(params.bellows);
   return std::make_shared<PillowStructure>(params.structure);
 }
@@ -122,12 +122,12 @@ void CellModel::reset(double load_n) {
   state_.setZero(n);
   const auto rest = structure_->restShape();
   for (int i = 0; i < shape_dofs_; ++i) state_[kShape + i] = rest[i];
-  const double volume = structure_->evaluate(0.0, rest.data()).volume_m3;
+  // A bottomed-out plate rests on the contact spring, the gas at ambient in the flat cell there.
+  state_[kHeight] = -load_n / params_.bed_contact_stiffness_n_m;
+  const double volume = structure_->evaluate(state_[kHeight], rest.data()).volume_m3;
   const double mass = massFromState(params_.gas, params_.ambient_pressure_pa, params_.ambient_temperature_k, volume);
   state_[kMass] = mass;
   state_[kEnergy] = mass * params_.gas.cv() * params_.ambient_temperature_k;
-  // A bottomed-out plate rests on the contact spring.
-  state_[kHeight] = -load_n / params_.bed_contact_stiffness_n_m;
   state_[kRegulator] = 0.0;
   time_ = 0.0;
   last_inputs_ = CellInputs{};
@@ -177,6 +177,8 @@ inline void stateVariables(const CellParams& params, const CellStructure& struct
   const GasProperties& gas = params.gas;
   CellVariables& v = *out;
   v.time_s = time_s;
+  // Floors for a trial stage of the integrator only: the gas never leaves the flat cell's folded
+  // volume, whose few mg no valve empties (they stop at their back pressure).
   v.mass_kg = std::max(x[CellModel::kMass], 1e-12);
   v.internal_energy_j = std::max(x[CellModel::kEnergy], 1e-9);
   v.height_m = x[CellModel::kHeight];
@@ -299,8 +301,10 @@ inline void plateRates(const CellParams& params, const CellInputs& in, const Eff
   CellVariables& v = *out;
   v.bed_contact_force_n = 0.0;
   if (v.height_m < 0.0) {
+    // Hunt-Crossley contact k x (1 + alpha dx/dt), x = -h: no force at first touch, and a heavy
+    // plate that lands fast stays down instead of bouncing off the bed (it cannot pull).
     v.bed_contact_force_n = std::max(
-        0.0, -params.bed_contact_stiffness_n_m * v.height_m - params.bed_contact_damping_n_s_m * v.velocity_m_s);
+        0.0, -params.bed_contact_stiffness_n_m * v.height_m * (1.0 - params.bed_contact_damping_s_m * v.velocity_m_s));
   }
   const double net_force = v.gauge_pressure_pa * v.structure.effective_area_m2 - in.load_n -
                            params.plate_damping_n_s_m * v.velocity_m_s + v.bed_contact_force_n + terms.plate_force_n +
@@ -499,10 +503,11 @@ CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const Ce
     shape_rate[i] = -(s.elastic_force[i] - pg * s.dvolume_dshape[i]) / s.shape_damping[i];
     volume_rate += s.dvolume_dshape[i] * shape_rate[i];
   }
-  // The bed's contact force acts while the plate presses into it (plateRates).
-  const bool in_contact =
-      v.height_m < 0.0 &&
-      -params_.bed_contact_stiffness_n_m * v.height_m - params_.bed_contact_damping_n_s_m * v.velocity_m_s > 0.0;
+  // The bed's Hunt-Crossley force F = -k h (1 - alpha v) acts while the plate presses into it
+  // (plateRates): dF/dh = -k (1 - alpha v), dF/dv = k alpha h.
+  const double k = params_.bed_contact_stiffness_n_m;
+  const double alpha = params_.bed_contact_damping_s_m;
+  const bool in_contact = v.height_m < 0.0 && 1.0 - alpha * v.velocity_m_s > 0.0;
   StateMatrix jac = StateMatrix::Zero(n, n);
   for (int j = 0; j < n; ++j) {
     const ColumnSlopes c = columnSlopes(params_, *structure_, shape_dofs_, v, j);
@@ -523,8 +528,8 @@ CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const Ce
     jac(kHeight, j) = is_velocity;
     double force_slope = c.pressure * s.effective_area_m2 + pg * d.effective_area_m2 + d.plate_force_n -
                          params_.plate_damping_n_s_m * is_velocity;
-    if (in_contact && j == kHeight) force_slope -= params_.bed_contact_stiffness_n_m;
-    if (in_contact && j == kVelocity) force_slope -= params_.bed_contact_damping_n_s_m;
+    if (in_contact && j == kHeight) force_slope -= k * (1.0 - alpha * v.velocity_m_s);
+    if (in_contact && j == kVelocity) force_slope += k * alpha * v.height_m;
     jac(kVelocity, j) = force_slope / v.moving_mass_kg;
   }
   if (regulator_state) jac(kRegulator, kRegulator) = -1.0 / params_.regulator_time_constant_s;
@@ -608,10 +613,14 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
     } else if (remaining - hs < 0.1 * hs) {
       hs = 0.5 * remaining;
     }
-    // The rate at the current state is already known when the inputs did not change.
+    // The rate at the current state is already known when the inputs did not change. New
+    // inputs take a new Jacobian: the error estimate is filtered through (I - gamma h J)^-1,
+    // and a J made for other inputs (an inlet opened, a vent shut) hides the next steps' error.
     if (!sameInputs(in, last_inputs_) || rate_at_state_.size() != n) {
       last_inputs_ = in;
       refreshVariables(in);
+      jacobian_fresh_ = false;
+      steps_since_jacobian_ = 1 << 30;
     }
     const StateVector f0 = rate_at_state_;
     // Long steps make the stiff modes (the plate on its gas spring, the film, the gas through

@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace nursing_bed {
 namespace {
@@ -19,6 +20,22 @@ ShapeVector shapeResidual(const CellStructure& s, double h, double p, const doub
 }
 
 }  // namespace
+
+FlatFold::FlatFold(double fold_volume_m3, double flat_area_m2)
+    : volume_m3_(fold_volume_m3), area_m2_(flat_area_m2), depth_m_(fold_volume_m3 / flat_area_m2) {
+  if (!(volume_m3_ > 0.0 && std::isfinite(volume_m3_)))
+    throw std::invalid_argument("FlatFold: fold_volume_m3 must be a positive finite volume");
+  if (!(area_m2_ > 0.0 && std::isfinite(area_m2_)))
+    throw std::invalid_argument("FlatFold: the flat cell's effective area must be positive and finite");
+}
+
+StructureEval FlatFold::below(double height_m, StructureEval at_flat) const {
+  if (!(height_m < 0.0)) return at_flat;
+  const double squeezed = std::exp(height_m / depth_m_);  // 1 at flat, 0 deep in the stack
+  at_flat.volume_m3 -= volume_m3_ * (1.0 - squeezed);
+  at_flat.effective_area_m2 = area_m2_ * squeezed;
+  return at_flat;
+}
 
 std::array<double, kMaxShapeDofs> CellStructure::relaxedShape(double height_m, double gauge_pressure_pa,
                                                               const double* initial_shape) const {

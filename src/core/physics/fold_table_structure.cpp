@@ -70,10 +70,11 @@ const FoldTableData& validated(const FoldTableData& d) {
 }
 }  // namespace
 
-FoldTableStructure::FoldTableStructure(FoldTableData data, double film_relaxation_time_s, double dead_volume_m3)
+FoldTableStructure::FoldTableStructure(FoldTableData data, double film_relaxation_time_s, double dead_volume_m3,
+                                       double fold_fraction)
     : data_(validated(data)),
-      folded_(data_.folded, film_relaxation_time_s, dead_volume_m3),
-      open_(data_.open, film_relaxation_time_s, dead_volume_m3) {}
+      folded_(data_.folded, film_relaxation_time_s, dead_volume_m3, fold_fraction),
+      open_(data_.open, film_relaxation_time_s, dead_volume_m3, fold_fraction) {}
 
 FoldTableData FoldTableStructure::load(const std::string& path) {
   FoldTableData d;

@@ -21,6 +21,7 @@ Status PillowParams::validate() const {
   positive("face_side_m", face_side_m);
   positive("film_thickness_m", film_thickness_m);
   positive("dead_volume_m3", dead_volume_m3);
+  errors.addIf(!(fold_fraction > 0.0 && fold_fraction < 1.0), "fold_fraction must lie in (0, 1), got ", fold_fraction);
   positive("film_relaxation_time_s", film_relaxation_time_s);
   errors.addIf(!(max_film_stretch > 1.0) || !std::isfinite(max_film_stretch), "max_film_stretch must be > 1, got ",
                max_film_stretch);
@@ -31,7 +32,13 @@ Status PillowParams::validate() const {
   return errors.status();
 }
 
-PillowStructure::PillowStructure(const PillowParams& params) : params_(params) {
+namespace {
+// The flat loop's half length squared: the pillow's effective area at h = 0 and rest stretch.
+double flatArea(const PillowParams& p) { return std::pow(p.face_side_m + p.gusset_height_m, 2); }
+}  // namespace
+
+PillowStructure::PillowStructure(const PillowParams& params)
+    : params_(params), fold_(params.fold_fraction * params.dead_volume_m3, flatArea(params)) {
   loop_length_m_ = 2.0 * (params_.face_side_m + params_.gusset_height_m);
   const double reference_area_per_chamber = 0.5 * loop_length_m_ * loop_length_m_;
   film_volume_m3_ = params_.chambers * reference_area_per_chamber * params_.film_thickness_m;
@@ -68,7 +75,8 @@ StructureEval PillowStructure::evaluate(double height_m, const double* shape) co
   e.film_stretch = stretch;
   // Nominal stress per direction is half of dW/dl; tension per current length divides by l.
   e.film_tension_n_m = params_.film_thickness_m * 0.5 * energy_slope / stretch;
-  return e;
+  // Below flat the terms above are those of c = 0 (no volume depends on the stretch there).
+  return fold_.below(height_m, e);
 }
 
 bool PillowStructure::withinLimits(double height_m, const double* shape) const {

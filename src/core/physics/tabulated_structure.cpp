@@ -55,14 +55,29 @@ Status StructureTableData::validate() const {
   return checkGrid("plate_force_n", plate_force_n, heights_m.size(), pressures_pa.size(), false);
 }
 
-TabulatedStructure::TabulatedStructure(StructureTableData table, double film_relaxation_time_s, double dead_volume_m3)
-    : table_(std::move(table)), relaxation_time_s_(film_relaxation_time_s), dead_volume_m3_(dead_volume_m3) {
-  const Status valid = table_.validate();
+namespace {
+// The flat cell's effective area: the lowest row's at the lowest pressure (the rest shape), as
+// A_eff takes it below the table. Checked first: the fold is built from it.
+double flatArea(const StructureTableData& t) {
+  const Status valid = t.validate();
   if (!valid) throw std::invalid_argument("TabulatedStructure: " + valid.message());
+  const double area = t.plate_force_n.front().front() / t.pressures_pa.front();
+  if (!(area > 0.0)) throw std::invalid_argument("TabulatedStructure: the lowest row's plate force must be positive");
+  return area;
+}
+}  // namespace
+
+TabulatedStructure::TabulatedStructure(StructureTableData table, double film_relaxation_time_s, double dead_volume_m3,
+                                       double fold_fraction)
+    : table_(std::move(table)),
+      relaxation_time_s_(film_relaxation_time_s),
+      dead_volume_m3_(dead_volume_m3),
+      fold_(fold_fraction * dead_volume_m3, flatArea(table_)) {
   if (!(relaxation_time_s_ > 0.0))
     throw std::invalid_argument("TabulatedStructure: film_relaxation_time_s must be positive");
   if (!(dead_volume_m3_ > 0.0 && std::isfinite(dead_volume_m3_)))
     throw std::invalid_argument("TabulatedStructure: dead_volume_m3 must be positive");
+  if (!(fold_fraction < 1.0)) throw std::invalid_argument("TabulatedStructure: fold_fraction must lie in (0, 1)");
   if (table_.heights_m.size() < 2)
     throw std::invalid_argument("TabulatedStructure: heights_m needs at least 2 heights");
 }
@@ -98,6 +113,7 @@ std::array<double, kMaxShapeDofs> TabulatedStructure::restShape() const {
 }
 
 StructureEval TabulatedStructure::evaluate(double height_m, const double* shape) const {
+  if (height_m < 0.0) return fold_.below(height_m, evaluate(0.0, shape));
   StructureEval e;
   const double q = std::clamp(shape[0] * kShapeUnitPa, table_.pressures_pa.front(), table_.pressures_pa.back());
   const double h0 = table_.heights_m.front();

@@ -294,7 +294,9 @@ TEST(AirbagOnHardware, ABriefLinkLossKeepsALightCellsGas) {
 /// the plate floating on the residual gas at the pressure that just carries it (487 Pa under
 /// 15.6 N), near what the cell held at 15 mm reads (560 Pa). With the observer's
 /// `resume_vent_s`; returns the true height 6 s after the link is back, `worst_m` the largest
-/// |true height - 15 mm| over the last 5 s, `flat_pa` the emptied cell's pressure.
+/// |true height - 15 mm| over the last 4.5 s, `flat_pa` the emptied cell's pressure. The
+/// emptied cell reads ambient once vented and is re-anchored after reanchor_time_s (0.5 s) of it,
+/// refilled by 1.5 s after the link is back.
 double heightAfterALostLink(double load_n, bool emptied, double resume_vent_s, double* worst_m, double* flat_pa) {
   nb::AirbagObserverSetup observer;
   observer.gas_check.resume_vent_s = resume_vent_s;
@@ -307,7 +309,7 @@ double heightAfterALostLink(double load_n, bool emptied, double resume_vent_s, d
   *flat_pa = rig.plant->variables().gauge_pressure_pa;
   rig.runTo(2.0);
   rig.hw->cut = false;
-  rig.runTo(3.0);
+  rig.runTo(3.5);
   *worst_m = 0.0;
   rig.runTo(8.0, [&] { *worst_m = std::max(*worst_m, std::fabs(rig.plant->variables().height_m - 0.015)); });
   return rig.plant->variables().height_m;
@@ -321,14 +323,14 @@ TEST(AirbagOnHardware, ACellEmptiedWhileTheLinkWasDownIsFoundFlatAndRefilled) {
     const double checked_m = heightAfterALostLink(load_n, true, 0.05, &worst_m, &flat_pa);
     std::cout << "[airbag] " << load_n << " N, emptied while the link was down (flat at " << flat_pa
               << " Pa): true height 6 s later " << 1e3 * checked_m << " mm, worst " << 1e3 * worst_m
-              << " mm off over the last 5 s\n";
+              << " mm off over the last 4.5 s\n";
     EXPECT_GE(flat_pa, 200.0) << load_n << " N: the case must be a flat cell holding pressure";
     EXPECT_NEAR(checked_m, 0.015, 0.003) << load_n << " N";
     EXPECT_LE(worst_m, 0.004) << load_n << " N";
     // Not emptied: the check costs a dip that the controller restores.
     double kept_m = heightAfterALostLink(load_n, false, 0.05, &worst_m, &flat_pa);
     std::cout << "[airbag] " << load_n << " N, kept its gas: true height 6 s later " << 1e3 * kept_m << " mm, worst "
-              << 1e3 * worst_m << " mm off over the last 5 s\n";
+              << 1e3 * worst_m << " mm off over the last 4.5 s\n";
     EXPECT_NEAR(kept_m, 0.015, 0.002) << load_n << " N";
     EXPECT_LE(worst_m, 0.004) << load_n << " N";
   }

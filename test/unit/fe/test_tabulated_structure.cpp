@@ -69,7 +69,10 @@ TEST(TabulatedStructure, BelowItsLowestHeightTheVolumeFollowsTheRowsSlopeDownToT
   const double q = 0.1;  // 1 kPa
   EXPECT_NEAR(s.evaluate(0.010, &q).volume_m3, 0.01 * 0.010 + 1e-5, 1e-12);
   EXPECT_NEAR(s.evaluate(0.0, &q).volume_m3, 1e-5, 1e-12) << "the row's slope carried to the bed";
-  EXPECT_NEAR(s.evaluate(-0.01, &q).volume_m3, 1e-5, 1e-12) << "pressed into the bed: the flat volume";
+  // Pressed into the bed, deep below the folds' depth: the flat volume less the folds' gas.
+  const double folds = nursing_bed::PillowParams{}.fold_fraction * 4e-6;
+  EXPECT_NEAR(s.evaluate(-0.01, &q).volume_m3, 1e-5 - folds, 1e-12) << "pressed into the bed";
+  EXPECT_LT(s.evaluate(-0.01, &q).effective_area_m2, 1e-12) << "no volume left to push the plate with";
   // A steeper slope than the flat volume allows stops at the dead volume.
   for (auto& row : t.volume_m3)
     for (double& v : row) v -= 1e-5;

@@ -47,8 +47,37 @@ TEST(PillowStructure, FlatCellHoldsOnlyItsDeadVolume) {
   EXPECT_NEAR(e.contact_area_m2, half_loop * half_loop, 1e-15);
   EXPECT_NEAR(e.effective_area_m2, half_loop * half_loop, 1e-15);
   EXPECT_EQ(e.elastic_force[0], 0.0);
-  // Below the bed surface the geometry stays flat.
-  EXPECT_DOUBLE_EQ(s.evaluate(-0.01, rest.data()).volume_m3, kParams.dead_volume_m3);
+  // Pressed into the bed, the plate squeezes the folds' gas out and no more: the volume ends at
+  // the dead volume less the folds', and no volume is left for the gas to push the plate with.
+  const nb::StructureEval deep = s.evaluate(-0.01, rest.data());
+  EXPECT_NEAR(deep.volume_m3, (1.0 - kParams.fold_fraction) * kParams.dead_volume_m3, 1e-15);
+  EXPECT_LT(deep.effective_area_m2, 1e-12);
+}
+
+TEST(PillowStructure, BelowFlatThePlateForceAreaIsTheVolumesSlope) {
+  // Work follows the volume: A_eff = dV/dh on both sides of flat and across it, so the gas does
+  // p dV on the plate and nothing more, however hard the plate presses the flat cell.
+  const nb::PillowStructure s(kParams);
+  const auto rest = s.restShape();
+  const double dh = 1e-10;  // far below the folds' depth, whose curvature a longer step would see
+  for (double h : {-1e-3, -2e-4, -5e-5, -1e-5, 0.0, 1e-5, 1e-4}) {
+    const double slope =
+        (s.evaluate(h + dh, rest.data()).volume_m3 - s.evaluate(h - dh, rest.data()).volume_m3) / (2 * dh);
+    const double area = s.evaluate(h, rest.data()).effective_area_m2;
+    EXPECT_NEAR(area, slope, 1e-5 * s.evaluate(0.0, rest.data()).effective_area_m2) << "h " << h;
+  }
+  // Continuous at flat: the folds hand the plate over to the bed without a jump in force.
+  EXPECT_NEAR(s.evaluate(-1e-12, rest.data()).effective_area_m2, s.evaluate(0.0, rest.data()).effective_area_m2, 1e-9);
+}
+
+TEST(PillowStructure, RefusesAFoldFractionOutsideZeroToOne) {
+  for (double f : {0.0, 1.0, -0.1, std::nan("")}) {
+    nb::PillowParams p = kParams;
+    p.fold_fraction = f;
+    const nb::Status st = p.validate();
+    EXPECT_FALSE(st.ok()) << f;
+    EXPECT_NE(st.message().find("fold_fraction"), std::string::npos) << st.message();
+  }
 }
 
 TEST(PillowStructure, EffectiveAreaShrinksAsTheCellRises) {

@@ -40,10 +40,14 @@ struct CellParams {
   /// it as the first effect when active.
   AirwayParams airway;
 
-  double plate_mass_kg = 0.6 / kGravity;     ///< loading plate (0.6 N, paper section 2.2)
-  double plate_damping_n_s_m = 20.0;         ///< viscous damping of the plate guide
-  double bed_contact_stiffness_n_m = 2.0e5;  ///< folded film stack under a bottomed plate
-  double bed_contact_damping_n_s_m = 100.0;
+  double plate_mass_kg = 0.6 / kGravity;  ///< loading plate (0.6 N, paper section 2.2)
+  double plate_damping_n_s_m = 20.0;      ///< viscous damping of the plate guide
+  /// Folded film stack and bed under a bottomed plate (h < 0). With the folds' depth delta
+  /// (FlatFold) it sets the largest load the gas lifts off the flat cell smoothly, k delta.
+  double bed_contact_stiffness_n_m = 2.0e6;
+  /// Hunt-Crossley damping alpha of that contact: force k x (1 + alpha dx/dt) at depth x = -h
+  /// [s/m]; a landing faster than about 1/alpha is nearly plastic.
+  double bed_contact_damping_s_m = 30.0;
 
   double supply_pressure_pa = 20.0e3;      ///< pressure-reducing valve setting (gauge)
   double regulator_time_constant_s = 1.2;  ///< first-order response of that valve's outlet
@@ -57,7 +61,7 @@ struct CellParams {
   /// the vent, which an outside load can outrun).
   double relief_cracking_pressure_pa = 34000.0;      ///< gauge pressure where it starts to open
   double relief_full_open_pressure_pa = 37000.0;     ///< gauge pressure where it is fully open
-  double relief_sonic_conductance_m3_s_pa = 1.5e-7;  ///< ISO 6358 C of the open valve; 0 = none
+  double relief_sonic_conductance_m3_s_pa = 3.0e-7;  ///< ISO 6358 C of the open valve; 0 = none
   double relief_critical_ratio = 0.3;                ///< ISO 6358 b [-]
   /// Opening 0..1 of the relief valve at `gauge_pressure_pa`.
   double reliefOpening(double gauge_pressure_pa) const;

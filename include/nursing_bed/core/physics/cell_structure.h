@@ -31,6 +31,30 @@ struct StructureEval {
   double plate_force_n = 0.0;
 };
 
+/**
+ * The folded flat cell below h = 0: the plate presses the flat films onto the bed, and the gas
+ * left in the folds under it (`fold_volume_m3`, part of the dead volume) is squeezed out over a
+ * depth delta = fold_volume / flat_area, so that dV/dh is continuous at flat and vanishes below:
+ *   V(h) = V(0) - V_fold (1 - exp(h / delta)),   A_eff = dV/dh = A_flat exp(h / delta).
+ * The gas does work only as the volume changes (p dV), its plate force is p_gauge dV/dh, and it
+ * never falls below V(0) - V_fold > 0; the films and the bed carry the rest of the load
+ * (CellParams' bed contact). A contact stiffness k with k delta above a load lets the gas lift
+ * that load off smoothly: the pressure that holds the plate rises monotonically up to flat.
+ */
+class FlatFold {
+ public:
+  /// Throws std::invalid_argument unless both are positive and finite.
+  FlatFold(double fold_volume_m3, double flat_area_m2);
+  /// `at_flat`, the evaluation at h = 0, carried to `height_m` < 0 (unchanged at h >= 0).
+  StructureEval below(double height_m, StructureEval at_flat) const;
+  double depth() const { return depth_m_; }
+
+ private:
+  double volume_m3_;
+  double area_m2_;
+  double depth_m_;
+};
+
 /// Quasi-static equilibrium of the structure: film shape relaxed, plate force balancing a load.
 struct StructureEquilibrium {
   bool converged = false;

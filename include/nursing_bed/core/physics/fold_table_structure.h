@@ -42,7 +42,8 @@ struct FoldTableData {
 class FoldTableStructure : public CellStructure {
  public:
   /// Throws std::invalid_argument naming the field when the data are inconsistent.
-  FoldTableStructure(FoldTableData data, double film_relaxation_time_s, double dead_volume_m3);
+  FoldTableStructure(FoldTableData data, double film_relaxation_time_s, double dead_volume_m3,
+                     double fold_fraction = PillowParams{}.fold_fraction);
   /// Reads the YAML file; throws std::runtime_error naming the file and the key.
   static FoldTableData load(const std::string& path);
 

@@ -13,11 +13,14 @@ namespace nursing_bed {
 /// Geometry and film of the pillow cell. Defaults: the paper's 100 x 100 mm double-layer cell
 /// (doc/cell_model.md says where each value comes from).
 struct PillowParams {
-  double face_side_m = 0.100;              ///< side of the square top/bottom faces (deflated footprint)
-  double gusset_height_m = 0.079;          ///< unstretched side-gusset height of one chamber
-  int chambers = 2;                        ///< stacked chambers sharing one gas volume
-  double film_thickness_m = 0.50e-3;       ///< TPU film thickness
-  double dead_volume_m3 = 5.0e-6;          ///< inlet fitting, tube stub and folds at zero height
+  double face_side_m = 0.100;         ///< side of the square top/bottom faces (deflated footprint)
+  double gusset_height_m = 0.079;     ///< unstretched side-gusset height of one chamber
+  int chambers = 2;                   ///< stacked chambers sharing one gas volume
+  double film_thickness_m = 0.50e-3;  ///< TPU film thickness
+  double dead_volume_m3 = 5.0e-6;     ///< inlet fitting, tube stub and folds at zero height
+  /// Fraction of the dead volume held in the flat films' folds under the plate, squeezed out as
+  /// the plate presses the flat cell (FlatFold) [-], in (0, 1).
+  double fold_fraction = 0.3;
   double film_relaxation_time_s = 2.0e-3;  ///< viscous time scale of the film shape at rest
   double max_film_stretch = 2.0;           ///< largest equibiaxial stretch the film is trusted to (rupture margin)
   YeohMaterial material;                   ///< film constitutive law (paper eq. 7)
@@ -60,6 +63,7 @@ class PillowStructure : public CellStructure {
   double loop_length_m_;      // L0
   double film_volume_m3_;     // n A0 t: reference film volume of all chambers
   double shape_damping_j_s_;  // eta of lambda
+  FlatFold fold_;             // below h = 0
 };
 
 }  // namespace nursing_bed

@@ -29,7 +29,8 @@ struct StructureTableData {
  * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
  * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
  * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row is
- * used for A_eff and V follows the lowest rows' dV/dh down to the dead volume; above the
+ * used for A_eff and V follows the lowest rows' dV/dh down to the dead volume; below h = 0 the
+ * plate presses the folded cell (FlatFold, over the lowest row's area); above the
  * highest height, or with the film relaxed to a pressure above the highest tabulated one (the
  * force is extrapolated there), the cell is outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
  */
@@ -37,9 +38,11 @@ class TabulatedStructure : public CellStructure {
  public:
   /// Throws std::invalid_argument naming the field when the table is inconsistent.
   /// `dead_volume_m3`: the gas volume left at zero height (fitting, tube, folds) [m^3]; the
-  /// cell's structure parameter, whichever structure it runs on.
+  /// cell's structure parameter, whichever structure it runs on. `fold_fraction`: the part of it
+  /// squeezed out of the folds by a plate pressing the flat cell, in (0, 1).
   TabulatedStructure(StructureTableData table, double film_relaxation_time_s = PillowParams{}.film_relaxation_time_s,
-                     double dead_volume_m3 = PillowParams{}.dead_volume_m3);
+                     double dead_volume_m3 = PillowParams{}.dead_volume_m3,
+                     double fold_fraction = PillowParams{}.fold_fraction);
   /// Reads the YAML table; throws std::runtime_error naming the file and the key.
   static StructureTableData load(const std::string& path);
 
@@ -59,6 +62,7 @@ class TabulatedStructure : public CellStructure {
   StructureTableData table_;
   double relaxation_time_s_;
   double dead_volume_m3_;
+  FlatFold fold_;  // below h = 0
 };
 
 }  // namespace nursing_bed
