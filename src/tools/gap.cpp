@@ -199,11 +199,13 @@ int runSynth(const SynthArgs& args) {
 
 constexpr const char* kDiagnoseSynopsis =
     "usage: gap diagnose DATASET --out DIR [--topic TOPIC] [--effects NAME,NAME...] [--threads N]\n"
-    "                    [--params NAME,...] [--no-calibration] [--airbag FILE] [--no-plots]\n"
+    "                    [--params NAME,...] [--no-calibration] [--no-discovery] [--airbag FILE] [--no-plots]\n"
     "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
     "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
     "on the fit runs, names the effect that explains the gap (or says none / unexplained) and\n"
-    "checks it on the withheld runs. Writes DIR/report.json, DIR/report.md, DIR/traces/*.csv and\n"
+    "checks it on the withheld runs; a gap no effect explains gets a discovered correction to the\n"
+    "balance equations where the withheld runs confirm one. Writes DIR/report.json, DIR/report.md, DIR/traces/*.csv "
+    "and\n"
     "the plots DIR/traces.png, residual_by_phase.png, hp_loops.png.";
 
 /// Runs of a dataset directory: CSVs, bags and dataset.yaml.
@@ -293,7 +295,7 @@ std::vector<nb::RunData> datasetRuns(const std::string& dataset, const std::stri
 struct AnalysisArgs {
   std::vector<std::string> datasets;  ///< exactly one, checked after parsing (named in the error)
   std::string out_dir, topic, airbag_override, params, threads = "2", effects, model_floor = "auto";
-  bool no_plots = false, no_calibration = false;
+  bool no_plots = false, no_calibration = false, no_discovery = false;
 };
 
 /// The checked common options.
@@ -394,6 +396,7 @@ void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
                  "distortions of the runs' channels)")
       ->type_name("NAME,NAME...");
   sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");
+  sub.add_flag("--no-discovery", a->no_discovery, "an unexplained gap stays unexplained (no dictionary terms)");
   sub.add_option("--model-floor", a->model_floor,
                  "judge candidates above the calibrated model's floor when it never fits to the noise: auto (runs "
                  "imported from recordings), on, off")
@@ -404,6 +407,7 @@ int runDiagnose(const AnalysisArgs& a) {
   nb::DiagnosisOptions options;
   const CommonOptions c = analysisOptions(a, &options);
   options.calibrate = !a.no_calibration;
+  options.discover = !a.no_discovery;
   options.model_floor = a.model_floor;
   if (!a.effects.empty())
     options.candidates = nameList("--effects", a.effects, [](const std::string& name) {

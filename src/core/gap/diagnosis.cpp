@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "nursing_bed/core/gap/diagnosis_stages.h"
+#include "nursing_bed/core/gap/discovery.h"
 #include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/progress.h"
 
@@ -553,6 +554,25 @@ std::vector<std::string> describeDistortions(const gap::NoiseModel& noise, const
   return out;
 }
 
+/// Discovery (discovery.h) on top of the verdict's calibration: status "discovered" with the
+/// terms as the verdict's effects when it finds a correction the withheld runs confirm.
+void discoverWhatIsLeft(const gap::PreparedRuns& prepared, const gap::NoiseModel& noise, const CellParams& params,
+                        const DiagnosisOptions& options, const std::function<void(const std::string&)>& say,
+                        DiagnosisReport* rep, std::vector<CellEffectPtr>* verdict_effects) {
+  const gap::DiscoveryResult d =
+      gap::discoverTerms(prepared, noise, params, rep->calibration.movedValues(), options, say);
+  rep->reasons.insert(rep->reasons.end(), d.reasons.begin(), d.reasons.end());
+  if (!d.discovered) return;
+  rep->status = "discovered";
+  rep->verdict_effects = d.model.effects;
+  rep->verdict_params.clear();
+  for (const auto& t : d.terms) {
+    rep->verdict_params[t.parameter] = t.coefficient;
+    rep->discovered.push_back(t.equation);
+  }
+  *verdict_effects = gap::buildEffects(d.model, rep->verdict_params);
+}
+
 /// The runs prepared, replayed through the nominal model, and their noise model (the first
 /// stages of both diagnoseRuns and calibrateRuns).
 struct DiagnosisStart {
@@ -813,6 +833,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   for (const auto& note : rep.calibration.notes)
     if (note.rfind("cannot tell apart: ", 0) == 0) rep.reasons.push_back(note);
   settleCalibratedStatus(noise, options, &rep, above_floor);
+  if (rep.status == "unexplained" && options.discover)
+    discoverWhatIsLeft(prepared, noise, params, options, say, &rep, &verdict_effects);
   shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);
   calibratedOutcome(prepared, noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();

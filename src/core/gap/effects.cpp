@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/gap/discovery_terms.h"
 #include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/orifice.h"
@@ -65,6 +66,26 @@ std::vector<EffectSpec> testOnlyEffects() {
        "pressure reading offset growing linearly with time, whatever the cell does",
        "drift_pa_s",
        {param("drift_pa_s", "Pa/s", "drift rate of the pressure reading", 0.0, 1.0, 5.0, false, -100.0, 100.0, true)},
+       "",
+       "",
+       ""},
+      {"plate_quadratic_drag",
+       kTestOnly,
+       "aerodynamic-like drag on the plate, F = -c_d |v| v",
+       "pressure offset growing with the square of the plate speed, against the motion",
+       "drag_coefficient_n_s2_m2",
+       {param("drag_coefficient_n_s2_m2", "N s^2/m^2", "drag coefficient c_d", 0.0, 300.0, 3000.0, true, 0.0, 1e5)},
+       "",
+       "",
+       ""},
+      {"power_leak",
+       kTestOnly,
+       "leak through the film whose flow follows a power of the gauge pressure: q = q_ref (p / 10 kPa)^n",
+       "pressure and height keep falling during hold, faster at high pressure than an orifice's",
+       "leak_flow_kg_s",
+       {param("leak_flow_kg_s", "kg/s", "leak flow q_ref at 10 kPa gauge", 0.0, 1e-6, 5e-6, true, 0.0, 1e-4),
+        param("exponent", "-", "pressure exponent n (any value is off when q_ref = 0)", 1.0, 1.0, 2.0, false, 0.5,
+              4.0)},
        "",
        "",
        ""},
@@ -172,11 +193,12 @@ const std::vector<EffectSpec>& effectCatalog() {
 }
 
 const EffectSpec& effectSpec(const std::string& name) {
-  for (const auto* catalog : {&effectCatalog(), &distortionCatalog()})
+  for (const auto* catalog : {&effectCatalog(), &distortionCatalog(), &discoveryCatalog()})
     for (const auto& e : *catalog)
       if (e.name == name) return e;
   std::vector<EffectSpec> all = effectCatalog();
   all.insert(all.end(), distortionCatalog().begin(), distortionCatalog().end());
+  all.insert(all.end(), discoveryCatalog().begin(), discoveryCatalog().end());
   catalogEntry(all, name, "effect");  // throws, naming every known effect
   throw std::logic_error("effectSpec: '" + name + "' not found");
 }
@@ -217,6 +239,10 @@ CellEffectPtr makeEffect(const std::string& name, const std::map<std::string, do
   if (name == "plate_friction") return std::make_shared<PlateFrictionEffect>(v("friction_force_n"));
   if (name == "ambient_drift") return std::make_shared<AmbientDriftEffect>(v("drift_k_s"));
   if (name == "pressure_offset_drift") return std::make_shared<PressureOffsetDriftEffect>(v("drift_pa_s"));
+  if (name == "plate_quadratic_drag") return std::make_shared<PlateQuadraticDragEffect>(v("drag_coefficient_n_s2_m2"));
+  if (name == "power_leak") return std::make_shared<PowerLeakEffect>(v("leak_flow_kg_s"), v("exponent"));
+  if (const DictionaryTerm* term = dictionaryTerm(name))
+    return std::make_shared<DiscoveredTermEffect>(*term, v(spec.params.front().name.c_str()));
   if (!spec.channel.empty()) {
     const EffectParamSpec& p = spec.params.front();
     return std::make_shared<ChannelDistortionEffect>(name, spec.channel, spec.kind, p.name, v(p.name.c_str()));
@@ -406,6 +432,29 @@ void PressureOffsetDriftEffect::measure(const CellParams&, const CellVariables& 
                                         Readings* m) const {
   if (drift_pa_s_ == 0.0) return;
   m->gauge_pressure_pa += drift_pa_s_ * cell.time_s;
+}
+
+// ---- plate_quadratic_drag --------------------------------------------------------------------
+
+void PlateQuadraticDragEffect::contribute(const CellParams&, const CellVariables& cell, const double*,
+                                          EffectTerms* terms, double*) const {
+  if (drag_coefficient_n_s2_m2_ == 0.0) return;
+  terms->plate_force_n = -drag_coefficient_n_s2_m2_ * std::abs(cell.velocity_m_s) * cell.velocity_m_s;
+}
+
+// ---- power_leak ------------------------------------------------------------------------------
+
+std::map<std::string, double> PowerLeakEffect::parameters() const {
+  return {{"leak_flow_kg_s", leak_flow_kg_s_}, {"exponent", exponent_}};
+}
+
+void PowerLeakEffect::contribute(const CellParams& params, const CellVariables& cell, const double*, EffectTerms* terms,
+                                 double*) const {
+  if (leak_flow_kg_s_ == 0.0 || cell.gauge_pressure_pa <= 0.0) return;
+  // Outflow only; the gas leaves with its own temperature.
+  const double q = leak_flow_kg_s_ * std::pow(cell.gauge_pressure_pa / kReferencePressurePa, exponent_);
+  terms->mass_flow_kg_s = -q;
+  terms->enthalpy_flow_w = -q * params.gas.cp() * cell.temperature_k;
 }
 
 }  // namespace nursing_bed

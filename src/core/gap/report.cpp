@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/discovery_terms.h"
 #include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/effects.h"
 
@@ -59,7 +60,7 @@ std::string paramsText(const std::map<std::string, double>& params) {
   std::string s;
   for (const auto& [k, v] : params) {
     std::string unit;
-    for (const auto* catalog : {&effectCatalog(), &distortionCatalog()})
+    for (const auto* catalog : {&effectCatalog(), &distortionCatalog(), &discoveryCatalog()})
       for (const auto& e : *catalog)
         if (const EffectParamSpec* p = e.param(k)) unit = p->unit == "-" ? "" : " " + p->unit;
     s += (s.empty() ? "" : ", ") + k + " = " + general(v) + unit;
@@ -142,7 +143,7 @@ std::string reportJson(const DiagnosisReport& r) {
   j["events"] = eventsJson(r.events);
   j["candidates"] = candidatesJson(r.candidates);
   if (r.calibration.done) j["calibration"] = calibrationJson(r.calibration);
-  j["verdict"] = {{"effects", r.verdict_effects}, {"status", r.status}};
+  j["verdict"] = {{"effects", r.verdict_effects}, {"status", r.status}, {"discovered", r.discovered}};
   j["shrinkage"] = {{"withheld_nrmse_before", number(r.withheld_before)},
                     {"withheld_nrmse_after", number(r.withheld_after)},
                     {"by_signal",
@@ -211,6 +212,16 @@ void verdictSection(std::ostream& m, const DiagnosisReport& r) {
       << calibrationText(r.calibration) << " removes the gap; the calibrated parameter file is `" << r.calibration.file
       << "`. On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
       << fixed(r.withheld_after, 3) << ".\n\n";
+  } else if (r.status == "discovered") {
+    m << "**Discovered: no candidate effect explains the gap, but a correction to the model's balance equations "
+         "does** ("
+      << paramsText(r.verdict_params) << "):\n\n";
+    for (const auto& d : r.discovered) m << "- **" << d << "**\n";
+    m << "\n"
+      << (r.calibration.anyMoved() ? "On top of the calibrated " + calibrationText(r.calibration) + ". " : "")
+      << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
+      << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)
+      << " % smaller). A discovered term names the form of what is missing, not its cause.\n\n";
   } else if (r.status == "none") {
     m << "**No significant gap.** The nominal model already fits the runs within the noise, and no candidate "
          "effect improves the fit by more than its extra parameters cost.\n\n";
@@ -298,7 +309,8 @@ void shrinkSection(std::ostream& m, const DiagnosisReport& r) {
       << fixed(shrinkPercent(r.withheld_h_before, r.withheld_h_after), 0) << " % |\n";
     m << "| both (mean) | " << fixed(r.withheld_before, 4) << " | " << fixed(r.withheld_after, 4) << " | "
       << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0) << " % |\n\n";
-    if (r.status != "explained") m << "(Nothing was named, so \"after\" is the nominal model.)\n\n";
+    if (r.status != "explained" && r.status != "discovered")
+      m << "(Nothing was named, so \"after\" is the nominal model.)\n\n";
   }
   m << "nrmse = RMS(measured − simulated) / range of the measured signal, averaged over pressure and height.\n\n";
 }

@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/discovery_terms.h"
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/io/number_text.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
@@ -312,6 +313,9 @@ void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::u
   std::set<std::string> requested;
   for (const auto& r : requests) {
     effectSpec(r.name);  // throws for an unknown name
+    if (dictionaryTerm(r.name))
+      throw std::invalid_argument("effect '" + r.name +
+                                  "' is a term of the discovery's dictionary, not an effect gap synth plants");
     if (!requested.insert(r.name).second) throw std::invalid_argument("effect '" + r.name + "' given twice");
   }
   names->clear();

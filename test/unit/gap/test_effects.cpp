@@ -96,14 +96,16 @@ const std::vector<Sample>& nominal() {
 
 // ---- catalogue and factory -------------------------------------------------------------------
 
-TEST(GapEffects, CatalogueHasTheSevenCandidatesAndTwoOutOfLibraryEffects) {
+TEST(GapEffects, CatalogueHasTheSevenCandidatesAndFourOutOfLibraryEffects) {
   const std::vector<std::string> expected = {"heat_transfer",       "leak",        "membrane_viscoelasticity",
                                              "pressure_sensor_lag", "supply_line", "inflow_bias",
                                              "plate_friction"};
   EXPECT_EQ(nb::candidateEffectNames(), expected);
   EXPECT_FALSE(nb::effectSpec("ambient_drift").candidate);
   EXPECT_FALSE(nb::effectSpec("pressure_offset_drift").candidate);
-  EXPECT_EQ(nb::effectCatalog().size(), 9u);
+  EXPECT_FALSE(nb::effectSpec("plate_quadratic_drag").candidate);
+  EXPECT_FALSE(nb::effectSpec("power_leak").candidate);
+  EXPECT_EQ(nb::effectCatalog().size(), 11u);
   for (const auto& e : nb::effectCatalog()) {
     EXPECT_FALSE(e.params.empty()) << e.name;
     if (!e.switch_param.empty()) {

@@ -84,6 +84,14 @@ struct DiagnosisOptions {
   /// ones this many range widths) before the fit is called implausible.
   double plausible_slack = 3.0;
 
+  // Discovery (doc/gap_diagnosis.md, "Discovery"): when the verdict is "unexplained", a sparse
+  // correction to the balance equations from a dictionary of state functions.
+  bool discover = true;
+  int discovery_resamples = 20;            ///< block bootstraps of the fit runs' residuals
+  double discovery_stability = 0.8;        ///< share of the resamples that must select a term
+  int discovery_max_terms = 3;             ///< per resample
+  double discovery_withheld_shrink = 0.1;  ///< least share of the withheld nrmse the terms remove
+
   // The model-form floor (doc/gap_real_recordings.md): a recording of real hardware never fits
   // the model to the noise. "on": when no candidate explains the gap by the rules above, the
   // calibrated nominal model's chi2/n on the fit runs is taken as the floor of the model's form,
@@ -155,11 +163,14 @@ struct DiagnosisReport {
   CalibrationSummary calibration;                 ///< the verdict model's calibration
   std::string calibrated_yaml;                    ///< the complete calibrated parameter file (calibration.file)
   bool pressure_only = false;                     ///< no run has a height reading
-  std::string status;                             ///< none, calibrated, explained, unexplained
+  std::string status;                             ///< none, calibrated, explained, discovered, unexplained
   std::vector<std::string> verdict_effects;
   std::map<std::string, double> verdict_params;
   /// The named channel distortions in words, with standard errors ("height: gain -4.1 % ± 0.3 %").
   std::vector<std::string> verdict_distortions;
+  /// Status "discovered": each term as an equation in units with its stability
+  /// ("plate force: −420 N·s²/m² · |v|v, stable in 19 of 20 resamples").
+  std::vector<std::string> discovered;
   std::vector<std::string> reasons;  ///< the decision in words, one line each
   // Shrinkage on the withheld runs: nominal vs verdict model (equal when nothing is named).
   double withheld_before = 0.0, withheld_after = 0.0;

@@ -68,12 +68,15 @@ const Entry& catalogEntry(const std::vector<Entry>& catalog, const std::string& 
   throw std::invalid_argument("unknown " + kind + " '" + name + "' (known: " + known + ")");
 }
 
-/// The seven candidates, then the non-candidates ambient_drift and pressure_offset_drift.
+/// The seven candidates, then the non-candidates ambient_drift, pressure_offset_drift,
+/// plate_quadratic_drag and power_leak.
 /// Catalogue order is also the order in which effects compose (see sortEffectsForModel()):
 /// heat_transfer, leak, membrane_viscoelasticity, pressure_sensor_lag, supply_line,
-/// inflow_bias, plate_friction, ambient_drift, pressure_offset_drift.
+/// inflow_bias, plate_friction, ambient_drift, pressure_offset_drift, plate_quadratic_drag,
+/// power_leak.
 const std::vector<EffectSpec>& effectCatalog();
-/// Catalogue entry by name, of this catalogue or of the channel distortions' (distortions.h);
+/// Catalogue entry by name, of this catalogue, of the channel distortions' (distortions.h) or
+/// of the discovery's dictionary (discovery_terms.h);
 /// throws std::invalid_argument naming the known effects otherwise.
 const EffectSpec& effectSpec(const std::string& name);
 /// Names of the candidate effects, catalogue order.
@@ -241,6 +244,40 @@ class PressureOffsetDriftEffect : public CellEffect {
 
  private:
   double drift_pa_s_;
+};
+
+/// Not a candidate (nor a channel distortion): a drag on the plate quadratic in its speed,
+/// F = -c_d |v| v. c_d = 0: off.
+class PlateQuadraticDragEffect : public CellEffect {
+ public:
+  explicit PlateQuadraticDragEffect(double drag_coefficient_n_s2_m2)
+      : drag_coefficient_n_s2_m2_(drag_coefficient_n_s2_m2) {}
+  std::string name() const override { return "plate_quadratic_drag"; }
+  std::map<std::string, double> parameters() const override {
+    return {{"drag_coefficient_n_s2_m2", drag_coefficient_n_s2_m2_}};
+  }
+  void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
+                  double* state_rate) const override;
+
+ private:
+  double drag_coefficient_n_s2_m2_;
+};
+
+/// Not a candidate: a leak whose outflow follows a power of the gauge pressure (permeation,
+/// porous seams), q = q_ref (p_gauge / 10 kPa)^n for p_gauge > 0, unlike the orifice's square
+/// root. q_ref = 0: off.
+class PowerLeakEffect : public CellEffect {
+ public:
+  static constexpr double kReferencePressurePa = 1.0e4;
+  PowerLeakEffect(double leak_flow_kg_s, double exponent) : leak_flow_kg_s_(leak_flow_kg_s), exponent_(exponent) {}
+  std::string name() const override { return "power_leak"; }
+  std::map<std::string, double> parameters() const override;
+  void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
+                  double* state_rate) const override;
+
+ private:
+  double leak_flow_kg_s_;
+  double exponent_;
 };
 
 }  // namespace nursing_bed
