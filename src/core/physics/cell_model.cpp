@@ -172,8 +172,10 @@ using StateVector = CellModel::StateVector;
 // into the CellVariables (read by the later steps and by the effects); none allocates.
 
 /// The variables the state gives directly: gas, plate, regulator, film shape and structure.
+/// `known`, when given, is the structure's evaluation at x's height and shape.
 inline void stateVariables(const CellParams& params, const CellStructure& structure, int shape_dofs, double time_s,
-                           const StateVector& x, const CellInputs& in, CellVariables* out) {
+                           const StateVector& x, const CellInputs& in, CellVariables* out,
+                           const StructureEval* known = nullptr) {
   const GasProperties& gas = params.gas;
   CellVariables& v = *out;
   v.time_s = time_s;
@@ -188,7 +190,7 @@ inline void stateVariables(const CellParams& params, const CellStructure& struct
           ? x[CellModel::kRegulator]
           : (std::isnan(in.supply_pressure_pa) ? params.supply_pressure_pa : in.supply_pressure_pa);
   for (int i = 0; i < shape_dofs; ++i) v.shape[i] = x[CellModel::kShape + i];
-  v.structure = structure.evaluate(v.height_m, v.shape.data());
+  v.structure = known ? *known : structure.evaluate(v.height_m, v.shape.data());
   v.pressure_pa = pressureFromEnergy(gas, v.internal_energy_j, v.structure.volume_m3);
   v.gauge_pressure_pa = v.pressure_pa - params.ambient_pressure_pa;
   v.temperature_k = temperatureFromEnergy(gas, v.internal_energy_j, v.mass_kg);
@@ -460,21 +462,24 @@ CellModel::StateMatrix CellModel::jacobianAt(double time_s, const StateVector& x
   StateMatrix jac = StateMatrix::Zero(n, n);
   jac.topLeftCorner(nominal, nominal) = nominalJacobian(in, v);
   // What the effects add to the rate, by forward differences of that part alone (exactly zero
-  // for effects that add nothing, so those leave the nominal step unchanged).
+  // for effects that add nothing, so those leave the nominal step unchanged). The structure
+  // depends on the height and the shape only: the other columns reuse its evaluation at x.
   const StateVector scale = stateScales(n, shape_dofs_);
-  const StateVector base = effectPart(time_s, x, in);
+  const StateVector base = effectPart(time_s, x, in, &v.structure);
   for (int j = 0; j < n; ++j) {
     StateVector xp = x;
     const double dxj = 1e-7 * std::max(std::fabs(x[j]), scale[j]);
     xp[j] += dxj;
-    jac.col(j) += (effectPart(time_s, xp, in) - base) / dxj;
+    const bool moves_structure = j == kHeight || (j >= kShape && j < nominal);
+    jac.col(j) += (effectPart(time_s, xp, in, moves_structure ? nullptr : &v.structure) - base) / dxj;
   }
   return jac;
 }
 
-CellModel::StateVector CellModel::effectPart(double time_s, const StateVector& x, const CellInputs& in) const {
+CellModel::StateVector CellModel::effectPart(double time_s, const StateVector& x, const CellInputs& in,
+                                             const StructureEval* structure) const {
   CellVariables v;
-  stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, &v);
+  stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, &v, structure);
   const double flow_pressure_pa = flowPressure(params_, in, v);
   const double inflow_enthalpy_w = inletFlow(params_, in, flow_pressure_pa, &v);
   const Outflows out = outflows(params_, in, flow_pressure_pa, &v);

@@ -186,8 +186,10 @@ class CellModel {
   StateMatrix nominalJacobian(const CellInputs& inputs, const CellVariables& v) const;
   /// jacobian() at the variables `v` of (t, x).
   StateMatrix jacobianAt(double time_s, const StateVector& x, const CellInputs& inputs, const CellVariables& v) const;
-  /// The rate with the effects' terms minus the rate without them, at (t, x).
-  StateVector effectPart(double time_s, const StateVector& x, const CellInputs& inputs) const;
+  /// The rate with the effects' terms minus the rate without them, at (t, x); `structure`, when
+  /// given, is the structure's evaluation at x's height and shape.
+  StateVector effectPart(double time_s, const StateVector& x, const CellInputs& inputs,
+                         const StructureEval* structure = nullptr) const;
   /// Sub-steps of at most `max_step_s` until `duration_s` has passed.
   void integrate(double duration_s, double max_step_s, const CellInputs& inputs);
   /// Accepts `next` as the state after a sub-step of `h` whose error norm was `err`; returns
