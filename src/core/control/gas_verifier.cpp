@@ -54,7 +54,7 @@ void GasVerifier::reset(bool verified) {
   check_reanchored_ = false;
   link_lost_ = false;
   reference_pa_ = std::numeric_limits<double>::quiet_NaN();
-  hold_left_s_ = 0.0;
+  link_hold_.left_s = 0.0;
   hold_mismatch_ = false;
   must_prove_ = false;
   proof_ = ProofHold{};
@@ -65,7 +65,7 @@ void GasVerifier::linkLost(double reference_pa) {
   link_lost_ = true;
   reference_pa_ = reference_pa;
   check_pending_ = false;
-  hold_left_s_ = 0.0;
+  link_hold_.left_s = 0.0;
   check_vent_left_s_ = 0.0;
   check_until_s_ = -1.0;
 }
@@ -125,7 +125,7 @@ void GasVerifier::noteHold(bool holding, double gauge_pressure_pa, double height
 
 bool GasVerifier::gasUnknown() const {
   if (gas_ == GasKnowledge::kUnverified || gas_ == GasKnowledge::kFinding) return true;
-  return link_lost_ || check_pending_ || hold_left_s_ > 0.0 || check_vent_left_s_ > 0.0 || check_until_s_ >= 0.0;
+  return link_lost_ || check_pending_ || link_hold_.left_s > 0.0 || check_vent_left_s_ > 0.0 || check_until_s_ >= 0.0;
 }
 
 void GasVerifier::note(const ObserverEvents& events) {
@@ -166,13 +166,13 @@ ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double
   if (check_pending_) {
     check_pending_ = false;
     check_reanchored_ = false;
-    hold_sum_pa_ = 0.0;
-    hold_count_ = 0;
+    link_hold_.sum_pa = 0.0;
+    link_hold_.count = 0;
     // Without a pressure from before the loss there is nothing to compare: the vent check only.
-    hold_left_s_ = std::isfinite(reference_pa_) ? params_.verify_hold_s : 0.0;
-    if (hold_left_s_ <= 0.0) startVentCheck();
+    link_hold_.left_s = std::isfinite(reference_pa_) ? params_.verify_hold_s : 0.0;
+    if (link_hold_.left_s <= 0.0) startVentCheck();
   }
-  if (hold_left_s_ > 0.0) return holdValves(period_s, gauge_pressure_pa);
+  if (link_hold_.left_s > 0.0) return holdValves(period_s, gauge_pressure_pa);
   if (check_vent_left_s_ > 0.0) {
     const bool grounded = gauge_pressure_pa < observer->flatPressure();
     const double opening = grounded ? 0.0 : std::min(1.0, check_vent_left_s_ / period_s);
@@ -185,7 +185,7 @@ ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double
     return ValveOpenings{0.0, opening};
   }
   if (check_until_s_ < 0.0) {
-    if (check_vent_left_s_ <= 0.0 && hold_left_s_ <= 0.0) link_lost_ = false;
+    if (check_vent_left_s_ <= 0.0 && link_hold_.left_s <= 0.0) link_lost_ = false;
     return wanted;
   }
   // Found flat (re-anchored), the controller takes over at once; else after the test's time.
@@ -206,12 +206,12 @@ ValveOpenings GasVerifier::holdValves(double period_s, double gauge_pressure_pa)
   // own: pressure alone cannot tell a sealed flat cell floating its plate from a lifted one,
   // but it can tell either from the cell the observer kept.
   if (std::isfinite(gauge_pressure_pa)) {
-    hold_sum_pa_ += gauge_pressure_pa;
-    ++hold_count_;
+    link_hold_.sum_pa += gauge_pressure_pa;
+    ++link_hold_.count;
   }
-  hold_left_s_ = std::max(0.0, hold_left_s_ - period_s);
-  if (hold_left_s_ > 0.0) return ValveOpenings{};
-  const double mean = hold_count_ > 0 ? hold_sum_pa_ / hold_count_ : reference_pa_;
+  link_hold_.left_s = std::max(0.0, link_hold_.left_s - period_s);
+  if (link_hold_.left_s > 0.0) return ValveOpenings{};
+  const double mean = link_hold_.count > 0 ? link_hold_.sum_pa / link_hold_.count : reference_pa_;
   const double tolerance =
       std::max(params_.verify_tolerance_pa, params_.verify_tolerance_rel * std::fabs(reference_pa_));
   hold_mismatch_ = std::fabs(mean - reference_pa_) > tolerance;

@@ -141,9 +141,13 @@ class GasVerifier {
   bool link_lost_ = false;          ///< the link was lost and the check has not ended
   double reference_pa_ =
       std::numeric_limits<double>::quiet_NaN();  ///< mean pressure before the loss (NaN: unknown) [Pa]
-  double hold_left_s_ = 0.0;                     ///< time of the comparison's hold still to run [s]
-  double hold_sum_pa_ = 0.0;                     ///< readings summed over the hold
-  long hold_count_ = 0;
+  /// The link check's comparison hold.
+  struct LinkHold {
+    double left_s = 0.0;  ///< time of the hold still to run [s]
+    double sum_pa = 0.0;  ///< readings summed over the hold
+    long count = 0;
+  };
+  LinkHold link_hold_;
   bool hold_mismatch_ = false;  ///< the last hold did not match the pressure before the loss
   /// The proof's hold after an inconsistency (prove_hold_s).
   struct ProofHold {
