@@ -19,6 +19,7 @@
 #include "nursing_bed/core/physics/cell_params_io.h"
 
 #include "../../test_helpers.h"
+#include "small_protocol_runs.h"
 
 namespace nb = nursing_bed;
 namespace gs = nursing_bed::gap;
@@ -42,16 +43,7 @@ void expectThrowsWith(F f, const std::vector<std::string>& fragments) {
 std::vector<nb::RunData> rigRuns(const std::map<std::string, double>& rig, std::uint32_t seed,
                                  bool valve_driven = false, double noise_scale = 1.0,
                                  const std::vector<nb::CellEffectPtr>& effects = {}) {
-  const nb::CellParams params = nb::rigAirbag(nb::CellParams{}, rig);
-  nb::SynthProtocol protocol = nb::synthProtocol("small", params);
-  protocol.valve_driven = valve_driven;
-  std::mt19937 rng(seed);
-  std::vector<nb::RunData> runs;
-  for (const auto& spec : protocol.runs) {
-    runs.push_back(nb::simulateSynthRun(params, effects, protocol, spec, nb::SensorNoise{}.scaled(noise_scale), &rng));
-    runs.back().role = spec.role;
-  }
-  return runs;
+  return nb::test::smallProtocolRuns(effects, seed, {rig, valve_driven, noise_scale, true});
 }
 
 const nb::CalibratedParam& param(const nb::CalibrationSummary& s, const std::string& name) {

@@ -12,6 +12,7 @@
 #include "nursing_bed/core/gap/synth.h"
 
 #include "../../test_helpers.h"
+#include "small_protocol_runs.h"
 
 namespace nb = nursing_bed;
 namespace gs = nursing_bed::gap;
@@ -22,15 +23,7 @@ namespace {
 /// or none.
 std::vector<nb::RunData> smallRuns(const std::vector<nb::CellEffectPtr>& effects, std::uint32_t seed,
                                    bool with_roles = false) {
-  nb::CellParams params;
-  const nb::SynthProtocol protocol = nb::synthProtocol("small", params);
-  std::mt19937 rng(seed);
-  std::vector<nb::RunData> runs;
-  for (const auto& spec : protocol.runs) {
-    runs.push_back(nb::simulateSynthRun(params, effects, protocol, spec, nb::SensorNoise{}, &rng));
-    if (with_roles) runs.back().role = spec.role;
-  }
-  return runs;
+  return nb::test::smallProtocolRuns(effects, seed, {{}, false, 1.0, with_roles});
 }
 
 nb::DiagnosisOptions leakOnly() {

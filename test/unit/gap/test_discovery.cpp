@@ -22,6 +22,7 @@
 #include "nursing_bed/core/physics/cell_model.h"
 
 #include "../../test_helpers.h"
+#include "small_protocol_runs.h"
 
 namespace nb = nursing_bed;
 namespace gs = nursing_bed::gap;
@@ -202,15 +203,7 @@ nb::DiagnosisOptions fastOptions() {
 }
 
 std::vector<nb::RunData> smallRuns(const std::vector<nb::CellEffectPtr>& effects, std::uint32_t seed) {
-  nb::CellParams params;
-  const nb::SynthProtocol protocol = nb::synthProtocol("small", params);
-  std::mt19937 rng(seed);
-  std::vector<nb::RunData> runs;
-  for (const auto& spec : protocol.runs) {
-    runs.push_back(nb::simulateSynthRun(params, effects, protocol, spec, nb::SensorNoise{}, &rng));
-    runs.back().role = spec.role;
-  }
-  return runs;
+  return nb::test::smallProtocolRuns(effects, seed);
 }
 
 nb::DiagnosisReport diagnose(const std::vector<nb::CellEffectPtr>& planted, std::uint32_t seed) {
