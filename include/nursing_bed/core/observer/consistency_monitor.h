@@ -68,8 +68,8 @@ struct ConsistencyMonitorParams {
   /// ramp's small ones included) must have raised the pressure by progress_rel of where it
   /// was once the valves have rested 0.1 s: the plate it lifts climbs the structure, whose
   /// pressure under a steady load rises about 1.3 % per millimetre, while a valve stuck shut
-  /// leaves it where it was; 0: off [s]. Off by default: over the rig emulator it flagged no
-  /// valve stuck shut and did flag healthy cells (doc/real_bed.md); 0.035 s suits the model.
+  /// leaves it where it was; 0: off [s]. Off by default: over the rig emulator it flags too
+  /// few valves stuck shut (doc/real_bed.md); 0.035 s suits the model.
   double progress_inlet_s = 0.0;
   /// The same for a vent (the pressure must fall); vents pass less than the supply's inlet; off
   /// by default, 0.1 s suits the model [s].
