@@ -41,9 +41,20 @@ const GasVerifierParams& validated(const GasVerifierParams& p) {
   if (!valid.ok()) throw std::invalid_argument("gas check parameters: " + valid.message());
   return p;
 }
+
+GasProofParams proofParams(const GasVerifierParams& p) {
+  GasProofParams q;
+  q.hold_s = p.prove_hold_s;
+  q.settle_s = p.prove_settle_s;
+  q.tolerance_pa = p.prove_tolerance_pa;
+  q.tolerance_rel = p.prove_tolerance_rel;
+  q.min_height_m = p.prove_min_height_m;
+  return q;
+}
 }  // namespace
 
-GasVerifier::GasVerifier(const GasVerifierParams& params) : params_(validated(params)) {}
+GasVerifier::GasVerifier(const GasVerifierParams& params)
+    : params_(validated(params)), proof_(proofParams(params_)) {}
 
 void GasVerifier::reset(bool verified) {
   gas_ = verified ? GasKnowledge::kKnown : GasKnowledge::kUnverified;
@@ -56,9 +67,7 @@ void GasVerifier::reset(bool verified) {
   reference_pa_ = std::numeric_limits<double>::quiet_NaN();
   link_hold_.left_s = 0.0;
   hold_mismatch_ = false;
-  must_prove_ = false;
-  proof_ = ProofHold{};
-  failed_proofs_ = 0;
+  proof_.reset();
 }
 
 void GasVerifier::linkLost(double reference_pa) {
@@ -83,44 +92,15 @@ void GasVerifier::suspect() {
 
 void GasVerifier::suspectInconsistent() {
   suspect();
-  must_prove_ = params_.prove_hold_s > 0.0;
-  proof_ = ProofHold{};
+  proof_.start();
 }
 
 void GasVerifier::noteHold(bool holding, double gauge_pressure_pa, double height_m, double dt_s) {
-  // Found flat proves the count from there, not the valves: a vent stuck open lets the refilled
-  // plate sink again under an estimate that stays. Held at height, gas that leaves (or enters)
-  // moves the pressure along the structure at a rate no constant load does, so the second half
-  // of a hold reads what the first read only when the gas stays.
+  // Found flat proves the count from there, not the valves (GasProof). Either verdict sends the
+  // cell flat again: a failed hold to be proved again, a passed one because a fault that ended
+  // during the refill (a vent open against the inlet) left its gas uncounted.
   if (!proving()) return;
-  const bool counts = holding && std::isfinite(gauge_pressure_pa) && height_m > params_.prove_min_height_m;
-  if (!counts) {
-    proof_ = ProofHold{};
-    return;
-  }
-  proof_.held_s += dt_s;
-  const double into_s = proof_.held_s - params_.prove_settle_s;
-  if (into_s <= 0.0) return;
-  if (into_s <= 0.5 * params_.prove_hold_s) {
-    proof_.first_pa += gauge_pressure_pa;
-    ++proof_.first_n;
-  } else {
-    proof_.second_pa += gauge_pressure_pa;
-    ++proof_.second_n;
-  }
-  if (into_s < params_.prove_hold_s || proof_.first_n == 0 || proof_.second_n == 0) return;
-  const double first = proof_.first_pa / proof_.first_n, second = proof_.second_pa / proof_.second_n;
-  const double tolerance = std::max(params_.prove_tolerance_pa, params_.prove_tolerance_rel * std::fabs(first));
-  proof_ = ProofHold{};
-  if (std::fabs(second - first) <= tolerance) {
-    // The valves keep the gas now, but a fault that ended during the refill left its gas
-    // uncounted (a vent open against the inlet): one more flat cell counts it afresh.
-    must_prove_ = false;
-    suspect();
-    return;
-  }
-  ++failed_proofs_;
-  suspect();  // the gas moved under a hold: found flat again, and proved again
+  if (proof_.update(holding, gauge_pressure_pa, height_m, dt_s) != GasProof::Verdict::kNone) suspect();
 }
 
 bool GasVerifier::gasUnknown() const {

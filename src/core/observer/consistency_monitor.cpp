@@ -233,10 +233,15 @@ std::string ValveProgressCheck::update(const ConsistencySample& sample, double d
   have_mean_ = true;
   const bool rest = sample.inlet_opening == 0.0 && sample.vent_opening == 0.0;
   rest_s_ = rest ? rest_s_ + dt_s : 0.0;
-  // Either valve moves the pressure: the other's sum starts again when it opens.
-  if (sample.vent_opening > 0.0) inlet_.active = false;
-  if (sample.inlet_opening > 0.0) vent_.active = false;
-  std::string why = step(&inlet_, +1, sample.inlet_opening, params.progress_inlet_s, dt_s, params);
+  // Either valve moves the pressure: the other's sum ends when it opens. A sum that reached its
+  // limit is judged then, on the furthest the pressure went meanwhile: a move up that turns
+  // into a ramp down (or back) never rests between the two, and dropped unjudged a valve stuck
+  // shut went unseen while the estimate climbed away from its plate.
+  std::string why;
+  if (sample.vent_opening > 0.0) why = endWindow(&inlet_, +1, params.progress_inlet_s, params);
+  if (sample.inlet_opening > 0.0 && why.empty()) why = endWindow(&vent_, -1, params.progress_vent_s, params);
+  if (!why.empty()) return why;
+  why = step(&inlet_, +1, sample.inlet_opening, params.progress_inlet_s, dt_s, params);
   if (why.empty()) why = step(&vent_, -1, sample.vent_opening, params.progress_vent_s, dt_s, params);
   return why;
 }
@@ -259,6 +264,18 @@ std::string ValveProgressCheck::step(Window* w, int direction, double opening, d
   // ramp's pulses come every few tenths of a second and never let it settle for long.
   constexpr double kRestS = 0.1;
   if (w->open_s < limit_s || rest_s_ < kRestS) return "";
+  return judge(w, direction, params);
+}
+
+std::string ValveProgressCheck::endWindow(Window* w, int direction, double limit_s,
+                                          const ConsistencyMonitorParams& params) {
+  if (!w->active) return "";
+  if (limit_s > 0.0 && w->open_s >= limit_s) return judge(w, direction, params);
+  w->active = false;
+  return "";
+}
+
+std::string ValveProgressCheck::judge(Window* w, int direction, const ConsistencyMonitorParams& params) {
   w->active = false;
   // A vent shows nothing at ambient; a light plate's pressure hardly moves along the structure.
   const double needed_pa = params.progress_rel * w->start_pa;

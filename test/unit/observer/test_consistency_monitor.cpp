@@ -348,3 +348,41 @@ TEST(ConsistencyMonitor, AValvePulseThatALoadShiftOutweighsIsNotJudged) {
     }
   }
 }
+
+namespace {
+
+/// A move up of small inlet pulses (every other period, `inlet_s` of opening in all) that turns
+/// at once into a ramp down of vent pulses, never resting in between, the pressure rising by
+/// `rise_pa` over the move; returns the progress test's verdict ("" none).
+std::string moveUpThenRampDown(double inlet_s, double rise_pa) {
+  nb::ConsistencyMonitorParams p;
+  p.progress_inlet_s = 0.035;
+  p.progress_vent_s = 0.1;
+  p.response_min_pa = 0.0;  // the progress test alone
+  nb::ValveProgressCheck check;
+  Sensor sensor(7);
+  const double start_pa = 1500.0;
+  for (int i = 0; i < 200; ++i) check.update(sample(sensor.read(start_pa), true), kPeriod, p);
+  const int pulses = static_cast<int>(inlet_s / (0.5 * kPeriod));
+  std::string why;
+  for (int i = 0; i < 2 * pulses && why.empty(); ++i) {
+    nb::ConsistencySample s = sample(sensor.read(start_pa + rise_pa * i / (2.0 * pulses)), false);
+    s.inlet_opening = i % 2 ? 0.0 : 0.5;
+    why = check.update(s, kPeriod, p);
+  }
+  for (int i = 0; i < 40 && why.empty(); ++i) {
+    nb::ConsistencySample s = sample(sensor.read(start_pa + rise_pa), false);
+    s.vent_opening = i % 4 ? 0.0 : 0.05;
+    why = check.update(s, kPeriod, p);
+  }
+  return why;
+}
+
+}  // namespace
+
+TEST(ValveProgressCheck, AnInletThatMovedNoPressureIsJudgedWhenTheVentTakesOverWithoutARest) {
+  const std::string stuck = moveUpThenRampDown(0.08, 0.0);
+  EXPECT_NE(stuck.find("failure to reach target: the inlet"), std::string::npos) << stuck;
+  EXPECT_EQ(moveUpThenRampDown(0.08, 0.08 * 1500.0), "") << "a working inlet raised the pressure 8 %";
+  EXPECT_EQ(moveUpThenRampDown(0.02, 0.0), "") << "below the limit the sum is dropped unjudged";
+}

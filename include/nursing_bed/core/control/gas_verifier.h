@@ -7,6 +7,7 @@
 #include <limits>
 #include <string>
 
+#include "nursing_bed/core/control/gas_proof.h"
 #include "nursing_bed/core/io/status.h"
 #include "nursing_bed/core/observer/cell_observer.h"
 #include "nursing_bed/core/physics/valve_openings.h"
@@ -97,14 +98,14 @@ class GasVerifier {
   /// The gas (and the height from it) is not proven: lost link not yet checked, suspected, or
   /// reset over real hardware and not yet found flat, or found flat after an inconsistency and
   /// not yet proved by a hold at height.
-  bool unverified() const { return gasUnknown() || must_prove_; }
+  bool unverified() const { return gasUnknown() || proof_.pending(); }
   /// Unverified and not yet found flat (or the link check under way): the cell is then never
   /// inflated, only held or vented, and its height is no reference for the landed test.
   bool gasUnknown() const;
   /// Found flat after an inconsistency, refilled, and waiting for a hold that proves the gas.
-  bool proving() const { return must_prove_ && gas_ == GasKnowledge::kKnown; }
+  bool proving() const { return proof_.pending() && gas_ == GasKnowledge::kKnown; }
   /// Holds that failed to prove the gas since the last reset.
-  int failedProofs() const { return failed_proofs_; }
+  int failedProofs() const { return proof_.failures(); }
   /// The last link check's hold found the pressure inconsistent with the gas kept.
   bool holdMismatched() const { return hold_mismatch_; }
   /// Commanded before the observer found the cell flat after a reset: its gas (and height) is
@@ -149,15 +150,7 @@ class GasVerifier {
   };
   LinkHold link_hold_;
   bool hold_mismatch_ = false;  ///< the last hold did not match the pressure before the loss
-  /// The proof's hold after an inconsistency (prove_hold_s).
-  struct ProofHold {
-    double held_s = 0.0;                     ///< held this long, the settling included [s]
-    double first_pa = 0.0, second_pa = 0.0;  ///< the readings summed over each half
-    long first_n = 0, second_n = 0;
-  };
-  bool must_prove_ = false;  ///< an inconsistency is to be disproved by a hold at height
-  ProofHold proof_;
-  int failed_proofs_ = 0;
+  GasProof proof_;  ///< the hold that proves the gas after an inconsistency
 };
 
 }  // namespace nursing_bed

@@ -68,8 +68,8 @@ struct ConsistencyMonitorParams {
   /// ramp's small ones included) must have raised the pressure by progress_rel of where it
   /// was once the valves have rested 0.1 s: the plate it lifts climbs the structure, whose
   /// pressure under a steady load rises about 1.3 % per millimetre, while a valve stuck shut
-  /// leaves it where it was; 0: off [s]. Off by default: over the rig emulator it flagged no
-  /// valve stuck shut and did flag healthy cells (doc/real_bed.md); 0.035 s suits the model.
+  /// leaves it where it was; 0: off [s]. Off by default: over the rig emulator it flags too
+  /// few valves stuck shut (doc/real_bed.md); 0.035 s suits the model.
   double progress_inlet_s = 0.0;
   /// The same for a vent (the pressure must fall); vents pass less than the supply's inlet; off
   /// by default, 0.1 s suits the model [s].
@@ -133,9 +133,9 @@ class ValveResponseCheck {
 };
 
 /// One job: failure to reach target. Each valve's counted opening time is summed over its
-/// pulses (the other valve's opening starts the sum again); once it reaches its limit and the
-/// valves have rested 0.1 s, the pressure's mean must have moved its way (at its furthest) by progress_rel
-/// of its mean before the first pulse.
+/// pulses (the other valve's opening ends the sum); once it reaches its limit and the valves
+/// have rested 0.1 s, or the other valve opens, the pressure's mean must have moved its way (at
+/// its furthest) by progress_rel of its mean before the first pulse.
 class ValveProgressCheck {
  public:
   /// One period; returns a non-empty reason when a valve's summed opening did not move the pressure.
@@ -153,6 +153,10 @@ class ValveProgressCheck {
   /// Sums one valve's opening; judges its window once it has run long enough and settled.
   std::string step(Window* w, int direction, double opening, double limit_s, double dt_s,
                    const ConsistencyMonitorParams& params);
+  /// The other valve opened: a window whose sum reached its limit is judged, any other dropped.
+  std::string endWindow(Window* w, int direction, double limit_s, const ConsistencyMonitorParams& params);
+  /// The verdict on a window that reached its limit (the window ends).
+  std::string judge(Window* w, int direction, const ConsistencyMonitorParams& params);
   Window inlet_, vent_;
   double mean_pa_ = 0.0;  ///< the readings' running mean [Pa]
   bool have_mean_ = false;
