@@ -53,8 +53,7 @@ GasProofParams proofParams(const GasVerifierParams& p) {
 }
 }  // namespace
 
-GasVerifier::GasVerifier(const GasVerifierParams& params)
-    : params_(validated(params)), proof_(proofParams(params_)) {}
+GasVerifier::GasVerifier(const GasVerifierParams& params) : params_(validated(params)), proof_(proofParams(params_)) {}
 
 void GasVerifier::reset(bool verified) {
   gas_ = verified ? GasKnowledge::kKnown : GasKnowledge::kUnverified;

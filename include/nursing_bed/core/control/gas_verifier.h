@@ -150,7 +150,7 @@ class GasVerifier {
   };
   LinkHold link_hold_;
   bool hold_mismatch_ = false;  ///< the last hold did not match the pressure before the loss
-  GasProof proof_;  ///< the hold that proves the gas after an inconsistency
+  GasProof proof_;              ///< the hold that proves the gas after an inconsistency
 };
 
 }  // namespace nursing_bed
