@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
 """The gap diagnosis on the ventilator / test-lung recordings (doc/gap_real_recordings.md).
 
-Usage: gap_real_recordings.py GAP_BINARY OUT_DIR [--plots DIR] [--only NAME...]
+Usage: gap_real_recordings.py GAP_BINARY OUT_DIR [--only NAME...] [--command calibrate|diagnose]
 
 Imports each recording of test/data/respiraworks on its own (2020-06-21 with the corrected
 net flow, 2020-07-01 with the venturis' uncorrected flow), runs `gap calibrate` on the corrected
 ones and `gap diagnose` on the uncorrected ones, and prints one table row per recording: the
 lung's set compliance and resistor, the calibrated compliance and airway resistance, the
-verdict, the named inflow bias, and the model-free checks (a linear least-squares fit of
+verdict, the inflow bias fitted and named, and the model-free checks (a linear least-squares fit of
 p = p0 + V/C + R1 q + R2 q|q| on the same runs, and the uncorrected volume's drift over whole
 breaths less C times the change of end-expiratory pressure). Writes OUT_DIR/summary.json.
 With --plots, draws data vs model vs model + named cause for the first run of two recordings.
@@ -128,6 +128,8 @@ def one_recording(gap, folder, mapping, command, log, out):
     for c in report.get("candidates", []):
         if c["effects"] == ["inflow_bias"]:
             bias = c["params"]["offset_kg_s"] / RHO
+    named = verdict.get("params", {}).get("offset_kg_s", NAN) / RHO if "inflow_bias" in verdict.get("effects", []) \
+        else NAN
     row = {
         "recording": name, "resistor": meta["lung_resistor"], "command": command,
         "c_set_ml_cmh2o": c_set / ML_CMH2O, "c_cal_ml_cmh2o": c_cal / ML_CMH2O, "c_moved": c_moved,
@@ -135,7 +137,7 @@ def one_recording(gap, folder, mapping, command, log, out):
         "r1_cal": r1 / R_UNIT, "r2_cal": r2 / R_UNIT * 1e-3, "r_eff_cal": (r1 + r2 * Q_EFF + r_plate) / R_UNIT,
         "r_eff_ls": (r1_ls + r2_ls * Q_EFF) / R_UNIT,
         "status": verdict.get("status"), "effects": verdict.get("effects", []),
-        "inflow_bias_fit_ml_s": bias * 1e6,
+        "inflow_bias_fit_ml_s": bias * 1e6, "inflow_bias_named_ml_s": named * 1e6,
         "model_free_bias_ml_s": model_free_bias(runs, c_set) * 1e6,
         "nominal_chi2_per_sample": report.get("noise", {}).get("nominal_chi2_per_sample"),
         "calibrated_chi2": report.get("calibration", {}).get("chi2"),
@@ -149,17 +151,20 @@ def main():
     ap.add_argument("gap")
     ap.add_argument("out")
     ap.add_argument("--only", nargs="*", default=[])
+    ap.add_argument("--command", choices=["calibrate", "diagnose"],
+                    help="the same command on every recording (default: calibrate the corrected, "
+                         "diagnose the uncorrected ones)")
     args = ap.parse_args()
     rows = []
     for folder, mapping, command in SETS:
         for log in sorted(glob.glob(os.path.join(DATA, folder, "covent_pc_*.dat"))):
             if args.only and not any(o in folder + "/" + os.path.basename(log) for o in args.only):
                 continue
-            row = one_recording(args.gap, folder, mapping, command, log, args.out)
+            row = one_recording(args.gap, folder, mapping, args.command or command, log, args.out)
             rows.append(row)
             print("{recording:24s} {resistor:5s} C set {c_set_ml_cmh2o:5.1f} cal {c_cal_ml_cmh2o:6.2f} "
                   "({c_error:+6.1%}) LS {c_ls_ml_cmh2o:6.2f}  R_eff cal {r_eff_cal:5.1f} LS {r_eff_ls:5.1f}  "
-                  "{status} {effects} bias fit {inflow_bias_fit_ml_s:+6.2f} (model-free {model_free_bias_ml_s:+6.2f}) mL/s"
+                  "{status} {effects} bias fit {inflow_bias_fit_ml_s:+6.2f} named {inflow_bias_named_ml_s:+6.2f} (model-free {model_free_bias_ml_s:+6.2f}) mL/s"
                   .format(**row), flush=True)
     with open(os.path.join(args.out, "summary.json"), "w") as f:
         json.dump(rows, f, indent=1)

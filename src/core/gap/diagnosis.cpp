@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "nursing_bed/core/gap/cycle_drift.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
 #include "nursing_bed/core/gap/discovery.h"
 #include "nursing_bed/core/gap/distortions.h"
@@ -814,7 +815,14 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   rep.reasons.insert(rep.reasons.end(), structure_notes.begin(), structure_notes.end());
   const NominalScore baseline = nominalScore(noise, nominalNrmse(prepared, s.nominal, prepared.withheld));
   bool above_floor = false;
-  const Verdict verdict = judgeCandidates(rep.candidates, baseline, options, prepared, &above_floor);
+  Verdict verdict = judgeCandidates(rep.candidates, baseline, options, prepared, &above_floor);
+  // Above the floor, a slow drift the whitened likelihood discounts: judged over whole breaths.
+  DriftNaming drift;
+  if (above_floor && verdict.winner < 0) {
+    drift = nameDriftAboveFloor(prepared, params, noise.baseline_calibration, scored, options);
+    verdict.reasons.insert(verdict.reasons.end(), drift.reasons.begin(), drift.reasons.end());
+    if (drift.winner >= 0) verdict.winner = drift.winner, verdict.status = "explained";
+  }
   rep.reasons.insert(rep.reasons.end(), verdict.reasons.begin(), verdict.reasons.end());
   rep.status = verdict.status;
   rep.calibration = calibration.summary;
@@ -822,8 +830,8 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   if (verdict.winner >= 0) {
     const CandidateFit& w = rep.candidates[verdict.winner];
     rep.verdict_effects = w.effects;
-    rep.verdict_params = w.params;
-    verdict_effects = buildEffects(scored[verdict.winner].second, w.params);
+    rep.verdict_params = drift.winner >= 0 ? drift.params : w.params;
+    verdict_effects = buildEffects(scored[verdict.winner].second, rep.verdict_params);
     // A joint refit may have moved every parameter back to nominal (w.joint false): its summary
     // still replaces the calibration-only one the winner was not fitted with.
     if (joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));

@@ -143,7 +143,10 @@ std::string reportJson(const DiagnosisReport& r) {
   j["events"] = eventsJson(r.events);
   j["candidates"] = candidatesJson(r.candidates);
   if (r.calibration.done) j["calibration"] = calibrationJson(r.calibration);
-  j["verdict"] = {{"effects", r.verdict_effects}, {"status", r.status}, {"discovered", r.discovered}};
+  j["verdict"] = {{"effects", r.verdict_effects},
+                  {"params", numbers(r.verdict_params)},
+                  {"status", r.status},
+                  {"discovered", r.discovered}};
   j["shrinkage"] = {{"withheld_nrmse_before", number(r.withheld_before)},
                     {"withheld_nrmse_after", number(r.withheld_after)},
                     {"by_signal",

@@ -377,8 +377,9 @@ assert c0["effects"] == ["leak"] and c0["params"] == {"leak_area_m2": 1.1e-8}, c
 assert c0["bic_delta"] == -812.5 and c0["fit_nrmse"] == 0.008 and c0["withheld_nrmse"] == 0.009, c0
 assert c1["effects"] == ["heat_transfer"] and c1["params"] == {"heat_transfer_coefficient_w_m2_k": 6.0}, c1
 assert c1["withheld_nrmse"] is None, "NaN withheld_nrmse not written as null: %r" % c1["withheld_nrmse"]
-keys(d["verdict"], ["effects", "status", "discovered"], "verdict")
-assert d["verdict"] == {"effects": ["leak"], "status": "explained", "discovered": []}, d["verdict"]
+keys(d["verdict"], ["effects", "params", "status", "discovered"], "verdict")
+assert d["verdict"] == {"effects": ["leak"], "params": {"leak_area_m2": 1.1e-8}, "status": "explained",
+                        "discovered": []}, d["verdict"]
 keys(d["shrinkage"], ["withheld_nrmse_before", "withheld_nrmse_after", "by_signal"], "shrinkage")
 s = d["shrinkage"]
 assert s["withheld_nrmse_before"] == 0.071 and s["withheld_nrmse_after"] == 0.009, s

@@ -11,10 +11,12 @@
 #include <vector>
 
 #include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/cycle_drift.h"
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
 #include "nursing_bed/core/gap/fit_model.h"
 #include "nursing_bed/core/gap/log_import.h"
+#include "nursing_bed/core/gap/replay.h"
 #include "nursing_bed/core/physics/airway.h"
 #include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
@@ -270,5 +272,57 @@ TEST(RespiraWorksLungs, MeterOffsetIsOnTheUncorrectedChannelOnly) {
     const std::string f = "covent_pc_" + std::to_string(i) + ".dat";
     const double b = meanBias("respiraworks_net_flow", "2020-06-21-RunForRecord2-AIR/" + f);
     EXPECT_LT(std::fabs(b), 2.0) << f;
+  }
+}
+
+TEST(RespiraWorksLungs, WholeBreathDriftOfTheCalibratedModelIsTheMetersOffset) {
+  // The calibrated model's residual at the end of each breath falls by offset / C per second:
+  // its trend through every run times the compliance at the port is the meter's offset, within
+  // 3 mL/s of the model-free value on the uncorrected channel. On the corrected one the
+  // ventilator's breath-by-breath correction steps the metered volume from breath to breath:
+  // the trend is under 2 mL/s or does not stand out of its scatter.
+  auto offsets = [](const std::string& mapping, const std::string& file) {
+    const nb::ImportMapping m = nb::loadImportMapping(kSource + "/config/import/" + mapping + ".yaml");
+    const nb::ImportedLog log = nb::importLog(m, kSource + "/test/data/respiraworks/" + file);
+    const nb::CellParams nominal =
+        nb::loadCellParamsYaml(nb::resolveAirbagParamsFile(log.runs.at(0).airbag, kSource + "/config"));
+    nb::DiagnosisOptions o;
+    o.threads = 1;
+    const nb::DiagnosisReport rep = nb::calibrateRuns(log.runs, nominal, o, file);
+    const nb::CellParams cal = nb::applyCalibration(rep.calibration.movedValues(), nominal);
+    std::vector<const nb::RunData*> all;
+    for (const auto& r : log.runs) all.push_back(&r);
+    const double period = gs::medianCyclePeriod(all, 0.2);
+    std::vector<std::vector<gs::CyclePoint>> points;
+    for (const auto& r : log.runs) {
+      const nb::Replay replay = nb::replayRun(r, cal, {});
+      EXPECT_TRUE(replay.ok) << file << ": " << replay.message;
+      points.push_back(gs::endOfCycleResiduals(r, replay.p_gauge_pa, 0.2, period));
+    }
+    const gs::CycleDrift d = gs::fitCycleDrift(points, 0.0);
+    EXPECT_TRUE(d.ok()) << file;
+    const double c = std::stod(log.runs.at(0).meta.at("lung_compliance_m3_pa"));
+    return std::make_tuple(-d.slope_pa_s * portCompliance(cal) * 1e6,
+                           modelFreeInflowBias(log.runs, c, m.density_kg_m3) * 1e6,  // mL/s
+                           d.significant(3.0));
+  };
+  int standing_out = 0;
+  for (const char* f : {"covent_pc_1.dat", "covent_pc_3.dat", "covent_pc_5.dat", "covent_pc_7.dat"}) {
+    const auto [drift, model_free, significant] =
+        offsets("respiraworks_venturi", std::string("2020-07-01-Control-Tests-AIR/") + f);
+    std::printf("uncorrected %s: whole breaths %+.2f%s, model-free %+.2f mL/s\n", f, drift,
+                significant ? "" : " (within its scatter)", model_free);
+    EXPECT_NEAR(drift, model_free, 3.0) << f;
+    standing_out += significant ? 1 : 0;
+  }
+  // At the largest compliance a small offset moves the pressure too slowly
+  // to stand out of the scatter of its runs' end-of-cycle residuals.
+  EXPECT_GE(standing_out, 3);
+  for (int i = 1; i <= 8; ++i) {
+    const std::string f = "covent_pc_" + std::to_string(i) + ".dat";
+    const auto [drift, model_free, significant] = offsets("respiraworks_net_flow", "2020-06-21-RunForRecord2-AIR/" + f);
+    std::printf("corrected %s: whole breaths %+.2f%s, model-free %+.2f mL/s\n", f.c_str(), drift,
+                significant ? "" : " (within its scatter)", model_free);
+    EXPECT_TRUE(std::fabs(drift) < 2.0 || !significant) << f;
   }
 }
