@@ -219,7 +219,8 @@ Status SimulatorParams::validate() const {
                "~tissue_load_rate_hz must lie in (0, rate_hz]");
   errors.addNested(tissue_load.validate(), "~tissue_load/: ");
   errors.addIf(!(cell_timeout_s > 0.0), "~cell_timeout_s must be positive");
-  errors.addIf(!(startup_wait_s >= 0.0), "~startup_wait_s must be >= 0");
+  errors.addIf(!(startup_wait_s >= 0.0 && startup_wait_s <= 600.0), "~startup_wait_s must lie in [0, 600] s");
+  errors.addIf(!(lay_down_s >= 0.0 && lay_down_s <= 60.0), "~lay_down_s must lie in [0, 60] s");
   errors.addIf(!(clock_speed > 0.0 && clock_speed <= 100.0), "~clock_speed must lie in (0, 100]");
   errors.addIf(!(clock_step_s > 0.0 && clock_step_s <= 1.0 / rate_hz), "~clock_step_s must lie in (0, 1 / rate_hz]");
   return errors.status();
@@ -235,6 +236,7 @@ SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
   readParam(pnh, "marker_rate_hz", &p.marker_rate_hz);
   readParam(pnh, "cell_timeout_s", &p.cell_timeout_s);
   readParam(pnh, "startup_wait_s", &p.startup_wait_s);
+  readParam(pnh, "lay_down_s", &p.lay_down_s);
   readParam(pnh, "publish_clock", &p.publish_clock);
   readParam(pnh, "clock_speed", &p.clock_speed);
   readParam(pnh, "clock_step_s", &p.clock_step_s);
@@ -412,13 +414,19 @@ Simulator::CellSnapshot Simulator::snapshotCells() {
 
 bool Simulator::coupled(const ros::Time& now, const CellSnapshot& cells) {
   if (!started_) {
-    if (start_.isZero()) start_ = now;
-    if (cells.unseen > 0 && (now - start_).toSec() < params_.startup_wait_s) return false;  // wait for first states
+    if (start_.isZero()) start_ = last_arrival_ = now;
+    // Cells that come up over a fieldbus arrive over seconds: wait while they still do, so the
+    // body is never laid on a cell only because it is late (it would rest on it at the floor).
+    if (cells.unseen != unseen_) last_arrival_ = now;
+    unseen_ = cells.unseen;
+    if (cells.unseen > 0 && (now - last_arrival_).toSec() < params_.startup_wait_s) return false;
     if (cells.unseen > 0)
       ROS_WARN("simulator: %d of %zu cells never reported; the body rests on them at %.3f m", cells.unseen,
                cells.heights.size(), body_->grid().min_height_m);
-    ROS_INFO("simulator: coupling the body to the cells (loads through %s)", names::kCellLoads);
+    ROS_INFO("simulator: laying the body on the cells over %g s (loads through %s)", params_.lay_down_s,
+             names::kCellLoads);
     started_ = true;
+    coupled_at_ = now;
   }
   if (cells.stale > 0)
     ROS_WARN_THROTTLE(10.0, "simulator: %d cells silent for more than %g s; the body rests on their last heights",
@@ -435,11 +443,17 @@ void Simulator::publishLoads(const BodyState& state, const std::vector<double>& 
     filtered_load_n_.resize(n);
     for (std::size_t i = 0; i < n; ++i)
       filtered_load_n_[i] = std::isfinite(reported[i]) ? reported[i] : params_.plate_weight_n + state.cell_load_n[i];
+    handover_load_n_ = filtered_load_n_;
     last_step_ = now;
   }
   const double dt = std::clamp((now - last_step_).toSec(), 0.0, 1.0);
   last_step_ = now;
   const double alpha = params_.load_filter_time_s > 0.0 ? 1.0 - std::exp(-dt / params_.load_filter_time_s) : 1.0;
+  // A patient is laid down, not dropped: the body's share of the load rises as a smoothstep
+  // over lay_down_s (peak rate 1.5 x the change / lay_down_s), as a nurse lowers a patient.
+  const double x = params_.lay_down_s > 0.0 ? std::clamp((now - coupled_at_).toSec() / params_.lay_down_s, 0.0, 1.0)
+                                            : 1.0;
+  const double laid = x * x * (3.0 - 2.0 * x);
   const boost::shared_ptr<std_msgs::Float64MultiArray> loads = boost::make_shared<std_msgs::Float64MultiArray>();
   loads->layout.dim.resize(1);
   loads->layout.dim[0].label = "cell_id";
@@ -447,7 +461,8 @@ void Simulator::publishLoads(const BodyState& state, const std::vector<double>& 
   loads->layout.dim[0].stride = static_cast<uint32_t>(n);
   loads->data.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    filtered_load_n_[i] += alpha * (params_.plate_weight_n + state.cell_load_n[i] - filtered_load_n_[i]);
+    const double target = handover_load_n_[i] + laid * (params_.plate_weight_n + state.cell_load_n[i] - handover_load_n_[i]);
+    filtered_load_n_[i] += alpha * (target - filtered_load_n_[i]);
     loads->data[i] = filtered_load_n_[i];
   }
   loads_pub_.publish(loads);

@@ -45,7 +45,9 @@ struct SimulatorParams {
   double plate_weight_n = 0.6;       ///< ~plate_weight_n: added to every cell's load [N]
   double marker_rate_hz = 10.0;      ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
   double cell_timeout_s = 1.0;       ///< ~cell_timeout_s: warn when a cell is silent this long [s]
-  double startup_wait_s = 5.0;       ///< ~startup_wait_s: wait this long for every cell's first state [s]
+  /// ~startup_wait_s: wait for every cell's first state until this long after the last new one [s]
+  double startup_wait_s = 5.0;
+  double lay_down_s = 2.0;           ///< ~lay_down_s: the body's loads reach the cells over this long [s]
   bool publish_clock = false;        ///< ~publish_clock: publish /clock (for use_sim_time runs)
   double clock_speed = 1.0;          ///< ~clock_speed: simulated seconds per wall second
   double clock_step_s = 0.005;       ///< ~clock_step_s: /clock increment [s]
@@ -83,8 +85,8 @@ class Simulator {
     int unseen = 0, stale = 0;
   };
   CellSnapshot snapshotCells();
-  /// False while waiting for every cell's first state (up to ~startup_wait_s); warns of
-  /// silent cells.
+  /// False while waiting for every cell's first state (while cells still arrive, each new one
+  /// gives the rest ~startup_wait_s more); warns of silent cells.
   bool coupled(const ros::Time& now, const CellSnapshot& cells);
   /// The body's cell loads through the first-order filter on /airbag_loads.
   void publishLoads(const BodyState& state, const std::vector<double>& reported, const ros::Time& now);
@@ -112,8 +114,10 @@ class Simulator {
 
   std::mutex step_mutex_;                // one step at a time
   std::vector<double> filtered_load_n_;  // by cell id, plate included: what /airbag_loads says
+  std::vector<double> handover_load_n_;  // by cell id, what the cells carried when the body was laid down
   bool started_ = false;
-  ros::Time start_, last_step_, last_markers_, last_tissue_;
+  int unseen_ = -1;                      // cells without a first state at the last step (-1: none yet)
+  ros::Time start_, last_arrival_, coupled_at_, last_step_, last_markers_, last_tissue_;
   double step_time_sum_s_ = 0.0, step_time_max_s_ = 0.0;
   long steps_ = 0;
 
