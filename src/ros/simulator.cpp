@@ -451,8 +451,8 @@ void Simulator::publishLoads(const BodyState& state, const std::vector<double>& 
   const double alpha = params_.load_filter_time_s > 0.0 ? 1.0 - std::exp(-dt / params_.load_filter_time_s) : 1.0;
   // A patient is laid down, not dropped: the body's share of the load rises as a smoothstep
   // over lay_down_s (peak rate 1.5 x the change / lay_down_s), as a nurse lowers a patient.
-  const double x = params_.lay_down_s > 0.0 ? std::clamp((now - coupled_at_).toSec() / params_.lay_down_s, 0.0, 1.0)
-                                            : 1.0;
+  const double x =
+      params_.lay_down_s > 0.0 ? std::clamp((now - coupled_at_).toSec() / params_.lay_down_s, 0.0, 1.0) : 1.0;
   const double laid = x * x * (3.0 - 2.0 * x);
   const boost::shared_ptr<std_msgs::Float64MultiArray> loads = boost::make_shared<std_msgs::Float64MultiArray>();
   loads->layout.dim.resize(1);
@@ -461,7 +461,8 @@ void Simulator::publishLoads(const BodyState& state, const std::vector<double>& 
   loads->layout.dim[0].stride = static_cast<uint32_t>(n);
   loads->data.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double target = handover_load_n_[i] + laid * (params_.plate_weight_n + state.cell_load_n[i] - handover_load_n_[i]);
+    const double target =
+        handover_load_n_[i] + laid * (params_.plate_weight_n + state.cell_load_n[i] - handover_load_n_[i]);
     filtered_load_n_[i] += alpha * (target - filtered_load_n_[i]);
     loads->data[i] = filtered_load_n_[i];
   }

@@ -41,10 +41,10 @@ struct SimulatorParams {
   std::string robot_description = "robot_description";  ///< ~robot_description_param
   std::string cells_ns = "/";                           ///< ~cells_ns: where the airbag_<r>_<c> nodes live
   double rate_hz = 50.0;                                ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
-  double load_filter_time_s = 0.1;   ///< ~load_filter_time_s: first-order filter on the published loads [s]
-  double plate_weight_n = 0.6;       ///< ~plate_weight_n: added to every cell's load [N]
-  double marker_rate_hz = 10.0;      ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
-  double cell_timeout_s = 1.0;       ///< ~cell_timeout_s: warn when a cell is silent this long [s]
+  double load_filter_time_s = 0.1;  ///< ~load_filter_time_s: first-order filter on the published loads [s]
+  double plate_weight_n = 0.6;      ///< ~plate_weight_n: added to every cell's load [N]
+  double marker_rate_hz = 10.0;     ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
+  double cell_timeout_s = 1.0;      ///< ~cell_timeout_s: warn when a cell is silent this long [s]
   /// ~startup_wait_s: wait for every cell's first state until this long after the last new one [s]
   double startup_wait_s = 5.0;
   double lay_down_s = 2.0;           ///< ~lay_down_s: the body's loads reach the cells over this long [s]
@@ -116,7 +116,7 @@ class Simulator {
   std::vector<double> filtered_load_n_;  // by cell id, plate included: what /airbag_loads says
   std::vector<double> handover_load_n_;  // by cell id, what the cells carried when the body was laid down
   bool started_ = false;
-  int unseen_ = -1;                      // cells without a first state at the last step (-1: none yet)
+  int unseen_ = -1;  // cells without a first state at the last step (-1: none yet)
   ros::Time start_, last_arrival_, coupled_at_, last_step_, last_markers_, last_tissue_;
   double step_time_sum_s_ = 0.0, step_time_max_s_ = 0.0;
   long steps_ = 0;
