@@ -209,7 +209,12 @@ DriftNaming nameDriftAboveFloor(const PreparedRuns& prepared, const CellParams& 
   naming.fit_before =
       fitCycleDrift(residualsOf(prepared.select(prepared.fit), cell, {}, naming.period_s, options.threads),
                     windowNoise(prepared, prepared.fit));
-  if (!naming.fit_before.ok()) return naming;  // not cyclic: nothing to say
+  if (!naming.fit_before.ok()) {  // a trend needs 3 points at 2 times or more on the fit runs
+    naming.reasons.push_back("whole breaths: " + std::to_string(naming.fit_before.points) +
+                             " end-of-cycle residual(s) on the fit runs; a trend needs at least 3, at two times or "
+                             "more since a run's start: not measured");
+    return naming;
+  }
   naming.held_before =
       fitCycleDrift(residualsOf(prepared.select(prepared.withheld), cell, {}, naming.period_s, options.threads),
                     windowNoise(prepared, prepared.withheld));

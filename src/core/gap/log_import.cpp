@@ -226,6 +226,7 @@ class LogImporter {
       if (s.units.size() > 1) detectUnit(s);
     for (const auto& s : m_.signals)
       if (s.venturi) venturiSignal(s);
+    if (m_.cycles) judgeCycles();
     cutRuns();
     return std::move(out_);
   }
@@ -247,6 +248,8 @@ class LogImporter {
     // Edges do not depend on a positive unit factor: the first candidate serves before detection.
     const std::vector<double> v = toSi(spec, *findLogUnit(spec.units[0]), table_.columns.at(spec.column));
     starts_ = cycleStarts(v);
+    cycle_signal_ = v;
+    cycle_mid_ = 0.5 * (percentile(v, 0.05) + percentile(v, 0.95));
     if (starts_.size() < 2)
       throw fail("column '" + spec.column + "': " + std::to_string(starts_.size()) +
                  " cycle start(s) (rising edges of signal '" + spec.name +
@@ -367,13 +370,74 @@ class LogImporter {
     }
   }
 
-  /// Sample ranges [first, last] of the runs: groups of whole cycles, or the whole log.
-  std::vector<std::pair<std::size_t, std::size_t>> runRanges() const {
-    std::vector<std::pair<std::size_t, std::size_t>> ranges;
-    if (!m_.cycles) return {{0, table_.t_s.size() - 1}};
+  /// Each whole cycle's metered volume in (while the cycle signal is at or above the middle of
+  /// its range) and out (below it) [m^3], from the flow signal `name`.
+  std::pair<std::vector<double>, std::vector<double>> phaseVolumes(const std::string& name) const {
+    const Signal& sig = signals_.at(name);
+    const double to_volume = sig.quantity == Quantity::kVolumeFlow ? 1.0 : 1.0 / m_.density_kg_m3;
     const std::size_t k = starts_.size() - 1;
-    const std::size_t per = m_.cycles->cycles_per_run == 0 ? k : static_cast<std::size_t>(m_.cycles->cycles_per_run);
-    for (std::size_t c = 0; c < k; c += per) ranges.push_back({starts_[c], starts_[std::min(c + per, k)]});
+    std::vector<double> in(k, 0.0), out(k, 0.0);
+    for (std::size_t c = 0; c < k; ++c)
+      for (std::size_t i = starts_[c]; i < starts_[c + 1]; ++i) {
+        const double dv = 0.5 * (sig.si[i] + sig.si[i + 1]) * (table_.t_s[i + 1] - table_.t_s[i]) * to_volume;
+        if (cycle_signal_[i] >= cycle_mid_) in[c] += dv;
+        else out[c] -= dv;
+      }
+    return {in, out};
+  }
+
+  /// Marks the cycles unlike the others (cycles/keep_typical) and notes each one left out.
+  void judgeCycles() {
+    kept_.assign(starts_.size() - 1, true);
+    if (!m_.cycles->keep_typical) return;
+    const TypicalCycles& rule = *m_.cycles->keep_typical;
+    const auto [in, out] = phaseVolumes(rule.flow);
+    const double med_in = median(in), med_out = median(out);
+    if (!(med_in > 0.0) || !(med_out > 0.0))
+      throw fail("cycles/keep_typical: the median volume in (" + fmt(med_in * 1e6) + " mL) or out (" +
+                 fmt(med_out * 1e6) + " mL) of a cycle is not positive: '" + rule.flow +
+                 "' does not fill and empty with the cycles of '" + m_.cycles->signal + "'");
+    auto typical = [&](double v, double med) { return v >= med / rule.factor && v <= med * rule.factor; };
+    for (std::size_t c = 0; c < kept_.size(); ++c) {
+      if (typical(in[c], med_in) && typical(out[c], med_out)) continue;
+      kept_[c] = false;
+      out_.left_out.push_back(c);
+      out_.notes.push_back(fileName(path_) + ": cycle " + std::to_string(c + 1) + " (" + fmt(table_.t_s[starts_[c]]) +
+                           "-" + fmt(table_.t_s[starts_[c + 1]]) +
+                           " s) left out, unlike the others: " + fmt(in[c] * 1e6) + " mL in, " + fmt(out[c] * 1e6) +
+                           " mL out against medians of " + fmt(med_in * 1e6) + " and " + fmt(med_out * 1e6) +
+                           " mL (factor " + fmt(rule.factor) + ", " + rule.flow + ")");
+    }
+    if (out_.left_out.size() == kept_.size())
+      throw fail("cycles/keep_typical: every cycle left out (factor " + fmt(rule.factor) + ")");
+  }
+
+  /// A run: samples [first, last] and, when cut into cycles, its cycles [cycle, cycle_end).
+  struct RunRange {
+    std::size_t first = 0, last = 0, cycle = 0, cycle_end = 0;
+  };
+
+  /// The runs: groups of whole kept cycles (a group never spans a cycle left out), or the
+  /// whole log.
+  std::vector<RunRange> runRanges() const {
+    if (!m_.cycles) return {{0, table_.t_s.size() - 1, 0, 0}};
+    std::vector<RunRange> ranges;
+    const std::size_t k = kept_.size();
+    for (std::size_t c = 0; c < k;) {
+      if (!kept_[c]) {
+        ++c;
+        continue;
+      }
+      std::size_t end = c;
+      while (end < k && kept_[end]) ++end;
+      const std::size_t per =
+          m_.cycles->cycles_per_run == 0 ? end - c : static_cast<std::size_t>(m_.cycles->cycles_per_run);
+      for (std::size_t g = c; g < end; g += per) {
+        const std::size_t e = std::min(g + per, end);
+        ranges.push_back({starts_[g], starts_[e], g, e});
+      }
+      c = end;
+    }
     return ranges;
   }
 
@@ -383,9 +447,8 @@ class LogImporter {
     for (const auto& [column, signal] : m_.outputs) columns[column] = output(signal);
     const auto ranges = runRanges();
     const std::string stem = m_.run_prefix + fs::path(path_).stem().string();
-    const std::size_t per = m_.cycles ? (m_.cycles->cycles_per_run == 0 ? out_.cycles : m_.cycles->cycles_per_run) : 0;
     for (std::size_t r = 0; r < ranges.size(); ++r) {
-      const auto [a, b] = ranges[r];
+      const std::size_t a = ranges[r].first, b = ranges[r].last;
       auto slice = [&](const std::vector<double>& v) { return std::vector<double>(v.begin() + a, v.begin() + b + 1); };
       RunData run;
       char index[32];
@@ -394,9 +457,8 @@ class LogImporter {
       run.source = path_;
       applyMetadata(meta, &run);
       if (m_.cycles)
-        run.meta["import_cycles"] = std::to_string(r * per + 1) + "-" +
-                                    std::to_string(std::min((r + 1) * per, out_.cycles)) + " of " +
-                                    std::to_string(out_.cycles);
+        run.meta["import_cycles"] = std::to_string(ranges[r].cycle + 1) + "-" + std::to_string(ranges[r].cycle_end) +
+                                    " of " + std::to_string(out_.cycles);
       run.t_s = slice(table_.t_s);
       run.h_m.assign(run.t_s.size(), kNaN);
       run.mdot_in_kg_s.assign(run.t_s.size(), kNaN);
@@ -426,6 +488,9 @@ class LogImporter {
   LogTable table_;
   std::map<std::string, Signal> signals_;
   std::vector<std::size_t> starts_;
+  std::vector<double> cycle_signal_;  ///< the cycle signal in SI (its first candidate unit)
+  double cycle_mid_ = kNaN;           ///< the middle of its range: above it, a cycle's first phase
+  std::vector<bool> kept_;            ///< per whole cycle: not left out as unlike the others
   ImportedLog out_;
 };
 

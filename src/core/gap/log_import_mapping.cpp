@@ -293,7 +293,7 @@ class MappingParser {
   }
 
   void parseCycles(const YAML::Node& node) {
-    checkKeys(node, "cycles", {"signal", "cycles_per_run"}, {"signal"});
+    checkKeys(node, "cycles", {"signal", "cycles_per_run", "keep_typical"}, {"signal"});
     CycleSpec c;
     c.signal = scalar<std::string>(node["signal"], "cycles/signal");
     if (node["cycles_per_run"]) {
@@ -304,6 +304,16 @@ class MappingParser {
         c.cycles_per_run = scalar<int>(n, "cycles/cycles_per_run");
         if (c.cycles_per_run < 1) throw fail(n, "cycles/cycles_per_run: expected a whole number >= 1 or 'all'");
       }
+    }
+    if (node["keep_typical"]) {
+      const YAML::Node& k = node["keep_typical"];
+      checkKeys(k, "cycles/keep_typical", {"flow", "factor"}, {"flow", "factor"});
+      TypicalCycles t;
+      t.flow = scalar<std::string>(k["flow"], "cycles/keep_typical/flow");
+      t.factor = finite(k["factor"], "cycles/keep_typical/factor");
+      if (!(t.factor > 1.0))
+        throw fail(k["factor"], "cycles/keep_typical/factor: must be > 1, got " + k["factor"].Scalar());
+      c.keep_typical = t;
     }
     m_.cycles = c;
     cycles_node_ = node;
@@ -407,6 +417,15 @@ class MappingParser {
     if (m_.cycles && signal(m_.cycles->signal)->venturi)
       throw fail(cycles_node_["signal"],
                  "cycles/signal: '" + m_.cycles->signal + "' is derived; name a setpoint column");
+    if (m_.cycles && m_.cycles->keep_typical) {
+      const YAML::Node& key = cycles_node_["keep_typical"]["flow"];
+      const std::string& name = m_.cycles->keep_typical->flow;
+      const SignalSpec* s = signal(name);
+      if (!s) throw fail(key, "cycles/keep_typical/flow: no signal named '" + name + "'");
+      const Quantity q = quantityOf(*s);
+      if (q != Quantity::kVolumeFlow && q != Quantity::kMassFlow)
+        throw fail(key, "cycles/keep_typical/flow: '" + name + "' is a " + quantityName(q) + ", not a flow");
+    }
   }
 
   const std::string text_;

@@ -152,6 +152,84 @@ TEST(LogImport, DetectsKpaAndCutsWholeCycles) {
   }
 }
 
+namespace {
+
+/// 16 s at 100 Hz: 7 whole cycles of kMapping's setpoint (rises at 0.5, 2.5, ..., 14.5 s), the
+/// flow filling at 6 L/min while the setpoint is up and emptying at 6 L/min while it is down
+/// (logged with the mapping's sign flipped); the cycle starting at `odd_start` s carries a
+/// third of that flow.
+std::string fillingLog(double odd_start) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "t,sp,p,q\n";
+  for (int i = 0; i < 1600; ++i) {
+    const double t = i * 0.01, phase = std::fmod(t + 1.5, 2.0);
+    double sp = 5.0;
+    if (phase < 1.0) sp = 5.0 + 10.0 * std::min(1.0, phase / 0.1);
+    if (t < 0.5) sp = 5.0;
+    double q = sp >= 10.0 ? 6.0 : -6.0;
+    if (t >= odd_start && t < odd_start + 2.0) q /= 3.0;
+    s << i * 10 << "," << sp << "," << sp << "," << -q << "\n";
+  }
+  return s.str();
+}
+
+const std::string kTypical = "cycles: {signal: sp, cycles_per_run: 2, keep_typical: {flow: q, factor: 1.25}}";
+
+}  // namespace
+
+TEST(LogImport, LeavesOutCyclesUnlikeTheOthersAndNeverRunsAcrossThem) {
+  const std::string dir = tmpDir("typical");
+  const nb::ImportMapping m =
+      nb::parseImportMapping(replaced(kMapping, "cycles: {signal: sp, cycles_per_run: 1}", kTypical), "m.yaml");
+  ASSERT_TRUE(m.cycles->keep_typical);
+  EXPECT_EQ(m.cycles->keep_typical->flow, "q");
+  EXPECT_DOUBLE_EQ(m.cycles->keep_typical->factor, 1.25);
+  const nb::ImportedLog log = nb::importLog(m, writeFile(dir, "odd.csv", fillingLog(4.5)));
+  EXPECT_EQ(log.cycles, 7u);
+  EXPECT_EQ(log.left_out, (std::vector<std::size_t>{2}));
+  // Cycles 1-2, then 4-5 and 6-7: the run after the odd cycle starts where it ends.
+  ASSERT_EQ(log.runs.size(), 3u);
+  EXPECT_EQ(log.runs[0].meta.at("import_cycles"), "1-2 of 7");
+  EXPECT_EQ(log.runs[1].meta.at("import_cycles"), "4-5 of 7");
+  EXPECT_EQ(log.runs[2].meta.at("import_cycles"), "6-7 of 7");
+  EXPECT_DOUBLE_EQ(log.runs[0].t_s.back(), 4.5);
+  EXPECT_DOUBLE_EQ(log.runs[1].t_s.front(), 6.5);
+  EXPECT_EQ(log.runs[1].role, "withheld");
+  bool noted = false;
+  for (const auto& n : log.notes) noted |= n.find("cycle 3 (4.5-6.5 s) left out") != std::string::npos;
+  EXPECT_TRUE(noted);
+  // Every cycle alike: nothing left out, the runs as without the rule.
+  const nb::ImportedLog plain = nb::importLog(m, writeFile(dir, "plain.csv", fillingLog(100.0)));
+  EXPECT_TRUE(plain.left_out.empty());
+  ASSERT_EQ(plain.runs.size(), 4u);
+  EXPECT_EQ(plain.runs[3].meta.at("import_cycles"), "7-7 of 7");
+  // A flow that does not empty with the cycles cannot be judged.
+  expectError([&] { nb::importLog(m, writeFile(dir, "steady.csv", syntheticLog(false))); },
+              {"steady.csv", "cycles/keep_typical", "not positive"});
+}
+
+TEST(LogImportMapping, RejectsBadKeepTypicalValuesNamingTheKey) {
+  auto with = [](const std::string& rule) {
+    return replaced(kMapping, "cycles: {signal: sp, cycles_per_run: 1}",
+                    "cycles: {signal: sp, cycles_per_run: 2, keep_typical: " + rule + "}");
+  };
+  expectError([&] { nb::parseImportMapping(with("{flow: q, factor: 1}"), "m.yaml"); },
+              {"m.yaml:10:", "cycles/keep_typical/factor: must be > 1"});
+  expectError([&] { nb::parseImportMapping(with("{flow: q, factor: 0.5}"), "m.yaml"); },
+              {"m.yaml:10:", "cycles/keep_typical/factor"});
+  expectError([&] { nb::parseImportMapping(with("{flow: q, factor: wide}"), "m.yaml"); },
+              {"m.yaml:10:", "cycles/keep_typical/factor"});
+  expectError([&] { nb::parseImportMapping(with("{flow: sp, factor: 1.5}"), "m.yaml"); },
+              {"m.yaml:10:", "cycles/keep_typical/flow", "pressure, not a flow"});
+  expectError([&] { nb::parseImportMapping(with("{flow: nope, factor: 1.5}"), "m.yaml"); },
+              {"m.yaml:10:", "cycles/keep_typical/flow: no signal named 'nope'"});
+  expectError([&] { nb::parseImportMapping(with("{flow: q, fator: 1.5}"), "m.yaml"); },
+              {"m.yaml:10:", "unknown key 'cycles/keep_typical/fator'"});
+  expectError([&] { nb::parseImportMapping(with("{flow: q}"), "m.yaml"); },
+              {"m.yaml:10:", "missing key 'cycles/keep_typical/factor'"});
+}
+
 TEST(LogImport, ConvertsScaleOffsetSignAndVolumeToMassFlow) {
   const std::string dir = tmpDir("convert");
   std::string map = replaced(kMapping, "sign: -1}", "sign: -1, scale: 2, offset: 1}");

@@ -70,10 +70,20 @@ struct SignalSpec {
   int line = 0;  ///< line in the mapping file (1-based), for errors
 };
 
+/// Leaving out the cycles unlike the others (an obstruction, a disconnection): each cycle's
+/// metered volume in and out (the flow's integral while the cycle signal is above, and while it
+/// is below, the middle of its range) must lie within `factor` of that phase's median over the
+/// log's whole cycles.
+struct TypicalCycles {
+  std::string flow;     ///< a flow signal (volume or mass flow)
+  double factor = 0.0;  ///< > 1: kept when median / factor <= volume <= median * factor
+};
+
 /// Cutting a log into runs of whole cycles at the rising edges of a signal (a setpoint).
 struct CycleSpec {
   std::string signal;
-  int cycles_per_run = 1;  ///< 0: one run of all whole cycles
+  int cycles_per_run = 1;                     ///< 0: one run of all whole cycles (of each stretch of kept cycles)
+  std::optional<TypicalCycles> keep_typical;  ///< absent: every whole cycle is kept
 };
 
 /// Which imported runs the diagnosis fits and which it withholds.
@@ -114,16 +124,18 @@ ImportMapping parseImportMapping(const std::string& yaml_text, const std::string
 /// What the import made of one log: its runs and what it decided (units chosen, cycles found).
 struct ImportedLog {
   std::string path;
-  std::vector<RunData> runs;       ///< with names, roles and metadata set
-  std::vector<std::string> notes;  ///< one line per decision ("pressure: unit kPa (...)")
-  std::size_t cycles = 0;          ///< whole cycles found (0: not cut)
+  std::vector<RunData> runs;          ///< with names, roles and metadata set
+  std::vector<std::string> notes;     ///< one line per decision ("pressure: unit kPa (...)")
+  std::size_t cycles = 0;             ///< whole cycles found (0: not cut)
+  std::vector<std::size_t> left_out;  ///< cycles left out as unlike the others (0-based)
 };
 
 /**
  * Imports one log with a mapping, in memory. Throws std::runtime_error naming the file, the line
  * and the column for: unreadable file, no header, a mapped column missing from the header, a row
  * of the wrong width, a non-numeric or infinite field, a missing time, time not strictly
- * increasing, a unit no candidate (or more than one) fits, fewer than two cycle starts.
+ * increasing, a unit no candidate (or more than one) fits, fewer than two cycle starts, a
+ * `keep_typical` phase whose median volume is not positive, no cycle kept.
  */
 ImportedLog importLog(const ImportMapping& mapping, const std::string& log_path);
 
