@@ -354,12 +354,14 @@ Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double su
 }
 
 constexpr const char* kSynopsis =
-    "usage: bed_study --out DIR [--period S] [--articulated] [--plans LIST [--duration S] [--warmup S]]\n"
+    "usage: bed_study --out DIR [--period S] [--articulated] [--plans LIST [--duration S] [--warmup S]\n"
+    "                 [--mass-kg M] [--height-m H]]\n"
     "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
     "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
     "lateral turns only (DIR/bed_study_articulated.json). With --plans (comma-separated: flat,\n"
     "alternating_1in2, alternating_1in3, lateral_turn_30, adaptive), only the support table of\n"
-    "those plans (DIR/bed_study_support.json), on the articulated patient with --articulated.";
+    "those plans (DIR/bed_study_support.json), on the articulated patient with --articulated, for a\n"
+    "body of --mass-kg and --height-m (default 70 kg, 1.70 m).";
 
 }  // namespace
 
@@ -389,17 +391,26 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup_s, "support table: time under the plan before measuring [s]")
       ->type_name("S")
       ->check(CLI::NonNegativeNumber);
+  nb::PatientParams body;
+  app.add_option("--mass-kg", body.mass_kg, "support table: the patient's mass [kg]")->type_name("M");
+  app.add_option("--height-m", body.height_m, "support table: the patient's stature [m]")->type_name("H");
   const int parsed = tools::parseCommandLine(app, argc, argv);
   if (parsed != tools::kRun) return parsed;
+  if (const nb::Status valid = body.validate(); !valid.ok()) {
+    std::cerr << "bed_study: --mass-kg / --height-m: " << valid.message() << "\n";
+    return 2;
+  }
 
   std::filesystem::create_directories(out_dir);
   const nb::BedGrid grid;
   const nb::PlanConfig config;
   Json study;
   if (!plans.empty()) {
-    nb::PatientParams patient;
+    nb::PatientParams patient = body;
     patient.articulated = articulated;
     study["patient"] = articulated ? "articulated" : "free segments";
+    study["mass_kg"] = patient.mass_kg;
+    study["height_m"] = patient.height_m;
     study["warmup_s"] = warmup_s;
     study["duration_s"] = duration_s;
     for (const std::string& name : plans)
