@@ -2,6 +2,7 @@
 
 #include <dynamic_reconfigure/Config.h>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -16,7 +17,9 @@ namespace {
 using Values = std::map<std::string, double>;
 
 /// Sections whose YAML keys are "section/name" (the cfg names them "section_name").
-const char* const kSections[] = {"controller", "safety", "plans"};
+// Sections whose '/' a cfg name writes as '_', the deepest first (plans_adaptive_x is
+// plans/adaptive/x, not plans/adaptive_x).
+const char* const kSections[] = {"plans/adaptive/tolerance", "plans/adaptive", "controller", "safety", "plans"};
 
 /// Every key the airbag node's parameters have (its AirbagCellParams' table).
 const ParamTable<AirbagNodeParams>& airbagNodeFields() {
@@ -119,8 +122,11 @@ bool requestWith(Config& config, Params* params, ReconfiguredKeys* changed, cons
 }  // namespace
 
 std::string reconfigureYamlKey(const std::string& name) {
-  for (const std::string section : kSections)
-    if (name.compare(0, section.size() + 1, section + "_") == 0) return section + "/" + name.substr(section.size() + 1);
+  for (const std::string section : kSections) {
+    std::string prefix = section + "_";
+    std::replace(prefix.begin(), prefix.end(), '/', '_');
+    if (name.compare(0, prefix.size(), prefix) == 0) return section + "/" + name.substr(prefix.size());
+  }
   return name;
 }
 

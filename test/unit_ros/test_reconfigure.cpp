@@ -93,6 +93,8 @@ TEST(ReconfigureKeys, AreTheYamlKeysWithTheSectionSlashWrittenAsAnUnderscore) {
   EXPECT_EQ(nb::reconfigureYamlKey("safety_relief_pressure_pa"), "safety/relief_pressure_pa");
   EXPECT_EQ(nb::reconfigureYamlKey("plans_alternating_period_s"), "plans/alternating_period_s");
   EXPECT_EQ(nb::reconfigureYamlKey("leak_alarm_s"), "leak_alarm_s");
+  EXPECT_EQ(nb::reconfigureYamlKey("plans_adaptive_relief_s"), "plans/adaptive/relief_s");
+  EXPECT_EQ(nb::reconfigureYamlKey("plans_adaptive_tolerance_exponent"), "plans/adaptive/tolerance/exponent");
 }
 
 TEST(ReconfigureDefaults, AreTheParameterStructsDefaults) {
@@ -205,6 +207,27 @@ TEST(BedManagerReconfigure, AGoodConfigBecomesTheParams) {
   EXPECT_EQ(changed.count("plans/alternating_period_s"), 1u);
   EXPECT_EQ(changed.count("leak_alarm_s"), 1u);
   EXPECT_EQ(changed.size(), 6u);
+}
+
+TEST(BedManagerReconfigure, TheAdaptivePlansKeysBecomeTheParamsOrAreRefusedNamingTheKey) {
+  nb::BedManagerParams params;
+  nb::BedManagerConfig config = nb::bedManagerConfigFrom(params);
+  config.plans_adaptive_heel_height_m = 0.04;
+  config.plans_adaptive_tolerance_exponent = 2.0;
+  nb::ReconfiguredKeys changed;
+  ASSERT_EQ(nb::reconfigureParams(config, &params, &changed), "");
+  EXPECT_DOUBLE_EQ(params.bed.plans.adaptive.heel_height_m, 0.04);
+  EXPECT_DOUBLE_EQ(params.bed.plans.adaptive.tolerance.exponent, 2.0);
+  EXPECT_EQ(changed.count("plans/adaptive/heel_height_m"), 1u);
+  EXPECT_EQ(changed.count("plans/adaptive/tolerance/exponent"), 1u);
+
+  const std::string before = dump(params);
+  config = nb::bedManagerConfigFrom(params);
+  config.plans_adaptive_relief_s = 2000.0;  // longer than the 1800 s budget
+  const std::string error = nb::reconfigureParams(config, &params, &changed);
+  EXPECT_NE(error.find("plans_adaptive_relief_s = 2000"), std::string::npos) << error;
+  EXPECT_NE(error.find("relief_budget_s must exceed relief_s"), std::string::npos) << error;
+  EXPECT_EQ(dump(params), before);
 }
 
 TEST(BedManagerReconfigure, AZeroLeakAlarmTimeIsRefusedNamingTheKeyAndChangesNothing) {
