@@ -16,9 +16,8 @@ namespace {
 
 using Values = std::map<std::string, double>;
 
-/// Sections whose YAML keys are "section/name" (the cfg names them "section_name").
-// Sections whose '/' a cfg name writes as '_', the deepest first (plans_adaptive_x is
-// plans/adaptive/x, not plans/adaptive_x).
+/// Sections whose YAML keys are "section/name" (the cfg writes each '/' as '_'), the deepest
+/// first: plans_adaptive_x is plans/adaptive/x, not plans/adaptive_x.
 const char* const kSections[] = {"plans/adaptive/tolerance", "plans/adaptive", "controller", "safety", "plans"};
 
 /// Every key the airbag node's parameters have (its AirbagCellParams' table).
