@@ -18,6 +18,9 @@ Status AdaptiveSupportParams::validate(double min_height_m, double nominal_heigh
   e.addIf(!(finite(pelvis_length_m) && pelvis_length_m > 0.0), k, "pelvis_length_m must be positive");
   e.addIf(!(heel_height_m >= min_height_m && heel_height_m <= nominal_height_m), k,
           "heel_height_m must lie in [min_height_m, nominal_height_m]");
+  e.addIf(!(finite(calf_length_m) && calf_length_m >= 0.0), k, "calf_length_m must be >= 0");
+  e.addIf(!(calf_lift_m >= 0.0 && calf_lift_m <= max_height_m - nominal_height_m), k,
+          "calf_lift_m must lie in [0, max_height_m - nominal_height_m]");
   e.addIf(!(margin_height_m >= min_height_m && margin_height_m <= nominal_height_m), k,
           "margin_height_m must lie in [min_height_m, nominal_height_m]");
   e.addIf(!(finite(level_gain_m_n_s) && level_gain_m_n_s >= 0.0 && level_gain_m_n_s <= 1e-3), k,
@@ -44,11 +47,14 @@ const ParamTable<AdaptiveSupportParams>& adaptiveSupportFields() {
 #define NB_FIELD(key, desc, expr) realField<P>(key, desc, [](P& p) -> double& { return expr; })
   static const ParamTable<P> fields = {
       NB_FIELD("survey_s", "the bed stays level this long before the load map is read [s]", p.survey_s),
-      NB_FIELD("contact_load_n", "a cell sensing more than this is under the body [N]", p.contact_load_n),
+      NB_FIELD("contact_load_n", "a cell sensing more than this above an empty cell is under the body [N]",
+               p.contact_load_n),
       NB_FIELD("head_length_m", "loaded rows this close to the head end are the head [m]", p.head_length_m),
       NB_FIELD("heel_zone_m", "loaded leg rows this close to the foot end are the heels [m]", p.heel_zone_m),
       NB_FIELD("pelvis_length_m", "the last trunk rows over this length are the pelvis [m]", p.pelvis_length_m),
       NB_FIELD("heel_height_m", "floated heel cells' height [m]", p.heel_height_m),
+      NB_FIELD("calf_length_m", "the leg rows over this length before the heels are the calves [m]", p.calf_length_m),
+      NB_FIELD("calf_lift_m", "the calves' cells go this much higher so the feet hang clear [m]", p.calf_lift_m),
       NB_FIELD("margin_height_m", "lowest height of a cell under the trunk or pelvis [m]", p.margin_height_m),
       NB_FIELD("level_gain_m_n_s", "levelling: height change per N of excess load per s [m/(N s)]", p.level_gain_m_n_s),
       NB_FIELD("level_range_m", "levelling moves a cell at most this far from nominal [m]", p.level_range_m),
@@ -87,9 +93,44 @@ std::vector<double> sensedLoads(const BedGrid& grid, const SensedCells& sensed) 
   return loads;
 }
 
-std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector<double>& loads,
+double emptyCellLoad(const std::vector<double>& loads_n) {
+  if (loads_n.empty()) return 0.0;
+  std::vector<double> sorted = loads_n;
+  const std::size_t k = sorted.size() / 10;
+  std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+  return std::max(0.0, sorted[k]);
+}
+
+namespace {
+
+/// Heel rows and cells: the loaded rows within the heel zone of the body's foot end, and every
+/// cell from there to the bed's foot end one column either side of the feet, so that no cover
+/// slope up to a cell left high reaches a heel. The calves: the leg rows within calf_length_m
+/// before the heel rows, the same columns.
+void findHeels(const BedGrid& grid, const std::vector<double>& loads, const AdaptiveSupportParams& params,
+               int first_leg_row, BodyLayout* out) {
+  for (int h = std::max(first_leg_row, out->first_row); h <= out->last_row; ++h)
+    if ((out->last_row - h) * grid.pitch_m < params.heel_zone_m) out->heel_rows.push_back(h);
+  if (out->heel_rows.empty()) return;
+  int lo = grid.cols, hi = -1;
+  for (int h : out->heel_rows)
+    for (int c = 0; c < grid.cols; ++c)
+      if (loads[grid.id(h, c)] > params.contact_load_n) lo = std::min(lo, c), hi = std::max(hi, c);
+  const int first_calf =
+      std::max(first_leg_row, out->heel_rows.front() - rowsWithin(params.calf_length_m, grid.pitch_m));
+  for (int h = params.calf_length_m > 0.0 ? first_calf : out->heel_rows.front(); h < grid.rows; ++h)
+    for (int c = std::max(0, lo - 1); c <= std::min(grid.cols - 1, hi + 1); ++c)
+      (h < out->heel_rows.front() ? out->calf_cells : out->heel_cells).push_back(grid.id(h, c));
+}
+
+}  // namespace
+
+std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector<double>& sensed_loads,
                                           const AdaptiveSupportParams& params) {
   BodyLayout out;
+  out.empty_load_n = emptyCellLoad(sensed_loads);
+  std::vector<double> loads(sensed_loads.size());
+  for (std::size_t i = 0; i < loads.size(); ++i) loads[i] = std::max(0.0, sensed_loads[i] - out.empty_load_n);
   out.first_row = grid.rows;
   out.last_row = -1;
   double sum = 0.0, moment = 0.0;
@@ -117,11 +158,7 @@ std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector
   if (out.trunk_rows.empty()) return std::nullopt;
   const int pelvis = std::min<int>(out.trunk_rows.size(), rowsWithin(params.pelvis_length_m, grid.pitch_m));
   out.pelvis_rows.assign(out.trunk_rows.end() - pelvis, out.trunk_rows.end());
-  for (int h = std::max(r, out.first_row); h <= out.last_row; ++h)
-    if ((out.last_row - h) * grid.pitch_m < params.heel_zone_m) out.heel_rows.push_back(h);
-  for (int h : out.heel_rows)
-    for (int c = 0; c < grid.cols; ++c)
-      if (load(h, c) > params.contact_load_n) out.heel_cells.push_back(grid.id(h, c));
+  findHeels(grid, loads, params, r, &out);
   for (int t : out.trunk_rows) {
     int lo = grid.cols, hi = -1;
     for (int c = 0; c < grid.cols; ++c)
@@ -212,6 +249,7 @@ std::vector<double> AdaptiveSupport::wanted() const {
   std::vector<double> h(grid_.cells());
   for (int i = 0; i < grid_.cells(); ++i) h[i] = nominal_height_m_ + offset_m_[i];
   for (std::uint32_t id : layout_->heel_cells) h[id] = params_.heel_height_m;
+  for (std::uint32_t id : layout_->calf_cells) h[id] += params_.calf_lift_m;
   if (relieving_ >= 0) {
     const std::vector<int>& rows = regions_[relieving_].rows;
     for (int r = rows.front() - 1; r <= rows.back() + 1; ++r) {
@@ -238,7 +276,8 @@ std::vector<double> AdaptiveSupport::update(double elapsed_s, const SensedCells&
   if (!layout_) {
     *phase = elapsed_s < params_.survey_s ? "surveying" : "level: no body sensed";
   } else {
-    const std::vector<double> loads = sensedLoads(grid_, sensed);
+    std::vector<double> loads = sensedLoads(grid_, sensed);
+    for (double& l : loads) l = std::max(0.0, l - layout_->empty_load_n);
     level(loads, dt_s);
     account(loads, elapsed_s, dt_s);
     want = wanted();

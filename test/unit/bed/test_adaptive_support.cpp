@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "nursing_bed/core/bed/adaptive_support.h"
@@ -89,15 +90,36 @@ TEST(AdaptiveSupport, FindsTheBodyWhereverItLiesOnTheBed) {
   EXPECT_EQ(layout->heel_rows, (std::vector<int>{18, 19}));
 }
 
-TEST(AdaptiveSupport, LowersTheHeelCellsWhenTheLoadMapShowsHeels) {
+TEST(AdaptiveSupport, LowersTheHeelCellsToTheFootEndAndRaisesTheCalves) {
   const nb::BedGrid grid;
   nb::AdaptiveSupport s = support();
   run(&s, supineSensed(grid), 0.0, 120.0);
   const nb::AdaptiveSupportParams& p = kConfig.adaptive;
-  for (int r : {16, 17})
-    for (int c : {3, 5}) EXPECT_NEAR(s.targets()[grid.id(r, c)], p.heel_height_m, 1e-9) << r << "," << c;
-  for (int c = 0; c < grid.cols; ++c)  // the calves stay, and take the feet's load
-    EXPECT_NEAR(s.targets()[grid.id(14, c)], kConfig.nominal_height_m, 1e-9);
+  for (int r : {16, 17, 18, 19})  // the heel rows and every row after them, over the feet's columns
+    for (int c = 2; c <= 6; ++c) EXPECT_NEAR(s.targets()[grid.id(r, c)], p.heel_height_m, 1e-9) << r << "," << c;
+  for (int r : {14, 15})  // the calves go higher and take the feet's load
+    for (int c = 2; c <= 6; ++c)
+      EXPECT_NEAR(s.targets()[grid.id(r, c)], kConfig.nominal_height_m + p.calf_lift_m, 1e-9) << r << "," << c;
+  for (int c = 0; c < grid.cols; ++c) EXPECT_NEAR(s.targets()[grid.id(13, c)], kConfig.nominal_height_m, 1e-9);
+  EXPECT_NEAR(s.targets()[grid.id(17, 0)], kConfig.nominal_height_m, 1e-9);  // off the feet's columns
+}
+
+TEST(AdaptiveSupport, ReadsTheBodyNetOfWhatAnEmptyCellSenses) {
+  // Every cell reads 0.8 N more (the plate's weight, an offset of the estimates): the layout is
+  // the same, and an empty cell reads as empty.
+  const nb::BedGrid grid;
+  nb::SensedCells offset = supineSensed(grid);
+  for (double& l : offset.load_n) l += 0.8;
+  EXPECT_NEAR(nb::emptyCellLoad(offset.load_n), 0.8, 1e-12);
+  const auto plain = nb::inferBodyLayout(grid, supineSensed(grid).load_n, kConfig.adaptive);
+  const auto shifted = nb::inferBodyLayout(grid, offset.load_n, kConfig.adaptive);
+  ASSERT_TRUE(plain && shifted);
+  EXPECT_EQ(shifted->first_row, plain->first_row);
+  EXPECT_EQ(shifted->last_row, plain->last_row);
+  EXPECT_EQ(shifted->heel_rows, plain->heel_rows);
+  EXPECT_EQ(shifted->trunk_rows, plain->trunk_rows);
+  EXPECT_EQ(shifted->heel_cells, plain->heel_cells);
+  EXPECT_EQ(shifted->trunk_cells, plain->trunk_cells);
 }
 
 TEST(AdaptiveSupport, HoldsTheBedLevelWhileSurveyingAndWithoutABody) {
@@ -181,31 +203,35 @@ TEST(AdaptiveSupport, NeverMovesATargetFasterThanItsRate) {
   }
 }
 
-TEST(AdaptiveSupport, FloatsTheArticulatedPatientsHeelsFromItsOwnLoadMap) {
+TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps) {
   // Closed loop on the articulated body: the cells reach their targets, and the plan senses
-  // the loads the body puts on them. The heels float (their weight goes to the calves) and the
-  // skin stays clear of the bed base.
+  // the loads the body puts on them plus the plate's weight on every cell. On a small, the
+  // default and a heavy body the heels float (their weight goes to the calves) and the skin
+  // stays clear of the bed base.
   const nb::BedGrid grid;
-  nb::PatientParams patient;
-  patient.articulated = true;
-  nb::BodyModel body(patient, grid);
-  nb::AdaptiveSupport s = support();
-  std::vector<double> heights(grid.cells(), kConfig.nominal_height_m);
-  nb::SensedCells sensed;
-  std::string phase;
-  nb::BodyState state;
-  for (double t = 0.0; t <= 150.0; t += kStepS) {
-    state = body.solve(heights);
-    sensed.load_n = state.cell_load_n;
-    heights = s.update(t, sensed, &phase);
-  }
-  state = body.solve(heights);
-  EXPECT_LT(nb::paToMmHg(state.peak_pressure_pa.heels), 10.0);
-  const auto regions = nb::measureRegions(body.contactMap(heights), nb::defaultTissueRegions(), patient.height_m);
-  for (const nb::RegionLoad& r : regions)
-    if (std::isfinite(r.margin_m)) {
-      EXPECT_GE(r.margin_m, 0.025);
+  for (const auto& [mass_kg, height_m] : std::vector<std::pair<double, double>>{{50, 1.55}, {70, 1.70}, {110, 1.85}}) {
+    nb::PatientParams patient;
+    patient.articulated = true;
+    patient.mass_kg = mass_kg;
+    patient.height_m = height_m;
+    nb::BodyModel body(patient, grid);
+    nb::AdaptiveSupport s = support();
+    std::vector<double> heights(grid.cells(), kConfig.nominal_height_m);
+    nb::SensedCells sensed;
+    std::string phase;
+    for (double t = 0.0; t <= 150.0; t += kStepS) {
+      sensed.load_n = body.solve(heights).cell_load_n;
+      for (double& l : sensed.load_n) l += 0.6;
+      heights = s.update(t, sensed, &phase);
     }
+    const nb::BodyState state = body.solve(heights);
+    EXPECT_LT(nb::paToMmHg(state.peak_pressure_pa.heels), 10.0) << mass_kg << " kg";
+    const auto regions = nb::measureRegions(body.contactMap(heights), nb::defaultTissueRegions(), height_m);
+    for (const nb::RegionLoad& r : regions)
+      if (std::isfinite(r.margin_m)) {
+        EXPECT_GE(r.margin_m, 0.025) << mass_kg << " kg";
+      }
+  }
 }
 
 TEST(AdaptivePlan, IsMadeFromTheRegistryWithItsArguments) {
@@ -222,6 +248,8 @@ TEST(AdaptivePlan, RefusesBadArgumentsWithTheReason) {
   const std::vector<std::pair<std::map<std::string, std::string>, std::string>> bad = {
       {{{"heel_height_m", "0.5"}}, "heel_height_m must lie in"},
       {{{"margin_height_m", "0.001"}}, "margin_height_m must lie in"},
+      {{{"calf_lift_m", "0.2"}}, "calf_lift_m must lie in"},
+      {{{"calf_length_m", "-0.1"}}, "calf_length_m must be >= 0"},
       {{{"relief_s", "nan"}}, "relief_s must be finite"},
       {{{"relief_budget_s", "10"}}, "relief_budget_s must exceed relief_s"},
       {{{"max_rate_m_s", "0"}}, "max_rate_m_s must be positive"},

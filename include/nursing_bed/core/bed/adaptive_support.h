@@ -2,7 +2,7 @@
 // pressure and the observer's estimate of its load, without a pressure mat or the simulator's
 // truth. After a survey on a level bed it reads where the body lies from the load map (head at
 // the head end, trunk rows loaded in the midline, legs loaded on two columns, heels at the foot
-// end), then floats the heels, keeps the cells under the trunk and pelvis above a bottoming-out
+// end), then floats the heels (the heel cells lowered, the calves' raised), keeps the cells under the trunk and pelvis above a bottoming-out
 // height, levels the trunk's load between neighbouring cells, and relieves the head, the upper
 // trunk and the pelvis in turn before a time budget or a dose on the tolerance curve runs out.
 // Its targets move at a bounded rate; the bed supervisor's rate limits (height and roll slope)
@@ -32,11 +32,14 @@ struct SensedCells {
 /// Parameters of the adaptive plan (config/bed_manager.yaml, `plans/adaptive/...`).
 struct AdaptiveSupportParams {
   double survey_s = 20.0;        ///< the bed stays level this long before the load map is read [s]
-  double contact_load_n = 1.0;   ///< a cell sensing more than this is under the body [N]
+  double contact_load_n = 1.0;   ///< a cell sensing more than this above an empty cell is under the body [N]
   double head_length_m = 0.25;   ///< loaded rows this close to the head end are the head [m]
   double heel_zone_m = 0.15;     ///< loaded leg rows this close to the foot end are the heels [m]
   double pelvis_length_m = 0.2;  ///< the last trunk rows over this length are the pelvis [m]
   double heel_height_m = 0.03;   ///< floated heel cells' height [m]
+  double calf_length_m = 0.2;    ///< the leg rows over this length before the heels are the calves [m]
+  /// The calves' cells go this much higher, so the hanging feet clear the floated cells [m].
+  double calf_lift_m = 0.03;
   /// Lowest height of a cell under the trunk or pelvis: its bottoming-out margin [m].
   double margin_height_m = 0.08;
   double level_gain_m_n_s = 2e-5;   ///< levelling: height change per N of excess load per s [m/(N s)]
@@ -61,14 +64,23 @@ const ParamTable<AdaptiveSupportParams>& adaptiveSupportFields();
 struct BodyLayout {
   int first_row = 0, last_row = 0;  ///< loaded rows, head end to foot end
   int midline_col = 0;              ///< the load-weighted middle column
+  double empty_load_n = 0.0;        ///< what an empty cell senses (plate, offset); loads are net of it [N]
   std::vector<int> head_rows, trunk_rows, pelvis_rows, heel_rows;
-  std::vector<std::uint32_t> heel_cells;   ///< loaded cells of the heel rows
+  /// Cells floated for the heels: from the first heel row to the bed's foot end, the heels'
+  /// loaded columns and one either side.
+  std::vector<std::uint32_t> heel_cells;
+  std::vector<std::uint32_t> calf_cells;   ///< the calf rows before the heel rows, the heels' columns
   std::vector<std::uint32_t> trunk_cells;  ///< trunk rows, loaded columns and one either side
 };
 
+/// What an empty cell senses (the plate's weight, an estimate's offset): the 10th percentile of
+/// `loads_n` [N], at least 0. The body covers well under 90 % of a bed's cells.
+double emptyCellLoad(const std::vector<double>& loads_n);
+
 /// The layout `loads` (by cell id [N]) show, or nullopt when no body or no trunk is sensed.
-/// Trunk rows carry their row's largest load in the midline column; leg rows carry it on two
-/// columns either side of it.
+/// A cell is loaded when it senses more than contact_load_n above emptyCellLoad(). Trunk rows
+/// carry their row's largest load in the midline column; leg rows carry it on two columns
+/// either side of it.
 std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector<double>& loads_n,
                                           const AdaptiveSupportParams& params);
 
