@@ -295,3 +295,27 @@ TEST(CellFaults, AHealthyCellOnASlowRampIsNeverFlagged) {
     EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.07, 0.09), 0.0) << "slowly up under " << load_n << " N";
   }
 }
+
+TEST(CellFaults, ABodyLoadingOrUnloadingAHeldCellQuicklyIsNotFlagged) {
+  // A patient lifting a leg, dropping an arm or rolling: a held cell's load steps within
+  // 0-0.2 s. The plate moves along its gas's isentrope as fast as its gas spring rings, so the
+  // pressure alone cannot tell such a step from a fault; the cell must not be flagged (a flag
+  // re-verifies it by venting it flat under the patient) and must get back to its height.
+  const std::pair<double, double> steps[] = {{10.0, 40.0}, {40.0, 5.0}, {40.0, 80.0}, {10.0, 80.0}, {40.0, 25.0}};
+  for (const auto& [from_n, to_n] : steps)
+    for (const double ramp_s : {0.0, 0.05, 0.2}) {
+      FaultyCell c(0.10, from_n);
+      ASSERT_EQ(c.cell->requestHeight(0.10, 0.0), "");
+      ASSERT_LT(c.runTo(6.0), 0.0);
+      const double t0 = c.t;
+      std::string reason;
+      while (c.t < t0 + 8.0) {
+        c.plant->setLoad(from_n + std::min(1.0, ramp_s > 0.0 ? (c.t - t0) / ramp_s : 1.0) * (to_n - from_n));
+        c.runTo(c.t + 0.005);
+        if (reason.empty() && c.flagged()) reason = c.cell->monitor()->reason() + " ";
+      }
+      const std::string what = std::to_string(from_n) + " -> " + std::to_string(to_n) + " N in " + std::to_string(ramp_s) + " s";
+      EXPECT_EQ(reason, "") << what;
+      EXPECT_NEAR(c.plant->variables().height_m, 0.10, 0.003) << what;
+    }
+}

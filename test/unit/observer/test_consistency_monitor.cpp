@@ -219,7 +219,7 @@ TEST(ConsistencyMonitor, ALoadAboveAnyACellCarriesIsFlagged) {
   EXPECT_NE(monitor.reason().find("350 N"), std::string::npos) << monitor.reason();
 }
 
-TEST(ConsistencyMonitor, ALoadShiftingOnAHeldCellIsNotFlaggedAFasterThanBodyRiseIs) {
+TEST(ConsistencyMonitor, ALoadShiftingOrSteppingOnAHeldCellIsNotFlagged) {
   // A patient turning over a held cell: its pressure ramps up 3 kPa in 1.5 s, holds, falls
   // 2.5 kPa in 1 s, then a quick shift of 2 kPa in 0.2 s, with breathing (+-200 Pa at
   // 0.25 Hz) throughout.
@@ -244,15 +244,17 @@ TEST(ConsistencyMonitor, ALoadShiftingOnAHeldCellIsNotFlaggedAFasterThanBodyRise
       EXPECT_LT(t, 14.0) << "the hold's mean alone takes a patient's shifts for faults";
     }
   }
-  // Gas passing a valve stuck open under a plate that reached the bag's top: 4.5 kPa in 50 ms.
+  // A leg dropped onto the cell: 4.5 kPa in 50 ms, as fast as the plate rings on its gas spring.
+  // Gas passing a valve stuck open under a plate at the bag's top rises as fast; the load bound
+  // finds that (ALoadAboveAnyACellCarriesIsFlagged), the innovation cannot.
   nb::ConsistencyMonitor monitor;
   Sensor sensor(23);
   runHolds(&monitor, &sensor, 3.0, 1500.0, 100.0);
   double t = 0.0;
-  for (; t < 1.0 && !monitor.update(sample(sensor.read(1500.0 + std::min(4500.0, 90000.0 * t)), true), kPeriod);
+  for (; t < 3.0 && !monitor.update(sample(sensor.read(1500.0 + std::min(4500.0, 90000.0 * t)), true), kPeriod);
        t += kPeriod) {
   }
-  EXPECT_LT(t, 0.2) << "a rise faster than a body loads a cell not flagged";
+  EXPECT_GE(t, 3.0) << "a body's load step flagged: " << monitor.reason();
 }
 
 namespace {

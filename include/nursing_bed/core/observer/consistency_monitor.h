@@ -20,11 +20,11 @@ struct ConsistencyMonitorParams {
   /// Time constant of the hold's reference pressure, the innovation's prediction [s].
   double reference_time_s = 2.0;
   /// The fastest a body's moves change a held cell's pressure: beyond the noise the reference
-  /// follows the readings at up to this rate, so a load that shifts (a patient turning, a
-  /// neighbour moving under the body) moves it with the plate along the gas's isentrope,
-  /// while a sensor step or a plate that landed on a stuck-open vent (its pressure collapsing
-  /// at fixed volume) outruns it; 0: the hold's mean alone (constant loads) [Pa/s].
-  double load_rate_pa_s = 15000.0;
+  /// follows the readings at up to this rate. A load that steps (a leg lifted, an arm dropped)
+  /// moves the plate along the gas's isentrope within a quarter of its gas-spring period, a
+  /// few kPa in 10-20 ms, so only a larger step than a body makes outruns it; 0: the hold's
+  /// mean alone (constant loads: a rig, a test) [Pa/s].
+  double load_rate_pa_s = 300000.0;
   /// A period of one valve whose counted gas moves the pressure at fixed volume by less than
   /// this (a hold's small corrections, gamma p dm / m) does not end the hold; 0: any does [Pa].
   double hold_correction_pa = 50.0;
