@@ -549,26 +549,26 @@ void Simulator::publishPressure(const BodyState& s, const ros::Time& now) {
 }
 
 void Simulator::updateTissueLoad(const std::vector<double>& heights, const ros::Time& now) {
-  if (last_tissue_.isZero() || now < last_tissue_) {
-    last_tissue_ = now;  // the first snapshot, or time went back (a restarted /clock): no interval yet
-    tissue_->sample(measureRegions(body_->contactMap(heights), tissue_->regions(), params_.patient.height_m), 0.0);
-    publishTissueLoad(now);
-    return;
-  }
-  const double dt = (now - last_tissue_).toSec();
-  if (dt < 1.0 / params_.tissue_load_rate_hz - 0.5 / params_.rate_hz) return;
-  tissue_->sample(measureRegions(body_->contactMap(heights), tissue_->regions(), params_.patient.height_m), dt);
+  const bool first = last_tissue_.isZero() || now < last_tissue_;  // or time went back (a restarted /clock)
+  const double dt = first ? 0.0 : (now - last_tissue_).toSec();
+  if (!first && dt < 1.0 / params_.tissue_load_rate_hz - 0.5 / params_.rate_hz) return;
+  const std::vector<ContactPoint> points = body_->contactMap(heights);
+  tissue_->sample(measureRegions(points, tissue_->regions(), params_.patient.height_m), dt);
   last_tissue_ = now;
-  publishTissueLoad(now);
+  double area_m2 = 0.0;
+  for (const ContactPoint& p : points)
+    if (p.pressure_pa > 0.0) area_m2 += p.area_m2;
+  publishTissueLoad(now, area_m2);
 }
 
-void Simulator::publishTissueLoad(const ros::Time& now) {
+void Simulator::publishTissueLoad(const ros::Time& now, double body_contact_area_m2) {
   const boost::shared_ptr<TissueLoad> out = boost::make_shared<TissueLoad>();
   TissueLoad& m = *out;
   m.header.stamp = now;
   m.header.frame_id = BedLayout::kBedLink;
   m.threshold_pa = tissue_->params().threshold_pa;
   m.observed_s = tissue_->observedS();
+  m.body_contact_area_m2 = body_contact_area_m2;
   for (std::size_t r = 0; r < tissue_->regions().size(); ++r) {
     const RegionDose& d = tissue_->doses()[r];
     m.region.push_back(tissue_->regions()[r].name);

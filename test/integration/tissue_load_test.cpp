@@ -53,6 +53,11 @@ TEST(TissueLoadTopic, AppearsWithSaneValuesForASupinePatient) {
   EXPECT_NEAR(interval, 1.0, 0.1);
   EXPECT_NEAR(m.observed_s - got[got.size() - 2].observed_s, interval, 1e-6);
   EXPECT_NEAR(m.threshold_pa, 32.0 * 133.322, 1.0);
+  // The whole body's contact area: more than all the regions' together, less than the bed.
+  double regions_m2 = 0.0;
+  for (double a : m.contact_area_m2) regions_m2 += a;
+  EXPECT_GT(m.body_contact_area_m2, regions_m2);
+  EXPECT_LT(m.body_contact_area_m2, 2.0 * 0.9);
   auto at = [&m](const std::string& name) {
     const auto it = std::find(m.region.begin(), m.region.end(), name);
     return static_cast<std::size_t>(it - m.region.begin());

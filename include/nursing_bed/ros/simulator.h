@@ -99,7 +99,7 @@ class Simulator {
   void publishTf(const BodyState& state, const ros::Time& now);
   /// At ~tissue_load_rate_hz: the regions' loads on the last solve into the meter, published.
   void updateTissueLoad(const std::vector<double>& heights, const ros::Time& now);
-  void publishTissueLoad(const ros::Time& now);
+  void publishTissueLoad(const ros::Time& now, double body_contact_area_m2);
 
   ros::NodeHandle nh_, private_nh_;
   SimulatorParams params_;
