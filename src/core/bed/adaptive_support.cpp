@@ -11,6 +11,7 @@ Status AdaptiveSupportParams::validate(double min_height_m, double nominal_heigh
                                        const std::string& k) const {
   ErrorList e;
   auto finite = [](double v) { return std::isfinite(v); };
+  const double span_m = max_height_m - min_height_m;
   e.addIf(!(finite(survey_s) && survey_s >= 0.0), k, "survey_s must be >= 0");
   e.addIf(!(finite(contact_load_n) && contact_load_n > 0.0), k, "contact_load_n must be positive");
   e.addIf(!(finite(head_length_m) && head_length_m >= 0.0), k, "head_length_m must be >= 0");
@@ -19,13 +20,15 @@ Status AdaptiveSupportParams::validate(double min_height_m, double nominal_heigh
   e.addIf(!(heel_height_m >= min_height_m && heel_height_m <= nominal_height_m), k,
           "heel_height_m must lie in [min_height_m, nominal_height_m]");
   e.addIf(!(finite(calf_length_m) && calf_length_m >= 0.0), k, "calf_length_m must be >= 0");
-  e.addIf(!(calf_lift_m >= 0.0 && calf_lift_m <= max_height_m - nominal_height_m), k,
-          "calf_lift_m must lie in [0, max_height_m - nominal_height_m]");
+  e.addIf(!(calf_lift_m >= 0.0 && calf_lift_m <= span_m), k,
+          "calf_lift_m must lie in [0, max_height_m - min_height_m]");
+  e.addIf(!(finite(thigh_length_m) && thigh_length_m >= 0.0), k, "thigh_length_m must be >= 0");
+  e.addIf(!(thigh_lift_m >= 0.0 && thigh_lift_m <= span_m), k,
+          "thigh_lift_m must lie in [0, max_height_m - min_height_m]");
   e.addIf(!(margin_height_m >= min_height_m && margin_height_m <= nominal_height_m), k,
           "margin_height_m must lie in [min_height_m, nominal_height_m]");
   e.addIf(!(finite(level_gain_m_n_s) && level_gain_m_n_s >= 0.0 && level_gain_m_n_s <= 1e-3), k,
           "level_gain_m_n_s must lie in [0, 1e-3]");
-  const double span_m = max_height_m - min_height_m;
   e.addIf(!(level_range_m >= 0.0 && level_range_m <= span_m), k,
           "level_range_m must lie in [0, max_height_m - min_height_m]");
   e.addIf(!(finite(relief_budget_s) && relief_budget_s > relief_s), k, "relief_budget_s must exceed relief_s");
@@ -55,6 +58,8 @@ const ParamTable<AdaptiveSupportParams>& adaptiveSupportFields() {
       NB_FIELD("heel_height_m", "floated heel cells' height [m]", p.heel_height_m),
       NB_FIELD("calf_length_m", "the leg rows over this length before the heels are the calves [m]", p.calf_length_m),
       NB_FIELD("calf_lift_m", "the calves' cells go this much higher so the feet hang clear [m]", p.calf_lift_m),
+      NB_FIELD("thigh_length_m", "the leg rows over this length after the pelvis are the thighs [m]", p.thigh_length_m),
+      NB_FIELD("thigh_lift_m", "the thighs' cells go this much higher, off-loading the pelvis [m]", p.thigh_lift_m),
       NB_FIELD("margin_height_m", "lowest height of a cell under the trunk or pelvis [m]", p.margin_height_m),
       NB_FIELD("level_gain_m_n_s", "levelling: height change per N of excess load per s [m/(N s)]", p.level_gain_m_n_s),
       NB_FIELD("level_range_m", "levelling moves a cell at most this far from nominal [m]", p.level_range_m),
@@ -123,6 +128,23 @@ void findHeels(const BedGrid& grid, const std::vector<double>& loads, const Adap
       (h < out->heel_rows.front() ? out->calf_cells : out->heel_cells).push_back(grid.id(h, c));
 }
 
+/// The thighs: the leg rows within thigh_length_m after the trunk (from `first_leg_row`), up
+/// to the calves or heels, their loaded columns and one either side.
+void findThighs(const BedGrid& grid, const std::vector<double>& loads, const AdaptiveSupportParams& params,
+                int first_leg_row, BodyLayout* out) {
+  if (!(params.thigh_length_m > 0.0)) return;
+  int end = std::min(out->last_row + 1, first_leg_row + rowsWithin(params.thigh_length_m, grid.pitch_m));
+  if (!out->calf_cells.empty()) end = std::min(end, grid.row(out->calf_cells.front()));
+  if (!out->heel_rows.empty()) end = std::min(end, out->heel_rows.front());
+  for (int r = first_leg_row; r < end; ++r) {
+    int lo = grid.cols, hi = -1;
+    for (int c = 0; c < grid.cols; ++c)
+      if (loads[grid.id(r, c)] > params.contact_load_n) lo = std::min(lo, c), hi = std::max(hi, c);
+    for (int c = std::max(0, lo - 1); c <= std::min(grid.cols - 1, hi + 1); ++c)
+      out->thigh_cells.push_back(grid.id(r, c));
+  }
+}
+
 }  // namespace
 
 std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector<double>& sensed_loads,
@@ -159,6 +181,7 @@ std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector
   const int pelvis = std::min<int>(out.trunk_rows.size(), rowsWithin(params.pelvis_length_m, grid.pitch_m));
   out.pelvis_rows.assign(out.trunk_rows.end() - pelvis, out.trunk_rows.end());
   findHeels(grid, loads, params, r, &out);
+  findThighs(grid, loads, params, r, &out);
   for (int t : out.trunk_rows) {
     int lo = grid.cols, hi = -1;
     for (int c = 0; c < grid.cols; ++c)
@@ -250,6 +273,7 @@ std::vector<double> AdaptiveSupport::wanted() const {
   for (int i = 0; i < grid_.cells(); ++i) h[i] = nominal_height_m_ + offset_m_[i];
   for (std::uint32_t id : layout_->heel_cells) h[id] = params_.heel_height_m;
   for (std::uint32_t id : layout_->calf_cells) h[id] += params_.calf_lift_m;
+  for (std::uint32_t id : layout_->thigh_cells) h[id] += params_.thigh_lift_m;
   if (relieving_ >= 0) {
     const std::vector<int>& rows = regions_[relieving_].rows;
     for (int r = rows.front() - 1; r <= rows.back() + 1; ++r) {

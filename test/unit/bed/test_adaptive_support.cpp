@@ -97,11 +97,29 @@ TEST(AdaptiveSupport, LowersTheHeelCellsToTheFootEndAndRaisesTheCalves) {
   const nb::AdaptiveSupportParams& p = kConfig.adaptive;
   for (int r : {16, 17, 18, 19})  // the heel rows and every row after them, over the feet's columns
     for (int c = 2; c <= 6; ++c) EXPECT_NEAR(s.targets()[grid.id(r, c)], p.heel_height_m, 1e-9) << r << "," << c;
+  const double calf_m = std::min(kConfig.max_height_m, kConfig.nominal_height_m + p.calf_lift_m);
   for (int r : {14, 15})  // the calves go higher and take the feet's load
-    for (int c = 2; c <= 6; ++c)
-      EXPECT_NEAR(s.targets()[grid.id(r, c)], kConfig.nominal_height_m + p.calf_lift_m, 1e-9) << r << "," << c;
+    for (int c = 2; c <= 6; ++c) EXPECT_NEAR(s.targets()[grid.id(r, c)], calf_m, 1e-9) << r << "," << c;
   for (int c = 0; c < grid.cols; ++c) EXPECT_NEAR(s.targets()[grid.id(13, c)], kConfig.nominal_height_m, 1e-9);
   EXPECT_NEAR(s.targets()[grid.id(17, 0)], kConfig.nominal_height_m, 1e-9);  // off the feet's columns
+}
+
+TEST(AdaptiveSupport, RaisesTheThighsAfterThePelvis) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupport s = support();
+  run(&s, supineSensed(grid), 0.0, 120.0);
+  const nb::AdaptiveSupportParams& p = kConfig.adaptive;
+  for (int r : {9, 10})  // the two rows after the pelvis (rows 7-8): loaded columns 2-6 and one either side
+    for (int c = 0; c < grid.cols; ++c) {
+      const double lift_m = c >= 1 && c <= 7 ? p.thigh_lift_m : 0.0;
+      EXPECT_NEAR(s.targets()[grid.id(r, c)], kConfig.nominal_height_m + lift_m, 1e-9) << r << "," << c;
+    }
+  for (int c = 0; c < grid.cols; ++c) EXPECT_NEAR(s.targets()[grid.id(11, c)], kConfig.nominal_height_m, 1e-9);
+  nb::AdaptiveSupportParams flat_thighs = p;
+  flat_thighs.thigh_lift_m = 0.0;
+  nb::AdaptiveSupport off = support(flat_thighs);
+  run(&off, supineSensed(grid), 0.0, 120.0);
+  EXPECT_NEAR(off.targets()[grid.id(9, 4)], kConfig.nominal_height_m, 1e-9);
 }
 
 TEST(AdaptiveSupport, ReadsTheBodyNetOfWhatAnEmptyCellSenses) {
@@ -119,6 +137,7 @@ TEST(AdaptiveSupport, ReadsTheBodyNetOfWhatAnEmptyCellSenses) {
   EXPECT_EQ(shifted->heel_rows, plain->heel_rows);
   EXPECT_EQ(shifted->trunk_rows, plain->trunk_rows);
   EXPECT_EQ(shifted->heel_cells, plain->heel_cells);
+  EXPECT_EQ(shifted->thigh_cells, plain->thigh_cells);
   EXPECT_EQ(shifted->trunk_cells, plain->trunk_cells);
 }
 
@@ -206,8 +225,9 @@ TEST(AdaptiveSupport, NeverMovesATargetFasterThanItsRate) {
 TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps) {
   // Closed loop on the articulated body: the cells reach their targets, and the plan senses
   // the loads the body puts on them plus the plate's weight on every cell. On a small, the
-  // default and a heavy body the heels float (their weight goes to the calves) and the skin
-  // stays clear of the bed base.
+  // default and a heavy body the heels float (their weight goes to the calves), the raised
+  // thighs and the levelled trunk keep the sacrum and the trochanters at or below 32 mmHg, and
+  // the skin stays clear of the bed base.
   const nb::BedGrid grid;
   for (const auto& [mass_kg, height_m] : std::vector<std::pair<double, double>>{{50, 1.55}, {70, 1.70}, {110, 1.85}}) {
     nb::PatientParams patient;
@@ -219,7 +239,7 @@ TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps
     std::vector<double> heights(grid.cells(), kConfig.nominal_height_m);
     nb::SensedCells sensed;
     std::string phase;
-    for (double t = 0.0; t <= 150.0; t += kStepS) {
+    for (double t = 0.0; t <= 400.0; t += kStepS) {
       sensed.load_n = body.solve(heights).cell_load_n;
       for (double& l : sensed.load_n) l += 0.6;
       heights = s.update(t, sensed, &phase);
@@ -227,10 +247,15 @@ TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps
     const nb::BodyState state = body.solve(heights);
     EXPECT_LT(nb::paToMmHg(state.peak_pressure_pa.heels), 10.0) << mass_kg << " kg";
     const auto regions = nb::measureRegions(body.contactMap(heights), nb::defaultTissueRegions(), height_m);
-    for (const nb::RegionLoad& r : regions)
-      if (std::isfinite(r.margin_m)) {
-        EXPECT_GE(r.margin_m, 0.025) << mass_kg << " kg";
+    const auto& names = nb::defaultTissueRegions();
+    for (std::size_t k = 0; k < regions.size(); ++k) {
+      if (std::isfinite(regions[k].margin_m)) {
+        EXPECT_GE(regions[k].margin_m, 0.025) << mass_kg << " kg, " << names[k].name;
       }
+      if (names[k].name == "sacrum" || names[k].name.find("trochanter") != std::string::npos) {
+        EXPECT_LE(nb::paToMmHg(regions[k].peak_pressure_pa), 32.0) << mass_kg << " kg, " << names[k].name;
+      }
+    }
   }
 }
 
@@ -250,6 +275,7 @@ TEST(AdaptivePlan, RefusesBadArgumentsWithTheReason) {
       {{{"margin_height_m", "0.001"}}, "margin_height_m must lie in"},
       {{{"calf_lift_m", "0.2"}}, "calf_lift_m must lie in"},
       {{{"calf_length_m", "-0.1"}}, "calf_length_m must be >= 0"},
+      {{{"thigh_lift_m", "0.5"}}, "thigh_lift_m must lie in"},
       {{{"relief_s", "nan"}}, "relief_s must be finite"},
       {{{"relief_budget_s", "10"}}, "relief_budget_s must exceed relief_s"},
       {{{"max_rate_m_s", "0"}}, "max_rate_m_s must be positive"},

@@ -314,7 +314,8 @@ TEST(CellFaults, ABodyLoadingOrUnloadingAHeldCellQuicklyIsNotFlagged) {
         c.runTo(c.t + 0.005);
         if (reason.empty() && c.flagged()) reason = c.cell->monitor()->reason() + " ";
       }
-      const std::string what = std::to_string(from_n) + " -> " + std::to_string(to_n) + " N in " + std::to_string(ramp_s) + " s";
+      const std::string what =
+          std::to_string(from_n) + " -> " + std::to_string(to_n) + " N in " + std::to_string(ramp_s) + " s";
       EXPECT_EQ(reason, "") << what;
       EXPECT_NEAR(c.plant->variables().height_m, 0.10, 0.003) << what;
     }

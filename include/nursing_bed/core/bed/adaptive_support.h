@@ -2,7 +2,8 @@
 // pressure and the observer's estimate of its load, without a pressure mat or the simulator's
 // truth. After a survey on a level bed it reads where the body lies from the load map (head at
 // the head end, trunk rows loaded in the midline, legs loaded on two columns, heels at the foot
-// end), then floats the heels (the heel cells lowered, the calves' raised), keeps the cells under the trunk and pelvis above a bottoming-out
+// end), then floats the heels (the heel cells lowered, the calves' raised), raises the thighs to
+// take load off the pelvis, keeps the cells under the trunk and pelvis above a bottoming-out
 // height, levels the trunk's load between neighbouring cells, and relieves the head, the upper
 // trunk and the pelvis in turn before a time budget or a dose on the tolerance curve runs out.
 // Its targets move at a bounded rate; the bed supervisor's rate limits (height and roll slope)
@@ -38,8 +39,13 @@ struct AdaptiveSupportParams {
   double pelvis_length_m = 0.2;  ///< the last trunk rows over this length are the pelvis [m]
   double heel_height_m = 0.03;   ///< floated heel cells' height [m]
   double calf_length_m = 0.2;    ///< the leg rows over this length before the heels are the calves [m]
-  /// The calves' cells go this much higher, so the hanging feet clear the floated cells [m].
-  double calf_lift_m = 0.03;
+  /// The calves' cells go this much higher (at most to max_height_m), so the hanging feet
+  /// clear the floated cells [m].
+  double calf_lift_m = 0.05;
+  double thigh_length_m = 0.2;  ///< the leg rows over this length after the pelvis are the thighs [m]
+  /// The thighs' cells go this much higher (at most to max_height_m): they take part of the
+  /// pelvis's load off the sacrum and the trochanters [m].
+  double thigh_lift_m = 0.04;
   /// Lowest height of a cell under the trunk or pelvis: its bottoming-out margin [m].
   double margin_height_m = 0.08;
   double level_gain_m_n_s = 2e-5;   ///< levelling: height change per N of excess load per s [m/(N s)]
@@ -70,6 +76,7 @@ struct BodyLayout {
   /// loaded columns and one either side.
   std::vector<std::uint32_t> heel_cells;
   std::vector<std::uint32_t> calf_cells;   ///< the calf rows before the heel rows, the heels' columns
+  std::vector<std::uint32_t> thigh_cells;  ///< the thigh rows after the pelvis, loaded columns and one either side
   std::vector<std::uint32_t> trunk_cells;  ///< trunk rows, loaded columns and one either side
 };
 
