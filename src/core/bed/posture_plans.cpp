@@ -88,6 +88,8 @@ class Args {
       if (!used_.count(a.first)) fail("does not take '" + a.first + "'");
   }
 
+  bool has(const std::string& key) const { return args_.count(key) != 0; }
+
   [[noreturn]] void fail(const std::string& what) const { throw std::invalid_argument(plan_ + ": " + what); }
 
  private:
@@ -161,6 +163,23 @@ class CustomPlan : public PosturePlan {
   std::vector<double> heights_;
 };
 
+/// A lateral turn towards `direction` (+1: the patient's left) to `angle_deg`, reached over `ramp_s`.
+struct TurnRequest {
+  double direction = 1.0, angle_deg = 0.0, ramp_s = 0.0;
+};
+
+/// The height of a cell in column `col` under the body at turn angle `a_deg` (signed, + lowers
+/// the patient's left) of a turn to `full_deg`: a plane tilted across the bed about the body's
+/// midline, blended from the flat height into it as the angle grows so that a turn's start and
+/// end are continuous. Not clamped.
+double tiltedHeight(const PlanConfig& c, const BedGrid& g, const BodyFootprint& b, int col, double a_deg,
+                    double full_deg) {
+  const double slope = -std::tan(a_deg * kPi / 180.0);
+  const double mid = 0.5 * (c.min_height_m + c.max_height_m);
+  const double w = std::min(1.0, std::fabs(a_deg) / std::max(full_deg, 1e-9));
+  return c.nominal_height_m + w * (mid - c.nominal_height_m) + slope * (g.y(col) - b.center_y_m);
+}
+
 // Lateral turn: the cells under the body form a plane tilted across the bed about the body's
 // midline; the body rolls with it. Ramp (rate-limited), dwell, and optionally back to flat.
 class LateralTurnPlan : public PosturePlan {
@@ -192,21 +211,13 @@ class LateralTurnPlan : public PosturePlan {
       out.phase = "flat";
       out.finished = true;
     }
-    out.tilt_deg = direction_ * a;
     // Turning towards the patient's left (+) lowers the left (+y) side.
-    const double slope = -std::tan(out.tilt_deg * kPi / 180.0);
-    const double mid = 0.5 * (config_.min_height_m + config_.max_height_m);
+    out.tilt_deg = direction_ * a;
     out.heights_m.assign(grid_.cells(), config_.nominal_height_m);
-    for (int r = std::max(0, body_.first_row); r <= std::min(grid_.rows - 1, body_.last_row); ++r) {
-      for (int c = 0; c < grid_.cols; ++c) {
-        // Blend from the flat height into the tilt plane as the angle grows, so that the start
-        // and end of a turn are continuous.
-        const double w = std::min(1.0, std::fabs(a) / std::max(angle_deg_, 1e-9));
-        const double base = config_.nominal_height_m + w * (mid - config_.nominal_height_m);
-        const double h = base + slope * (grid_.y(c) - body_.center_y_m);
-        out.heights_m[grid_.id(r, c)] = std::clamp(h, config_.min_height_m, config_.max_height_m);
-      }
-    }
+    for (int r = std::max(0, body_.first_row); r <= std::min(grid_.rows - 1, body_.last_row); ++r)
+      for (int c = 0; c < grid_.cols; ++c)
+        out.heights_m[grid_.id(r, c)] = std::clamp(tiltedHeight(config_, grid_, body_, c, out.tilt_deg, angle_deg_),
+                                                   config_.min_height_m, config_.max_height_m);
     return out;
   }
   std::string describe() const override {
@@ -270,16 +281,34 @@ class AlternatingPlan : public PosturePlan {
 };
 
 // Adaptive support: the cells' heights from what they sense (AdaptiveSupport holds the policy
-// and its state, which the sensed readings advance).
+// and its state, which the sensed readings advance). With a turn, the turn's tilt plane starts
+// once the survey has read the body on the level bed and ramps in; the adaptive offsets from
+// the flat height (heels, calves, thighs, levelling, relief) ride on it.
 class AdaptivePlan : public PosturePlan {
  public:
-  AdaptivePlan(const PlanConfig& c, const BedGrid& g, const AdaptiveSupportParams& p)
-      : support_(p, g, c.min_height_m, c.nominal_height_m, c.max_height_m) {}
+  AdaptivePlan(const PlanConfig& c, const BedGrid& g, const BodyFootprint& b, const AdaptiveSupportParams& p,
+               std::optional<TurnRequest> turn)
+      : config_(c),
+        grid_(g),
+        body_(b),
+        turn_(turn),
+        support_(p, g, c.min_height_m, c.nominal_height_m, c.max_height_m) {}
   PlanKind kind() const override { return PlanKind::kAdaptive; }
-  PlanTargets targets(double) const override {
+  PlanTargets targets(double elapsed_s) const override {
     PlanTargets t;
     t.heights_m = support_.targets();
     t.phase = phase_;
+    if (!turn_) return t;
+    const double turned_s = elapsed_s - support_.params().survey_s;
+    const double a = turned_s <= 0.0 ? 0.0 : turn_->angle_deg * std::min(1.0, turned_s / turn_->ramp_s);
+    t.tilt_deg = turn_->direction * a;
+    for (int r = std::max(0, body_.first_row); r <= std::min(grid_.rows - 1, body_.last_row); ++r)
+      for (int c = 0; c < grid_.cols; ++c) {
+        double& h = t.heights_m[grid_.id(r, c)];
+        h += tiltedHeight(config_, grid_, body_, c, t.tilt_deg, turn_->angle_deg) - config_.nominal_height_m;
+        h = std::clamp(h, config_.min_height_m, config_.max_height_m);
+      }
+    if (a > 0.0) t.phase += a < turn_->angle_deg ? ", turning" : ", turned";
     return t;
   }
   PlanTargets sensedTargets(double elapsed_s, const SensedCells& sensed) override {
@@ -288,12 +317,20 @@ class AdaptivePlan : public PosturePlan {
   }
   std::string describe() const override {
     const AdaptiveSupportParams& p = support_.params();
-    return "heel_height_m=" + fmt(p.heel_height_m) + " margin_height_m=" + fmt(p.margin_height_m) +
-           " level_range_m=" + fmt(p.level_range_m) + " relief_budget_s=" + fmt(p.relief_budget_s) +
-           " relief_s=" + fmt(p.relief_s) + " dose_limit=" + fmt(p.dose_limit);
+    std::string d = "heel_height_m=" + fmt(p.heel_height_m) + " margin_height_m=" + fmt(p.margin_height_m) +
+                    " level_range_m=" + fmt(p.level_range_m) + " relief_budget_s=" + fmt(p.relief_budget_s) +
+                    " relief_s=" + fmt(p.relief_s) + " dose_limit=" + fmt(p.dose_limit);
+    if (turn_)
+      d += std::string(" side=") + (turn_->direction > 0 ? "left" : "right") + " angle_deg=" + fmt(turn_->angle_deg) +
+           " ramp_s=" + fmt(turn_->ramp_s);
+    return d;
   }
 
  private:
+  PlanConfig config_;
+  BedGrid grid_;
+  BodyFootprint body_;
+  std::optional<TurnRequest> turn_;
   AdaptiveSupport support_;
   std::string phase_ = "surveying";
 };
@@ -372,7 +409,7 @@ const std::map<std::string, std::string>& planHelp() {
       {planKindName(PlanKind::kCustom), "heights_m = one height per cell, by cell id"},
       {planKindName(PlanKind::kAdaptive),
        "[heel_height_m=H] [margin_height_m=H] [level_range_m=M] [relief_budget_s=S] [relief_s=S] [dose_limit=D] "
-       "(any key of plans/adaptive/ without '/')"},
+       "(any key of plans/adaptive/ without '/') [side=left|right angle_deg=A [ramp_s=S]]"},
   };
   return help;
 }
@@ -396,8 +433,8 @@ std::unique_ptr<PosturePlan> makeCustom(const PlanRequest& req, const PlanConfig
   return std::make_unique<CustomPlan>(req.heights_m);
 }
 
-std::unique_ptr<PosturePlan> makeLateralTurn(const PlanConfig& config, const BedGrid& grid, const BodyFootprint& body,
-                                             Args& args) {
+/// A turn's side, angle and ramp, checked against the configured angle and rate.
+TurnRequest turnArguments(const PlanConfig& config, Args& args) {
   const std::string side = args.word("side", {"left", "right"}, "", true);
   const double angle = args.number("angle_deg", 0.0, 0.0, kHardMaxTiltDeg, true);
   if (angle > config.max_tilt_deg) {
@@ -414,9 +451,16 @@ std::unique_ptr<PosturePlan> makeLateralTurn(const PlanConfig& config, const Bed
       << " s for " << angle << " deg)";
     args.fail(m.str());
   }
+  return {side == "left" ? 1.0 : -1.0, angle, ramp};
+}
+
+std::unique_ptr<PosturePlan> makeLateralTurn(const PlanConfig& config, const BedGrid& grid, const BodyFootprint& body,
+                                             Args& args) {
+  const TurnRequest turn = turnArguments(config, args);
   const double dwell = args.number("dwell_s", config.turn_dwell_s, 0.0, 7200.0);
   const bool back = args.word("return", {"yes", "no"}, "yes") == "yes";
-  return std::make_unique<LateralTurnPlan>(config, grid, body, side == "left" ? 1.0 : -1.0, angle, ramp, dwell, back);
+  return std::make_unique<LateralTurnPlan>(config, grid, body, turn.direction, turn.angle_deg, turn.ramp_s, dwell,
+                                           back);
 }
 
 std::unique_ptr<PosturePlan> makeAlternating(const PlanConfig& config, const BedGrid& grid, Args& args) {
@@ -434,8 +478,12 @@ std::unique_ptr<PosturePlan> makeAlternating(const PlanConfig& config, const Bed
 }
 
 // Any plans/adaptive/ key without a '/' may be given as an argument; the whole set is then
-// validated as the configuration is.
-std::unique_ptr<PosturePlan> makeAdaptive(const PlanConfig& config, const BedGrid& grid, Args& args) {
+// validated as the configuration is. With `side` it is combined with a lateral turn (side,
+// angle_deg, ramp_s as lateral_turn's).
+std::unique_ptr<PosturePlan> makeAdaptive(const PlanConfig& config, const BedGrid& grid, const BodyFootprint& body,
+                                          Args& args) {
+  std::optional<TurnRequest> turn;
+  if (args.has("side")) turn = turnArguments(config, args);
   AdaptiveSupportParams p = config.adaptive;
   for (const auto& field : adaptiveSupportFields()) {
     if (field.key.find('/') != std::string::npos) continue;
@@ -443,7 +491,7 @@ std::unique_ptr<PosturePlan> makeAdaptive(const PlanConfig& config, const BedGri
   }
   const Status valid = p.validate(config.min_height_m, config.nominal_height_m, config.max_height_m);
   if (!valid.ok()) args.fail(valid.message());
-  return std::make_unique<AdaptivePlan>(config, grid, p);
+  return std::make_unique<AdaptivePlan>(config, grid, body, p, turn);
 }
 
 // The kind a request names, when it is one makePlan builds (safe_level is the manager's own).
@@ -502,7 +550,7 @@ std::unique_ptr<PosturePlan> makePlan(const PlanRequest& req, const PlanConfig& 
       case PlanKind::kCustom: plan = makeCustom(req, config, grid, args); break;
       case PlanKind::kLateralTurn: plan = makeLateralTurn(config, grid, body, args); break;
       case PlanKind::kAlternating: plan = makeAlternating(config, grid, args); break;
-      case PlanKind::kAdaptive: plan = makeAdaptive(config, grid, args); break;
+      case PlanKind::kAdaptive: plan = makeAdaptive(config, grid, body, args); break;
       case PlanKind::kSafeLevel: break;  // refused by requestedKind
     }
     args.finish();

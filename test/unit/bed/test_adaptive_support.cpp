@@ -269,6 +269,37 @@ TEST(AdaptivePlan, IsMadeFromTheRegistryWithItsArguments) {
   EXPECT_NE(plan->describe().find("relief_s=60"), std::string::npos);
 }
 
+TEST(AdaptivePlan, CombinedWithATurnTiltsTheBedOnceTheSurveyHasReadTheBody) {
+  std::string why;
+  const nb::BedGrid grid;
+  auto plan = nb::makePlan({"adaptive", {{"side", "left"}, {"angle_deg", "20"}, {"ramp_s", "30"}}, {}}, kConfig, grid,
+                           nb::BodyFootprint{}, &why);
+  ASSERT_TRUE(plan) << why;
+  EXPECT_NE(plan->describe().find("side=left angle_deg=20 ramp_s=30"), std::string::npos) << plan->describe();
+  const nb::SensedCells sensed = supineSensed(grid);
+  nb::PlanTargets t;
+  for (double s = 0.0; s <= kConfig.adaptive.survey_s; s += kStepS) t = plan->sensedTargets(s, sensed);
+  EXPECT_EQ(t.tilt_deg, 0.0);  // level while surveying
+  for (int i = 0; i < grid.cells(); ++i) EXPECT_EQ(t.heights_m[i], kConfig.nominal_height_m);
+  for (double s = kConfig.adaptive.survey_s; s <= kConfig.adaptive.survey_s + 15.0; s += kStepS)
+    t = plan->sensedTargets(s, sensed);
+  EXPECT_NEAR(t.tilt_deg, 10.0, 0.1);  // half way up the 30 s ramp
+  for (double s = kConfig.adaptive.survey_s + 15.0; s <= 200.0; s += kStepS) t = plan->sensedTargets(s, sensed);
+  EXPECT_EQ(t.tilt_deg, 20.0);
+  EXPECT_NE(t.phase.find("turned"), std::string::npos) << t.phase;
+  // A left turn lowers the patient's left (+y, the higher columns) under the trunk ...
+  for (int r = 3; r <= 8; ++r) EXPECT_LT(t.heights_m[grid.id(r, 6)], t.heights_m[grid.id(r, 2)] - 0.05) << r;
+  // ... and the heels stay floated below their calves, the thighs above the knees.
+  for (int c = 3; c <= 5; ++c) {
+    EXPECT_LT(t.heights_m[grid.id(16, c)], t.heights_m[grid.id(14, c)] - 0.05) << c;
+    EXPECT_GT(t.heights_m[grid.id(9, c)], t.heights_m[grid.id(12, c)]) << c;
+  }
+  for (double h : t.heights_m) {
+    EXPECT_GE(h, kConfig.min_height_m);
+    EXPECT_LE(h, kConfig.max_height_m);
+  }
+}
+
 TEST(AdaptivePlan, RefusesBadArgumentsWithTheReason) {
   const std::vector<std::pair<std::map<std::string, std::string>, std::string>> bad = {
       {{{"heel_height_m", "0.5"}}, "heel_height_m must lie in"},
@@ -276,6 +307,10 @@ TEST(AdaptivePlan, RefusesBadArgumentsWithTheReason) {
       {{{"calf_lift_m", "0.2"}}, "calf_lift_m must lie in"},
       {{{"calf_length_m", "-0.1"}}, "calf_length_m must be >= 0"},
       {{{"thigh_lift_m", "0.5"}}, "thigh_lift_m must lie in"},
+      {{{"side", "left"}}, "needs angle_deg"},
+      {{{"side", "up"}, {"angle_deg", "20"}}, "side"},
+      {{{"side", "left"}, {"angle_deg", "45"}}, "angle_deg"},
+      {{{"side", "left"}, {"angle_deg", "30"}, {"ramp_s", "5"}}, "turns faster than"},
       {{{"relief_s", "nan"}}, "relief_s must be finite"},
       {{{"relief_budget_s", "10"}}, "relief_budget_s must exceed relief_s"},
       {{{"max_rate_m_s", "0"}}, "max_rate_m_s must be positive"},
