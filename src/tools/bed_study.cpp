@@ -321,6 +321,7 @@ const std::map<std::string, nb::PlanRequest>& comparablePlans() {
       {"alternating_1in3", {"alternating", {{"pattern", "1in3"}}, {}}},
       {"lateral_turn_30", {"lateral_turn", {{"side", "left"}, {"angle_deg", "30"}, {"return", "no"}}, {}}},
       {"adaptive", {"adaptive", {}, {}}},
+      {"adaptive_turn_30", {"adaptive", {{"side", "left"}, {"angle_deg", "30"}}, {}}},
   };
   return plans;
 }
@@ -359,9 +360,10 @@ constexpr const char* kSynopsis =
     "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
     "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
     "lateral turns only (DIR/bed_study_articulated.json). With --plans (comma-separated: flat,\n"
-    "alternating_1in2, alternating_1in3, lateral_turn_30, adaptive), only the support table of\n"
-    "those plans (DIR/bed_study_support.json), on the articulated patient with --articulated, for a\n"
-    "body of --mass-kg and --height-m (default 70 kg, 1.70 m).";
+    "alternating_1in2, alternating_1in3, lateral_turn_30, adaptive, adaptive_turn_30: adaptive with\n"
+    "a 30 deg left turn), only the support table of those plans (DIR/bed_study_support.json), on\n"
+    "the articulated patient with --articulated, for a body of --mass-kg and --height-m (default\n"
+    "70 kg, 1.70 m).";
 
 }  // namespace
 
