@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "nursing_bed/core/io/errors.h"
 
@@ -108,6 +109,18 @@ double emptyCellLoad(const std::vector<double>& loads_n) {
 
 namespace {
 
+/// The columns of `rows` from the first to the last loaded one, widened by one either side
+/// and kept on the bed; empty when no cell of them is loaded.
+std::pair<int, int> loadedColumnSpan(const BedGrid& grid, const std::vector<double>& loads,
+                                     const std::vector<int>& rows, double contact_load_n) {
+  int lo = grid.cols, hi = -1;
+  for (int r : rows)
+    for (int c = 0; c < grid.cols; ++c)
+      if (loads[grid.id(r, c)] > contact_load_n) lo = std::min(lo, c), hi = std::max(hi, c);
+  if (hi < 0) return {0, -1};
+  return {std::max(0, lo - 1), std::min(grid.cols - 1, hi + 1)};
+}
+
 /// Heel rows and cells: the loaded rows within the heel zone of the body's foot end, and every
 /// cell from there to the bed's foot end one column either side of the feet, so that no cover
 /// slope up to a cell left high reaches a heel. The calves: the leg rows within calf_length_m
@@ -117,14 +130,11 @@ void findHeels(const BedGrid& grid, const std::vector<double>& loads, const Adap
   for (int h = std::max(first_leg_row, out->first_row); h <= out->last_row; ++h)
     if ((out->last_row - h) * grid.pitch_m < params.heel_zone_m) out->heel_rows.push_back(h);
   if (out->heel_rows.empty()) return;
-  int lo = grid.cols, hi = -1;
-  for (int h : out->heel_rows)
-    for (int c = 0; c < grid.cols; ++c)
-      if (loads[grid.id(h, c)] > params.contact_load_n) lo = std::min(lo, c), hi = std::max(hi, c);
+  const auto [lo, hi] = loadedColumnSpan(grid, loads, out->heel_rows, params.contact_load_n);
   const int first_calf =
       std::max(first_leg_row, out->heel_rows.front() - rowsWithin(params.calf_length_m, grid.pitch_m));
   for (int h = params.calf_length_m > 0.0 ? first_calf : out->heel_rows.front(); h < grid.rows; ++h)
-    for (int c = std::max(0, lo - 1); c <= std::min(grid.cols - 1, hi + 1); ++c)
+    for (int c = lo; c <= hi; ++c)
       (h < out->heel_rows.front() ? out->calf_cells : out->heel_cells).push_back(grid.id(h, c));
 }
 
@@ -137,11 +147,8 @@ void findThighs(const BedGrid& grid, const std::vector<double>& loads, const Ada
   if (!out->calf_cells.empty()) end = std::min(end, grid.row(out->calf_cells.front()));
   if (!out->heel_rows.empty()) end = std::min(end, out->heel_rows.front());
   for (int r = first_leg_row; r < end; ++r) {
-    int lo = grid.cols, hi = -1;
-    for (int c = 0; c < grid.cols; ++c)
-      if (loads[grid.id(r, c)] > params.contact_load_n) lo = std::min(lo, c), hi = std::max(hi, c);
-    for (int c = std::max(0, lo - 1); c <= std::min(grid.cols - 1, hi + 1); ++c)
-      out->thigh_cells.push_back(grid.id(r, c));
+    const auto [lo, hi] = loadedColumnSpan(grid, loads, {r}, params.contact_load_n);
+    for (int c = lo; c <= hi; ++c) out->thigh_cells.push_back(grid.id(r, c));
   }
 }
 
@@ -183,11 +190,8 @@ std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector
   findHeels(grid, loads, params, r, &out);
   findThighs(grid, loads, params, r, &out);
   for (int t : out.trunk_rows) {
-    int lo = grid.cols, hi = -1;
-    for (int c = 0; c < grid.cols; ++c)
-      if (load(t, c) > params.contact_load_n) lo = std::min(lo, c), hi = std::max(hi, c);
-    for (int c = std::max(0, lo - 1); c <= std::min(grid.cols - 1, hi + 1); ++c)
-      out.trunk_cells.push_back(grid.id(t, c));
+    const auto [lo, hi] = loadedColumnSpan(grid, loads, {t}, params.contact_load_n);
+    for (int c = lo; c <= hi; ++c) out.trunk_cells.push_back(grid.id(t, c));
   }
   return out;
 }
