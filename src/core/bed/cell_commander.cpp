@@ -19,11 +19,11 @@ std::vector<CellCommand> CellCommander::command(const PlanTargets& targets, cons
                                                 double dt_s, double now_s) {
   if (targets.vent_all) {
     std::fill(limited_m_.begin(), limited_m_.end(), CellSnapshot::kNone);
-    return send(targets, now_s);
+    return send(targets, targets.heights_m, now_s);
   }
   PlanTargets limited = targets;
   limited.heights_m = limit(targets.heights_m, measured_m, dt_s);
-  return send(limited, now_s);
+  return send(limited, targets.heights_m, now_s);
 }
 
 std::vector<double> CellCommander::limit(const std::vector<double>& wanted, const std::vector<double>& measured_m,
@@ -39,7 +39,8 @@ std::vector<double> CellCommander::limit(const std::vector<double>& wanted, cons
   return limited_m_;
 }
 
-std::vector<CellCommand> CellCommander::send(const PlanTargets& targets, double now_s) {
+std::vector<CellCommand> CellCommander::send(const PlanTargets& targets, const std::vector<double>& wanted_m,
+                                             double now_s) {
   std::vector<CellCommand> out;
   for (const BedCell& c : cells_) {
     const bool due = !std::isfinite(sent_at_s_[c.id]) || now_s - sent_at_s_[c.id] >= resend_s_;
@@ -53,9 +54,11 @@ std::vector<CellCommand> CellCommander::send(const PlanTargets& targets, double 
     }
     if (c.id >= targets.heights_m.size() || !std::isfinite(targets.heights_m[c.id])) continue;
     const double h = targets.heights_m[c.id];
-    // A setpoint that moved by less than this is not news: it waits for the resend.
+    // A setpoint that moved by less than this is not news: it waits for the resend, unless the
+    // ramp has just arrived at the plan's target (the cell then holds exactly what was asked).
     constexpr double kChangedM = 2e-4;
-    if (due || !(std::fabs(h - sent_height_m_[c.id]) < kChangedM)) {
+    const bool arrived = c.id < wanted_m.size() && h == wanted_m[c.id] && h != sent_height_m_[c.id];
+    if (due || arrived || !(std::fabs(h - sent_height_m_[c.id]) < kChangedM)) {
       out.push_back({c.id, false, h});
       sent_height_m_[c.id] = h;
       sent_at_s_[c.id] = now_s;

@@ -675,6 +675,21 @@ TEST(BedSupervisor, ASteadySetpointIsResentEveryResendPeriodAndANewPlanAtOnce) {
   EXPECT_EQ(bed.setpoints().size(), 6u);
 }
 
+TEST(BedSupervisor, ARampSendsThePlansExactTargetAsSoonAsItArrivesNotAtTheResend) {
+  nb::BedSupervisorParams params;
+  params.resend_s = 5.0;
+  Bed bed(params);
+  std::fill(bed.heights.begin(), bed.heights.end(), 0.05);
+  ASSERT_TRUE(bed.posture("flat", {"height_m"}, {"0.0501"}).ok);
+  bed.step();  // the ramp starts at the measured 0.05 m
+  // The last step of the ramp (0.1 mm) is below the change that is news, yet it is the target.
+  bed.run(0.1);
+  ASSERT_EQ(bed.setpoints().size(), 6u);
+  for (const auto& [id, h] : bed.setpoints()) EXPECT_EQ(h, 0.0501) << "cell " << id;
+  bed.run(1.0);
+  EXPECT_TRUE(bed.sent.empty());  // arrived and sent: nothing new until the resend
+}
+
 TEST(BedSupervisor, VentAllVentsEveryCellThenOnlyEveryResendPeriod) {
   Bed bed;
   ASSERT_TRUE(bed.posture("flat").ok);

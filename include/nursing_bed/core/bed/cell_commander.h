@@ -38,7 +38,8 @@ class CellCommander {
 
  private:
   std::vector<double> limit(const std::vector<double>& wanted, const std::vector<double>& measured_m, double dt_s);
-  std::vector<CellCommand> send(const PlanTargets& targets, double now_s);
+  /// `targets` as limited; `wanted_m` the plan's own targets by cell id.
+  std::vector<CellCommand> send(const PlanTargets& targets, const std::vector<double>& wanted_m, double now_s);
 
   std::vector<BedCell> cells_;
   RateLimiter limiter_;
