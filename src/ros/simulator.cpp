@@ -230,6 +230,7 @@ SimulatorParams Simulator::loadParams(const ros::NodeHandle& pnh) {
   SimulatorParams p;
   readParam(pnh, "robot_description_param", &p.robot_description);
   readParam(pnh, "cells_ns", &p.cells_ns);
+  readParam(pnh, "truth_topic", &p.truth_topic);
   readParam(pnh, "rate_hz", &p.rate_hz);
   readParam(pnh, "load_filter_time_s", &p.load_filter_time_s);
   readParam(pnh, "plate_weight_n", &p.plate_weight_n);
@@ -321,18 +322,9 @@ Simulator::Simulator(ros::NodeHandle nh, ros::NodeHandle private_nh) : nh_(nh), 
   const std::size_t n = layout_.cells().size();
   heights_m_.assign(n, grid.min_height_m);
   reported_load_n_.assign(n, kNaN);
+  truth_height_m_.assign(n, kNaN);
   last_seen_.assign(n, ros::Time());
-  std::string prefix = params_.cells_ns;
-  if (prefix.empty() || prefix.back() != '/') prefix += '/';
-  for (const CellLayout& c : layout_.cells())
-    state_subs_.push_back(nh_.subscribe(prefix + names::airbagName(c.row, c.col) + "/" + names::kState, 2,
-                                        &Simulator::onState, this, ros::TransportHints().tcpNoDelay()));
-  loads_pub_ = nh_.advertise<std_msgs::Float64MultiArray>(names::kCellLoads, 2);
-  roll_pub_ = private_nh_.advertise<std_msgs::Float64>(sim_names::kBodyRoll, 2);
-  pressure_pub_ = private_nh_.advertise<InterfacePressure>(sim_names::kInterfacePressure, 2);
-  markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>(sim_names::kBedMarkers, 2);
-  tissue_pub_ = private_nh_.advertise<TissueLoad>(sim_names::kTissueLoad, 2);
-  tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+  connectTopics();
 
   const std::vector<int> rows = body_->footprintRows();
   ROS_INFO("simulator: %.1f kg, %.2f m patient on %s; body over rows %d..%d (trunk %d..%d), k_w %.3g Pa/m, %s",
@@ -359,12 +351,40 @@ Simulator::~Simulator() {
   if (clock_thread_.joinable()) clock_thread_.join();
 }
 
+void Simulator::connectTopics() {
+  std::string prefix = params_.cells_ns;
+  if (prefix.empty() || prefix.back() != '/') prefix += '/';
+  for (const CellLayout& c : layout_.cells())
+    state_subs_.push_back(nh_.subscribe(prefix + names::airbagName(c.row, c.col) + "/" + names::kState, 2,
+                                        &Simulator::onState, this, ros::TransportHints().tcpNoDelay()));
+  // A real body lies on the plates where they are, whatever the cells believe: with a rig
+  // emulator's truth the estimates' errors do not feed back into the loads.
+  if (!params_.truth_topic.empty())
+    truth_sub_ = nh_.subscribe(params_.truth_topic, 2, &Simulator::onTruth, this, ros::TransportHints().tcpNoDelay());
+  loads_pub_ = nh_.advertise<std_msgs::Float64MultiArray>(names::kCellLoads, 2);
+  roll_pub_ = private_nh_.advertise<std_msgs::Float64>(sim_names::kBodyRoll, 2);
+  pressure_pub_ = private_nh_.advertise<InterfacePressure>(sim_names::kInterfacePressure, 2);
+  markers_pub_ = nh_.advertise<visualization_msgs::MarkerArray>(sim_names::kBedMarkers, 2);
+  tissue_pub_ = private_nh_.advertise<TissueLoad>(sim_names::kTissueLoad, 2);
+  tf_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+}
+
 void Simulator::onState(const AirbagState::ConstPtr& msg) {
   if (msg->cell_id >= heights_m_.size() || !std::isfinite(msg->height_m)) return;
   std::lock_guard<std::mutex> lock(state_mutex_);
-  heights_m_[msg->cell_id] = msg->height_m;
+  if (params_.truth_topic.empty() || !std::isfinite(truth_height_m_[msg->cell_id]))
+    heights_m_[msg->cell_id] = msg->height_m;
   reported_load_n_[msg->cell_id] = msg->external_load_n;
   last_seen_[msg->cell_id] = ros::Time::now();
+}
+
+void Simulator::onTruth(const RigTruth::ConstPtr& msg) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  const std::size_t n = std::min(msg->height_m.size(), heights_m_.size());
+  for (std::size_t id = 0; id < n; ++id) {
+    truth_height_m_[id] = msg->height_m[id];
+    if (std::isfinite(msg->height_m[id])) heights_m_[id] = msg->height_m[id];
+  }
 }
 
 void Simulator::onTimer(const ros::TimerEvent&) { step(ros::Time::now()); }

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "nursing_bed/AirbagState.h"
+#include "nursing_bed/RigTruth.h"
 #include "nursing_bed/TissueLoad.h"
 
 namespace nursing_bed {
@@ -83,6 +85,46 @@ TEST(TissueLoadTopic, AppearsWithSaneValuesForASupinePatient) {
   std::printf("tissue load after %.1f s: sacrum %.1f mmHg over %.0f cm^2, margin %.1f mm; heels %.1f mmHg\n",
               m.observed_s, m.peak_pressure_mmhg[at("sacrum")], 1e4 * m.contact_area_m2[at("sacrum")],
               1e3 * m.margin_m[at("sacrum")], m.peak_pressure_mmhg[at("left_heel")]);
+}
+
+TEST(TissueLoadTopic, TheBodyLiesOnTheTruthWhenOneIsGiven) {
+  ros::NodeHandle nh, pnh("~");
+  int cells = 0;
+  ASSERT_TRUE(pnh.getParam("cells", cells));
+  TissueLoad last;
+  AirbagState sacrum_cell;
+  ros::Subscriber sub =
+      nh.subscribe<TissueLoad>("/simulator/tissue_load", 10, [&last](const TissueLoad::ConstPtr& m) { last = *m; });
+  ros::Subscriber state_sub = nh.subscribe<AirbagState>(
+      "/airbag_8_1/state", 10, [&sacrum_cell](const AirbagState::ConstPtr& m) { sacrum_cell = *m; });
+  ros::Publisher truth_pub = nh.advertise<RigTruth>("/test_truth", 10);
+  auto sacrumMargin = [&last]() {
+    const auto it = std::find(last.region.begin(), last.region.end(), "sacrum");
+    return it == last.region.end() ? std::nan("") : last.margin_m[it - last.region.begin()];
+  };
+  // Until a truth arrives the body rests on the reported heights: the flat plan lifts it.
+  ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(40.0);
+  while (ros::ok() && ros::WallTime::now() < deadline && !(sacrumMargin() > 0.05)) {
+    ros::spinOnce();
+    ros::WallDuration(0.02).sleep();
+  }
+  ASSERT_GT(sacrumMargin(), 0.05) << "the flat plan never lifted the sacrum";
+  // Now the truth puts every plate at the bed base; the cells go on reporting the flat bed.
+  RigTruth truth;
+  truth.height_m.assign(cells, 0.0);
+  double margin = sacrumMargin();
+  deadline = ros::WallTime::now() + ros::WallDuration(8.0);
+  while (ros::ok() && ros::WallTime::now() < deadline && !(margin < 0.02)) {
+    truth.header.stamp = ros::Time::now();
+    truth_pub.publish(truth);
+    ros::spinOnce();
+    margin = sacrumMargin();
+    ros::WallDuration(0.02).sleep();
+  }
+  EXPECT_LT(margin, 0.02) << "the body did not follow the true plate heights";
+  EXPECT_GT(sacrum_cell.height_m, 0.05) << "the cell under the sacrum should still report the flat bed";
+  std::printf("truth at the base: sacrum margin %.1f mm while its cell reports %.1f mm\n", 1e3 * margin,
+              1e3 * sacrum_cell.height_m);
 }
 
 }  // namespace test

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "nursing_bed/AirbagState.h"
+#include "nursing_bed/RigTruth.h"
 #include "nursing_bed/core/bed/body_model.h"
 #include "nursing_bed/core/bed/tissue_load.h"
 #include "nursing_bed/core/io/status.h"
@@ -40,7 +41,10 @@ struct SimulatorParams {
   PatientParams patient;                                ///< ~patient/...: mass_kg, height_m, head_clearance_m, ...
   std::string robot_description = "robot_description";  ///< ~robot_description_param
   std::string cells_ns = "/";                           ///< ~cells_ns: where the airbag_<r>_<c> nodes live
-  double rate_hz = 50.0;                                ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
+  /// ~truth_topic: a rig emulator's truth (nursing_bed/RigTruth); when set the body lies on the
+  /// plates' true heights there, not on the heights the cells report (their estimates).
+  std::string truth_topic;
+  double rate_hz = 50.0;            ///< ~rate_hz: body solves and /airbag_loads per second [Hz]
   double load_filter_time_s = 0.1;  ///< ~load_filter_time_s: first-order filter on the published loads [s]
   double plate_weight_n = 0.6;      ///< ~plate_weight_n: added to every cell's load [N]
   double marker_rate_hz = 10.0;     ///< ~marker_rate_hz: /bed_markers and the body's tf [Hz]
@@ -73,7 +77,10 @@ class Simulator {
   static SimulatorParams loadParams(const ros::NodeHandle& private_nh);
 
  private:
+  /// The cells' states (and the truth, when given) in; loads, views and metrics out.
+  void connectTopics();
   void onState(const AirbagState::ConstPtr& msg);
+  void onTruth(const RigTruth::ConstPtr& msg);
   void onTimer(const ros::TimerEvent& event);
   void clockLoop();
   /// One step at time `now`: solve, filter, publish.
@@ -110,6 +117,7 @@ class Simulator {
   std::mutex state_mutex_;               // guards the cells' last states (callbacks on any thread)
   std::vector<double> heights_m_;        // by cell id
   std::vector<double> reported_load_n_;  // by cell id, the load the cell says it carries
+  std::vector<double> truth_height_m_;   // by cell id, the rig emulator's truth (NaN: none)
   std::vector<ros::Time> last_seen_;     // by cell id (zero: never)
 
   std::mutex step_mutex_;                // one step at a time
@@ -122,6 +130,7 @@ class Simulator {
   long steps_ = 0;
 
   std::vector<ros::Subscriber> state_subs_;
+  ros::Subscriber truth_sub_;
   ros::Publisher loads_pub_, roll_pub_, pressure_pub_, markers_pub_, clock_pub_, tissue_pub_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_;
   ros::Timer timer_;
