@@ -193,6 +193,12 @@ std::optional<BodyLayout> inferBodyLayout(const BedGrid& grid, const std::vector
     const auto [lo, hi] = loadedColumnSpan(grid, loads, {t}, params.contact_load_n);
     for (int c = lo; c <= hi; ++c) out.trunk_cells.push_back(grid.id(t, c));
   }
+  std::vector<bool> shaped(grid.cells(), false);
+  for (const auto* cells : {&out.heel_cells, &out.calf_cells})
+    for (std::uint32_t id : *cells) shaped[id] = true;
+  for (int row = out.first_row; row <= out.last_row; ++row)
+    for (int c = 0; c < grid.cols; ++c)
+      if (!shaped[grid.id(row, c)]) out.level_cells.push_back(grid.id(row, c));
   return out;
 }
 
@@ -221,18 +227,21 @@ void AdaptiveSupport::buildRegions() {
 }
 
 void AdaptiveSupport::level(const std::vector<double>& loads, double dt_s) {
-  // Each trunk cell moves towards its neighbourhood's mean load: an over-loaded cell goes down,
-  // the under-loaded cells around it go up and take its load (negative feedback: a raised
-  // cell takes more load).
-  const std::vector<std::uint32_t>& cells = layout_->trunk_cells;
+  // Each cell under the body moves towards its neighbourhood's mean load: an over-loaded cell
+  // goes down, the under-loaded cells around it go up and take its load (negative feedback: a
+  // raised cell takes more load), so the bed fills the body's hollows and envelops it.
+  const std::vector<std::uint32_t>& cells = layout_->level_cells;
+  std::vector<bool> in(grid_.cells(), false);
+  for (std::uint32_t id : cells) in[id] = true;
   for (std::uint32_t id : cells) {
     double sum = 0.0;
     int n = 0;
-    for (std::uint32_t other : cells)
-      if (std::abs(grid_.row(other) - grid_.row(id)) <= 1 && std::abs(grid_.col(other) - grid_.col(id)) <= 1) {
-        sum += loads[other];
-        ++n;
-      }
+    for (int r = std::max(0, grid_.row(id) - 1); r <= std::min(grid_.rows - 1, grid_.row(id) + 1); ++r)
+      for (int c = std::max(0, grid_.col(id) - 1); c <= std::min(grid_.cols - 1, grid_.col(id) + 1); ++c)
+        if (in[grid_.id(r, c)]) {
+          sum += loads[grid_.id(r, c)];
+          ++n;
+        }
     const double step = params_.level_gain_m_n_s * (sum / n - loads[id]) * dt_s;
     offset_m_[id] = std::clamp(offset_m_[id] + step, -params_.level_range_m, params_.level_range_m);
   }
@@ -280,9 +289,12 @@ std::vector<double> AdaptiveSupport::wanted() const {
   for (std::uint32_t id : layout_->thigh_cells) h[id] += params_.thigh_lift_m;
   if (relieving_ >= 0) {
     const std::vector<int>& rows = regions_[relieving_].rows;
+    const std::vector<int>& pelvis = layout_->pelvis_rows;
     for (int r = rows.front() - 1; r <= rows.back() + 1; ++r) {
       if (r < 0 || r >= grid_.rows) continue;
       const bool inside = r >= rows.front() && r <= rows.back();
+      // The relieved load goes to the neighbour rows, never onto the sacrum and trochanters.
+      if (!inside && std::find(pelvis.begin(), pelvis.end(), r) != pelvis.end()) continue;
       for (int c = 0; c < grid_.cols; ++c) h[grid_.id(r, c)] += inside ? -params_.relief_drop_m : params_.relief_drop_m;
     }
   }
@@ -306,7 +318,9 @@ std::vector<double> AdaptiveSupport::update(double elapsed_s, const SensedCells&
   } else {
     std::vector<double> loads = sensedLoads(grid_, sensed);
     for (double& l : loads) l = std::max(0.0, l - layout_->empty_load_n);
-    level(loads, dt_s);
+    // Levelling waits while a region is relieved: the relief's load shift is not an imbalance
+    // to level (the offsets would wind up and over-load the region when it comes back).
+    if (relieving_ < 0) level(loads, dt_s);
     account(loads, elapsed_s, dt_s);
     want = wanted();
     *phase = relieving_ >= 0 ? "relieving " + regions_[relieving_].name : "adapting";

@@ -62,6 +62,14 @@ std::vector<std::string> run(nb::AdaptiveSupport* s, const nb::SensedCells& sens
   return phases;
 }
 
+/// The area of the points of `map` bearing pressure [m^2].
+double contactArea(const std::vector<nb::ContactPoint>& map) {
+  double area = 0.0;
+  for (const nb::ContactPoint& p : map)
+    if (p.pressure_pa > 0.0) area += p.area_m2;
+  return area;
+}
+
 }  // namespace
 
 TEST(AdaptiveSupport, ReadsTheHeadTrunkPelvisAndHeelsOffTheLoadMap) {
@@ -90,31 +98,44 @@ TEST(AdaptiveSupport, FindsTheBodyWhereverItLiesOnTheBed) {
   EXPECT_EQ(layout->heel_rows, (std::vector<int>{18, 19}));
 }
 
+// Where each part goes without levelling (level_gain_m_n_s 0): the layout's own heights.
+nb::AdaptiveSupportParams unlevelled() {
+  nb::AdaptiveSupportParams p = kConfig.adaptive;
+  p.level_gain_m_n_s = 0.0;
+  return p;
+}
+
 TEST(AdaptiveSupport, LowersTheHeelCellsToTheFootEndAndRaisesTheCalves) {
   const nb::BedGrid grid;
-  nb::AdaptiveSupport s = support();
+  const nb::AdaptiveSupportParams p = unlevelled();
+  nb::AdaptiveSupport s = support(p);
   run(&s, supineSensed(grid), 0.0, 120.0);
-  const nb::AdaptiveSupportParams& p = kConfig.adaptive;
   for (int r : {16, 17, 18, 19})  // the heel rows and every row after them, over the feet's columns
     for (int c = 2; c <= 6; ++c) EXPECT_NEAR(s.targets()[grid.id(r, c)], p.heel_height_m, 1e-9) << r << "," << c;
   const double calf_m = std::min(kConfig.max_height_m, kConfig.nominal_height_m + p.calf_lift_m);
   for (int r : {14, 15})  // the calves go higher and take the feet's load
     for (int c = 2; c <= 6; ++c) EXPECT_NEAR(s.targets()[grid.id(r, c)], calf_m, 1e-9) << r << "," << c;
-  for (int c = 0; c < grid.cols; ++c) EXPECT_NEAR(s.targets()[grid.id(13, c)], kConfig.nominal_height_m, 1e-9);
   EXPECT_NEAR(s.targets()[grid.id(17, 0)], kConfig.nominal_height_m, 1e-9);  // off the feet's columns
 }
 
-TEST(AdaptiveSupport, RaisesTheThighsAfterThePelvis) {
+TEST(AdaptiveSupport, RaisesTheThighsAfterThePelvisUpToTheCalves) {
   const nb::BedGrid grid;
-  nb::AdaptiveSupport s = support();
+  nb::AdaptiveSupportParams p = unlevelled();
+  nb::AdaptiveSupport s = support(p);
   run(&s, supineSensed(grid), 0.0, 120.0);
-  const nb::AdaptiveSupportParams& p = kConfig.adaptive;
-  for (int r : {9, 10})  // the two rows after the pelvis (rows 7-8): loaded columns 2-6 and one either side
+  for (int r : {9, 10})  // the rows after the pelvis (rows 7-8): loaded columns 2-6 and one either side
     for (int c = 0; c < grid.cols; ++c) {
       const double lift_m = c >= 1 && c <= 7 ? p.thigh_lift_m : 0.0;
       EXPECT_NEAR(s.targets()[grid.id(r, c)], kConfig.nominal_height_m + lift_m, 1e-9) << r << "," << c;
     }
-  for (int c = 0; c < grid.cols; ++c) EXPECT_NEAR(s.targets()[grid.id(11, c)], kConfig.nominal_height_m, 1e-9);
+  for (int r : {11, 12, 13})  // up to the calves (rows 14-15)
+    EXPECT_NEAR(s.targets()[grid.id(r, 3)], kConfig.nominal_height_m + p.thigh_lift_m, 1e-9) << r;
+  p.thigh_length_m = 0.2;  // two rows of thighs
+  nb::AdaptiveSupport short_thighs = support(p);
+  run(&short_thighs, supineSensed(grid), 0.0, 120.0);
+  EXPECT_NEAR(short_thighs.targets()[grid.id(10, 3)], kConfig.nominal_height_m + p.thigh_lift_m, 1e-9);
+  for (int c = 0; c < grid.cols; ++c)
+    EXPECT_NEAR(short_thighs.targets()[grid.id(11, c)], kConfig.nominal_height_m, 1e-9) << c;
   nb::AdaptiveSupportParams flat_thighs = p;
   flat_thighs.thigh_lift_m = 0.0;
   nb::AdaptiveSupport off = support(flat_thighs);
@@ -195,6 +216,48 @@ TEST(AdaptiveSupport, RelievesThePelvisUpperTrunkAndHeadInTurnWithinTheBudget) {
   EXPECT_GT(again.targets()[grid.id(6, 2)], kConfig.nominal_height_m);
 }
 
+TEST(AdaptiveSupport, ARelievedRegionsLoadGoesToItsNeighboursButNeverOntoThePelvis) {
+  const nb::BedGrid grid;
+  nb::AdaptiveSupportParams p = unlevelled();
+  p.relief_budget_s = 300.0;
+  p.relief_s = 30.0;
+  nb::AdaptiveSupport s = support(p);
+  // The pelvis is due at 120 s, the upper trunk (rows 3-6) at 220 s.
+  EXPECT_EQ(run(&s, supineSensed(grid), 0.0, 240.0).back(), "relieving upper trunk");
+  EXPECT_LT(s.targets()[grid.id(4, 4)], kConfig.nominal_height_m);
+  EXPECT_GT(s.targets()[grid.id(2, 4)], kConfig.nominal_height_m);  // the head's last row takes it
+  for (int c = 0; c < grid.cols; ++c) EXPECT_EQ(s.targets()[grid.id(7, c)], kConfig.nominal_height_m) << c;
+}
+
+TEST(AdaptiveSupport, LevelsEveryCellUnderTheBodyButTheHeelsAndCalves) {
+  // Under the legs too, a cell carrying less than its neighbours rises and takes load, one
+  // carrying more goes down; the floated heels and the lifted calves stay where they are.
+  const nb::BedGrid grid;
+  nb::AdaptiveSupport s = support();
+  run(&s, supineSensed(grid), 0.0, 300.0);
+  const double thigh_m = kConfig.nominal_height_m + kConfig.adaptive.thigh_lift_m;
+  EXPECT_GT(s.targets()[grid.id(12, 4)], s.targets()[grid.id(12, 3)]);  // 4.3 N between two of 8 N
+  EXPECT_LT(s.targets()[grid.id(11, 3)], thigh_m);                      // 18.2 N beside 10.7 and 0.9 N
+  EXPECT_GT(s.targets()[grid.id(5, 1)], kConfig.nominal_height_m);      // an arm's cell beside the chest
+  EXPECT_NEAR(s.targets()[grid.id(16, 3)], kConfig.adaptive.heel_height_m, 1e-9);
+  const double calf_m = std::min(kConfig.max_height_m, kConfig.nominal_height_m + kConfig.adaptive.calf_lift_m);
+  EXPECT_NEAR(s.targets()[grid.id(14, 3)], calf_m, 1e-9);
+}
+
+TEST(AdaptiveSupport, LevellingWaitsWhileARegionIsRelieved) {
+  // The relief's load shift is no imbalance to level: the other cells hold still through it.
+  const nb::BedGrid grid;
+  nb::AdaptiveSupportParams p = kConfig.adaptive;
+  p.relief_budget_s = 300.0;
+  p.relief_s = 30.0;
+  nb::AdaptiveSupport s = support(p);
+  EXPECT_EQ(run(&s, supineSensed(grid), 0.0, 125.0).back(), "relieving pelvis");
+  const std::vector<double> early = s.targets();
+  EXPECT_EQ(run(&s, supineSensed(grid), 125.1, 145.0).back(), "relieving pelvis");
+  for (int r : {3, 4, 11, 12})
+    for (int c = 0; c < grid.cols; ++c) EXPECT_EQ(s.targets()[grid.id(r, c)], early[grid.id(r, c)]) << r << "," << c;
+}
+
 TEST(AdaptiveSupport, RelievesARegionSoonerWhenItsSensedDoseReachesTheLimit) {
   const nb::BedGrid grid;
   nb::AdaptiveSupportParams p = kConfig.adaptive;
@@ -226,8 +289,9 @@ TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps
   // Closed loop on the articulated body: the cells reach their targets, and the plan senses
   // the loads the body puts on them plus the plate's weight on every cell. On a small, the
   // default and a heavy body the heels float (their weight goes to the calves), the raised
-  // thighs and the levelled trunk keep the sacrum and the trochanters at or below 32 mmHg, and
-  // the skin stays clear of the bed base.
+  // thighs and the levelled trunk keep the sacrum and the trochanters at or below 32 mmHg, the
+  // skin stays clear of the bed base, and the levelled cells envelop the body: it touches the
+  // bed over at least the flat bed's area although its feet no longer do.
   const nb::BedGrid grid;
   for (const auto& [mass_kg, height_m] : std::vector<std::pair<double, double>>{{50, 1.55}, {70, 1.70}, {110, 1.85}}) {
     nb::PatientParams patient;
@@ -237,6 +301,8 @@ TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps
     nb::BodyModel body(patient, grid);
     nb::AdaptiveSupport s = support();
     std::vector<double> heights(grid.cells(), kConfig.nominal_height_m);
+    body.solve(heights);
+    const double flat_area_m2 = contactArea(body.contactMap(heights));
     nb::SensedCells sensed;
     std::string phase;
     for (double t = 0.0; t <= 400.0; t += kStepS) {
@@ -246,6 +312,7 @@ TEST(AdaptiveSupport, FloatsTheHeelsOfThreeArticulatedBodiesFromTheirOwnLoadMaps
     }
     const nb::BodyState state = body.solve(heights);
     EXPECT_LT(nb::paToMmHg(state.peak_pressure_pa.heels), 10.0) << mass_kg << " kg";
+    EXPECT_GE(contactArea(body.contactMap(heights)), flat_area_m2) << mass_kg << " kg";
     const auto regions = nb::measureRegions(body.contactMap(heights), nb::defaultTissueRegions(), height_m);
     const auto& names = nb::defaultTissueRegions();
     for (std::size_t k = 0; k < regions.size(); ++k) {
@@ -272,8 +339,9 @@ TEST(AdaptivePlan, IsMadeFromTheRegistryWithItsArguments) {
 TEST(AdaptivePlan, CombinedWithATurnTiltsTheBedOnceTheSurveyHasReadTheBody) {
   std::string why;
   const nb::BedGrid grid;
-  auto plan = nb::makePlan({"adaptive", {{"side", "left"}, {"angle_deg", "20"}, {"ramp_s", "30"}}, {}}, kConfig, grid,
-                           nb::BodyFootprint{}, &why);
+  auto plan = nb::makePlan(
+      {"adaptive", {{"side", "left"}, {"angle_deg", "20"}, {"ramp_s", "30"}, {"thigh_length_m", "0.2"}}, {}}, kConfig,
+      grid, nb::BodyFootprint{}, &why);
   ASSERT_TRUE(plan) << why;
   EXPECT_NE(plan->describe().find("side=left angle_deg=20 ramp_s=30"), std::string::npos) << plan->describe();
   const nb::SensedCells sensed = supineSensed(grid);

@@ -4,8 +4,9 @@
 // the head end, trunk rows loaded in the midline, legs loaded on two columns, heels at the foot
 // end), then floats the heels (the heel cells lowered, the calves' raised), raises the thighs to
 // take load off the pelvis, keeps the cells under the trunk and pelvis above a bottoming-out
-// height, levels the trunk's load between neighbouring cells, and relieves the head, the upper
-// trunk and the pelvis in turn before a time budget or a dose on the tolerance curve runs out.
+// height, levels the load between neighbouring cells under the body (filling its hollows), and
+// relieves the head, the upper trunk and the pelvis in turn before a time budget or a dose on the
+// tolerance curve runs out, the relieved load going to neighbour rows other than the pelvis.
 // Its targets move at a bounded rate; the bed supervisor's rate limits (height and roll slope)
 // apply on top. Reference: doc/bed_manager.md, "adaptive".
 //
@@ -42,13 +43,15 @@ struct AdaptiveSupportParams {
   /// The calves' cells go this much higher (at most to max_height_m), so the hanging feet
   /// clear the floated cells [m].
   double calf_lift_m = 0.05;
-  double thigh_length_m = 0.2;  ///< the leg rows over this length after the pelvis are the thighs [m]
+  /// The leg rows over this length after the pelvis, up to the calves, are the thighs (and
+  /// knees) [m].
+  double thigh_length_m = 0.8;
   /// The thighs' cells go this much higher (at most to max_height_m): they take part of the
   /// pelvis's load off the sacrum and the trochanters [m].
-  double thigh_lift_m = 0.04;
+  double thigh_lift_m = 0.05;
   /// Lowest height of a cell under the trunk or pelvis: its bottoming-out margin [m].
-  double margin_height_m = 0.08;
-  double level_gain_m_n_s = 2e-5;   ///< levelling: height change per N of excess load per s [m/(N s)]
+  double margin_height_m = 0.07;
+  double level_gain_m_n_s = 6e-5;   ///< levelling: height change per N of excess load per s [m/(N s)]
   double level_range_m = 0.03;      ///< levelling moves a cell at most this far from the nominal height [m]
   double relief_budget_s = 1800.0;  ///< a region is relieved after this long under load ... [s]
   double dose_limit = 0.25;         ///< ... or sooner, when its sensed dose reaches this [-]
@@ -78,6 +81,9 @@ struct BodyLayout {
   std::vector<std::uint32_t> calf_cells;   ///< the calf rows before the heel rows, the heels' columns
   std::vector<std::uint32_t> thigh_cells;  ///< the thigh rows after the pelvis, loaded columns and one either side
   std::vector<std::uint32_t> trunk_cells;  ///< trunk rows, loaded columns and one either side
+  /// Cells levelled against their neighbours: every cell of the loaded rows but the heels' and
+  /// the calves'.
+  std::vector<std::uint32_t> level_cells;
 };
 
 /// What an empty cell senses (the plate's weight, an estimate's offset): the 10th percentile of
