@@ -309,14 +309,14 @@ std::vector<double> AdaptiveSupport::update(double elapsed_s, const SensedCells&
   const double dt_s = std::max(0.0, elapsed_s - last_elapsed_s_);
   last_elapsed_s_ = std::max(last_elapsed_s_, elapsed_s);
   std::vector<double> want(grid_.cells(), nominal_height_m_);
+  std::vector<double> loads = sensedLoads(grid_, sensed);
   if (!layout_ && elapsed_s >= params_.survey_s) {
-    layout_ = inferBodyLayout(grid_, sensedLoads(grid_, sensed), params_);
+    layout_ = inferBodyLayout(grid_, loads, params_);
     if (layout_) buildRegions();
   }
   if (!layout_) {
     *phase = elapsed_s < params_.survey_s ? "surveying" : "level: no body sensed";
   } else {
-    std::vector<double> loads = sensedLoads(grid_, sensed);
     for (double& l : loads) l = std::max(0.0, l - layout_->empty_load_n);
     // Levelling waits while a region is relieved: the relief's load shift is not an imbalance
     // to level (the offsets would wind up and over-load the region when it comes back).
