@@ -38,6 +38,17 @@ inline void shutdownNode(const std::string& node, const std::string& reason) {
   ASSERT_TRUE(client.execute("shutdown", call, reply));
 }
 
+/// Calls `name` once it is advertised; a call that fails at the transport (no answer at all,
+/// not a refusal: every service of the bed answers) is tried once more, as a loaded CI machine
+/// can drop a connection. A server that died fails both.
+template <class Service>
+bool callService(const std::string& name, Service& srv) {
+  if (!ros::service::waitForService(name, ros::Duration(10.0))) return false;
+  if (ros::service::call(name, srv)) return true;
+  ROS_WARN("test: %s gave no answer; trying once more", name.c_str());
+  return ros::service::waitForService(name, ros::Duration(5.0)) && ros::service::call(name, srv);
+}
+
 class BedFixture : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -144,8 +155,7 @@ class BedFixture : public ::testing::Test {
     SetHeight srv;
     srv.request.cell_id = id;
     srv.request.height_m = height;
-    EXPECT_TRUE(ros::service::waitForService(cell_ns + "/set_height", ros::Duration(10.0)));
-    EXPECT_TRUE(ros::service::call(cell_ns + "/set_height", srv));
+    EXPECT_TRUE(callService(cell_ns + "/set_height", srv));
     return srv.response;
   }
 
@@ -153,8 +163,7 @@ class BedFixture : public ::testing::Test {
     SetHeights srv;
     srv.request.cell_ids = ids;
     srv.request.heights_m = heights;
-    EXPECT_TRUE(ros::service::waitForService("/bed_manager/set_airbag_heights", ros::Duration(10.0)));
-    EXPECT_TRUE(ros::service::call("/bed_manager/set_airbag_heights", srv));
+    EXPECT_TRUE(callService("/bed_manager/set_airbag_heights", srv));
     return srv.response;
   }
 
@@ -189,8 +198,7 @@ class PlanFixture : public BedFixture {
     srv.request.plan = plan;
     srv.request.keys = keys;
     srv.request.values = values;
-    EXPECT_TRUE(ros::service::waitForService("/bed_manager/set_posture", ros::Duration(10.0)));
-    EXPECT_TRUE(ros::service::call("/bed_manager/set_posture", srv));
+    EXPECT_TRUE(callService("/bed_manager/set_posture", srv));
     return srv.response;
   }
 

@@ -139,13 +139,13 @@ class SafetyFixture : public PlanFixture {
          {std::vector<double>(cells() - 1, 0.1), std::vector<double>(cells(), kNaN), std::vector<double>(cells(), 0.01),
           std::vector<double>(cells() + 1, 0.1)}) {
       custom.request.heights_m = heights;
-      EXPECT_TRUE(ros::service::call("/bed_manager/set_posture", custom));
+      EXPECT_TRUE(callService("/bed_manager/set_posture", custom));
       expect_refused(custom.response.success, custom.response.message, "custom", "custom heights");
     }
     SetPosture flat_heights;
     flat_heights.request.plan = "flat";
     flat_heights.request.heights_m = {0.1};
-    EXPECT_TRUE(ros::service::call("/bed_manager/set_posture", flat_heights));
+    EXPECT_TRUE(callService("/bed_manager/set_posture", flat_heights));
     expect_refused(flat_heights.response.success, flat_heights.response.message, "per-cell", "flat with heights");
     const uint32_t n = static_cast<uint32_t>(cells());
     const std::vector<std::tuple<std::vector<uint32_t>, std::vector<double>, std::string>> many{
@@ -172,7 +172,7 @@ class SafetyFixture : public PlanFixture {
       if (ids.size() == 1 && heights.size() == 1) {  // the single-cell service too
         one.request.cell_id = ids[0];
         one.request.height_m = heights[0];
-        EXPECT_TRUE(ros::service::call("/bed_manager/set_airbag_height", one));
+        EXPECT_TRUE(callService("/bed_manager/set_airbag_height", one));
         expect_refused(one.response.success, one.response.message, fragment, "set_airbag_height");
       }
     }
