@@ -29,6 +29,10 @@
 //   --alternate           instead of the programme: the alternating plan's moves as the bed
 //                         manager streams them (0.10 m, then 0.03 / 0.12 m every 20 s, targets
 //                         rate-limited to 0.02 m/s and sent at 50 Hz), 100 s
+//   --rate M_S            --alternate: the streamed targets' rate limit (default 0.02 m/s)
+//   --load-stiffness N_M  the load grows by this per metre the plate stands above 0.1 m and
+//                         shrinks below it, never under the plate's own 0.6 N (a body lying on
+//                         the cell as on a spring; default 0: a dead load)
 //   --period S            the cell's control period (default 0.005 s, as the bed's nodes)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
@@ -71,6 +75,8 @@ struct Options {
   double swing_time_s = 0.1;   ///< its correlation time [s]
   double hold_s = 0.0;         ///< > 0: one fill to 91 mm, held until then [s]
   double land_s = 0.0;         ///< > 0: the rig carries load_guess_n until then [s]
+  double rate_m_s = 0.02;      ///< --alternate: the streamed targets' rate limit [m/s]
+  double stiffness_n_m = 0.0;  ///< the load grows by this per metre of plate above 0.1 m [N/m]
   std::string trace_path;
 };
 
@@ -88,6 +94,8 @@ double* numberOption(const std::string& a, Options* o) {
   if (a == "--swing-time") return &o->swing_time_s;
   if (a == "--hold") return &o->hold_s;
   if (a == "--land") return &o->land_s;
+  if (a == "--rate") return &o->rate_m_s;
+  if (a == "--load-stiffness") return &o->stiffness_n_m;
   return nullptr;
 }
 
@@ -110,6 +118,7 @@ bool parse(int argc, char** argv, Options* o) {
                            : a == "--seed"                                             ? 1e9
                            : a == "--hold" || a == "--land"                            ? 3600.0
                            : a == "--swing-time"                                       ? 10.0
+                           : a == "--load-stiffness"                                   ? 1e4
                                                                                        : 1.0;
       // a period of 0 never ticks, a sway of correlation time 0 is no sway
       const double lower_exclusive = a == "--period" || a == "--swing-time" ? 0.0 : -1.0;
@@ -237,7 +246,8 @@ int main(int argc, char** argv) {
     const double now = std::chrono::duration<double>(Clock::now() - start).count();
     if (now > end_s) break;
     // The guess until the patient lands, then the load (swaying where asked); sent on change.
-    const double load = now < o.land_s ? guess_n : o.load_swing_n > 0.0 ? sway.next(o.period_s) : o.load_n;
+    const double carried = now < o.land_s ? guess_n : o.load_swing_n > 0.0 ? sway.next(o.period_s) : o.load_n;
+    const double load = std::max(0.6, carried + o.stiffness_n_m * (emulator.truth().at(0).height_m - 0.1));
     if (load != rig_load_n) emulator.setLoad(0, rig_load_n = load);
     if (next_target < plan.size() && now >= plan[next_target].at_s) {
       const Target& t = plan[next_target++];
@@ -247,7 +257,7 @@ int main(int argc, char** argv) {
     }
     if (o.alternate && now >= next_stream_s && wanted_m > 0.0) {
       next_stream_s = now + 0.02;
-      streamed_m += std::clamp(wanted_m - streamed_m, -0.02 * 0.02, 0.02 * 0.02);
+      streamed_m += std::clamp(wanted_m - streamed_m, -o.rate_m_s * 0.02, o.rate_m_s * 0.02);
       cell.requestHeight(std::max(streamed_m, 0.02), now);
     }
     cell.advanceTo(now);

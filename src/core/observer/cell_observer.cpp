@@ -74,6 +74,7 @@ CellObserver::CellObserver(const CellParams& model, const CellObserverParams& pa
       model_(validModel(model, params)),
       gamma_(model.gas.heat_capacity_ratio),
       delay_(params.valve_dead_time_s),
+      pulse_(kCurvedFlowBands * model.orifice_linear_band_pa),
       reanchor_(params.reanchor_time_s, params.period_s, 0.0),
       weight_bound_(params.weight_bound_window_s),
       reading_noise_(params.pressure_noise_pa, kNoisePriorReadings, kNoiseMemoryReadings) {
@@ -102,6 +103,7 @@ void CellObserver::reset(double load_n) {
   flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   reanchor_.reset();
   weight_bound_.reset();
+  pulse_.reset();
   still_s_ = 0.0;
   reading_noise_.interrupt();
   refresh(modelInputs(applied_, last_pressure_pa_));
@@ -131,7 +133,7 @@ CellInputs CellObserver::modelInputs(const ObserverInputs& in, double flow_gauge
 
 void CellObserver::refresh(const CellInputs& in) { model_.rate(time_, x_, in, &vars_); }
 
-void CellObserver::integrateFlows(const CellInputs& in, double dt_s) {
+void CellObserver::integrateFlows(const CellInputs& in, double dt_s, double pulse_factor) {
   // The model's rates at the estimate: the gas's mass and energy change by the flows and heat
   // (its own work term, p dV/dt at the model's velocity and film rate, is taken back out: the
   // work is done along the measured pressure in isentropicWork); the regulator outlet and the
@@ -139,7 +141,7 @@ void CellObserver::integrateFlows(const CellInputs& in, double dt_s) {
   CellVariables v;
   const Vector dx = model_.rate(time_, x_, in, &v);
   const Eigen::Vector2d at_reading = gasRates(dx, v);
-  const Eigen::Vector2d gas = at_reading - noiseBias(in, at_reading);
+  const Eigen::Vector2d gas = pulse_factor * (at_reading - noiseBias(in, at_reading));
   x_[CellModel::kMass] += gas[0] * dt_s;
   x_[CellModel::kEnergy] += gas[1] * dt_s;
   x_[CellModel::kRegulator] += dx[CellModel::kRegulator] * dt_s;
@@ -334,7 +336,7 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
   if (std::isfinite(readings.inflow_kg_s)) in.prescribed_inflow_kg_s = readings.inflow_kg_s;
   propagateCovariance(dt);
-  integrateFlows(in, dt);
+  integrateFlows(in, dt, pulse_.factor(model_, time_, x_, vars_.pressure_pa, in, p_old, dt));
   isentropicWork(p_old, p_new);
   keepPhysical();
   bool lifted = invertVolume(p_new, dt);
@@ -398,6 +400,7 @@ void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   refresh(in);
   reanchor_.interrupt();
+  pulse_.interrupt();
 }
 
 void CellObserver::keepPhysical() {

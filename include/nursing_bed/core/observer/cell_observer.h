@@ -16,6 +16,7 @@
 #include "nursing_bed/core/observer/observer_inputs.h"
 #include "nursing_bed/core/observer/reading_noise.h"
 #include "nursing_bed/core/observer/reanchor_detector.h"
+#include "nursing_bed/core/observer/resting_plate_pulse.h"
 #include "nursing_bed/core/observer/valve_delay_line.h"
 #include "nursing_bed/core/observer/weight_bound.h"
 #include "nursing_bed/core/physics/cell_model.h"
@@ -84,6 +85,8 @@ struct CellEstimate {
  *    pressure (p V_flat = (gamma - 1) U), a measurement of the gas with the pressure's noise.
  *  - A height reading, where fitted, measures U the same way at its height.
  *  - An inflow reading, where fitted, replaces the modelled inlet flow.
+ *  - A valve opening on a resting plate: its first period's flows are the model's plate's,
+ *    swung from rest at the pressure read before (RestingPlatePulse), not the readings'.
  *  - Re-anchor: a cell with its inlet shut (vented or sealed) whose |mean pressure| stays for
  *    reanchor_time_s below half the plate alone's lifted pressure (and reanchor_pressure_pa;
  *    while expectFlat, anything below) is flat: mass and energy are the flat cell's (the rest
@@ -99,7 +102,7 @@ struct CellEstimate {
  */
 /// Size: the filter's state, covariance and steps (propagation, isentropic work, volume
 /// inversion, measurements, load) are one computation; the delay line, the flat test and the
-/// weight bound are their own classes.
+/// weight bound and an isolated pulse's swing are their own classes.
 class CellObserver {
  public:
   using Vector = CellModel::StateVector;
@@ -142,8 +145,9 @@ class CellObserver {
 
  private:
   CellInputs modelInputs(const ObserverInputs& in, double flow_gauge_pressure_pa) const;
-  /// Gas flows (mass, enthalpy and heat, no work) and the other states' rates at the estimate.
-  void integrateFlows(const CellInputs& in, double dt_s);
+  /// Gas flows (mass, enthalpy and heat, no work) and the other states' rates at the estimate,
+  /// the gas's scaled by `pulse_factor` (RestingPlatePulse).
+  void integrateFlows(const CellInputs& in, double dt_s, double pulse_factor);
   /// The gas's (dm/dt, dU/dt less the work) from a model rate and its variables.
   static Eigen::Vector2d gasRates(const Vector& dx, const CellVariables& v);
   /// What the readings' noise adds on average to the gas's rates through the flows' curvature
@@ -195,6 +199,7 @@ class CellObserver {
   double volume_slope_m2_ = 0.01;  ///< dV/dh with the film relaxed, at the estimate
   CellVariables vars_;             ///< variables at the current estimate
   ValveDelayLine delay_;           ///< the commands until they act (valve_dead_time_s)
+  RestingPlatePulse pulse_;        ///< an isolated valve pulse's gas through the plate's swing
   ObserverInputs applied_;         ///< the inputs acting over the last period
   double last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< the last reading
   double flow_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< see flowPressure
