@@ -61,6 +61,8 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
+constexpr double kPlateWeightN = 0.6;  ///< the loading plate's own weight: no load is less [N]
+
 struct Options {
   bool proportional = false;
   bool effects = false;    ///< leak 1e-8 m2 and heat 8 W/(m2 K) in the rig and the observer
@@ -235,6 +237,7 @@ int main(int argc, char** argv) {
   const double end_s = o.hold_s > 0.0 ? o.hold_s : o.alternate ? 100.0 : 36.0;
   double wanted_m = 0.0, streamed_m = 0.0, next_stream_s = 0.0;  // --alternate: the bed manager's stream
   LoadSway sway(o.load_n, o.load_swing_n, o.swing_time_s);
+  double truth_height_m = 0.0;  // the plate's last true height (--load-stiffness)
   double rig_load_n = rig.cell.load_n;
   std::size_t next_target = 0;
   nb::ObserverErrorStats error;
@@ -247,7 +250,8 @@ int main(int argc, char** argv) {
     if (now > end_s) break;
     // The guess until the patient lands, then the load (swaying where asked); sent on change.
     const double carried = now < o.land_s ? guess_n : o.load_swing_n > 0.0 ? sway.next(o.period_s) : o.load_n;
-    const double load = std::max(0.6, carried + o.stiffness_n_m * (emulator.truth().at(0).height_m - 0.1));
+    const double load =
+        o.stiffness_n_m > 0.0 ? std::max(kPlateWeightN, carried + o.stiffness_n_m * (truth_height_m - 0.1)) : carried;
     if (load != rig_load_n) emulator.setLoad(0, rig_load_n = load);
     if (next_target < plan.size() && now >= plan[next_target].at_s) {
       const Target& t = plan[next_target++];
@@ -262,6 +266,7 @@ int main(int argc, char** argv) {
     }
     cell.advanceTo(now);
     const nb::CellTruth truth = emulator.truth().at(0);
+    truth_height_m = truth.height_m;
     const double e = truth.height_m - cell.measurement().height_m;
     if (now > 1.0) error.add(e);
     if (trace && cell.observer()) traceRow(trace, now, truth, cell);

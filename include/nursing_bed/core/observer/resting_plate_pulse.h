@@ -37,8 +37,6 @@ class RestingPlatePulse {
   /// swing over the gas at the readings (1 unless a valve opens on a resting plate).
   double factor(CellModel& model, double time_s, const CellModel::StateVector& estimate, double estimate_pressure_pa,
                 const CellInputs& in, double old_pressure_pa, double dt_s);
-  /// The pressure the plate rested at before the valves opened (NaN until a shut period) [Pa].
-  double restPressure() const { return rest_pressure_pa_; }
 
  private:
   double swing_pressure_pa_;
