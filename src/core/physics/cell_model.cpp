@@ -98,7 +98,10 @@ CellModel::CellModel(const CellParams& params, std::shared_ptr<const CellStructu
   if (!error.empty()) throw std::invalid_argument("cell parameters: " + error);
   if (!structure_) structure_ = makeCellStructure(params_);
   shape_dofs_ = structure_->shapeDofs();
-  if (params_.airway.active()) effects_.push_back(std::make_shared<AirwayEffect>(params_.airway));
+  if (params_.airway.active()) {
+    effects_.push_back(std::make_shared<AirwayEffect>(params_.airway));
+    effects_read_flows_ = effects_.back()->readsValveFlows();
+  }
   reset();
 }
 
@@ -108,6 +111,7 @@ void CellModel::addEffect(CellEffectPtr effect) {
   for (const auto& e : effects_) total += e->stateSize();
   if (total + effect->stateSize() > kMaxStates)
     throw std::invalid_argument("addEffect: too many states for effect " + effect->name());
+  effects_read_flows_ = effects_read_flows_ || effect->readsValveFlows();
   effects_.push_back(std::move(effect));
   reset(last_inputs_.load_n);
 }
@@ -335,56 +339,78 @@ StateVector stateScales(int n, int shape_dofs) {
   return scale;
 }
 
-/// Net mass [kg/s] and energy [W] flows through the valves, leak and relief at `v`: the part
-/// of the nominal rate that depends on the gas pressure, temperature and regulator pressure.
-struct BoundaryFlows {
-  double mass_kg_s = 0.0;
-  double energy_w = 0.0;
-};
-
-inline BoundaryFlows boundaryFlows(const CellParams& params, const CellInputs& in, CellVariables v) {
-  const double cp = params.gas.cp();
-  const double flow_pressure_pa = flowPressure(params, in, v);
-  const double inflow_enthalpy_w = inletFlow(params, in, flow_pressure_pa, &v);
-  const Outflows o = outflows(params, in, flow_pressure_pa, &v);
-  const double outflow_enthalpy_w = o.vent.mass_flow_kg_s * cp * o.vent.upstream_temperature_k +
-                                    o.leak.mass_flow_kg_s * cp * o.leak.upstream_temperature_k +
-                                    o.relief_kg_s * cp * v.temperature_k;
-  return {v.inflow_kg_s - v.vent_flow_kg_s - v.leak_flow_kg_s - o.relief_kg_s, inflow_enthalpy_w - outflow_enthalpy_w};
-}
-
-/// Slopes of the boundary flows (mass, energy) with respect to pressure, temperature and
-/// regulator pressure, by forward differences of the flows alone.
+/// Slopes of the net mass [kg/s] and energy [W] flows through the valves, leak and relief with
+/// respect to the gas pressure, temperature and regulator pressure: the part of the nominal
+/// rate that depends on them. Each orifice's flow scales with 1/sqrt(T_up), so a flow the
+/// cell's gas drives has d(mdot)/dT = -mdot / (2 T) and d(mdot cp T)/dT = cp mdot / 2.
 struct FlowSlopes {
   double mass_p = 0.0, energy_p = 0.0;
   double mass_t = 0.0, energy_t = 0.0;
   double mass_r = 0.0, energy_r = 0.0;
+
+  /// Adds an orifice whose side a (`cell_is_a`) or b is the cell; `sign` +1 counts its flow into
+  /// the cell, -1 out of it.
+  void addOrifice(const OrificeFlow& f, bool cell_is_a, double sign, double cp, double temperature_k,
+                  bool pressure_state) {
+    const double d_cell = cell_is_a ? f.d_flow_d_pa : f.d_flow_d_pb;
+    const double d_other = cell_is_a ? f.d_flow_d_pb : f.d_flow_d_pa;
+    if (pressure_state) {
+      mass_p += sign * d_cell;
+      energy_p += sign * cp * f.upstream_temperature_k * d_cell;
+    }
+    const bool from_cell = cell_is_a ? f.mass_flow_kg_s > 0.0 : f.mass_flow_kg_s < 0.0;
+    if (from_cell) {
+      mass_t += -sign * f.mass_flow_kg_s / (2.0 * temperature_k);
+      energy_t += sign * cp * f.mass_flow_kg_s / 2.0;
+    }
+    if (!cell_is_a) {  // the inlet: its side a is the regulator
+      mass_r += sign * d_other;
+      energy_r += sign * cp * f.upstream_temperature_k * d_other;
+    }
+  }
 };
 
 FlowSlopes flowSlopes(const CellParams& params, const CellInputs& in, const CellVariables& v, bool regulator_state) {
-  const BoundaryFlows base = boundaryFlows(params, in, v);
+  const double cp = params.gas.cp();
+  const double t = v.temperature_k;
+  // A pressure given to the orifices (an observer's measurement) does not move with the state's.
+  const bool pressure_state = !std::isfinite(in.flow_gauge_pressure_pa);
+  const double flow_pressure_pa = flowPressure(params, in, v);
   FlowSlopes s;
-  CellVariables w = v;
-  const double dp = 1e-7 * v.pressure_pa;
-  w.pressure_pa += dp;
-  w.gauge_pressure_pa += dp;
-  const BoundaryFlows at_p = boundaryFlows(params, in, w);
-  s.mass_p = (at_p.mass_kg_s - base.mass_kg_s) / dp;
-  s.energy_p = (at_p.energy_w - base.energy_w) / dp;
-  w = v;
-  const double dt = 1e-7 * v.temperature_k;
-  w.temperature_k += dt;
-  const BoundaryFlows at_t = boundaryFlows(params, in, w);
-  s.mass_t = (at_t.mass_kg_s - base.mass_kg_s) / dt;
-  s.energy_t = (at_t.energy_w - base.energy_w) / dt;
-  if (regulator_state) {
-    w = v;
-    const double dr = 1e-7 * std::max(std::fabs(v.regulator_pressure_pa), 1e3);
-    w.regulator_pressure_pa += dr;
-    const BoundaryFlows at_r = boundaryFlows(params, in, w);
-    s.mass_r = (at_r.mass_kg_s - base.mass_kg_s) / dr;
-    s.energy_r = (at_r.energy_w - base.energy_w) / dr;
+  if (in.prescribed_inflow || std::isfinite(in.prescribed_inflow_kg_s)) {
+    const double metered = in.prescribed_inflow ? in.prescribed_inflow->at(v.time_s) : in.prescribed_inflow_kg_s;
+    if (metered < 0.0) s.energy_t += metered * cp;  // a metered outflow carries the gas's enthalpy
+  } else {
+    const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
+    s.addOrifice(
+        orificeFlow(params.gas, opening * params.inlet_area_m2, params.ambient_pressure_pa + v.regulator_pressure_pa,
+                    params.supply_temperature_k, flow_pressure_pa, t, params.orifice_linear_band_pa),
+        false, 1.0, cp, t, pressure_state);
   }
+  CellVariables scratch = v;
+  const Outflows o = outflows(params, in, flow_pressure_pa, &scratch);
+  s.addOrifice(o.vent, true, -1.0, cp, t, pressure_state);
+  s.addOrifice(o.leak, true, -1.0, cp, t, pressure_state);
+  if (!regulator_state) s.mass_r = s.energy_r = 0.0;
+  // The relief (no pow in its law): by differences of its flow alone.
+  auto relief = [&params](double pressure_pa, double temperature_k) {
+    const double opening = params.reliefOpening(pressure_pa - params.ambient_pressure_pa);
+    return opening > 0.0
+               ? opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa, params.relief_critical_ratio,
+                                           pressure_pa, temperature_k, params.ambient_pressure_pa)
+               : 0.0;
+  };
+  const double base = relief(flow_pressure_pa, t);
+  if (pressure_state) {
+    const double dp = 1e-7 * flow_pressure_pa;
+    const double slope = (relief(flow_pressure_pa + dp, t) - base) / dp;
+    s.mass_p -= slope;
+    s.energy_p -= slope * cp * t;
+  }
+  const double dt = 1e-7 * t;
+  const double at_t = relief(flow_pressure_pa, t + dt);
+  s.mass_t -= (at_t - base) / dt;
+  s.energy_t -= (at_t * (t + dt) - base * t) * cp / dt;
   return s;
 }
 
@@ -394,12 +420,15 @@ struct ColumnSlopes {
   double pressure = 0.0;
   double temperature = 0.0;
   double regulator = 0.0;
-  StructureEval structure;  // d(field)/dx_j; all zero unless x_j is the height or a shape
+  const StructureEval* structure = nullptr;  // d(field)/dx_j; all zero unless x_j is the height or a shape
 };
 
+/// `scratch` holds the structure's derivatives for a column that moves it.
 ColumnSlopes columnSlopes(const CellParams& params, const CellStructure& structure, int shape_dofs,
-                          const CellVariables& v, int j) {
+                          const CellVariables& v, int j, StructureEval* scratch) {
+  static const StructureEval kUnmoved{};
   ColumnSlopes c;
+  c.structure = &kUnmoved;
   if (j == CellModel::kMass) {
     c.temperature = -v.temperature_k / v.mass_kg;
   } else if (j == CellModel::kEnergy) {
@@ -416,7 +445,9 @@ ColumnSlopes columnSlopes(const CellParams& params, const CellStructure& structu
     (j == CellModel::kHeight ? height : shape[j - CellModel::kShape]) += delta;
     const StructureEval a = structure.evaluate(height, shape.data());
     const StructureEval& b = v.structure;
-    StructureEval& d = c.structure;
+    *scratch = StructureEval{};
+    StructureEval& d = *scratch;
+    c.structure = scratch;
     d.volume_m3 = (a.volume_m3 - b.volume_m3) / delta;
     d.effective_area_m2 = (a.effective_area_m2 - b.effective_area_m2) / delta;
     d.plate_force_n = (a.plate_force_n - b.plate_force_n) / delta;
@@ -480,18 +511,26 @@ CellModel::StateVector CellModel::effectPart(double time_s, const StateVector& x
                                              const StructureEval* structure) const {
   CellVariables v;
   stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, &v, structure);
-  const double flow_pressure_pa = flowPressure(params_, in, v);
-  const double inflow_enthalpy_w = inletFlow(params_, in, flow_pressure_pa, &v);
-  const Outflows out = outflows(params_, in, flow_pressure_pa, &v);
-  StateVector with = StateVector::Zero(x.size());
-  StateVector without = StateVector::Zero(x.size());
-  const EffectTerms terms = effectTerms(effects_, effect_offsets_, shape_dofs_, params_, v, x, &with);
-  CellVariables nominal_vars = v;
-  gasRates(params_, shape_dofs_, inflow_enthalpy_w, out, EffectTerms{}, &nominal_vars, &without);
-  plateRates(params_, in, EffectTerms{}, &nominal_vars, &without);
-  gasRates(params_, shape_dofs_, inflow_enthalpy_w, out, terms, &v, &with);
-  plateRates(params_, in, terms, &v, &with);
-  return with - without;
+  // The valves' flows enter the rate with and without the effects alike: needed only when an
+  // effect reads them.
+  if (effects_read_flows_) {
+    const double flow_pressure_pa = flowPressure(params_, in, v);
+    inletFlow(params_, in, flow_pressure_pa, &v);
+    outflows(params_, in, flow_pressure_pa, &v);
+  }
+  StateVector part = StateVector::Zero(x.size());
+  const EffectTerms terms = effectTerms(effects_, effect_offsets_, shape_dofs_, params_, v, x, &part);
+  // gasRates and plateRates are linear in the terms: what the terms add to them.
+  const StructureEval& s = v.structure;
+  part[kMass] = terms.mass_flow_kg_s;
+  double volume_rate = 0.0;
+  for (int i = 0; i < shape_dofs_; ++i) {
+    part[kShape + i] = -terms.shape_force[i] / s.shape_damping[i];
+    volume_rate += s.dvolume_dshape[i] * part[kShape + i];
+  }
+  part[kEnergy] = terms.enthalpy_flow_w + terms.heat_flow_w - v.pressure_pa * volume_rate;
+  part[kVelocity] = terms.plate_force_n / v.moving_mass_kg;
+  return part;
 }
 
 CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const CellVariables& v) const {
@@ -514,9 +553,10 @@ CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const Ce
   const double alpha = params_.bed_contact_damping_s_m;
   const bool in_contact = v.height_m < 0.0 && 1.0 - alpha * v.velocity_m_s > 0.0;
   StateMatrix jac = StateMatrix::Zero(n, n);
+  StructureEval moved;
   for (int j = 0; j < n; ++j) {
-    const ColumnSlopes c = columnSlopes(params_, *structure_, shape_dofs_, v, j);
-    const StructureEval& d = c.structure;
+    const ColumnSlopes c = columnSlopes(params_, *structure_, shape_dofs_, v, j, &moved);
+    const StructureEval& d = *c.structure;
     const double is_velocity = j == kVelocity ? 1.0 : 0.0;
     jac(kMass, j) = flow.mass_p * c.pressure + flow.mass_t * c.temperature + flow.mass_r * c.regulator;
     double volume_rate_slope = d.effective_area_m2 * v.velocity_m_s + s.effective_area_m2 * is_velocity;

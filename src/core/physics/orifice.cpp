@@ -32,11 +32,12 @@ const NozzleConstants& nozzleConstants(const GasProperties& gas) {
   return c;
 }
 
-// Subsonic flow function and its derivative with respect to the upstream pressure at fixed
-// downstream pressure; used to fit the smoothing cubic at the band edge.
+// Subsonic flow function and its derivatives with respect to the upstream pressure (at fixed
+// downstream pressure) and the downstream pressure (at fixed upstream pressure).
 struct SubsonicEdge {
   double flow;
   double d_flow_d_pup;
+  double d_flow_d_pdown;
 };
 
 SubsonicEdge subsonicWithSlope(const NozzleConstants& c, double area, double p_up, double t_up, double p_down) {
@@ -48,9 +49,11 @@ SubsonicEdge subsonicWithSlope(const NozzleConstants& c, double area, double p_u
   const double term1 = p_up * p_up * r_inv_g * r_inv_g;  // p_up^(2-2/g) p_down^(2/g)
   const double term2 = p_up * p_up * r * r_inv_g;        // p_up^((g-1)/g) p_down^((g+1)/g)
   const double phi = std::max(term1 - term2, 1e-300);
-  const double d_phi = ((2.0 - 2.0 / g) * term1 - ((g - 1.0) / g) * term2) / p_up;
+  const double d_phi_up = ((2.0 - 2.0 / g) * term1 - ((g - 1.0) / g) * term2) / p_up;
+  const double d_phi_down = ((2.0 / g) * term1 - ((g + 1.0) / g) * term2) / p_down;
   const double flow = k * std::sqrt(phi);
-  return {flow, k * d_phi / (2.0 * std::sqrt(phi))};
+  const double root = 2.0 * std::sqrt(phi);
+  return {flow, k * d_phi_up / root, k * d_phi_down / root};
 }
 
 }  // namespace
@@ -80,23 +83,42 @@ OrificeFlow orificeFlow(const GasProperties& gas, double effective_area_m2, doub
   const double p_up = sign > 0 ? pressure_a_pa : pressure_b_pa;
   const double p_down = sign > 0 ? pressure_b_pa : pressure_a_pa;
   out.upstream_temperature_k = sign > 0 ? temperature_a_k : temperature_b_k;
-  if (effective_area_m2 <= 0.0 || dp == 0.0) return out;
+  const bool in_band = linear_band_pa > 0.0 && std::fabs(dp) < linear_band_pa;
+  if (effective_area_m2 <= 0.0 || (dp == 0.0 && !in_band)) return out;
 
   const NozzleConstants& c = nozzleConstants(gas);
-  const double adp = std::fabs(dp);
-  if (adp >= linear_band_pa || linear_band_pa <= 0.0) {
+  // The magnitude q of the flow and its slopes with respect to p_up and p_down.
+  double q = 0.0, dq_up = 0.0, dq_down = 0.0;
+  if (!in_band) {
     out.choked = p_down / p_up <= c.critical_ratio;
-    out.mass_flow_kg_s = sign * isentropicMassFlow(c, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
-    return out;
+    if (p_up <= 0.0) return out;
+    if (out.choked || p_down <= 0.0) {
+      q = isentropicMassFlow(c, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
+      dq_up = q / p_up;
+    } else {
+      const SubsonicEdge e = subsonicWithSlope(c, effective_area_m2, p_up, out.upstream_temperature_k, p_down);
+      q = e.flow;
+      dq_up = e.d_flow_d_pup;
+      dq_down = e.d_flow_d_pdown;
+    }
+  } else {
+    // Inside the band: odd cubic matching the isentropic value M and slope S at |dp| = band.
+    // Its coefficients follow the edge's level with the common pressure (to first order).
+    const SubsonicEdge edge =
+        subsonicWithSlope(c, effective_area_m2, p_down + linear_band_pa, out.upstream_temperature_k, p_down);
+    const double x = std::fabs(dp) / linear_band_pa;
+    const double slope_x = edge.d_flow_d_pup * linear_band_pa;
+    const double a = 0.5 * (3.0 * edge.flow - slope_x);
+    const double b = 0.5 * (slope_x - edge.flow);
+    q = a * x + b * x * x * x;
+    const double dq_ddp = (a + 3.0 * b * x * x) / linear_band_pa;
+    const double common = q * (edge.d_flow_d_pup + edge.d_flow_d_pdown) / edge.flow;
+    dq_up = dq_ddp;
+    dq_down = common - dq_ddp;
   }
-  // Inside the band: odd cubic matching the isentropic value M and slope S at |dp| = band.
-  const SubsonicEdge edge =
-      subsonicWithSlope(c, effective_area_m2, p_down + linear_band_pa, out.upstream_temperature_k, p_down);
-  const double x = adp / linear_band_pa;
-  const double slope_x = edge.d_flow_d_pup * linear_band_pa;
-  const double a = 0.5 * (3.0 * edge.flow - slope_x);
-  const double b = 0.5 * (slope_x - edge.flow);
-  out.mass_flow_kg_s = sign * (a * x + b * x * x * x);
+  out.mass_flow_kg_s = sign * q;
+  out.d_flow_d_pa = sign * (sign > 0 ? dq_up : dq_down);
+  out.d_flow_d_pb = sign * (sign > 0 ? dq_down : dq_up);
   return out;
 }
 

@@ -212,6 +212,26 @@ TEST(CellModel, JacobianMatchesFiniteDifferencesOfTheRate) {
   vacuum.vent_opening = 1.0;
   vacuum.vent_back_pressure_pa = -5000.0;
   EXPECT_LT(jacobianMismatch(holding, vacuum), 1e-4) << "venting to vacuum";
+  // The regulator's outlet (a state) just above the cell: the inlet within its smoothing band;
+  // then below it: gas back out through the inlet.
+  const double held_pa = holding.variables().gauge_pressure_pa;
+  nb::CellInputs inlet_open = closedInputs(15.6);
+  inlet_open.inlet_opening = 1.0;
+  for (double regulator_pa : {held_pa + 0.4 * holding.params().orifice_linear_band_pa, held_pa - 3000.0}) {
+    nb::CellModel m = holding;
+    nb::CellModel::StateVector x = m.state();
+    x[nb::CellModel::kRegulator] = regulator_pa;
+    m.setState(m.time(), x);
+    inlet_open.supply_pressure_pa = regulator_pa;
+    EXPECT_LT(jacobianMismatch(m, inlet_open), 1e-4) << "regulator at " << regulator_pa << " Pa";
+  }
+  nb::CellInputs backflow = closedInputs(15.6);  // the vent's far side above the cell
+  backflow.vent_opening = 1.0;
+  backflow.vent_back_pressure_pa = held_pa + 2000.0;
+  EXPECT_LT(jacobianMismatch(holding, backflow), 1e-4) << "back in through the vent";
+  nb::CellInputs metered_out = closedInputs(15.6);
+  metered_out.prescribed_inflow_kg_s = -1e-3;
+  EXPECT_LT(jacobianMismatch(holding, metered_out), 1e-4) << "a metered outflow";
 
   nb::CellModel with_effects{nb::CellParams{}};
   with_effects.addEffect(std::make_shared<nb::HeatTransferEffect>(10.0));

@@ -97,6 +97,27 @@ TEST(Orifice, SmoothAndMonotoneThroughZeroDifference) {
   EXPECT_NEAR(slope_in, slope_out, 1e-3 * slope_out);
 }
 
+TEST(Orifice, PressureSlopesMatchCentralDifferences) {
+  // Choked, subsonic and inside the band, in both directions: the returned slopes against
+  // central differences of the flow in each side's pressure.
+  const double band = 100.0, p_b = 101325.0;
+  for (double dp : {150e3, 30e3, 2000.0, 120.0, 60.0, 5.0, -5.0, -60.0, -2000.0, -30e3}) {
+    auto flow = [&](double pa, double pb) {
+      return nb::orificeFlow(kAir, 1e-6, pa, 310.0, pb, 293.15, band).mass_flow_kg_s;
+    };
+    const nb::OrificeFlow f = nb::orificeFlow(kAir, 1e-6, p_b + dp, 310.0, p_b, 293.15, band);
+    const double h = 1e-3;
+    const double d_pa = (flow(p_b + dp + h, p_b) - flow(p_b + dp - h, p_b)) / (2.0 * h);
+    const double d_pb = (flow(p_b + dp, p_b + h) - flow(p_b + dp, p_b - h)) / (2.0 * h);
+    const double scale = std::max(std::fabs(d_pa), std::fabs(d_pb));
+    EXPECT_NEAR(f.d_flow_d_pa, d_pa, 1e-5 * scale) << "dp " << dp;
+    EXPECT_NEAR(f.d_flow_d_pb, d_pb, 1e-5 * scale) << "dp " << dp;
+  }
+  const nb::OrificeFlow closed = nb::orificeFlow(kAir, 0.0, 300e3, 293.15, 101325.0, 293.15, band);
+  EXPECT_EQ(closed.d_flow_d_pa, 0.0);
+  EXPECT_EQ(closed.d_flow_d_pb, 0.0);
+}
+
 TEST(Orifice, ClosedValvePassesNothing) {
   EXPECT_EQ(nb::orificeFlow(kAir, 0.0, 300e3, 293.15, 101325.0, 293.15, 100.0).mass_flow_kg_s, 0.0);
 }

@@ -71,6 +71,7 @@ class ChannelDistortionEffect : public CellEffect {
   ChannelDistortionEffect(std::string effect, std::string channel, std::string kind, std::string param, double value);
   std::string name() const override { return effect_; }
   std::map<std::string, double> parameters() const override { return {{param_, value_}}; }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams&, const CellVariables&, const double*, EffectTerms*, double*) const override {}
   const std::string& channel() const { return channel_; }
   const std::string& kind() const { return kind_; }

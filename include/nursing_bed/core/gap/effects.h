@@ -128,6 +128,7 @@ class MembraneViscoelasticityEffect : public CellEffect {
   std::map<std::string, double> parameters() const override;
   int stateSize() const override { return relative_stiffness_ != 0.0 ? 1 : 0; }
   void initialState(const CellParams& params, const CellVariables& cell, double* state) const override;
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 
@@ -166,6 +167,7 @@ class PressureSensorLagEffect : public CellEffect {
   std::map<std::string, double> parameters() const override { return {{"time_constant_s", time_constant_s_}}; }
   int stateSize() const override { return time_constant_s_ > 0.0 ? 1 : 0; }
   void initialState(const CellParams& params, const CellVariables& cell, double* state) const override;
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
   void measure(const CellParams& params, const CellVariables& cell, const double* state,
@@ -208,6 +210,7 @@ class PlateFrictionEffect : public CellEffect {
   explicit PlateFrictionEffect(double friction_force_n) : friction_force_n_(friction_force_n) {}
   std::string name() const override { return "plate_friction"; }
   std::map<std::string, double> parameters() const override { return {{"friction_force_n", friction_force_n_}}; }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 
@@ -224,6 +227,7 @@ class AmbientDriftEffect : public CellEffect {
   explicit AmbientDriftEffect(double drift_k_s) : drift_k_s_(drift_k_s) {}
   std::string name() const override { return "ambient_drift"; }
   std::map<std::string, double> parameters() const override { return {{"drift_k_s", drift_k_s_}}; }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 
@@ -238,6 +242,7 @@ class PressureOffsetDriftEffect : public CellEffect {
   explicit PressureOffsetDriftEffect(double drift_pa_s) : drift_pa_s_(drift_pa_s) {}
   std::string name() const override { return "pressure_offset_drift"; }
   std::map<std::string, double> parameters() const override { return {{"drift_pa_s", drift_pa_s_}}; }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams&, const CellVariables&, const double*, EffectTerms*, double*) const override {}
   void measure(const CellParams& params, const CellVariables& cell, const double* state,
                Readings* measurement) const override;
@@ -256,6 +261,7 @@ class PlateQuadraticDragEffect : public CellEffect {
   std::map<std::string, double> parameters() const override {
     return {{"drag_coefficient_n_s2_m2", drag_coefficient_n_s2_m2_}};
   }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 
@@ -272,6 +278,7 @@ class PowerLeakEffect : public CellEffect {
   PowerLeakEffect(double leak_flow_kg_s, double exponent) : leak_flow_kg_s_(leak_flow_kg_s), exponent_(exponent) {}
   std::string name() const override { return "power_leak"; }
   std::map<std::string, double> parameters() const override;
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 

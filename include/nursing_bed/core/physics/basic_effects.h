@@ -17,6 +17,7 @@ class HeatTransferEffect : public CellEffect {
   std::map<std::string, double> parameters() const override {
     return {{"heat_transfer_coefficient_w_m2_k", coefficient_w_m2_k_}};
   }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 
@@ -32,6 +33,7 @@ class LeakEffect : public CellEffect {
   explicit LeakEffect(double leak_area_m2) : leak_area_m2_(leak_area_m2) {}
   std::string name() const override { return "leak"; }
   std::map<std::string, double> parameters() const override { return {{"leak_area_m2", leak_area_m2_}}; }
+  bool readsValveFlows() const override { return false; }
   void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                   double* state_rate) const override;
 

@@ -66,6 +66,9 @@ class CellEffect {
   /// Terms added to the balances and the derivative of the effect's own states.
   virtual void contribute(const CellParams& params, const CellVariables& cell, const double* state, EffectTerms* terms,
                           double* state_rate) const = 0;
+  /// Whether contribute() reads the valves' and leak's flows (inflow, vent, leak): the
+  /// Jacobian's effect part computes those flows only when some effect does. True is always safe.
+  virtual bool readsValveFlows() const { return true; }
   /// Lets the effect change what the sensors report.
   virtual void measure(const CellParams& /*params*/, const CellVariables& /*cell*/, const double* /*state*/,
                        Readings* /*measurement*/) const {}

@@ -203,6 +203,7 @@ class CellModel {
   CellParams params_;
   std::shared_ptr<const CellStructure> structure_;
   std::vector<CellEffectPtr> effects_;
+  bool effects_read_flows_ = false;  // some effect reads the valves' flows (readsValveFlows)
   std::vector<int> effect_offsets_;
   int shape_dofs_ = 1;
   double time_ = 0.0;

@@ -11,6 +11,10 @@ struct OrificeFlow {
   double mass_flow_kg_s = 0.0;          ///< positive from side a to side b [kg/s]
   double upstream_temperature_k = 0.0;  ///< stagnation temperature the flow carries [K]
   bool choked = false;
+  /// d(mass_flow)/d(pressure_a) and d(mass_flow)/d(pressure_b) [kg/(s Pa)]; the flow scales
+  /// with 1/sqrt(upstream_temperature_k), so its temperature slope is -flow / (2 T_up).
+  double d_flow_d_pa = 0.0;
+  double d_flow_d_pb = 0.0;
 };
 
 /**

@@ -59,42 +59,96 @@ class SmallLu {
  * The factorisation of W = I - gamma h J and its solves. A cell without effect states and with
  * one film shape coordinate has six states: that size takes fixed-size matrices (unrolled, no
  * run-time size checks); any other size takes run-time-size ones.
+ *
+ * At the nominal size, the plate's height row (dh/dt = v) and the regulator's row (its own lag)
+ * are eliminated first, leaving a 4 x 4 system in mass, energy, velocity and shape; a Jacobian
+ * without that pattern is factorised whole.
  */
 class StepMatrix {
  public:
   static constexpr int kNominalStates = 6;
+  using NominalMatrix = Eigen::Matrix<double, kNominalStates, kNominalStates>;
+  using NominalVector = Eigen::Matrix<double, kNominalStates, 1>;
 
   /// Factorises I - gamma_h * jacobian (square).
   void factor(const CellStateMatrix& jacobian, double gamma_h) {
     size_ = static_cast<int>(jacobian.rows());
     if (size_ == kNominalStates) {
-      nominal_lu_.compute(NominalMatrix::Identity() -
-                          gamma_h * jacobian.topLeftCorner<kNominalStates, kNominalStates>());
+      const NominalMatrix w =
+          NominalMatrix::Identity() - gamma_h * jacobian.topLeftCorner<kNominalStates, kNominalStates>();
+      reduced_ = hasPlateAndRegulatorPattern(w);
+      if (!reduced_) {
+        nominal_lu_.compute(w);
+        return;
+      }
+      height_velocity_ = w(kHeight, kVelocity);
+      regulator_diagonal_ = w(kRegulator, kRegulator);
+      ReducedMatrix a;
+      for (int i = 0; i < kReduced; ++i) {
+        const int row = kKept[i];
+        height_column_[i] = w(row, kHeight);
+        regulator_column_[i] = w(row, kRegulator);
+        for (int j = 0; j < kReduced; ++j) a(i, j) = w(row, kKept[j]);
+        a(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
+      }
+      reduced_lu_.compute(a);
     } else {
       lu_.compute(CellStateMatrix::Identity(size_, size_) - gamma_h * jacobian);
     }
   }
 
-  using NominalMatrix = Eigen::Matrix<double, kNominalStates, kNominalStates>;
-  using NominalVector = Eigen::Matrix<double, kNominalStates, 1>;
-
   /// Size of the last factorisation.
   int size() const { return size_; }
   /// W^-1 b for the last factorisation, which was of the nominal size.
-  NominalVector solveNominal(const NominalVector& b) const { return nominal_lu_.solve(b); }
+  NominalVector solveNominal(const NominalVector& b) const {
+    if (!reduced_) return nominal_lu_.solve(b);
+    const double regulator = b[kRegulator] / regulator_diagonal_;
+    ReducedVector rhs;
+    for (int i = 0; i < kReduced; ++i)
+      rhs[i] = b[kKept[i]] - height_column_[i] * b[kHeight] - regulator_column_[i] * regulator;
+    const ReducedVector y = reduced_lu_.solve(rhs);
+    NominalVector x;
+    for (int i = 0; i < kReduced; ++i) x[kKept[i]] = y[i];
+    x[kHeight] = b[kHeight] - height_velocity_ * y[kReducedVelocity];
+    x[kRegulator] = regulator;
+    return x;
+  }
 
   /// W^-1 b for the last factorisation (b of the factorised size).
   CellStateVector solve(const CellStateVector& b) const {
     if (size_ == kNominalStates) {
-      const NominalVector x = nominal_lu_.solve(b.head<kNominalStates>());
+      const NominalVector x = solveNominal(b.head<kNominalStates>());
       return x;
     }
     return lu_.solve(b);
   }
 
  private:
+  // The nominal states' order (CellModel::StateIndex) and the four kept after the elimination.
+  static constexpr int kHeight = 2, kVelocity = 3, kRegulator = 4;
+  static constexpr int kReduced = 4;
+  static constexpr int kKept[kReduced] = {0, 1, kVelocity, 5};
+  static constexpr int kReducedVelocity = 2;
+  using ReducedMatrix = Eigen::Matrix<double, kReduced, kReduced>;
+  using ReducedVector = Eigen::Matrix<double, kReduced, 1>;
+
+  /// W's height row is (0 0 1 w 0 0) and its regulator row (0 0 0 0 d 0), d != 0.
+  static bool hasPlateAndRegulatorPattern(const NominalMatrix& w) {
+    for (int j = 0; j < kNominalStates; ++j) {
+      if (j != kHeight && j != kVelocity && w(kHeight, j) != 0.0) return false;
+      if (j != kRegulator && w(kRegulator, j) != 0.0) return false;
+    }
+    return w(kHeight, kHeight) == 1.0 && w(kRegulator, kRegulator) != 0.0 && std::isfinite(w(kHeight, kVelocity));
+  }
+
   int size_ = 0;
+  bool reduced_ = false;
   SmallLu<kNominalStates> nominal_lu_;
+  SmallLu<kReduced> reduced_lu_;
+  ReducedVector height_column_ = ReducedVector::Zero();
+  ReducedVector regulator_column_ = ReducedVector::Zero();
+  double height_velocity_ = 0.0;
+  double regulator_diagonal_ = 1.0;
   Eigen::PartialPivLU<CellStateMatrix> lu_;
 };
 
