@@ -423,9 +423,10 @@ struct ColumnSlopes {
   const StructureEval* structure = nullptr;  // d(field)/dx_j; all zero unless x_j is the height or a shape
 };
 
-/// `scratch` holds the structure's derivatives for a column that moves it.
+/// `scratch` holds the structure's derivatives for a column that moves it, and `perturbed`
+/// (when given) its evaluation at the perturbed state.
 ColumnSlopes columnSlopes(const CellParams& params, const CellStructure& structure, int shape_dofs,
-                          const CellVariables& v, int j, StructureEval* scratch) {
+                          const CellVariables& v, int j, StructureEval* scratch, StructureEval* perturbed) {
   static const StructureEval kUnmoved{};
   ColumnSlopes c;
   c.structure = &kUnmoved;
@@ -444,6 +445,7 @@ ColumnSlopes columnSlopes(const CellParams& params, const CellStructure& structu
                                                  : 1e-7 * std::max(std::fabs(shape[j - CellModel::kShape]), 1.0);
     (j == CellModel::kHeight ? height : shape[j - CellModel::kShape]) += delta;
     const StructureEval a = structure.evaluate(height, shape.data());
+    if (perturbed) *perturbed = a;
     const StructureEval& b = v.structure;
     *scratch = StructureEval{};
     StructureEval& d = *scratch;
@@ -491,18 +493,22 @@ CellModel::StateMatrix CellModel::jacobianAt(double time_s, const StateVector& x
   const int nominal = kShape + shape_dofs_;
   if (n == nominal && effects_.empty()) return nominalJacobian(in, v);
   StateMatrix jac = StateMatrix::Zero(n, n);
-  jac.topLeftCorner(nominal, nominal) = nominalJacobian(in, v);
+  PerturbedStructures perturbed;
+  jac.topLeftCorner(nominal, nominal) = nominalJacobian(in, v, &perturbed);
   // What the effects add to the rate, by forward differences of that part alone (exactly zero
   // for effects that add nothing, so those leave the nominal step unchanged). The structure
-  // depends on the height and the shape only: the other columns reuse its evaluation at x.
+  // depends on the height and the shape only: the other columns reuse its evaluation at x, and
+  // those two reuse the nominal part's evaluations at the same perturbed states.
   const StateVector scale = stateScales(n, shape_dofs_);
   const StateVector base = effectPart(time_s, x, in, &v.structure);
   for (int j = 0; j < n; ++j) {
     StateVector xp = x;
     const double dxj = 1e-7 * std::max(std::fabs(x[j]), scale[j]);
     xp[j] += dxj;
-    const bool moves_structure = j == kHeight || (j >= kShape && j < nominal);
-    jac.col(j) += (effectPart(time_s, xp, in, moves_structure ? nullptr : &v.structure) - base) / dxj;
+    const StructureEval* known = &v.structure;
+    if (j == kHeight) known = &perturbed[0];
+    if (j >= kShape && j < nominal) known = &perturbed[1 + j - kShape];
+    jac.col(j) += (effectPart(time_s, xp, in, known) - base) / dxj;
   }
   return jac;
 }
@@ -533,7 +539,8 @@ CellModel::StateVector CellModel::effectPart(double time_s, const StateVector& x
   return part;
 }
 
-CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const CellVariables& v) const {
+CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const CellVariables& v,
+                                                  PerturbedStructures* perturbed) const {
   const int n = kShape + shape_dofs_;
   const StructureEval& s = v.structure;
   const double p = v.pressure_pa;
@@ -555,7 +562,10 @@ CellModel::StateMatrix CellModel::nominalJacobian(const CellInputs& in, const Ce
   StateMatrix jac = StateMatrix::Zero(n, n);
   StructureEval moved;
   for (int j = 0; j < n; ++j) {
-    const ColumnSlopes c = columnSlopes(params_, *structure_, shape_dofs_, v, j, &moved);
+    StructureEval* at_perturbed = nullptr;
+    if (perturbed && j == kHeight) at_perturbed = &(*perturbed)[0];
+    if (perturbed && j >= kShape) at_perturbed = &(*perturbed)[1 + j - kShape];
+    const ColumnSlopes c = columnSlopes(params_, *structure_, shape_dofs_, v, j, &moved, at_perturbed);
     const StructureEval& d = *c.structure;
     const double is_velocity = j == kVelocity ? 1.0 : 0.0;
     jac(kMass, j) = flow.mass_p * c.pressure + flow.mass_t * c.temperature + flow.mass_r * c.regulator;

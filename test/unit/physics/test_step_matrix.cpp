@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <string>
 
 #include "nursing_bed/core/physics/step_matrix.h"
 
@@ -12,13 +13,13 @@ namespace {
 
 constexpr int kN = nb::StepMatrix::kNominalStates;
 
-// A dense Jacobian of the cell's nominal size; with `pattern`, its height row is dh/dt = v and
-// its regulator row the regulator's own lag, as CellModel's.
-nb::CellStateMatrix randomJacobian(std::mt19937* rng, bool pattern) {
+// A dense n x n Jacobian; with `pattern`, its height row is dh/dt = v and its regulator row the
+// regulator's own lag, as CellModel's.
+nb::CellStateMatrix randomJacobian(std::mt19937* rng, int n, bool pattern) {
   std::normal_distribution<double> normal(0.0, 200.0);
-  nb::CellStateMatrix j(kN, kN);
-  for (int r = 0; r < kN; ++r)
-    for (int c = 0; c < kN; ++c) j(r, c) = normal(*rng);
+  nb::CellStateMatrix j(n, n);
+  for (int r = 0; r < n; ++r)
+    for (int c = 0; c < n; ++c) j(r, c) = normal(*rng);
   if (pattern) {
     j.row(2).setZero();
     j(2, 3) = 1.0;
@@ -31,21 +32,25 @@ nb::CellStateMatrix randomJacobian(std::mt19937* rng, bool pattern) {
 TEST(StepMatrix, SolvesTheStepSystemWithAndWithoutThePlatesPattern) {
   std::mt19937 rng(7);
   std::normal_distribution<double> normal(0.0, 1.0);
-  for (bool pattern : {true, false}) {
-    for (int trial = 0; trial < 50; ++trial) {
-      const nb::CellStateMatrix j = randomJacobian(&rng, pattern);
-      const double gamma_h = 1.7071 * 0.02;
-      nb::StepMatrix w;
-      w.factor(j, gamma_h);
-      nb::StepMatrix::NominalVector b;
-      for (int i = 0; i < kN; ++i) b[i] = normal(rng);
-      const nb::StepMatrix::NominalMatrix dense =
-          nb::StepMatrix::NominalMatrix::Identity() - gamma_h * j.topLeftCorner<kN, kN>();
-      const nb::StepMatrix::NominalVector x = w.solveNominal(b);
-      EXPECT_LT((dense * x - b).norm(), 1e-9 * (1.0 + dense.norm() * x.norm()))
-          << (pattern ? "with" : "without") << " the pattern, trial " << trial;
-      const nb::CellStateVector y = w.solve(nb::CellStateVector(b));
-      EXPECT_LT((y - nb::CellStateVector(x)).norm(), 1e-12 * (1.0 + x.norm()));
+  const double gamma_h = 1.7071 * 0.02;
+  for (int n : {kN, 7, 9, 5}) {
+    for (bool pattern : {true, false}) {
+      for (int trial = 0; trial < 30; ++trial) {
+        const nb::CellStateMatrix j = randomJacobian(&rng, n, pattern);
+        nb::StepMatrix w;
+        w.factor(j, gamma_h);
+        nb::CellStateVector b(n);
+        for (int i = 0; i < n; ++i) b[i] = normal(rng);
+        const nb::CellStateMatrix dense = nb::CellStateMatrix::Identity(n, n) - gamma_h * j;
+        const nb::CellStateVector x = w.solve(b);
+        const std::string where = std::to_string(n) + " states, " + (pattern ? "with" : "without") +
+                                  " the pattern, trial " + std::to_string(trial);
+        EXPECT_LT((dense * x - b).norm(), 1e-9 * (1.0 + dense.norm() * x.norm())) << where;
+        if (n == kN) {
+          const nb::StepMatrix::NominalVector y = w.solveNominal(b.head<kN>());
+          EXPECT_LT((y - x.head<kN>()).norm(), 1e-12 * (1.0 + x.norm())) << where;
+        }
+      }
     }
   }
 }

@@ -182,8 +182,13 @@ class CellModel {
  private:
   void refreshVariables(const CellInputs& inputs);
   void updateJacobian(const CellInputs& inputs);
-  /// The nominal cell's Jacobian at the variables `v` of its state (no effects).
-  StateMatrix nominalJacobian(const CellInputs& inputs, const CellVariables& v) const;
+  /// The structure evaluated at the height (0) and each shape (1...) moved by the Jacobian's
+  /// difference step.
+  using PerturbedStructures = std::array<StructureEval, 1 + kMaxShapeDofs>;
+  /// The nominal cell's Jacobian at the variables `v` of its state (no effects); fills
+  /// `perturbed` when given.
+  StateMatrix nominalJacobian(const CellInputs& inputs, const CellVariables& v,
+                              PerturbedStructures* perturbed = nullptr) const;
   /// jacobian() at the variables `v` of (t, x).
   StateMatrix jacobianAt(double time_s, const StateVector& x, const CellInputs& inputs, const CellVariables& v) const;
   /// The rate with the effects' terms minus the rate without them, at (t, x); `structure`, when

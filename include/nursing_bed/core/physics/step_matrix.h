@@ -55,14 +55,56 @@ class SmallLu {
   int pivots_[N] = {};
 };
 
+/// The same factorisation at a size known at run time (at most kMaxCellStates): plain loops on
+/// fixed storage, without the blocking and size dispatch of Eigen's, which cost more than the
+/// arithmetic at these sizes.
+class RuntimeLu {
+ public:
+  /// Factorises the leading n x n block of `a`.
+  void compute(const CellStateMatrix& a, int n) {
+    n_ = n;
+    lu_ = a.topLeftCorner(n, n);
+    for (int k = 0; k < n; ++k) {
+      int pivot = k;
+      for (int i = k + 1; i < n; ++i)
+        if (std::fabs(lu_(i, k)) > std::fabs(lu_(pivot, k))) pivot = i;
+      pivots_[k] = pivot;
+      if (pivot != k) lu_.row(k).swap(lu_.row(pivot));
+      inverse_diagonal_[k] = 1.0 / lu_(k, k);
+      for (int i = k + 1; i < n; ++i) {
+        const double f = lu_(i, k) * inverse_diagonal_[k];
+        lu_(i, k) = f;
+        for (int j = k + 1; j < n; ++j) lu_(i, j) -= f * lu_(k, j);
+      }
+    }
+  }
+
+  /// Solves in place for the first n entries of `b`.
+  void solveInPlace(double* b) const {
+    for (int k = 0; k < n_; ++k) std::swap(b[k], b[pivots_[k]]);
+    for (int i = 1; i < n_; ++i)
+      for (int j = 0; j < i; ++j) b[i] -= lu_(i, j) * b[j];
+    for (int i = n_ - 1; i >= 0; --i) {
+      for (int j = i + 1; j < n_; ++j) b[i] -= lu_(i, j) * b[j];
+      b[i] *= inverse_diagonal_[i];
+    }
+  }
+
+ private:
+  int n_ = 0;
+  CellStateMatrix lu_;
+  double inverse_diagonal_[kMaxCellStates] = {};
+  int pivots_[kMaxCellStates] = {};
+};
+
 /**
- * The factorisation of W = I - gamma h J and its solves. A cell without effect states and with
- * one film shape coordinate has six states: that size takes fixed-size matrices (unrolled, no
- * run-time size checks); any other size takes run-time-size ones.
+ * The factorisation of W = I - gamma h J and its solves.
  *
- * At the nominal size, the plate's height row (dh/dt = v) and the regulator's row (its own lag)
- * are eliminated first, leaving a 4 x 4 system in mass, energy, velocity and shape; a Jacobian
- * without that pattern is factorised whole.
+ * The plate's height row (dh/dt = v) and the regulator's row (its own lag) are eliminated
+ * first, leaving a system in the other states (mass, energy, velocity, shape and any effect
+ * states); a Jacobian without that pattern is factorised whole. A cell without effect states
+ * and with one film shape coordinate has six states: its 4 x 4 remainder takes fixed-size,
+ * unrolled code.
  */
 class StepMatrix {
  public:
@@ -74,41 +116,42 @@ class StepMatrix {
   void factor(const CellStateMatrix& jacobian, double gamma_h) {
     size_ = static_cast<int>(jacobian.rows());
     if (size_ == kNominalStates) {
-      const NominalMatrix w =
-          NominalMatrix::Identity() - gamma_h * jacobian.topLeftCorner<kNominalStates, kNominalStates>();
-      reduced_ = hasPlateAndRegulatorPattern(w);
-      if (!reduced_) {
-        nominal_lu_.compute(w);
-        return;
-      }
-      height_velocity_ = w(kHeight, kVelocity);
-      regulator_diagonal_ = w(kRegulator, kRegulator);
-      ReducedMatrix a;
-      for (int i = 0; i < kReduced; ++i) {
-        const int row = kKept[i];
-        height_column_[i] = w(row, kHeight);
-        regulator_column_[i] = w(row, kRegulator);
-        for (int j = 0; j < kReduced; ++j) a(i, j) = w(row, kKept[j]);
-        a(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
-      }
-      reduced_lu_.compute(a);
-    } else {
-      lu_.compute(CellStateMatrix::Identity(size_, size_) - gamma_h * jacobian);
+      factorNominal(NominalMatrix::Identity() - gamma_h * jacobian.topLeftCorner<kNominalStates, kNominalStates>());
+      return;
     }
+    const CellStateMatrix w = CellStateMatrix::Identity(size_, size_) - gamma_h * jacobian;
+    reduced_ = size_ > kRegulator && hasPlateAndRegulatorPattern(w);
+    if (!reduced_) {
+      lu_.compute(w, size_);
+      return;
+    }
+    height_velocity_ = w(kHeight, kVelocity);
+    regulator_diagonal_ = w(kRegulator, kRegulator);
+    const int m = size_ - 2;
+    CellStateMatrix a(m, m);
+    for (int i = 0; i < m; ++i) {
+      const int row = kept(i);
+      height_column_[i] = w(row, kHeight);
+      regulator_column_[i] = w(row, kRegulator);
+      for (int j = 0; j < m; ++j) a(i, j) = w(row, kept(j));
+      a(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
+    }
+    lu_.compute(a, m);
   }
 
   /// Size of the last factorisation.
   int size() const { return size_; }
+
   /// W^-1 b for the last factorisation, which was of the nominal size.
   NominalVector solveNominal(const NominalVector& b) const {
     if (!reduced_) return nominal_lu_.solve(b);
     const double regulator = b[kRegulator] / regulator_diagonal_;
-    ReducedVector rhs;
-    for (int i = 0; i < kReduced; ++i)
-      rhs[i] = b[kKept[i]] - height_column_[i] * b[kHeight] - regulator_column_[i] * regulator;
-    const ReducedVector y = reduced_lu_.solve(rhs);
+    NominalReducedVector rhs;
+    for (int i = 0; i < kNominalReduced; ++i)
+      rhs[i] = b[kept(i)] - height_column_[i] * b[kHeight] - regulator_column_[i] * regulator;
+    const NominalReducedVector y = nominal_reduced_lu_.solve(rhs);
     NominalVector x;
-    for (int i = 0; i < kReduced; ++i) x[kKept[i]] = y[i];
+    for (int i = 0; i < kNominalReduced; ++i) x[kept(i)] = y[i];
     x[kHeight] = b[kHeight] - height_velocity_ * y[kReducedVelocity];
     x[kRegulator] = regulator;
     return x;
@@ -120,36 +163,82 @@ class StepMatrix {
       const NominalVector x = solveNominal(b.head<kNominalStates>());
       return x;
     }
-    return lu_.solve(b);
+    CellStateVector x = b;
+    solveInPlace(x.data());
+    return x;
   }
 
  private:
-  // The nominal states' order (CellModel::StateIndex) and the four kept after the elimination.
+  // The nominal states' order (CellModel::StateIndex); the reduced system keeps every state but
+  // the height and the regulator, in order (velocity becomes its third).
   static constexpr int kHeight = 2, kVelocity = 3, kRegulator = 4;
-  static constexpr int kReduced = 4;
-  static constexpr int kKept[kReduced] = {0, 1, kVelocity, 5};
   static constexpr int kReducedVelocity = 2;
-  using ReducedMatrix = Eigen::Matrix<double, kReduced, kReduced>;
-  using ReducedVector = Eigen::Matrix<double, kReduced, 1>;
+  static constexpr int kNominalReduced = kNominalStates - 2;
+  static int kept(int i) { return i < kHeight ? i : (i == kReducedVelocity ? kVelocity : i + 2); }
 
-  /// W's height row is (0 0 1 w 0 0) and its regulator row (0 0 0 0 d 0), d != 0.
-  static bool hasPlateAndRegulatorPattern(const NominalMatrix& w) {
-    for (int j = 0; j < kNominalStates; ++j) {
+  using NominalReducedMatrix = Eigen::Matrix<double, kNominalReduced, kNominalReduced>;
+  using NominalReducedVector = Eigen::Matrix<double, kNominalReduced, 1>;
+
+  /// factor() at the nominal size, on fixed-size matrices.
+  void factorNominal(const NominalMatrix& w) {
+    reduced_ = true;
+    for (int j = 0; j < kNominalStates && reduced_; ++j)
+      reduced_ =
+          (j == kHeight || j == kVelocity || w(kHeight, j) == 0.0) && (j == kRegulator || w(kRegulator, j) == 0.0);
+    reduced_ = reduced_ && w(kHeight, kHeight) == 1.0 && w(kRegulator, kRegulator) != 0.0 &&
+               std::isfinite(w(kHeight, kVelocity));
+    if (!reduced_) {
+      nominal_lu_.compute(w);
+      return;
+    }
+    height_velocity_ = w(kHeight, kVelocity);
+    regulator_diagonal_ = w(kRegulator, kRegulator);
+    NominalReducedMatrix a;
+    for (int i = 0; i < kNominalReduced; ++i) {
+      const int row = kept(i);
+      height_column_[i] = w(row, kHeight);
+      regulator_column_[i] = w(row, kRegulator);
+      for (int j = 0; j < kNominalReduced; ++j) a(i, j) = w(row, kept(j));
+      a(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
+    }
+    nominal_reduced_lu_.compute(a);
+  }
+
+  /// W's height row is (0 0 1 w 0 ... 0) and its regulator row (0 0 0 0 d 0 ... 0), d != 0.
+  bool hasPlateAndRegulatorPattern(const CellStateMatrix& w) const {
+    for (int j = 0; j < size_; ++j) {
       if (j != kHeight && j != kVelocity && w(kHeight, j) != 0.0) return false;
       if (j != kRegulator && w(kRegulator, j) != 0.0) return false;
     }
     return w(kHeight, kHeight) == 1.0 && w(kRegulator, kRegulator) != 0.0 && std::isfinite(w(kHeight, kVelocity));
   }
 
+  /// solve() at any size but the nominal one.
+  void solveInPlace(double* x) const {
+    if (!reduced_) {
+      lu_.solveInPlace(x);
+      return;
+    }
+    const int m = size_ - 2;
+    const double height_rhs = x[kHeight];
+    const double regulator = x[kRegulator] / regulator_diagonal_;
+    double y[kMaxCellStates];
+    for (int i = 0; i < m; ++i) y[i] = x[kept(i)] - height_column_[i] * height_rhs - regulator_column_[i] * regulator;
+    lu_.solveInPlace(y);
+    for (int i = 0; i < m; ++i) x[kept(i)] = y[i];
+    x[kHeight] = height_rhs - height_velocity_ * y[kReducedVelocity];
+    x[kRegulator] = regulator;
+  }
+
   int size_ = 0;
   bool reduced_ = false;
   SmallLu<kNominalStates> nominal_lu_;
-  SmallLu<kReduced> reduced_lu_;
-  ReducedVector height_column_ = ReducedVector::Zero();
-  ReducedVector regulator_column_ = ReducedVector::Zero();
+  SmallLu<kNominalReduced> nominal_reduced_lu_;
+  RuntimeLu lu_;
+  double height_column_[kMaxCellStates] = {};
+  double regulator_column_[kMaxCellStates] = {};
   double height_velocity_ = 0.0;
   double regulator_diagonal_ = 1.0;
-  Eigen::PartialPivLU<CellStateMatrix> lu_;
 };
 
 }  // namespace nursing_bed
