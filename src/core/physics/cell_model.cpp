@@ -463,10 +463,25 @@ ColumnSlopes columnSlopes(const CellParams& params, const CellStructure& structu
   return c;
 }
 
+/// What the effects' terms add to the nominal states' rates (gasRates and plateRates are linear
+/// in them), written into `part` beside the effect states' own rates.
+inline void addTermsPart(const EffectTerms& terms, const CellVariables& v, int shape_dofs, StateVector* part) {
+  const StructureEval& s = v.structure;
+  StateVector& out = *part;
+  out[CellModel::kMass] = terms.mass_flow_kg_s;
+  double volume_rate = 0.0;
+  for (int i = 0; i < shape_dofs; ++i) {
+    out[CellModel::kShape + i] = -terms.shape_force[i] / s.shape_damping[i];
+    volume_rate += s.dvolume_dshape[i] * out[CellModel::kShape + i];
+  }
+  out[CellModel::kEnergy] = terms.enthalpy_flow_w + terms.heat_flow_w - v.pressure_pa * volume_rate;
+  out[CellModel::kVelocity] = terms.plate_force_n / v.moving_mass_kg;
+}
+
 }  // namespace
 
 CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, const CellInputs& in,
-                                       CellVariables* vars_out) const {
+                                       CellVariables* vars_out, StateVector* effect_part) const {
   CellVariables local;
   CellVariables* v = vars_out ? vars_out : &local;
   stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, v);
@@ -475,6 +490,12 @@ CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, cons
   const Outflows out = outflows(params_, in, flow_pressure_pa, v);
   StateVector dx = StateVector::Zero(x.size());
   const EffectTerms terms = effectTerms(effects_, effect_offsets_, shape_dofs_, params_, *v, x, &dx);
+  if (effect_part) {
+    *effect_part = StateVector::Zero(x.size());
+    const int nominal = kShape + shape_dofs_;
+    effect_part->tail(x.size() - nominal) = dx.tail(x.size() - nominal);
+    addTermsPart(terms, *v, shape_dofs_, effect_part);
+  }
   gasRates(params_, shape_dofs_, inflow_enthalpy_w, out, terms, v, &dx);
   plateRates(params_, in, terms, v, &dx);
   regulatorRate(params_, in, x, &dx);
@@ -526,16 +547,7 @@ CellModel::StateVector CellModel::effectPart(double time_s, const StateVector& x
   }
   StateVector part = StateVector::Zero(x.size());
   const EffectTerms terms = effectTerms(effects_, effect_offsets_, shape_dofs_, params_, v, x, &part);
-  // gasRates and plateRates are linear in the terms: what the terms add to them.
-  const StructureEval& s = v.structure;
-  part[kMass] = terms.mass_flow_kg_s;
-  double volume_rate = 0.0;
-  for (int i = 0; i < shape_dofs_; ++i) {
-    part[kShape + i] = -terms.shape_force[i] / s.shape_damping[i];
-    volume_rate += s.dvolume_dshape[i] * part[kShape + i];
-  }
-  part[kEnergy] = terms.enthalpy_flow_w + terms.heat_flow_w - v.pressure_pa * volume_rate;
-  part[kVelocity] = terms.plate_force_n / v.moving_mass_kg;
+  addTermsPart(terms, v, shape_dofs_, &part);
   return part;
 }
 
@@ -610,8 +622,7 @@ double CellModel::attemptStep(double dt, const CellInputs& in, const StateVector
   // Time-dependent input (a prescribed inflow series): its time derivative enters both stages.
   StateVector k1, k2;
   if (in.prescribed_inflow) {
-    const double dt_fd = 1e-6;
-    const StateVector ft = (rate(time_ + dt_fd, state_, in) - f0) / dt_fd;
+    const StateVector ft = timeDerivativeAt(time_, state_, in, vars_, &effect_part_at_state_);
     k1 = step_matrix_.solve(f0 + kRos2Gamma * dt * ft);
     k2 = step_matrix_.solve(rate(time_ + dt, state_ + dt * k1, in) - 2.0 * k1 - kRos2Gamma * dt * ft);
   } else {
@@ -639,10 +650,7 @@ double CellModel::attemptNominalStep(double dt, const CellInputs& in, const Stat
   constexpr int n = StepMatrix::kNominalStates;
   const Vector x = state_.head<n>();
   Vector ft = Vector::Zero();
-  if (in.prescribed_inflow) {
-    const double dt_fd = 1e-6;
-    ft = (rate(time_ + dt_fd, state_, in).head<n>() - f0.head<n>()) / dt_fd;
-  }
+  if (in.prescribed_inflow) ft = timeDerivativeAt(time_, state_, in, vars_, &effect_part_at_state_).head<n>();
   const Vector k1 = step_matrix_.solveNominal(f0.head<n>() + kRos2Gamma * dt * ft);
   const StateVector stage = x + dt * k1;
   const Vector k2 = step_matrix_.solveNominal(rate(time_ + dt, stage, in).head<n>() - 2.0 * k1 - kRos2Gamma * dt * ft);
@@ -652,6 +660,34 @@ double CellModel::attemptNominalStep(double dt, const CellInputs& in, const Stat
   const Vector tolerance = params_.relative_tolerance * (scale_.head<n>() + x.cwiseAbs());
   const double err = std::sqrt((estimate.cwiseQuotient(tolerance)).squaredNorm() / n);
   return std::isfinite(err) && x_next.allFinite() ? err : 1e10;
+}
+
+CellModel::StateVector CellModel::timeDerivative(double time_s, const StateVector& x, const CellInputs& in) const {
+  CellVariables v;
+  rate(time_s, x, in, &v);
+  return timeDerivativeAt(time_s, x, in, v, nullptr);
+}
+
+CellModel::StateVector CellModel::timeDerivativeAt(double time_s, const StateVector& x, const CellInputs& in,
+                                                   const CellVariables& v, const StateVector* effect_part) const {
+  // The nominal rate depends on time through the prescribed inflow series alone: dm/dt gains
+  // dq/dt and dU/dt its enthalpy (the supply's temperature in, the gas's out). dq/dt is a
+  // forward difference: at a sample (or a rounding short of one) the slope the step goes on with.
+  const double dt_fd = 1e-6;
+  StateVector ft = StateVector::Zero(x.size());
+  if (in.prescribed_inflow) {
+    const double metered = in.prescribed_inflow->at(time_s);
+    const double dq_dt = (in.prescribed_inflow->at(time_s + dt_fd) - metered) / dt_fd;
+    ft[kMass] = dq_dt;
+    ft[kEnergy] = dq_dt * params_.gas.cp() * (metered >= 0.0 ? params_.supply_temperature_k : v.temperature_k);
+  }
+  // Effects may depend on time themselves or through the flows: a forward difference of their
+  // part (exactly zero for effects that add nothing).
+  if (!effects_.empty()) {
+    const StateVector now = effect_part ? *effect_part : effectPart(time_s, x, in, &v.structure);
+    ft += (effectPart(time_s + dt_fd, x, in, &v.structure) - now) / dt_fd;
+  }
+  return ft;
 }
 
 void CellModel::integrate(double duration_s, double max_step_s, const CellInputs& in) {
@@ -735,7 +771,9 @@ void CellModel::setState(double time_s, const StateVector& state, bool keep_jaco
   refreshVariables(last_inputs_);
 }
 
-void CellModel::refreshVariables(const CellInputs& in) { rate_at_state_ = rate(time_, state_, in, &vars_); }
+void CellModel::refreshVariables(const CellInputs& in) {
+  rate_at_state_ = rate(time_, state_, in, &vars_, effects_.empty() ? nullptr : &effect_part_at_state_);
+}
 
 bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {
   auto same = [](double x, double y) { return x == y || (std::isnan(x) && std::isnan(y)); };

@@ -17,18 +17,27 @@ struct NozzleConstants {
   double inverse_ratio = 0.0;    // 1/g
 };
 
+NozzleConstants computeNozzleConstants(const GasProperties& gas) {
+  const double g = gas.heat_capacity_ratio;
+  const double r = gas.gas_constant_j_kg_k;
+  NozzleConstants c;
+  c.heat_capacity_ratio = g;
+  c.gas_constant = r;
+  c.critical_ratio = gas.criticalPressureRatio();
+  c.choked_factor = std::sqrt(g / r) * std::pow(2.0 / (g + 1.0), (g + 1.0) / (2.0 * (g - 1.0)));
+  c.subsonic_factor = std::sqrt(2.0 * g / ((g - 1.0) * r));
+  c.inverse_ratio = 1.0 / g;
+  return c;
+}
+
 const NozzleConstants& nozzleConstants(const GasProperties& gas) {
+  // The default gas's constants are shared and immutable; another gas's are kept per thread.
+  static const NozzleConstants kDefaultGas = computeNozzleConstants(GasProperties{});
+  if (gas.heat_capacity_ratio == kDefaultGas.heat_capacity_ratio && gas.gas_constant_j_kg_k == kDefaultGas.gas_constant)
+    return kDefaultGas;
   thread_local NozzleConstants c;
-  if (c.heat_capacity_ratio != gas.heat_capacity_ratio || c.gas_constant != gas.gas_constant_j_kg_k) {
-    const double g = gas.heat_capacity_ratio;
-    const double r = gas.gas_constant_j_kg_k;
-    c.heat_capacity_ratio = g;
-    c.gas_constant = r;
-    c.critical_ratio = gas.criticalPressureRatio();
-    c.choked_factor = std::sqrt(g / r) * std::pow(2.0 / (g + 1.0), (g + 1.0) / (2.0 * (g - 1.0)));
-    c.subsonic_factor = std::sqrt(2.0 * g / ((g - 1.0) * r));
-    c.inverse_ratio = 1.0 / g;
-  }
+  if (c.heat_capacity_ratio != gas.heat_capacity_ratio || c.gas_constant != gas.gas_constant_j_kg_k)
+    c = computeNozzleConstants(gas);
   return c;
 }
 

@@ -8,6 +8,7 @@
 
 #include "nursing_bed/core/physics/basic_effects.h"
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/time_series.h"
 
 namespace nb = nursing_bed;
 
@@ -296,6 +297,35 @@ TEST(CellModel, JacobianMatchesFiniteDifferencesAboveAndBelowFlat) {
       EXPECT_LT(jacobianMismatch(m, fill), 1e-4) << where << ", filling";
       EXPECT_LT(jacobianMismatch(m, vacuum), 1e-4) << where << ", venting to vacuum";
     }
+  }
+}
+
+TEST(CellModel, TimeDerivativeMatchesDifferencesOfTheRateInTime) {
+  // A metered series in and out; inside a segment the rate is linear in time, so central
+  // differences are exact up to rounding. Without effects the series' slope, with them a
+  // difference of the whole rate.
+  const nb::TimeSeries series({0.0, 0.1, 0.2, 0.3}, {0.0, 2e-3, -1e-3, 5e-4});
+  for (bool with_effect : {false, true}) {
+    nb::CellModel m{nb::CellParams{}};
+    if (with_effect) m.addEffect(std::make_shared<nb::HeatTransferEffect>(10.0));
+    m.resetToEquilibrium(0.10, 15.6, 300.0);
+    nb::CellInputs in = closedInputs(15.6);
+    in.prescribed_inflow = &series;
+    for (double t : {0.05, 0.13, 0.17, 0.26}) {
+      const double d = 1e-4;
+      const nb::CellModel::StateVector reference =
+          (m.rate(t + d, m.state(), in) - m.rate(t - d, m.state(), in)) / (2.0 * d);
+      const nb::CellModel::StateVector ft = m.timeDerivative(t, m.state(), in);
+      const std::string where = std::string(with_effect ? "with" : "without") + " an effect, t " + std::to_string(t);
+      EXPECT_NEAR(ft[nb::CellModel::kMass], reference[nb::CellModel::kMass], 1e-6 * std::fabs(reference[0])) << where;
+      EXPECT_NEAR(ft[nb::CellModel::kEnergy], reference[nb::CellModel::kEnergy], 1e-6 * std::fabs(reference[1]))
+          << where;
+      EXPECT_LT((ft - reference).tail(ft.size() - 2).cwiseAbs().maxCoeff(), 1e-9) << where;
+    }
+    EXPECT_EQ(m.timeDerivative(0.5, m.state(), in)[nb::CellModel::kMass], 0.0);  // after the series
+    // At a sample, and a rounding short of it, the slope the step goes on with.
+    EXPECT_NEAR(m.timeDerivative(0.1, m.state(), in)[nb::CellModel::kMass], -3e-2, 1e-6);
+    EXPECT_NEAR(m.timeDerivative(0.1 - 1e-15, m.state(), in)[nb::CellModel::kMass], -3e-2, 1e-6);
   }
 }
 

@@ -173,11 +173,16 @@ class CellModel {
   /// True when two input sets would give the same right-hand side.
   static bool sameInputs(const CellInputs& a, const CellInputs& b);
   /// Right-hand side dx/dt at (t, x); fills `vars` when non-null.
-  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars = nullptr) const;
-  /// d rate / dx at (t, x), assembled from the model's equations (the flows' and the
-  /// structure's own slopes by differences of those parts alone); what effects add, by finite
-  /// differences of their part of the rate.
+  /// `effect_part`, when given, receives what the effects add to the rate (effectPart).
+  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars = nullptr,
+                   StateVector* effect_part = nullptr) const;
+  /// d rate / dx at (t, x), assembled from the model's equations (the valve flows' slopes in
+  /// closed form, the relief's and the structure's by differences of those parts alone); what
+  /// effects add, by finite differences of their part of the rate.
   StateMatrix jacobian(double time_s, const StateVector& x, const CellInputs& inputs) const;
+  /// d(rate)/dt at fixed state: a prescribed inflow series' slope (the one ahead at its samples)
+  /// and a forward difference of what effects add. The Rosenbrock stages' time term.
+  StateVector timeDerivative(double time_s, const StateVector& x, const CellInputs& inputs) const;
 
  private:
   void refreshVariables(const CellInputs& inputs);
@@ -195,6 +200,9 @@ class CellModel {
   /// given, is the structure's evaluation at x's height and shape.
   StateVector effectPart(double time_s, const StateVector& x, const CellInputs& inputs,
                          const StructureEval* structure = nullptr) const;
+  /// timeDerivative() at the variables `v` of (t, x); `effect_part`, when given, is effectPart there.
+  StateVector timeDerivativeAt(double time_s, const StateVector& x, const CellInputs& inputs, const CellVariables& v,
+                               const StateVector* effect_part) const;
   /// Sub-steps of at most `max_step_s` until `duration_s` has passed.
   void integrate(double duration_s, double max_step_s, const CellInputs& inputs);
   /// Accepts `next` as the state after a sub-step of `h` whose error norm was `err`; returns
@@ -225,7 +233,8 @@ class CellModel {
   double substep_s_ = 0.0;  // last accepted sub-step size
   long substeps_ = 0;
   long substep_budget_ = 0;
-  StateVector rate_at_state_;  // dx/dt at (time_, state_, last_inputs_), kept with vars_
+  StateVector rate_at_state_;         // dx/dt at (time_, state_, last_inputs_), kept with vars_
+  StateVector effect_part_at_state_;  // what the effects add to it (with effects only)
 };
 
 }  // namespace nursing_bed

@@ -12,6 +12,42 @@ constexpr int kMaxCellStates = 24;
 using CellStateVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCellStates, 1>;
 using CellStateMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCellStates, kMaxCellStates>;
 
+namespace detail {
+
+/// Row-pivoted LU of the leading n x n block of `lu`, in place (unit lower part below the
+/// diagonal, the upper's inverse diagonal apart). A singular matrix leaves infinities, which the
+/// solves pass on. With n a constant the compiler unrolls it.
+template <class Matrix>
+inline void luInPlace(Matrix& lu, int n, int* pivots, double* inverse_diagonal) {
+  for (int k = 0; k < n; ++k) {
+    int pivot = k;
+    for (int i = k + 1; i < n; ++i)
+      if (std::fabs(lu(i, k)) > std::fabs(lu(pivot, k))) pivot = i;
+    pivots[k] = pivot;
+    if (pivot != k) lu.row(k).swap(lu.row(pivot));
+    inverse_diagonal[k] = 1.0 / lu(k, k);
+    for (int i = k + 1; i < n; ++i) {
+      const double f = lu(i, k) * inverse_diagonal[k];
+      lu(i, k) = f;
+      for (int j = k + 1; j < n; ++j) lu(i, j) -= f * lu(k, j);
+    }
+  }
+}
+
+/// Solves with luInPlace's factors, in place on the first n entries of `b`.
+template <class Matrix>
+inline void luSolveInPlace(const Matrix& lu, int n, const int* pivots, const double* inverse_diagonal, double* b) {
+  for (int k = 0; k < n; ++k) std::swap(b[k], b[pivots[k]]);
+  for (int i = 1; i < n; ++i)
+    for (int j = 0; j < i; ++j) b[i] -= lu(i, j) * b[j];
+  for (int i = n - 1; i >= 0; --i) {
+    for (int j = i + 1; j < n; ++j) b[i] -= lu(i, j) * b[j];
+    b[i] *= inverse_diagonal[i];
+  }
+}
+
+}  // namespace detail
+
 /// LU factorisation with row pivoting of a small fixed-size matrix, written out so that the
 /// compiler unrolls it (Eigen's runs its generic blocked loops at every size).
 template <int N>
@@ -20,38 +56,19 @@ class SmallLu {
   using Matrix = Eigen::Matrix<double, N, N>;
   using Vector = Eigen::Matrix<double, N, 1>;
 
-  /// Factorises `a`; a singular matrix leaves infinities, which the solves pass on.
   void compute(const Matrix& a) {
     lu_ = a;
-    for (int k = 0; k < N; ++k) {
-      int pivot = k;
-      for (int i = k + 1; i < N; ++i)
-        if (std::fabs(lu_(i, k)) > std::fabs(lu_(pivot, k))) pivot = i;
-      pivots_[k] = pivot;
-      if (pivot != k) lu_.row(k).swap(lu_.row(pivot));
-      inverse_diagonal_[k] = 1.0 / lu_(k, k);
-      for (int i = k + 1; i < N; ++i) {
-        const double f = lu_(i, k) * inverse_diagonal_[k];
-        lu_(i, k) = f;
-        for (int j = k + 1; j < N; ++j) lu_(i, j) -= f * lu_(k, j);
-      }
-    }
+    detail::luInPlace(lu_, N, pivots_, inverse_diagonal_);
   }
 
   Vector solve(Vector b) const {
-    for (int k = 0; k < N; ++k) std::swap(b[k], b[pivots_[k]]);
-    for (int i = 1; i < N; ++i)
-      for (int j = 0; j < i; ++j) b[i] -= lu_(i, j) * b[j];
-    for (int i = N - 1; i >= 0; --i) {
-      for (int j = i + 1; j < N; ++j) b[i] -= lu_(i, j) * b[j];
-      b[i] *= inverse_diagonal_[i];
-    }
+    detail::luSolveInPlace(lu_, N, pivots_, inverse_diagonal_, b.data());
     return b;
   }
 
  private:
   Matrix lu_ = Matrix::Identity();
-  Vector inverse_diagonal_ = Vector::Ones();
+  double inverse_diagonal_[N] = {};
   int pivots_[N] = {};
 };
 
@@ -64,31 +81,11 @@ class RuntimeLu {
   void compute(const CellStateMatrix& a, int n) {
     n_ = n;
     lu_ = a.topLeftCorner(n, n);
-    for (int k = 0; k < n; ++k) {
-      int pivot = k;
-      for (int i = k + 1; i < n; ++i)
-        if (std::fabs(lu_(i, k)) > std::fabs(lu_(pivot, k))) pivot = i;
-      pivots_[k] = pivot;
-      if (pivot != k) lu_.row(k).swap(lu_.row(pivot));
-      inverse_diagonal_[k] = 1.0 / lu_(k, k);
-      for (int i = k + 1; i < n; ++i) {
-        const double f = lu_(i, k) * inverse_diagonal_[k];
-        lu_(i, k) = f;
-        for (int j = k + 1; j < n; ++j) lu_(i, j) -= f * lu_(k, j);
-      }
-    }
+    detail::luInPlace(lu_, n, pivots_, inverse_diagonal_);
   }
 
   /// Solves in place for the first n entries of `b`.
-  void solveInPlace(double* b) const {
-    for (int k = 0; k < n_; ++k) std::swap(b[k], b[pivots_[k]]);
-    for (int i = 1; i < n_; ++i)
-      for (int j = 0; j < i; ++j) b[i] -= lu_(i, j) * b[j];
-    for (int i = n_ - 1; i >= 0; --i) {
-      for (int j = i + 1; j < n_; ++j) b[i] -= lu_(i, j) * b[j];
-      b[i] *= inverse_diagonal_[i];
-    }
-  }
+  void solveInPlace(double* b) const { detail::luSolveInPlace(lu_, n_, pivots_, inverse_diagonal_, b); }
 
  private:
   int n_ = 0;
