@@ -117,22 +117,14 @@ class StepMatrix {
       return;
     }
     const CellStateMatrix w = CellStateMatrix::Identity(size_, size_) - gamma_h * jacobian;
-    reduced_ = size_ > kRegulator && hasPlateAndRegulatorPattern(w);
+    reduced_ = size_ > kRegulator && hasPlateAndRegulatorPattern(w, size_);
     if (!reduced_) {
       lu_.compute(w, size_);
       return;
     }
-    height_velocity_ = w(kHeight, kVelocity);
-    regulator_diagonal_ = w(kRegulator, kRegulator);
     const int m = size_ - 2;
     CellStateMatrix a(m, m);
-    for (int i = 0; i < m; ++i) {
-      const int row = kept(i);
-      height_column_[i] = w(row, kHeight);
-      regulator_column_[i] = w(row, kRegulator);
-      for (int j = 0; j < m; ++j) a(i, j) = w(row, kept(j));
-      a(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
-    }
+    eliminatePlateAndRegulator(w, m, &a);
     lu_.compute(a, m);
   }
 
@@ -178,36 +170,38 @@ class StepMatrix {
 
   /// factor() at the nominal size, on fixed-size matrices.
   void factorNominal(const NominalMatrix& w) {
-    reduced_ = true;
-    for (int j = 0; j < kNominalStates && reduced_; ++j)
-      reduced_ =
-          (j == kHeight || j == kVelocity || w(kHeight, j) == 0.0) && (j == kRegulator || w(kRegulator, j) == 0.0);
-    reduced_ = reduced_ && w(kHeight, kHeight) == 1.0 && w(kRegulator, kRegulator) != 0.0 &&
-               std::isfinite(w(kHeight, kVelocity));
+    reduced_ = hasPlateAndRegulatorPattern(w, kNominalStates);
     if (!reduced_) {
       nominal_lu_.compute(w);
       return;
     }
-    height_velocity_ = w(kHeight, kVelocity);
-    regulator_diagonal_ = w(kRegulator, kRegulator);
     NominalReducedMatrix a;
-    for (int i = 0; i < kNominalReduced; ++i) {
-      const int row = kept(i);
-      height_column_[i] = w(row, kHeight);
-      regulator_column_[i] = w(row, kRegulator);
-      for (int j = 0; j < kNominalReduced; ++j) a(i, j) = w(row, kept(j));
-      a(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
-    }
+    eliminatePlateAndRegulator(w, kNominalReduced, &a);
     nominal_reduced_lu_.compute(a);
   }
 
   /// W's height row is (0 0 1 w 0 ... 0) and its regulator row (0 0 0 0 d 0 ... 0), d != 0.
-  bool hasPlateAndRegulatorPattern(const CellStateMatrix& w) const {
-    for (int j = 0; j < size_; ++j) {
+  template <class Matrix>
+  static bool hasPlateAndRegulatorPattern(const Matrix& w, int n) {
+    for (int j = 0; j < n; ++j) {
       if (j != kHeight && j != kVelocity && w(kHeight, j) != 0.0) return false;
       if (j != kRegulator && w(kRegulator, j) != 0.0) return false;
     }
     return w(kHeight, kHeight) == 1.0 && w(kRegulator, kRegulator) != 0.0 && std::isfinite(w(kHeight, kVelocity));
+  }
+
+  /// Keeps the height and regulator rows' terms and writes the remaining m x m system into `a`.
+  template <class Matrix, class Reduced>
+  void eliminatePlateAndRegulator(const Matrix& w, int m, Reduced* a) {
+    height_velocity_ = w(kHeight, kVelocity);
+    regulator_diagonal_ = w(kRegulator, kRegulator);
+    for (int i = 0; i < m; ++i) {
+      const int row = kept(i);
+      height_column_[i] = w(row, kHeight);
+      regulator_column_[i] = w(row, kRegulator);
+      for (int j = 0; j < m; ++j) (*a)(i, j) = w(row, kept(j));
+      (*a)(i, kReducedVelocity) -= height_column_[i] * height_velocity_;
+    }
   }
 
   /// solve() at any size but the nominal one.
