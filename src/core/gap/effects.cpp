@@ -300,10 +300,8 @@ void MembraneViscoelasticityEffect::contribute(const CellParams& params, const C
   if (relative_stiffness_ == 0.0) return;
   const double stretch = cell.shape[0];
   const double internal_stretch = state[0];
-  // The film's elastic force at the internal stretch: the same structure, evaluated once more
-  // (no allocation: PillowStructure is a small value type).
-  const PillowStructure structure(params.structure);
-  const double force_at_internal = structure.evaluate(cell.height_m, &internal_stretch).elastic_force[0];
+  // The film's elastic force at the internal stretch, as the structure gives it at the stretch.
+  const double force_at_internal = PillowStructure::elasticForce(params.structure, internal_stretch);
   terms->shape_force[0] = relative_stiffness_ * (cell.structure.elastic_force[0] - force_at_internal);
   state_rate[0] = (stretch - internal_stretch) / relaxation_time_s_;
 }

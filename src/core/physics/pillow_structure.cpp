@@ -35,16 +35,27 @@ Status PillowParams::validate() const {
 namespace {
 // The flat loop's half length squared: the pillow's effective area at h = 0 and rest stretch.
 double flatArea(const PillowParams& p) { return std::pow(p.face_side_m + p.gusset_height_m, 2); }
+
+// The loop's length at rest (L0) and the reference volume of all film (n A0 t, A0 = L0^2 / 2).
+double loopLength(const PillowParams& p) { return 2.0 * (p.face_side_m + p.gusset_height_m); }
+double filmVolumeOf(const PillowParams& p) {
+  const double loop_length_m = loopLength(p);
+  const double reference_area_per_chamber = 0.5 * loop_length_m * loop_length_m;
+  return p.chambers * reference_area_per_chamber * p.film_thickness_m;
+}
 }  // namespace
 
 PillowStructure::PillowStructure(const PillowParams& params)
     : params_(params), fold_(params.fold_fraction * params.dead_volume_m3, flatArea(params)) {
-  loop_length_m_ = 2.0 * (params_.face_side_m + params_.gusset_height_m);
-  const double reference_area_per_chamber = 0.5 * loop_length_m_ * loop_length_m_;
-  film_volume_m3_ = params_.chambers * reference_area_per_chamber * params_.film_thickness_m;
+  loop_length_m_ = loopLength(params_);
+  film_volume_m3_ = filmVolumeOf(params_);
   // Film stiffness at rest: d2W/dl2 at l = 1 is 24 C10 for the equibiaxial Yeoh film.
   const double rest_stiffness = film_volume_m3_ * params_.material.equibiaxialEnergySecondDerivative(1.0);
   shape_damping_j_s_ = params_.film_relaxation_time_s * rest_stiffness;
+}
+
+double PillowStructure::elasticForce(const PillowParams& params, double stretch) {
+  return filmVolumeOf(params) * params.material.equibiaxialEnergyDerivative(stretch);
 }
 
 std::array<double, kMaxShapeDofs> PillowStructure::restShape() const {

@@ -70,6 +70,20 @@ TEST(PillowStructure, BelowFlatThePlateForceAreaIsTheVolumesSlope) {
   EXPECT_NEAR(s.evaluate(-1e-12, rest.data()).effective_area_m2, s.evaluate(0.0, rest.data()).effective_area_m2, 1e-9);
 }
 
+TEST(PillowStructure, ElasticForceWithoutTheStructureIsTheEvaluatedOne) {
+  // The film's force depends on the stretch alone: above and below flat, the static form gives
+  // evaluate()'s value to the bit.
+  nb::PillowParams params;
+  params.film_thickness_m *= 1.3;
+  const nb::PillowStructure structure(params);
+  for (double stretch : {0.95, 1.0, 1.04, 1.2})
+    for (double height : {-1e-4, 0.0, 0.06, 0.14}) {
+      EXPECT_EQ(nb::PillowStructure::elasticForce(params, stretch),
+                structure.evaluate(height, &stretch).elastic_force[0])
+          << "stretch " << stretch << ", height " << height;
+    }
+}
+
 TEST(PillowStructure, RefusesAFoldFractionOutsideZeroToOne) {
   for (double f : {0.0, 1.0, -0.1, std::nan("")}) {
     nb::PillowParams p = kParams;

@@ -119,7 +119,7 @@ std::string describeEffect(const std::string& name, const std::map<std::string, 
 /// coordinate g (dW/dlambda(lambda) - dW/dlambda(lambda_v)). Instantaneous film stiffness
 /// (1 + g) W'', long-term W''. Assumes the cell's structure is the PillowStructure of
 /// CellParams::structure (the default), whose shape coordinate 0 is the film stretch; it
-/// evaluates that structure at lambda_v once per call. g = 0: off (no state).
+/// takes that structure's elastic force at lambda_v once per call. g = 0: off (no state).
 class MembraneViscoelasticityEffect : public CellEffect {
  public:
   MembraneViscoelasticityEffect(double relaxation_time_s, double relative_stiffness)

@@ -57,6 +57,9 @@ class PillowStructure : public CellStructure {
   const PillowParams& params() const { return params_; }
   /// Reference volume of all film (n A0 t) [m^3]: film energy = this * W_yeoh per unit volume.
   double filmVolume() const { return film_volume_m3_; }
+  /// The film's elastic force dW/dlambda at `stretch` (evaluate()'s elastic_force[0], which does
+  /// not depend on the height), without building the structure.
+  static double elasticForce(const PillowParams& params, double stretch);
 
  private:
   PillowParams params_;
