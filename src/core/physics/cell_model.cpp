@@ -208,6 +208,14 @@ inline double flowPressure(const CellParams& params, const CellInputs& in, const
                                                   : v.pressure_pa;
 }
 
+/// The inlet valve's flow from the regulator's outlet into the cell at `flow_pressure_pa`.
+inline OrificeFlow inletValve(const CellParams& params, const CellInputs& in, double flow_pressure_pa,
+                              const CellVariables& v) {
+  const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
+  return orificeFlow(params.gas, opening * params.inlet_area_m2, params.ambient_pressure_pa + v.regulator_pressure_pa,
+                     params.supply_temperature_k, flow_pressure_pa, v.temperature_k, params.orifice_linear_band_pa);
+}
+
 /// Inlet: a prescribed (metered) series, or the regulator through the inlet valve. Sets the
 /// inflow variables; returns the enthalpy flow the inflow brings [W].
 inline double inletFlow(const CellParams& params, const CellInputs& in, double flow_pressure_pa, CellVariables* out) {
@@ -222,10 +230,7 @@ inline double inletFlow(const CellParams& params, const CellInputs& in, double f
     return v.inflow_kg_s * cp * t_in;
   }
   v.inflow_prescribed = 0.0;
-  const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
-  const OrificeFlow f =
-      orificeFlow(params.gas, opening * params.inlet_area_m2, params.ambient_pressure_pa + v.regulator_pressure_pa,
-                  params.supply_temperature_k, flow_pressure_pa, v.temperature_k, params.orifice_linear_band_pa);
+  const OrificeFlow f = inletValve(params, in, flow_pressure_pa, v);
   v.inflow_kg_s = f.mass_flow_kg_s;
   v.metered_inflow_kg_s = v.inflow_kg_s;
   return v.inflow_kg_s * cp * f.upstream_temperature_k;
@@ -238,24 +243,34 @@ struct Outflows {
   double relief_kg_s = 0.0;
 };
 
-/// Vent valve and leakage (eq. 17-23 with the choked branch) and the relief valve (ISO 6358).
-/// Sets the vent and leak flow variables.
-inline Outflows outflows(const CellParams& params, const CellInputs& in, double flow_pressure_pa, CellVariables* out) {
-  CellVariables& v = *out;
+/// The relief valve's flow (ISO 6358) at the cell's absolute pressure and temperature.
+inline double reliefFlow(const CellParams& params, double pressure_pa, double temperature_k) {
+  const double opening = params.reliefOpening(pressure_pa - params.ambient_pressure_pa);
+  return opening > 0.0
+             ? opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa, params.relief_critical_ratio,
+                                         pressure_pa, temperature_k, params.ambient_pressure_pa)
+             : 0.0;
+}
+
+/// Vent valve and leakage (eq. 17-23 with the choked branch) and the relief valve, for the gas
+/// at `temperature_k`.
+inline Outflows outflowLaws(const CellParams& params, const CellInputs& in, double flow_pressure_pa,
+                            double temperature_k) {
   Outflows o;
   o.vent = orificeFlow(params.gas, std::clamp(in.vent_opening, 0.0, 1.0) * params.vent_area_m2, flow_pressure_pa,
-                       v.temperature_k, params.ambient_pressure_pa + in.vent_back_pressure_pa,
+                       temperature_k, params.ambient_pressure_pa + in.vent_back_pressure_pa,
                        params.ambient_temperature_k, params.orifice_linear_band_pa);
-  o.leak = orificeFlow(params.gas, params.leak_area_m2, flow_pressure_pa, v.temperature_k, params.ambient_pressure_pa,
+  o.leak = orificeFlow(params.gas, params.leak_area_m2, flow_pressure_pa, temperature_k, params.ambient_pressure_pa,
                        params.ambient_temperature_k, params.orifice_linear_band_pa);
-  const double relief_opening = params.reliefOpening(flow_pressure_pa - params.ambient_pressure_pa);
-  o.relief_kg_s =
-      relief_opening > 0.0
-          ? relief_opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa, params.relief_critical_ratio,
-                                             flow_pressure_pa, v.temperature_k, params.ambient_pressure_pa)
-          : 0.0;
-  v.vent_flow_kg_s = o.vent.mass_flow_kg_s;
-  v.leak_flow_kg_s = o.leak.mass_flow_kg_s;
+  o.relief_kg_s = reliefFlow(params, flow_pressure_pa, temperature_k);
+  return o;
+}
+
+/// outflowLaws at the variables' temperature; sets the vent and leak flow variables.
+inline Outflows outflows(const CellParams& params, const CellInputs& in, double flow_pressure_pa, CellVariables* out) {
+  const Outflows o = outflowLaws(params, in, flow_pressure_pa, out->temperature_k);
+  out->vent_flow_kg_s = o.vent.mass_flow_kg_s;
+  out->leak_flow_kg_s = o.leak.mass_flow_kg_s;
   return o;
 }
 
@@ -381,34 +396,22 @@ FlowSlopes flowSlopes(const CellParams& params, const CellInputs& in, const Cell
     const double metered = in.prescribed_inflow ? in.prescribed_inflow->at(v.time_s) : in.prescribed_inflow_kg_s;
     if (metered < 0.0) s.energy_t += metered * cp;  // a metered outflow carries the gas's enthalpy
   } else {
-    const double opening = std::clamp(in.inlet_opening, 0.0, 1.0);
-    s.addOrifice(
-        orificeFlow(params.gas, opening * params.inlet_area_m2, params.ambient_pressure_pa + v.regulator_pressure_pa,
-                    params.supply_temperature_k, flow_pressure_pa, t, params.orifice_linear_band_pa),
-        false, 1.0, cp, t, pressure_state);
+    s.addOrifice(inletValve(params, in, flow_pressure_pa, v), false, 1.0, cp, t, pressure_state);
   }
-  CellVariables scratch = v;
-  const Outflows o = outflows(params, in, flow_pressure_pa, &scratch);
+  const Outflows o = outflowLaws(params, in, flow_pressure_pa, t);
   s.addOrifice(o.vent, true, -1.0, cp, t, pressure_state);
   s.addOrifice(o.leak, true, -1.0, cp, t, pressure_state);
   if (!regulator_state) s.mass_r = s.energy_r = 0.0;
   // The relief (no pow in its law): by differences of its flow alone.
-  auto relief = [&params](double pressure_pa, double temperature_k) {
-    const double opening = params.reliefOpening(pressure_pa - params.ambient_pressure_pa);
-    return opening > 0.0
-               ? opening * iso6358MassFlow(params.relief_sonic_conductance_m3_s_pa, params.relief_critical_ratio,
-                                           pressure_pa, temperature_k, params.ambient_pressure_pa)
-               : 0.0;
-  };
-  const double base = relief(flow_pressure_pa, t);
+  const double base = o.relief_kg_s;
   if (pressure_state) {
     const double dp = 1e-7 * flow_pressure_pa;
-    const double slope = (relief(flow_pressure_pa + dp, t) - base) / dp;
+    const double slope = (reliefFlow(params, flow_pressure_pa + dp, t) - base) / dp;
     s.mass_p -= slope;
     s.energy_p -= slope * cp * t;
   }
   const double dt = 1e-7 * t;
-  const double at_t = relief(flow_pressure_pa, t + dt);
+  const double at_t = reliefFlow(params, flow_pressure_pa, t + dt);
   s.mass_t -= (at_t - base) / dt;
   s.energy_t -= (at_t * (t + dt) - base * t) * cp / dt;
   return s;
