@@ -21,6 +21,10 @@ constexpr double kRos2Gamma = 1.0 + 0.70710678118654752440;
 // constants of the cell's stiff modes (the plate on its gas spring, the film's relaxation).
 constexpr double kFreshJacobianStepS = 5.0e-3;
 
+// A kept Jacobian serves such a step while it predicts the rate's change along the last step
+// to this fraction (the orifice laws' slopes drift as their pressure difference does).
+constexpr double kSecantTolerance = 0.1;
+
 }  // namespace
 
 std::string CellParams::validate() const {
@@ -142,6 +146,7 @@ void CellModel::reset(double load_n) {
   refreshVariables(last_inputs_);
   steps_since_jacobian_ = 1 << 30;
   jacobian_fresh_ = false;
+  jacobian_tracks_ = false;
   substep_s_ = 0.0;
 }
 
@@ -699,6 +704,16 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
   double remaining = duration_s;
   double h = std::min(substep_s_ > 0.0 ? substep_s_ : params_.time_step_s, max_step_s);
   int rejections = 0;
+  // The rate at the current state is already known when the inputs did not change. New inputs
+  // take a new Jacobian: the error estimate is filtered through (I - gamma h J)^-1, and a J
+  // made for other inputs (an inlet opened, a vent shut) hides the next steps' error.
+  if (remaining > 1e-15 && (!sameInputs(in, last_inputs_) || rate_at_state_.size() != n)) {
+    last_inputs_ = in;
+    refreshVariables(in);
+    jacobian_fresh_ = false;
+    jacobian_tracks_ = false;
+    steps_since_jacobian_ = 1 << 30;
+  }
   while (remaining > 1e-15) {
     // The last sub-steps reach the end exactly, without a sliver of a step.
     double hs = h;
@@ -707,21 +722,14 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
     } else if (remaining - hs < 0.1 * hs) {
       hs = 0.5 * remaining;
     }
-    // The rate at the current state is already known when the inputs did not change. New
-    // inputs take a new Jacobian: the error estimate is filtered through (I - gamma h J)^-1,
-    // and a J made for other inputs (an inlet opened, a vent shut) hides the next steps' error.
-    if (!sameInputs(in, last_inputs_) || rate_at_state_.size() != n) {
-      last_inputs_ = in;
-      refreshVariables(in);
-      jacobian_fresh_ = false;
-      steps_since_jacobian_ = 1 << 30;
-    }
     const StateVector f0 = rate_at_state_;
     // Long steps make the stiff modes (the plate on its gas spring, the film, the gas through
-    // an open orifice) |h lambda| >> 1; only a Jacobian of the current state damps them there,
-    // one a few steps old leaves them ringing from step to step.
-    const bool long_step = hs > kFreshJacobianStepS;
-    if (!jacobian_fresh_ && (long_step || steps_since_jacobian_ >= params_.jacobian_refresh_steps)) updateJacobian(in);
+    // an open orifice) |h lambda| >> 1; only a Jacobian that describes the current state damps
+    // them there. One made a few steps before in a changing state leaves them ringing from step
+    // to step, so a kept one serves only while the last step's secant confirms it.
+    const bool needs_current = hs > kFreshJacobianStepS && !jacobian_tracks_;
+    if (!jacobian_fresh_ && (needs_current || steps_since_jacobian_ >= params_.jacobian_refresh_steps))
+      updateJacobian(in);
     StateVector next;
     const double err = attemptStep(hs, in, f0, &next);
     if (err <= 1.0 || hs < 1e-9) {
@@ -743,17 +751,48 @@ void CellModel::integrate(double duration_s, double max_step_s, const CellInputs
 }
 
 double CellModel::acceptSubstep(double h, double err, const StateVector& next, const CellInputs& in) {
+  // Grow when the error allows, at most doubling.
+  const double proposed = h * std::clamp(err > 1e-8 ? 0.9 / std::sqrt(err) : 2.0, 0.2, 2.0);
+  // Whether the kept Jacobian still tracks the state matters only before a step longer than
+  // kFreshJacobianStepS that the refresh count would not give a new one anyway.
+  const bool may_keep = proposed > kFreshJacobianStepS && steps_since_jacobian_ + 1 < params_.jacobian_refresh_steps;
+  StateVector dx, rate_before;
+  if (may_keep) {
+    dx = next - state_;
+    rate_before = rate_at_state_;
+  }
   state_ = next;
   state_[kMass] = std::max(state_[kMass], 1e-12);
   time_ += h;
   refreshVariables(in);
+  jacobian_tracks_ = may_keep && jacobianTracksStep(h, dx, rate_before);
   if (++substeps_ > substep_budget_ && substep_budget_ > 0)
     throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +
                              " integration steps (too stiff)");
   jacobian_fresh_ = false;
   ++steps_since_jacobian_;
-  // Grow when the error allows, at most doubling.
-  return h * std::clamp(err > 1e-8 ? 0.9 / std::sqrt(err) : 2.0, 0.2, 2.0);
+  return proposed;
+}
+
+bool CellModel::jacobianTracksStep(double h, const StateVector& dx, const StateVector& rate_before) const {
+  // The secant f(x + dx) - f(x) against J dx, in the error norm's weights: a Jacobian that still
+  // predicts how the rate changed along the step's path describes the modes the path excites.
+  // Below a hundredth of the tolerance over the step, the miss cannot move the solution.
+  const int n = stateSize();
+  if (jacobian_.rows() != n) return false;
+  const double* jac = jacobian_.data();
+  const int stride = static_cast<int>(jacobian_.outerStride());
+  double miss_sq = 0.0, change_sq = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double change = rate_at_state_[i] - rate_before[i];
+    double predicted = 0.0;
+    for (int j = 0; j < n; ++j) predicted += jac[i + j * stride] * dx[j];
+    const double w = 1.0 / (scale_[i] + std::fabs(state_[i]));
+    miss_sq += w * w * (change - predicted) * (change - predicted);
+    change_sq += w * w * change * change;
+  }
+  const double miss = std::sqrt(miss_sq / n);
+  return miss <= kSecantTolerance * std::sqrt(change_sq / n) || h * miss <= 1e-2 * params_.relative_tolerance;
 }
 
 void CellModel::advance(double duration_s, const CellInputs& in) {
@@ -767,6 +806,7 @@ void CellModel::setState(double time_s, const StateVector& state, bool keep_jaco
   state_ = state;
   time_ = time_s;
   jacobian_fresh_ = false;
+  jacobian_tracks_ = false;
   if (!keep_jacobian) {
     steps_since_jacobian_ = 1 << 30;
     substep_s_ = 0.0;

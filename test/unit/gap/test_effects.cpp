@@ -346,6 +346,29 @@ TEST(GapEffects, PlateFrictionShiftsThePressureAgainstTheMotion) {
   EXPECT_GT(loop_friction - loop_nominal, 2.0 * fc / 0.03);
 }
 
+// Long holding and venting steps keep their Jacobian while its secant test passes. With stiff,
+// nonlinear effects plugged in (the friction's tanh in the plate's speed, a film relaxing with
+// its own state), a kept Jacobian that no longer damps their modes leaves the pressure ringing
+// by tens of pascals; the run follows a tightly integrated one as closely as with a fresh
+// Jacobian on every long step (the default tolerance's own error, well below the ringing).
+TEST(GapEffects, KeptJacobiansFollowStiffEffectsWithoutRinging) {
+  auto run = [](double relative_tolerance) {
+    Protocol pr;
+    pr.relative_tolerance = relative_tolerance;
+    return runProtocol({effect("plate_friction", {{"friction_force_n", 2.0}}),
+                        effect("membrane_viscoelasticity", {{"relaxation_time_s", 5.0}, {"relative_stiffness", 0.3}}),
+                        effect("heat_transfer", {{"heat_transfer_coefficient_w_m2_k", 10.0}})},
+                       pr);
+  };
+  const auto s = run(nb::CellParams{}.relative_tolerance), exact = run(1e-8);
+  ASSERT_EQ(s.size(), exact.size());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    if (s[i].t > kHoldStart + 0.5)
+      worst = std::max(worst, std::fabs(s[i].v.gauge_pressure_pa - exact[i].v.gauge_pressure_pa));
+  EXPECT_LT(worst, 16.0);
+}
+
 TEST(GapEffects, InflowBiasMassErrorGrowsWithIntegratedFlow) {
   const double k = 0.1;
   const auto s = runProtocol({effect("inflow_bias", {{"scale_error", k}, {"offset_kg_s", 0.0}})});

@@ -70,7 +70,7 @@ struct CellParams {
   /// Longest step advance() takes where the local error estimate allows it (a holding cell);
   /// never shorter than time_step_s.
   double max_time_step_s = 0.02;
-  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates (steps > 5 ms: every one)
+  int jacobian_refresh_steps = 8;      ///< accepted steps between Jacobian updates (steps > 5 ms: see CellModel)
   double relative_tolerance = 1.0e-4;  ///< local error control of the sub-steps
 
   /// Empty when valid, else every problem found, separated by "; ".
@@ -116,9 +116,10 @@ std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params)
  *  - film shape q (CellStructure), relaxing viscously to its balance dW/dq = p_gauge dV/dq;
  *  - states of plugged-in effects.
  * Integrated with ROS2, a second-order L-stable linearly implicit (Rosenbrock-W) method whose
- * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps, and on every step longer
- * than 5 ms (where only a current one damps the stiff modes): the plate on its gas spring and
- * the film are stiff, the gas balances are not. A step of the default size is
+ * Jacobian is refreshed every `jacobian_refresh_steps` accepted steps, and on a step longer than
+ * 5 ms unless it passed a secant test over the last step (there only a Jacobian that describes
+ * the current state damps the stiff modes): the plate on its gas spring and the film are stiff,
+ * the gas balances are not. A step of the default size is
  * split into sub-steps when the local error estimate (ROS2 against its embedded first-order
  * solution) exceeds the tolerance, as it does while the bag lifts off a bottomed plate.
  */
@@ -208,6 +209,9 @@ class CellModel {
   /// Accepts `next` as the state after a sub-step of `h` whose error norm was `err`; returns
   /// the size proposed for the next sub-step.
   double acceptSubstep(double h, double err, const StateVector& next, const CellInputs& inputs);
+  /// Whether jacobian_ predicts the change of rate over the step just taken (dx from the state
+  /// whose rate was `rate_before`): the secant test that lets a long step keep it.
+  bool jacobianTracksStep(double h, const StateVector& dx, const StateVector& rate_before) const;
   /// One ROS2 attempt of size dt from the current state; returns the scaled error norm.
   double attemptStep(double dt, const CellInputs& inputs, const StateVector& f0, StateVector* next);
   /// attemptStep for the nominal size (fixed-size vectors).
@@ -227,7 +231,8 @@ class CellModel {
   StateMatrix jacobian_;
   bool jacobian_fresh_ = false;  // computed at the current state
   int steps_since_jacobian_ = 1 << 30;
-  double lu_dt_ = 0.0;  // step size the factorisation was made for
+  bool jacobian_tracks_ = false;  // jacobian_ predicted the last step's change of rate
+  double lu_dt_ = 0.0;            // step size the factorisation was made for
   StepMatrix step_matrix_;
   StateVector scale_;       // typical magnitude of each state (FD increments, tolerances)
   double substep_s_ = 0.0;  // last accepted sub-step size

@@ -66,6 +66,13 @@ class SmallLu {
     return b;
   }
 
+  /// The inverse, column by column from the factors.
+  Matrix inverse() const {
+    Matrix inv;
+    for (int j = 0; j < N; ++j) inv.col(j) = solve(Vector::Unit(j));
+    return inv;
+  }
+
  private:
   Matrix lu_ = Matrix::Identity();
   double inverse_diagonal_[N] = {};
@@ -74,24 +81,33 @@ class SmallLu {
 
 /// The same factorisation at a size known at run time (at most kMaxCellStates): plain loops on
 /// fixed storage, without the blocking and size dispatch of Eigen's, which cost more than the
-/// arithmetic at these sizes.
+/// arithmetic at these sizes. It keeps the inverse: a factorisation serves three solves per
+/// step and usually several steps, and a product has no pivoting and no chain of divisions.
 class RuntimeLu {
  public:
   /// Factorises the leading n x n block of `a`.
   void compute(const CellStateMatrix& a, int n) {
     n_ = n;
-    lu_ = a.topLeftCorner(n, n);
-    detail::luInPlace(lu_, n, pivots_, inverse_diagonal_);
+    CellStateMatrix lu = a.topLeftCorner(n, n);
+    double inverse_diagonal[kMaxCellStates];
+    int pivots[kMaxCellStates];
+    detail::luInPlace(lu, n, pivots, inverse_diagonal);
+    inverse_ = CellStateMatrix::Identity(n, n);
+    for (int j = 0; j < n; ++j) detail::luSolveInPlace(lu, n, pivots, inverse_diagonal, inverse_.col(j).data());
   }
 
   /// Solves in place for the first n entries of `b`.
-  void solveInPlace(double* b) const { detail::luSolveInPlace(lu_, n_, pivots_, inverse_diagonal_, b); }
+  void solveInPlace(double* b) const {
+    double x[kMaxCellStates];
+    for (int i = 0; i < n_; ++i) x[i] = 0.0;
+    for (int j = 0; j < n_; ++j)
+      for (int i = 0; i < n_; ++i) x[i] += inverse_(i, j) * b[j];
+    for (int i = 0; i < n_; ++i) b[i] = x[i];
+  }
 
  private:
   int n_ = 0;
-  CellStateMatrix lu_;
-  double inverse_diagonal_[kMaxCellStates] = {};
-  int pivots_[kMaxCellStates] = {};
+  CellStateMatrix inverse_;
 };
 
 /**
@@ -138,7 +154,7 @@ class StepMatrix {
     NominalReducedVector rhs;
     for (int i = 0; i < kNominalReduced; ++i)
       rhs[i] = b[kept(i)] - height_column_[i] * b[kHeight] - regulator_column_[i] * regulator;
-    const NominalReducedVector y = nominal_reduced_lu_.solve(rhs);
+    const NominalReducedVector y = nominal_reduced_inverse_ * rhs;
     NominalVector x;
     for (int i = 0; i < kNominalReduced; ++i) x[kept(i)] = y[i];
     x[kHeight] = b[kHeight] - height_velocity_ * y[kReducedVelocity];
@@ -177,7 +193,11 @@ class StepMatrix {
     }
     NominalReducedMatrix a;
     eliminatePlateAndRegulator(w, kNominalReduced, &a);
-    nominal_reduced_lu_.compute(a);
+    // Each factorisation serves three solves per step and usually several steps: a 4 x 4
+    // product has no pivoting and no dependent chain of divisions.
+    SmallLu<kNominalReduced> lu;
+    lu.compute(a);
+    nominal_reduced_inverse_ = lu.inverse();
   }
 
   /// W's height row is (0 0 1 w 0 ... 0) and its regulator row (0 0 0 0 d 0 ... 0), d != 0.
@@ -224,7 +244,7 @@ class StepMatrix {
   int size_ = 0;
   bool reduced_ = false;
   SmallLu<kNominalStates> nominal_lu_;
-  SmallLu<kNominalReduced> nominal_reduced_lu_;
+  NominalReducedMatrix nominal_reduced_inverse_ = NominalReducedMatrix::Identity();
   RuntimeLu lu_;
   double height_column_[kMaxCellStates] = {};
   double regulator_column_[kMaxCellStates] = {};
