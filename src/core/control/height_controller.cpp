@@ -176,14 +176,16 @@ void HeightController::predictRest(Period* s) {
   // Load estimate: the plate's force balance on the structure's force at (h, p), outside moves
   // (a move plans with the load it started with) and with the plate off the bed (on the bed the
   // pressure says nothing about the load).
+  // One solve of the film relaxed at the measured pressure gives both.
+  const CellCharacteristic::RelaxedCell relaxed =
+      characteristic_->relaxedAt(height_m, gauge_pressure_pa, &stretch_guess_);
   const bool weighable = height_m > 0.005 && gauge_pressure_pa > 0.0;
-  load_.update(dt_s, height_m, weighable ? characteristic_->loadAt(height_m, gauge_pressure_pa) : 0.0,
-               weighable && !move_.active());
+  load_.update(dt_s, height_m, weighable ? relaxed.load_n : 0.0, weighable && !move_.active());
 
   // Where the plate rests if the valves shut now (adiabatic invariant of the present gas; the
   // volume uses the film relaxed at the measured pressure, so the invariant holds while the
   // plate swings).
-  s->volume_m3 = characteristic_->relaxedVolume(height_m, gauge_pressure_pa, &stretch_guess_);
+  s->volume_m3 = relaxed.volume_m3;
   s->invariant = characteristic_->invariant(gauge_pressure_pa, s->volume_m3);
   resting_height_m_ = characteristic_->restingHeight(s->invariant, load_.load());
   in_flight_shift_m_ = in_flight_.empty() ? 0.0 : inFlightRestShift(gauge_pressure_pa, s->volume_m3, s->invariant);

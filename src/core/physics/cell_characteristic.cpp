@@ -34,7 +34,7 @@ CellCharacteristic::CellCharacteristic(const CellParams& params, double height_m
     // A closed cell filled slowly from flat rests on the equilibria in the order of their
     // invariant; where the invariant dips with height or has no rest at all (a snap: an FE
     // table's folds) the rest jumps over it. The running maximum keeps restingHeight()'s
-    // bisection on that branch.
+    // search on that branch.
     for (int i = 1; i < reachable_[j]; ++i) {
       double& k = invariant_[j * heights_ + i];
       const double below = invariant_[j * heights_ + i - 1];
@@ -81,12 +81,22 @@ double CellCharacteristic::pressureAt(double height_m, double load_n) const {
 
 double CellCharacteristic::volumeAt(double height_m, double load_n) const { return at(volume_m3_, height_m, load_n); }
 
-double CellCharacteristic::relaxedVolume(double height_m, double gauge_pressure_pa, double* stretch) const {
+CellCharacteristic::RelaxedCell CellCharacteristic::relaxedAt(double height_m, double gauge_pressure_pa,
+                                                              double* stretch) const {
+  // Not a bisection on the tabulated equilibria for the load: an FE table's force is not
+  // monotone through its snaps, and there a bisection lands on any of several loads (a cell
+  // held at 72 mm read 26 N for 15.6 N).
+  const double h = std::max(height_m, 0.0);
   auto guess = structure_->restShape();
   if (stretch && *stretch > 0.0) guess[0] = *stretch;
-  const auto q = structure_->relaxedShape(std::max(height_m, 0.0), gauge_pressure_pa, guess.data());
+  const auto q = structure_->relaxedShape(h, gauge_pressure_pa, guess.data());
   if (stretch) *stretch = q[0];
-  return structure_->evaluate(std::max(height_m, 0.0), q.data()).volume_m3;
+  const StructureEval e = structure_->evaluate(h, q.data());
+  return {e.volume_m3, std::clamp(gauge_pressure_pa * e.effective_area_m2, 0.0, (loads_ - 1) * load_step_n_)};
+}
+
+double CellCharacteristic::relaxedVolume(double height_m, double gauge_pressure_pa, double* stretch) const {
+  return relaxedAt(height_m, gauge_pressure_pa, stretch).volume_m3;
 }
 
 double CellCharacteristic::plateStiffness(double height_m, double load_n) const {
@@ -119,25 +129,29 @@ double CellCharacteristic::maxHeight(double load_n) const {
 }
 
 double CellCharacteristic::loadAt(double height_m, double gauge_pressure_pa) const {
-  // The plate force of the structure itself at (h, p), film relaxed to p. Not a bisection on the
-  // tabulated equilibria: an FE table's force is not monotone through its snaps, and there a
-  // bisection lands on any of several loads (a cell held at 72 mm read 26 N for 15.6 N).
-  const double h = std::max(height_m, 0.0);
-  const auto q = structure_->relaxedShape(h, gauge_pressure_pa);
-  return std::clamp(gauge_pressure_pa * structure_->evaluate(h, q.data()).effective_area_m2, 0.0,
-                    (loads_ - 1) * load_step_n_);
+  return relaxedAt(height_m, gauge_pressure_pa).load_n;
 }
 
 double CellCharacteristic::restingHeight(double adiabatic_invariant, double load_n) const {
-  // The invariant of the equilibria rises with height: bisection on the height.
-  double lo = 0.0, hi = maxHeight(load_n);
-  if (adiabatic_invariant <= at(invariant_, lo, load_n)) return 0.0;
-  if (adiabatic_invariant >= at(invariant_, hi, load_n)) return hi;
-  for (int k = 0; k < 40; ++k) {
-    const double mid = 0.5 * (lo + hi);
-    (at(invariant_, mid, load_n) > adiabatic_invariant ? hi : lo) = mid;
+  // At a fixed load the table's interpolant is piecewise linear in the height, with the height
+  // nodes as knots, and the invariant of the equilibria never falls with height: the first knot
+  // above the invariant (binary search) brackets the rest, and the segment's line gives it.
+  const double hi = maxHeight(load_n);
+  const int last = static_cast<int>(std::lround(hi / height_step_m_));
+  const double y = std::clamp(load_n / load_step_n_, 0.0, loads_ - 1.0);
+  const int j = std::min(static_cast<int>(y), loads_ - 2);
+  const double fy = y - j;
+  auto knot = [&](int i) { return (1 - fy) * invariant_[j * heights_ + i] + fy * invariant_[(j + 1) * heights_ + i]; };
+  if (std::isnan(adiabatic_invariant)) return hi;  // nothing bounds an unknown invariant from above
+  if (adiabatic_invariant <= knot(0)) return 0.0;
+  if (last <= 0 || adiabatic_invariant >= knot(last)) return std::max(hi, 0.0);
+  int below = 0, above = last;  // knot(below) <= K < knot(above)
+  while (above - below > 1) {
+    const int mid = (below + above) / 2;
+    (knot(mid) > adiabatic_invariant ? above : below) = mid;
   }
-  return 0.5 * (lo + hi);
+  const double k0 = knot(below), k1 = knot(above);
+  return (below + (adiabatic_invariant - k0) / (k1 - k0)) * height_step_m_;
 }
 
 }  // namespace nursing_bed

@@ -28,6 +28,14 @@ class CellCharacteristic {
   double volumeAt(double height_m, double load_n) const;
   /// Load [N] that gauge pressure p carries at rest at height h (inverse in the load).
   double loadAt(double height_m, double gauge_pressure_pa) const;
+  /// The cell at plate height h and gauge pressure p with the film relaxed to p: its gas volume
+  /// (relaxedVolume) and the load p carries there at rest (loadAt), from one solve of the film.
+  struct RelaxedCell {
+    double volume_m3;
+    double load_n;
+  };
+  /// `stretch` carries the film stretch between calls as a warm start (may be null).
+  RelaxedCell relaxedAt(double height_m, double gauge_pressure_pa, double* stretch = nullptr) const;
   /// Height [m] where the cell comes to rest if the valves close now: the gas keeps its
   /// adiabatic invariant K = p_abs V^gamma while the plate settles under `load_n`.
   double restingHeight(double adiabatic_invariant, double load_n) const;
