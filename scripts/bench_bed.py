@@ -5,7 +5,10 @@ Starts `roslaunch nursing_bed sim.launch` with the given args, waits until every
 then for --seconds (default 60) counts each cell's AirbagState messages and the largest gap
 between two of them, and samples CPU time and resident memory of every process of the launch.
 It also checks that the cells' simulation keeps pace with wall time: a cell that fell behind
-would publish late or rarely. Prints a table and writes --json FILE.
+would publish late or rarely. Counting makes the launch serialise every cell's states for the
+bench, so a second window of --alone-seconds (default --seconds) measures the CPU again with the
+bench's subscriptions dropped: what the bed costs with no reader outside the launch. Prints a
+table and writes --json FILE.
 
 On the Modbus path (--launch real_bed.launch emulator:=true) --accuracy also compares every
 cell's reported height (/bed_manager/heights: each cell's last state with its own stamp; the
@@ -209,6 +212,9 @@ def main():
     parser.add_argument("--accuracy", action="store_true", help="reported heights against the rig emulator's truth")
     parser.add_argument("--plan", default="", help="posture plan started when the window opens")
     parser.add_argument("--plan-arg", action="append", default=[], help="key=value argument of --plan (repeatable)")
+    parser.add_argument("--alone-seconds", type=float, default=None,
+                        help="then this long (default --seconds; 0: skip) with the bench's subscriptions dropped: "
+                             "the launch's CPU with no reader outside it")
     args, launch_args = parser.parse_known_args()
     bad = [a for a in args.plan_arg if "=" not in a]
     if bad:
@@ -257,6 +263,16 @@ def main():
         cpu1, _ = cpu_and_rss(descendants(launch.pid))
         for s in subs + (accuracy.subs if accuracy else []):
             s.unregister()
+        # Counting every cell's states makes the launch serialise and send 180 topics over TCP;
+        # the same launch with no reader outside it is what the bed costs its users.
+        alone_s = args.seconds if args.alone_seconds is None else args.alone_seconds
+        cpu_alone = None
+        if alone_s > 0:
+            time.sleep(2.0)  # the dropped connections close
+            cpu2, _ = cpu_and_rss(descendants(launch.pid))
+            wall2 = time.monotonic()
+            time.sleep(alone_s)
+            cpu_alone = (cpu_and_rss(descendants(launch.pid))[0] - cpu2) / (time.monotonic() - wall2)
         rates = [counts.get(i, 0) / wall for i in range(n_cells)]
         result = {
             "launch_args": launch_args, "rows": args.rows, "cols": args.cols, "seconds": wall,
@@ -265,6 +281,7 @@ def main():
             "cells_below_45_hz": sum(1 for r in rates if r < 45.0),
             "max_gap_s": max(max_gap.values()) if max_gap else None,
             "cpu_cores_used": (cpu1 - cpu0) / wall,
+            "cpu_cores_alone": cpu_alone,
             "rss_mb_mean": sum(rss_samples) / len(rss_samples) / 2**20,
         }
         if accuracy:
@@ -273,8 +290,10 @@ def main():
                                                             startup_s, len(pids)))
         print("  AirbagState rate per cell: min %.1f Hz, mean %.1f Hz, %d cells below 45 Hz, largest gap %.3f s"
               % (result["rate_hz_min"], result["rate_hz_mean"], result["cells_below_45_hz"], result["max_gap_s"]))
-        print("  CPU %.2f cores (of %d), resident memory %.0f MB" % (result["cpu_cores_used"], os.cpu_count(),
-                                                                   result["rss_mb_mean"]))
+        print("  CPU %.2f cores (of %d) while counted, resident memory %.0f MB" % (
+            result["cpu_cores_used"], os.cpu_count(), result["rss_mb_mean"]))
+        if cpu_alone is not None:
+            print("  CPU %.2f cores with no reader outside the launch (%.0f s after)" % (cpu_alone, alone_s))
         if accuracy and result.get("height_error_samples"):
             print("  reported height vs truth at each state's stamp: RMS %.2f mm, worst %.2f mm (cell %d at %.1f s), "
                   "%d cells over 6 mm, %d cells, %d samples"

@@ -12,6 +12,9 @@ BUILD="$ROOT/build"
 RESULTS="$BUILD/test_results"
 LOG="$BUILD/test_output.log"
 export PATH="/usr/bin:$PATH"
+# Every test talks over loopback: the nodes and each rostest's own master advertise localhost,
+# so a machine whose host name does not resolve (a fresh container, a chroot) runs them too.
+export ROS_HOSTNAME="${ROS_HOSTNAME:-localhost}"
 
 make_failed=0
 if [[ "${NB_SKIP_BUILD:-0}" != 1 ]]; then
