@@ -782,17 +782,19 @@ bool CellModel::jacobianTracksStep(double h, const StateVector& dx, const StateV
   if (jacobian_.rows() != n) return false;
   const double* jac = jacobian_.data();
   const int stride = static_cast<int>(jacobian_.outerStride());
+  double predicted[kMaxStates] = {};
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) predicted[i] += jac[i + j * stride] * dx[j];
   double miss_sq = 0.0, change_sq = 0.0;
   for (int i = 0; i < n; ++i) {
     const double change = rate_at_state_[i] - rate_before[i];
-    double predicted = 0.0;
-    for (int j = 0; j < n; ++j) predicted += jac[i + j * stride] * dx[j];
-    const double w = 1.0 / (scale_[i] + std::fabs(state_[i]));
-    miss_sq += w * w * (change - predicted) * (change - predicted);
-    change_sq += w * w * change * change;
+    const double scale = scale_[i] + std::fabs(state_[i]);
+    const double w_sq = 1.0 / (scale * scale);
+    miss_sq += w_sq * (change - predicted[i]) * (change - predicted[i]);
+    change_sq += w_sq * change * change;
   }
-  const double miss = std::sqrt(miss_sq / n);
-  return miss <= kSecantTolerance * std::sqrt(change_sq / n) || h * miss <= 1e-2 * params_.relative_tolerance;
+  const double floor = 1e-2 * params_.relative_tolerance / h;
+  return miss_sq <= kSecantTolerance * kSecantTolerance * change_sq || miss_sq <= n * floor * floor;
 }
 
 void CellModel::advance(double duration_s, const CellInputs& in) {

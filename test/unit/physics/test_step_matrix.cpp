@@ -36,7 +36,11 @@ TEST(StepMatrix, SolvesTheStepSystemWithAndWithoutThePlatesPattern) {
   for (int n : {kN, 7, 9, 5}) {
     for (bool pattern : {true, false}) {
       for (int trial = 0; trial < 30; ++trial) {
-        const nb::CellStateMatrix j = randomJacobian(&rng, n, pattern);
+        nb::CellStateMatrix j = randomJacobian(&rng, n, pattern);
+        if (trial % 3 == 2) {  // scaled like a stiff cell's: the plate's row and the gas mass's column
+          j.row(3) *= 1e4;
+          j.col(0) *= 1e3;
+        }
         nb::StepMatrix w;
         w.factor(j, gamma_h);
         nb::CellStateVector b(n);

@@ -66,13 +66,6 @@ class SmallLu {
     return b;
   }
 
-  /// The inverse, column by column from the factors.
-  Matrix inverse() const {
-    Matrix inv;
-    for (int j = 0; j < N; ++j) inv.col(j) = solve(Vector::Unit(j));
-    return inv;
-  }
-
  private:
   Matrix lu_ = Matrix::Identity();
   double inverse_diagonal_[N] = {};
@@ -116,8 +109,8 @@ class RuntimeLu {
  * The plate's height row (dh/dt = v) and the regulator's row (its own lag) are eliminated
  * first, leaving a system in the other states (mass, energy, velocity, shape and any effect
  * states); a Jacobian without that pattern is factorised whole. A cell without effect states
- * and with one film shape coordinate has six states: its 4 x 4 remainder takes fixed-size,
- * unrolled code.
+ * and with one film shape coordinate has six states: its 4 x 4 remainder takes fixed-size code
+ * (a cofactor inverse). Each solve is then a matrix-vector product.
  */
 class StepMatrix {
  public:
@@ -194,10 +187,8 @@ class StepMatrix {
     NominalReducedMatrix a;
     eliminatePlateAndRegulator(w, kNominalReduced, &a);
     // Each factorisation serves three solves per step and usually several steps: a 4 x 4
-    // product has no pivoting and no dependent chain of divisions.
-    SmallLu<kNominalReduced> lu;
-    lu.compute(a);
-    nominal_reduced_inverse_ = lu.inverse();
+    // product has no pivoting and no dependent chain of divisions (Eigen's cofactor inverse).
+    nominal_reduced_inverse_ = a.inverse();
   }
 
   /// W's height row is (0 0 1 w 0 ... 0) and its regulator row (0 0 0 0 d 0 ... 0), d != 0.
