@@ -488,8 +488,8 @@ inline void addTermsPart(const EffectTerms& terms, const CellVariables& v, int s
 
 }  // namespace
 
-CellModel::StateVector CellModel::rate(double time_s, const StateVector& x, const CellInputs& in,
-                                       CellVariables* vars_out, StateVector* effect_part) const {
+CellModel::StateVector CellModel::rateAndEffectPart(double time_s, const StateVector& x, const CellInputs& in,
+                                                    CellVariables* vars_out, StateVector* effect_part) const {
   CellVariables local;
   CellVariables* v = vars_out ? vars_out : &local;
   stateVariables(params_, *structure_, shape_dofs_, time_s, x, in, v);
@@ -817,7 +817,7 @@ void CellModel::setState(double time_s, const StateVector& state, bool keep_jaco
 }
 
 void CellModel::refreshVariables(const CellInputs& in) {
-  rate_at_state_ = rate(time_, state_, in, &vars_, effects_.empty() ? nullptr : &effect_part_at_state_);
+  rate_at_state_ = rateAndEffectPart(time_, state_, in, &vars_, effects_.empty() ? nullptr : &effect_part_at_state_);
 }
 
 bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {

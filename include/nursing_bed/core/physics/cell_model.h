@@ -174,9 +174,9 @@ class CellModel {
   /// True when two input sets would give the same right-hand side.
   static bool sameInputs(const CellInputs& a, const CellInputs& b);
   /// Right-hand side dx/dt at (t, x); fills `vars` when non-null.
-  /// `effect_part`, when given, receives what the effects add to the rate (effectPart).
-  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars = nullptr,
-                   StateVector* effect_part = nullptr) const;
+  StateVector rate(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars = nullptr) const {
+    return rateAndEffectPart(time_s, x, inputs, vars, nullptr);
+  }
   /// d rate / dx at (t, x), assembled from the model's equations (the valve flows' slopes in
   /// closed form, the relief's and the structure's by differences of those parts alone); what
   /// effects add, by finite differences of their part of the rate.
@@ -201,6 +201,9 @@ class CellModel {
   /// given, is the structure's evaluation at x's height and shape.
   StateVector effectPart(double time_s, const StateVector& x, const CellInputs& inputs,
                          const StructureEval* structure = nullptr) const;
+  /// rate(); `effect_part`, when given, receives what the effects add to it (effectPart).
+  StateVector rateAndEffectPart(double time_s, const StateVector& x, const CellInputs& inputs, CellVariables* vars,
+                                StateVector* effect_part) const;
   /// timeDerivative() at the variables `v` of (t, x); `effect_part`, when given, is effectPart there.
   StateVector timeDerivativeAt(double time_s, const StateVector& x, const CellInputs& inputs, const CellVariables& v,
                                const StateVector* effect_part) const;

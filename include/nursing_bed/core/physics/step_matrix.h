@@ -72,13 +72,14 @@ class SmallLu {
   int pivots_[N] = {};
 };
 
-/// The same factorisation at a size known at run time (at most kMaxCellStates): plain loops on
-/// fixed storage, without the blocking and size dispatch of Eigen's, which cost more than the
-/// arithmetic at these sizes. It keeps the inverse: a factorisation serves three solves per
-/// step and usually several steps, and a product has no pivoting and no chain of divisions.
-class RuntimeLu {
+/// The inverse of a matrix whose size is known at run time (at most kMaxCellStates), from the
+/// same factorisation: plain loops on fixed storage, without the blocking and size dispatch of
+/// Eigen's, which cost more than the arithmetic at these sizes. It keeps only the inverse: a
+/// factorisation serves three solves per step and usually several steps, and a product has no
+/// pivoting and no chain of divisions.
+class RuntimeInverse {
  public:
-  /// Factorises the leading n x n block of `a`.
+  /// Inverts the leading n x n block of `a` through its row-pivoted LU.
   void compute(const CellStateMatrix& a, int n) {
     n_ = n;
     CellStateMatrix lu = a.topLeftCorner(n, n);
@@ -89,7 +90,7 @@ class RuntimeLu {
     for (int j = 0; j < n; ++j) detail::luSolveInPlace(lu, n, pivots, inverse_diagonal, inverse_.col(j).data());
   }
 
-  /// Solves in place for the first n entries of `b`.
+  /// Solves in place for the first n entries of `b` (a product with the inverse).
   void solveInPlace(double* b) const {
     double x[kMaxCellStates];
     for (int i = 0; i < n_; ++i) x[i] = 0.0;
@@ -128,13 +129,13 @@ class StepMatrix {
     const CellStateMatrix w = CellStateMatrix::Identity(size_, size_) - gamma_h * jacobian;
     reduced_ = size_ > kRegulator && hasPlateAndRegulatorPattern(w, size_);
     if (!reduced_) {
-      lu_.compute(w, size_);
+      runtime_.compute(w, size_);
       return;
     }
     const int m = size_ - 2;
     CellStateMatrix a(m, m);
     eliminatePlateAndRegulator(w, m, &a);
-    lu_.compute(a, m);
+    runtime_.compute(a, m);
   }
 
   /// Size of the last factorisation.
@@ -218,7 +219,7 @@ class StepMatrix {
   /// solve() at any size but the nominal one.
   void solveInPlace(double* x) const {
     if (!reduced_) {
-      lu_.solveInPlace(x);
+      runtime_.solveInPlace(x);
       return;
     }
     const int m = size_ - 2;
@@ -226,7 +227,7 @@ class StepMatrix {
     const double regulator = x[kRegulator] / regulator_diagonal_;
     double y[kMaxCellStates];
     for (int i = 0; i < m; ++i) y[i] = x[kept(i)] - height_column_[i] * height_rhs - regulator_column_[i] * regulator;
-    lu_.solveInPlace(y);
+    runtime_.solveInPlace(y);
     for (int i = 0; i < m; ++i) x[kept(i)] = y[i];
     x[kHeight] = height_rhs - height_velocity_ * y[kReducedVelocity];
     x[kRegulator] = regulator;
@@ -236,7 +237,7 @@ class StepMatrix {
   bool reduced_ = false;
   SmallLu<kNominalStates> nominal_lu_;
   NominalReducedMatrix nominal_reduced_inverse_ = NominalReducedMatrix::Identity();
-  RuntimeLu lu_;
+  RuntimeInverse runtime_;
   double height_column_[kMaxCellStates] = {};
   double regulator_column_[kMaxCellStates] = {};
   double height_velocity_ = 0.0;
