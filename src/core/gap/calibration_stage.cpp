@@ -2,6 +2,7 @@
 // model's own parameters fitted alone or jointly with a candidate's effects, and each move judged.
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <set>
 
@@ -196,7 +197,7 @@ CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::st
 }
 
 CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, const CalibrationFit& base,
-                            const DiagnosisOptions& options, const ModelFit* uncalibrated) {
+                            const DiagnosisOptions& options, const ModelFit* uncalibrated, double overtake_chi2) {
   CalibrationFit c;
   c.fit.model = makeModelSpec(candidate.model.effects, calibrationAxes(base.fit.model.calibration, noise.fit.params));
   const std::map<std::string, double> all = valuesOf(base.fit.model, base.fit.outcome.u);
@@ -205,7 +206,8 @@ CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, 
   // The same effects fitted on the nominal cell: a calibration that imitated part of them starts
   // back at nominal.
   if (uncalibrated && uncalibrated->outcome.ok) starts.push_back(jointStart(c.fit.model, {}, *uncalibrated));
-  c.fit.outcome = fitModel(noise.fit, c.fit.model, starts, options.max_iterations);
+  c.fit.outcome = fitModel(noise.fit, c.fit.model, starts, options.max_iterations, overtake_chi2);
+  if (c.fit.outcome.stopped) return c;
   c.summary = judgeCalibration(noise, c.fit, options);
   settleMoved(noise, options, &c);
   c.summary.chi2 = c.moved_chi2;
@@ -372,16 +374,30 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
   std::vector<CalibrationFit> joint(order.size());
   if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, start_from[order[0]]);
   if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
+  // The others change the verdict only by overtaking the best, as refitted (or not, when its
+  // refit did not pay; BIC's price of a parameter or two is the margin).
+  const double best_chi2 = order.empty() ? INFINITY
+                                         : std::min((*fits)[order[0]].outcome.chi2, joint[0].moved_chi2) +
+                                               options.significant_bic_drop + 2.0 * log_n;
   parallelFor(static_cast<int>(order.size()) - 1, options.threads, [&](int k) {
-    joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, start_from[order[k + 1]]);
+    joint[k + 1] = refitJointly(noise, (*fits)[order[k + 1]], base, options, start_from[order[k + 1]], best_chi2);
   });
   JointRefits out;
   for (std::size_t k = 0; k < order.size(); ++k) {
     ModelFit& f = (*fits)[order[k]];
     const CalibrationFit& j = joint[k];
+    if (j.fit.outcome.stopped) {
+      if (progress)
+        progress("refit of " + joinNames(f.model.effects) + " with the calibration free stopped at chi2/n " +
+                 fmt(j.fit.outcome.chi2 / n) + ": at its pace it could not reach the best's " + fmt(best_chi2 / n));
+      continue;
+    }
     if (progress)
       progress("refitted " + joinNames(f.model.effects) + " with the calibration free: chi2/n " +
-               fmt(f.outcome.chi2 / n) + " -> " + fmt(j.moved_chi2 / n));
+               fmt(f.outcome.chi2 / n) + " -> " + fmt(j.moved_chi2 / n) +
+               (std::getenv("NB_GAP_VERBOSE")
+                    ? " [" + std::to_string(j.fit.outcome.evaluations) + " replays, " + j.fit.outcome.message + "]"
+                    : std::string()));
     // Whole models compared: a joint fit that drops a needless move pays ln n less for it.
     const double k_base = base.summary.movedValues().size(), k_joint = j.summary.movedValues().size();
     if (!(j.moved_chi2 + k_joint * log_n < f.outcome.chi2 + k_base * log_n)) continue;

@@ -12,7 +12,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <deque>
+#include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
@@ -409,35 +412,162 @@ std::vector<int> heldAxes(const FitData& fit, const ModelSpec& model) {
   return held;
 }
 
-FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
-                    int max_iterations) {
-  ResidualEvaluator evaluator(fit, model);
-  const std::vector<int> held = heldAxes(fit, model);
+namespace {
+
+/// Stops a solve that, at its best pace over the last kPaceIterations (the largest relative drop
+/// of the cost in one iteration), could not get below `target_cost` within its iterations left.
+class OvertakeCheck : public ceres::IterationCallback {
+ public:
+  OvertakeCheck(double target_cost, int max_iterations) : target_cost_(target_cost), max_(max_iterations) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    costs_.push_back(s.cost);
+    if (!std::isfinite(target_cost_) || costs_.size() <= kPaceIterations) return ceres::SOLVER_CONTINUE;
+    double pace = 0.0;
+    for (std::size_t i = costs_.size() - kPaceIterations; i < costs_.size(); ++i)
+      pace = std::max(pace, 1.0 - costs_[i] / costs_[i - 1]);
+    const double reachable = s.cost * std::pow(1.0 - std::min(pace, 1.0), std::max(0, max_ - s.iteration));
+    if (!(reachable > target_cost_)) return ceres::SOLVER_CONTINUE;
+    stopped_ = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  bool stopped() const { return stopped_; }
+
+ private:
+  static constexpr std::size_t kPaceIterations = 3;
+  double target_cost_;
+  int max_;
+  std::vector<double> costs_;
+  bool stopped_ = false;
+};
+
+/// The solves of one fit side by side, in step: after each iteration every solve still running
+/// posts its point and cost, and a solve whose point lies within kSameBasinU (of every fit
+/// coordinate's range) of a lower one's stops there: both descend to the same minimum, and the
+/// one left goes on with the cores to itself. Decided on the same iteration of all, so the
+/// outcome does not depend on the threads' timing.
+class SolveMeeting {
+ public:
+  explicit SolveMeeting(std::size_t solves) : history_(solves), posted_(solves, -1) {}
+
+  /// True: solve k stops at its point of iteration `iteration`.
+  bool post(std::size_t k, int iteration, const std::vector<double>& u, double cost) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    history_[k][iteration] = {u, cost};
+    posted_[k] = iteration;
+    changed_.notify_all();
+    changed_.wait(lock,
+                  [&] { return std::all_of(posted_.begin(), posted_.end(), [&](int p) { return p >= iteration; }); });
+    for (std::size_t i = 0; i < history_.size(); ++i) {
+      const auto other = history_[i].find(iteration);
+      if (i == k || other == history_[i].end()) continue;
+      const auto& [point, other_cost] = other->second;
+      if (!(other_cost < cost || (other_cost == cost && i < k))) continue;
+      double far = 0.0;
+      for (std::size_t j = 0; j < u.size(); ++j) far = std::max(far, std::fabs(point[j] - u[j]));
+      if (far < kSameBasinU) return true;
+    }
+    return false;
+  }
+
+  /// Solve k has ended (or stopped): the others no longer wait for it.
+  void leave(std::size_t k) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    posted_[k] = std::numeric_limits<int>::max();
+    changed_.notify_all();
+  }
+
+ private:
+  static constexpr double kSameBasinU = 0.01;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::vector<std::map<int, std::pair<std::vector<double>, double>>> history_;  ///< per solve: iteration -> point, cost
+  std::vector<int> posted_;  ///< per solve: its last iteration posted (max int once it has left)
+};
+
+/// Solve k's view of the meeting (a Ceres callback; the point is its parameter block).
+class MeetingCallback : public ceres::IterationCallback {
+ public:
+  MeetingCallback(SolveMeeting* meeting, std::size_t k, const std::vector<double>* u)
+      : meeting_(meeting), k_(k), u_(u) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (!meeting_->post(k_, s.iteration, *u_, s.cost)) return ceres::SOLVER_CONTINUE;
+    meeting_->leave(k_);
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+
+ private:
+  SolveMeeting* meeting_;
+  std::size_t k_;
+  const std::vector<double>* u_;
+};
+
+/// The distinct starts, the `held` axes at their off value, probed in one batch: those that
+/// replay, by chi2. A repeated start (the hold merges some; a calibration that moved nothing
+/// starts its joint refits twice at nominal) would be solved twice to the same end.
+std::vector<std::pair<double, std::vector<double>>> rankStarts(ResidualEvaluator* evaluator, const FitData& fit,
+                                                               const ModelSpec& model, const std::vector<int>& held,
+                                                               const std::vector<std::vector<double>>& starts) {
   std::vector<std::vector<double>> tried;
   for (auto s : starts) {
     for (int j : held) s[j] = model.axes[j].toU(model.axes[j].spec.off_value);
-    if (!held.empty() && std::find(tried.begin(), tried.end(), s) != tried.end()) continue;  // merged by the hold
+    if (std::find(tried.begin(), tried.end(), s) != tried.end()) continue;
     tried.push_back(s);
   }
-  // The grid probed in one batch; its residuals are needed for their sums only.
+  // Their residuals are needed for their sums only.
   const std::size_t n = static_cast<std::size_t>(fit.residualCount());
   std::vector<double> probe(tried.size() * n);
   std::vector<double*> outs;
   for (std::size_t i = 0; i < tried.size(); ++i) outs.push_back(probe.data() + i * n);
   std::vector<char> ok;
-  evaluator.evaluate(tried, outs, &ok);
+  evaluator->evaluate(tried, outs, &ok);
   std::vector<std::pair<double, std::vector<double>>> ranked;  // chi2, start
   for (std::size_t i = 0; i < tried.size(); ++i)
     if (ok[i]) ranked.emplace_back(sumSquares(std::vector<double>(outs[i], outs[i] + n)), tried[i]);
-  probe.clear();
-  probe.shrink_to_fit();
+  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return ranked;
+}
+
+/// One Levenberg-Marquardt solve of `model` from `u` (in place) within its axes' bounds, the
+/// `held` axes constant; `callbacks` watch its iterations.
+ceres::Solver::Summary solveFrom(ResidualEvaluator* evaluator, const ModelSpec& model, const std::vector<int>& held,
+                                 int max_iterations, const std::vector<ceres::IterationCallback*>& callbacks,
+                                 std::vector<double>* u) {
+  ceres::Problem problem;
+  problem.AddResidualBlock(new ReplayCost(evaluator), nullptr, u->data());
+  for (std::size_t j = 0; j < model.axes.size(); ++j) {
+    problem.SetParameterLowerBound(u->data(), static_cast<int>(j), model.axes[j].u_min);
+    problem.SetParameterUpperBound(u->data(), static_cast<int>(j), model.axes[j].u_max);
+  }
+  if (held.size() == model.axes.size()) problem.SetParameterBlockConstant(u->data());
+  else if (!held.empty()) problem.SetManifold(u->data(), new ceres::SubsetManifold(static_cast<int>(u->size()), held));
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = max_iterations;
+  options.function_tolerance = 1e-5;
+  options.parameter_tolerance = 1e-4;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  options.callbacks = callbacks;
+  // The meeting of solves (SolveMeeting) reads each iteration's point from `u`.
+  options.update_state_every_iteration = callbacks.size() > 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  return summary;
+}
+
+}  // namespace
+
+FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
+                    int max_iterations, double overtake_chi2) {
+  ResidualEvaluator evaluator(fit, model);
+  const std::vector<int> held = heldAxes(fit, model);
+  const std::vector<std::pair<double, std::vector<double>>> ranked = rankStarts(&evaluator, fit, model, held, starts);
   FitOutcome best;
   if (ranked.empty()) {
     best.evaluations = evaluator.replays();
     best.message = "the model failed at every starting point";
     return best;
   }
-  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   const std::size_t refined = std::min<std::size_t>(ranked.size(), model.axes.size() >= 2 ? 2 : 1);
   best.ok = true;
   best.u = ranked[0].second;
@@ -448,26 +578,21 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
   for (std::size_t k = 0; k < refined; ++k) solvers.push_back(std::make_unique<ResidualEvaluator>(evaluator));
   std::vector<std::vector<double>> solved(refined);
   std::vector<ceres::Solver::Summary> summaries(refined);
-  parallelFor(static_cast<int>(refined), fit.threads, [&](int k) {
-    ceres::Problem problem;
-    std::vector<double>& u = solved[k];
-    u = ranked[k].second;
-    problem.AddResidualBlock(new ReplayCost(solvers[k].get()), nullptr, u.data());
-    for (std::size_t j = 0; j < model.axes.size(); ++j) {
-      problem.SetParameterLowerBound(u.data(), static_cast<int>(j), model.axes[j].u_min);
-      problem.SetParameterUpperBound(u.data(), static_cast<int>(j), model.axes[j].u_max);
-    }
-    if (held.size() == model.axes.size()) problem.SetParameterBlockConstant(u.data());
-    else if (!held.empty()) problem.SetManifold(u.data(), new ceres::SubsetManifold(static_cast<int>(u.size()), held));
-    ceres::Solver::Options options;
-    options.linear_solver_type = ceres::DENSE_QR;
-    options.max_num_iterations = max_iterations;
-    options.function_tolerance = 1e-5;
-    options.parameter_tolerance = 1e-4;
-    options.num_threads = 1;
-    options.logging_type = ceres::SILENT;
-    ceres::Solve(options, &problem, &summaries[k]);
+  std::vector<std::unique_ptr<OvertakeCheck>> checks;
+  for (std::size_t k = 0; k < refined; ++k)
+    checks.push_back(std::make_unique<OvertakeCheck>(0.5 * overtake_chi2, max_iterations));
+  // One thread per solve whatever fit.threads (each solve's replays use those): the meeting
+  // needs them in step.
+  SolveMeeting meeting(refined);
+  parallelFor(static_cast<int>(refined), static_cast<int>(refined), [&](int k) {
+    solved[k] = ranked[k].second;
+    MeetingCallback meet(&meeting, k, &solved[k]);
+    std::vector<ceres::IterationCallback*> callbacks{checks[k].get()};
+    if (refined > 1) callbacks.push_back(&meet);
+    summaries[k] = solveFrom(solvers[k].get(), model, held, max_iterations, callbacks, &solved[k]);
+    meeting.leave(k);
   });
+  best.stopped = std::all_of(checks.begin(), checks.end(), [](const auto& c) { return c->stopped(); });
   for (std::size_t k = 0; k < refined; ++k) {
     const ceres::Solver::Summary& summary = summaries[k];
     // A solve that failed at its start reports final_cost -1: never a result.

@@ -87,3 +87,52 @@ TEST(GapProgress, DurationsReadInSecondsThenHalfMinutes) {
   EXPECT_EQ(gs::roughDuration(1200.0), "20 min");
   EXPECT_EQ(gs::roughDuration(NAN), "?");
 }
+
+TEST(GapFitSpeed, ARepeatedStartIsSolvedOnce) {
+  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
+  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const gs::ModelSpec model = gs::makeModelSpec({"leak", "heat_transfer"});
+  const std::vector<double> start{0.5, 0.5};
+  const gs::FitOutcome once = gs::fitModel(noise.fit, model, {start}, 4);
+  const gs::FitOutcome twice = gs::fitModel(noise.fit, model, {start, start}, 4);
+  ASSERT_TRUE(once.ok) << once.message;
+  EXPECT_EQ(once.u, twice.u);
+  EXPECT_EQ(once.chi2, twice.chi2);
+  EXPECT_EQ(once.evaluations, twice.evaluations);
+}
+
+TEST(GapFitSpeed, TwoSolvesThatMeetGoOnAsTheLowerOne) {
+  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
+  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const gs::ModelSpec model = gs::makeModelSpec({"leak", "heat_transfer"});
+  // Two starts 0.002 apart in each coordinate: the same basin from the first iteration.
+  const std::vector<double> a{0.5, 0.5}, b{0.502, 0.498};
+  const gs::FitOutcome fa = gs::fitModel(noise.fit, model, {a}, 6);
+  const gs::FitOutcome fb = gs::fitModel(noise.fit, model, {b}, 6);
+  const gs::FitOutcome both = gs::fitModel(noise.fit, model, {a, b}, 6);
+  ASSERT_TRUE(fa.ok && fb.ok && both.ok);
+  const gs::FitOutcome& lower = fa.chi2 <= fb.chi2 ? fa : fb;
+  EXPECT_EQ(both.u, lower.u);
+  EXPECT_EQ(both.chi2, lower.chi2);
+  // The stopped solve spent its start only (and its probe), not its iterations.
+  EXPECT_LT(both.evaluations, fa.evaluations + fb.evaluations);
+}
+
+TEST(GapFitSpeed, AFitThatCannotOvertakeStopsAndSaysSo) {
+  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
+  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const gs::ModelSpec model = gs::makeModelSpec({"heat_transfer"});
+  const std::vector<std::vector<double>> starts{{0.9}};
+  const gs::FitOutcome free = gs::fitModel(noise.fit, model, starts, 25);
+  ASSERT_TRUE(free.ok) << free.message;
+  EXPECT_FALSE(free.stopped);
+  // A chi2 no fit of heat transfer reaches on a leaking cell: it stops within a few iterations.
+  const gs::FitOutcome capped = gs::fitModel(noise.fit, model, starts, 25, 1e-3 * free.chi2);
+  EXPECT_TRUE(capped.stopped);
+  EXPECT_LE(capped.evaluations, free.evaluations);
+  EXPECT_GE(capped.chi2, free.chi2);
+  // A chi2 it already beats never stops it.
+  const gs::FitOutcome reachable = gs::fitModel(noise.fit, model, starts, 25, 10.0 * free.chi2);
+  EXPECT_FALSE(reachable.stopped);
+  EXPECT_EQ(reachable.u, free.u);
+}

@@ -9,6 +9,7 @@
 //   shrinkage        the verdict model's replays: traces and the withheld runs' nrmse
 #pragma once
 
+#include <cmath>
 #include <functional>
 #include <map>
 #include <set>
@@ -130,9 +131,12 @@ CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::st
 
 /// Refits `candidate` (effects fitted on top of the calibration `base`) with every calibrated
 /// parameter free as well, from both fits (and from `uncalibrated`, the same effects fitted on
-/// the nominal cell, if given); the moved ones (judged in the joint fit) are kept.
+/// the nominal cell, if given); the moved ones (judged in the joint fit) are kept. A refit that
+/// matters only if it overtakes `overtake_chi2` stops once it cannot (fitModel()): then its
+/// fit.outcome.stopped is set and nothing is judged.
 CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, const CalibrationFit& base,
-                            const DiagnosisOptions& options, const ModelFit* uncalibrated = nullptr);
+                            const DiagnosisOptions& options, const ModelFit* uncalibrated = nullptr,
+                            double overtake_chi2 = INFINITY);
 
 /// Calibration must not swallow an effect: the parameters are constant over all runs, the
 /// effects are dynamic, and the withheld runs judge both. Drops `c`'s moves (and says why in its
@@ -180,7 +184,8 @@ struct JointRefits {
 /// fits too: jointRefitOrder); replaces each by its joint fit where that fits better. When the
 /// best is within joint_refit_chi2 already, only it is refitted (if the calibration moved) and the
 /// others not at all; else the best first: when it lands within joint_refit_chi2 the others are
-/// not refitted.
+/// not refitted, and otherwise each of them stops once, at its pace, it could not overtake the
+/// best (they decide nothing else) and stays as it was.
 JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
                              std::size_t effects, int pool, const DiagnosisOptions& options,
                              const std::function<void(const std::string&)>& progress,

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -108,6 +109,8 @@ struct FitOutcome {
   bool ok = false;
   int evaluations = 0;  ///< replays of the fit-run set
   std::string message;
+  /// Stopped early: at its pace it could not get below the fit's `overtake_chi2` (fitModel()).
+  bool stopped = false;
 };
 
 /// Axes of `model` that the fit runs cannot tell from the cell's own parameters, held at their
@@ -117,9 +120,12 @@ struct FitOutcome {
 std::vector<int> heldAxes(const FitData& fit, const ModelSpec& model);
 
 /// Levenberg-Marquardt (Ceres) from the best one (two, with two or more parameters) of
-/// `starts`, the heldAxes() at their off value; the best result.
+/// `starts` (repeated starts solved once), the heldAxes() at their off value; the best result.
+/// A fit that matters only if it overtakes another's chi2 gets that as `overtake_chi2`: it stops
+/// (FitOutcome::stopped) once, at its best pace of the last iterations, it could not get below it
+/// within `max_iterations`.
 FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vector<std::vector<double>>& starts,
-                    int max_iterations);
+                    int max_iterations, double overtake_chi2 = INFINITY);
 
 /// Covariance of the fit coordinates at `u`: (J^T J)^-1 of the whitened residuals, J from the
 /// Ceres cost (forward differences of whole replays). Directions the runs cannot tell (eigenvalues
