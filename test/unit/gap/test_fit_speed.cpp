@@ -31,6 +31,19 @@ std::vector<nb::RunData> runs(double leak_area_m2) {
   return out;
 }
 
+/// runs(1e-8) prepared and their noise model (default options), which points into them: not copied.
+struct LeakingCell {
+  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
+  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+};
+
+/// The same point, chi2 and replays.
+void expectSameFit(const gs::FitOutcome& a, const gs::FitOutcome& b) {
+  EXPECT_EQ(a.u, b.u);
+  EXPECT_EQ(a.chi2, b.chi2);
+  EXPECT_EQ(a.evaluations, b.evaluations);
+}
+
 }  // namespace
 
 TEST(GapFitSpeed, AFitGivesTheSameResultWithOneThreadOrTwo) {
@@ -45,9 +58,7 @@ TEST(GapFitSpeed, AFitGivesTheSameResultWithOneThreadOrTwo) {
   const gs::FitOutcome a = gs::fitModel(one.fit, model, gs::gridStarts(model), 6);
   const gs::FitOutcome b = gs::fitModel(two.fit, model, gs::gridStarts(model), 6);
   ASSERT_TRUE(a.ok) << a.message;
-  EXPECT_EQ(a.u, b.u);
-  EXPECT_EQ(a.chi2, b.chi2);
-  EXPECT_EQ(a.evaluations, b.evaluations);
+  expectSameFit(a, b);
   EXPECT_LT(a.chi2, one.chi2_nominal);
 }
 
@@ -89,21 +100,19 @@ TEST(GapProgress, DurationsReadInSecondsThenHalfMinutes) {
 }
 
 TEST(GapFitSpeed, ARepeatedStartIsSolvedOnce) {
-  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
-  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const LeakingCell cell;
+  const gs::NoiseModel& noise = cell.noise;
   const gs::ModelSpec model = gs::makeModelSpec({"leak", "heat_transfer"});
   const std::vector<double> start{0.5, 0.5};
   const gs::FitOutcome once = gs::fitModel(noise.fit, model, {start}, 4);
   const gs::FitOutcome twice = gs::fitModel(noise.fit, model, {start, start}, 4);
   ASSERT_TRUE(once.ok) << once.message;
-  EXPECT_EQ(once.u, twice.u);
-  EXPECT_EQ(once.chi2, twice.chi2);
-  EXPECT_EQ(once.evaluations, twice.evaluations);
+  expectSameFit(once, twice);
 }
 
 TEST(GapFitSpeed, TwoSolvesThatMeetGoOnAsTheLowerOne) {
-  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
-  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const LeakingCell cell;
+  const gs::NoiseModel& noise = cell.noise;
   const gs::ModelSpec model = gs::makeModelSpec({"leak", "heat_transfer"});
   // Two starts 0.002 apart in each coordinate: the same basin from the first iteration.
   const std::vector<double> a{0.5, 0.5}, b{0.502, 0.498};
@@ -119,8 +128,8 @@ TEST(GapFitSpeed, TwoSolvesThatMeetGoOnAsTheLowerOne) {
 }
 
 TEST(GapFitSpeed, AFitThatCannotOvertakeStopsAndSaysSo) {
-  const gs::PreparedRuns prepared = gs::prepareRuns(runs(1e-8));
-  const gs::NoiseModel noise = gs::buildNoiseModel(prepared, nb::CellParams{}, nb::DiagnosisOptions{});
+  const LeakingCell cell;
+  const gs::NoiseModel& noise = cell.noise;
   const gs::ModelSpec model = gs::makeModelSpec({"heat_transfer"});
   const std::vector<std::vector<double>> starts{{0.9}};
   const gs::FitOutcome free = gs::fitModel(noise.fit, model, starts, 25);
