@@ -263,6 +263,18 @@ class ResidualEvaluator {
     return ok[0] != 0;
   }
 
+  /// `r` (residualCount() values; ok false: the point does not replay) is what `u` gives, kept
+  /// among the last kRemembered points.
+  void remember(const std::vector<double>& u, const double* r, bool ok) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Entry e;
+    e.u = u;
+    e.ok = ok;
+    if (r && ok) e.r.assign(r, r + offset_.back());
+    entries_.push_back(std::move(e));
+    if (entries_.size() > kRemembered) entries_.pop_front();
+  }
+
   /// Replays of the fit-run set made (remembered points not counted).
   int replays() const { return replays_; }
 
@@ -297,16 +309,6 @@ class ResidualEvaluator {
         return true;
       }
     return false;
-  }
-
-  void remember(const std::vector<double>& u, const double* r, bool ok) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    Entry e;
-    e.u = u;
-    e.ok = ok;
-    if (r && ok) e.r.assign(r, r + offset_.back());
-    entries_.push_back(std::move(e));
-    if (entries_.size() > kRemembered) entries_.pop_front();
   }
 
   const FitData& fit_;
@@ -414,12 +416,14 @@ std::vector<int> heldAxes(const FitData& fit, const ModelSpec& model) {
 
 namespace {
 
-/// Stops a solve that, at its best pace over the last kPaceIterations (the largest relative drop
-/// of the cost in one iteration), could not get below `target_cost` within its iterations left.
+/// Stops a solve that, at its best pace over its last kPaceIterations steps taken (the largest
+/// relative drop of the cost in one), could not get below `target_cost` within its iterations left.
 class OvertakeCheck : public ceres::IterationCallback {
  public:
   OvertakeCheck(double target_cost, int max_iterations) : target_cost_(target_cost), max_(max_iterations) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    // The pace of the steps taken: a rejected one shrinks the trust region, not the solve's pace.
+    if (!s.step_is_successful) return ceres::SOLVER_CONTINUE;
     costs_.push_back(s.cost);
     if (!std::isfinite(target_cost_) || costs_.size() <= kPaceIterations) return ceres::SOLVER_CONTINUE;
     double pace = 0.0;
@@ -501,6 +505,28 @@ class MeetingCallback : public ceres::IterationCallback {
   const std::vector<double>* u_;
 };
 
+/// The lowest-cost point a solve has stood on. A step the line search accepted on its cost
+/// alone can land where a Jacobian column does not replay either way; Ceres then ends the solve
+/// as failed, and the point before it is still a fit.
+class BestPoint : public ceres::IterationCallback {
+ public:
+  explicit BestPoint(const std::vector<double>* u) : u_(u) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (s.step_is_successful && std::isfinite(s.cost) && s.cost < cost_) {
+      cost_ = s.cost;
+      best_ = *u_;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+  double cost() const { return cost_; }
+  const std::vector<double>& point() const { return best_; }
+
+ private:
+  const std::vector<double>* u_;
+  double cost_ = INFINITY;
+  std::vector<double> best_;
+};
+
 /// The distinct starts, the `held` axes at their off value, probed in one batch: those that
 /// replay, by chi2. A repeated start (the hold merges some; a calibration that moved nothing
 /// starts its joint refits twice at nominal) would be solved twice to the same end.
@@ -520,10 +546,15 @@ std::vector<std::pair<double, std::vector<double>>> rankStarts(ResidualEvaluator
   for (std::size_t i = 0; i < tried.size(); ++i) outs.push_back(probe.data() + i * n);
   std::vector<char> ok;
   evaluator->evaluate(tried, outs, &ok);
-  std::vector<std::pair<double, std::vector<double>>> ranked;  // chi2, start
+  std::vector<std::pair<double, std::size_t>> order;  // chi2, start
   for (std::size_t i = 0; i < tried.size(); ++i)
-    if (ok[i]) ranked.emplace_back(sumSquares(std::vector<double>(outs[i], outs[i] + n)), tried[i]);
-  std::sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    if (ok[i]) order.emplace_back(sumSquares(std::vector<double>(outs[i], outs[i] + n)), i);
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  // The solves start at the best two: their residuals are remembered last, whatever the grid's size.
+  for (std::size_t k = std::min<std::size_t>(order.size(), 2); k-- > 0;)
+    evaluator->remember(tried[order[k].second], outs[order[k].second], true);
+  std::vector<std::pair<double, std::vector<double>>> ranked;
+  for (const auto& [chi2, i] : order) ranked.emplace_back(chi2, tried[i]);
   return ranked;
 }
 
@@ -547,9 +578,15 @@ ceres::Solver::Summary solveFrom(ResidualEvaluator* evaluator, const ModelSpec& 
   options.parameter_tolerance = 1e-4;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
+  // With bounds, Ceres searches along each step (Armijo) before judging it. One trial, the step
+  // itself, leaves the judging to the trust region: a search that shrinks a poor step by
+  // hundreds ends the solve on Ceres' step and cost tolerances far from the minimum. Quadratic
+  // interpolation needs the trial's cost alone; the default cubic asks a whole Jacobian there.
+  options.max_num_line_search_step_size_iterations = 1;
+  options.line_search_interpolation_type = ceres::QUADRATIC;
   options.callbacks = callbacks;
-  // The meeting of solves (SolveMeeting) reads each iteration's point from `u`.
-  options.update_state_every_iteration = callbacks.size() > 1;
+  // The callbacks (SolveMeeting, BestPoint) read each iteration's point from `u`.
+  options.update_state_every_iteration = true;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   return summary;
@@ -584,10 +621,12 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
   // One thread per solve whatever fit.threads (each solve's replays use those): the meeting
   // needs them in step.
   SolveMeeting meeting(refined);
+  std::vector<std::unique_ptr<BestPoint>> stood;
+  for (std::size_t k = 0; k < refined; ++k) stood.push_back(std::make_unique<BestPoint>(&solved[k]));
   parallelFor(static_cast<int>(refined), static_cast<int>(refined), [&](int k) {
     solved[k] = ranked[k].second;
     MeetingCallback meet(&meeting, k, &solved[k]);
-    std::vector<ceres::IterationCallback*> callbacks{checks[k].get()};
+    std::vector<ceres::IterationCallback*> callbacks{stood[k].get(), checks[k].get()};
     if (refined > 1) callbacks.push_back(&meet);
     summaries[k] = solveFrom(solvers[k].get(), model, held, max_iterations, callbacks, &solved[k]);
     meeting.leave(k);
@@ -596,15 +635,17 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
   for (std::size_t k = 0; k < refined; ++k) {
     const ceres::Solver::Summary& summary = summaries[k];
     // A solve that failed at its start reports final_cost -1: never a result.
-    if (summary.IsSolutionUsable() && summary.final_cost >= 0.0 && std::isfinite(summary.final_cost) &&
-        2.0 * summary.final_cost <= best.chi2) {
-      best.u = solved[k];
-      best.chi2 = 2.0 * summary.final_cost;
+    const bool usable = summary.IsSolutionUsable() && summary.final_cost >= 0.0 && std::isfinite(summary.final_cost);
+    const double chi2 = usable ? 2.0 * summary.final_cost : 2.0 * stood[k]->cost();
+    if (chi2 <= best.chi2) {
+      best.u = usable ? solved[k] : stood[k]->point();
+      best.chi2 = chi2;
       best.message = summary.BriefReport();
     }
   }
   best.evaluations = evaluator.replays();
   for (const auto& solver : solvers) best.evaluations += solver->replays();
+  for (const auto& summary : summaries) best.iterations += static_cast<int>(summary.iterations.size()) - 1;
   return best;
 }
 

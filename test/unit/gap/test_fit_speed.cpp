@@ -145,3 +145,20 @@ TEST(GapFitSpeed, AFitThatCannotOvertakeStopsAndSaysSo) {
   EXPECT_FALSE(reachable.stopped);
   EXPECT_EQ(reachable.u, free.u);
 }
+
+TEST(GapFitSpeed, AStepCostsOneReplayAndAJacobianOnlyWhenTaken) {
+  const LeakingCell cell;
+  const gs::NoiseModel& noise = cell.noise;
+  const gs::ModelSpec model = gs::makeModelSpec({"leak", "heat_transfer"});
+  const std::vector<std::vector<double>> starts = gs::gridStarts(model);
+  const gs::FitOutcome f = gs::fitModel(noise.fit, model, starts, 25);
+  ASSERT_TRUE(f.ok) << f.message;
+  // The grid probed once each; each of the two solves a Jacobian at its start (its residuals
+  // remembered), then per iteration the step's replay, and a Jacobian where the step is taken;
+  // a solve that ends on Ceres' tolerances ends on a step not counted as an iteration.
+  // Ceres' default line search would replay a Jacobian at every trial along the step, too.
+  const int k = static_cast<int>(model.axes.size());
+  EXPECT_GT(f.iterations, 0);
+  EXPECT_LE(f.evaluations, static_cast<int>(starts.size()) + 2 * (k + 1) + f.iterations * (k + 1))
+      << f.iterations << " iterations: " << f.message;
+}

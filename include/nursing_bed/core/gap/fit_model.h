@@ -108,6 +108,7 @@ struct FitOutcome {
   double chi2 = NAN;      ///< whitened, summed, at u
   bool ok = false;
   int evaluations = 0;  ///< replays of the fit-run set
+  int iterations = 0;   ///< Levenberg-Marquardt iterations of its solves (steps taken or rejected)
   std::string message;
   /// Stopped early: at its pace it could not get below the fit's `overtake_chi2` (fitModel()).
   bool stopped = false;
