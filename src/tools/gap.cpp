@@ -200,6 +200,7 @@ int runSynth(const SynthArgs& args) {
 constexpr const char* kDiagnoseSynopsis =
     "usage: gap diagnose DATASET --out DIR [--topic TOPIC] [--effects NAME,NAME...] [--threads N]\n"
     "                    [--params NAME,...] [--no-calibration] [--no-discovery] [--airbag FILE] [--no-plots]\n"
+    "                    [--verbose]\n"
     "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
     "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
     "on the fit runs, names the effect that explains the gap (or says none / unexplained) and\n"
@@ -295,7 +296,7 @@ std::vector<nb::RunData> datasetRuns(const std::string& dataset, const std::stri
 struct AnalysisArgs {
   std::vector<std::string> datasets;  ///< exactly one, checked after parsing (named in the error)
   std::string out_dir, topic, airbag_override, params, threads = "2", effects, model_floor = "auto";
-  bool no_plots = false, no_calibration = false, no_discovery = false;
+  bool no_plots = false, no_calibration = false, no_discovery = false, verbose = false;
 };
 
 /// The checked common options.
@@ -319,6 +320,7 @@ void defineCommon(CLI::App& sub, AnalysisArgs* a) {
   sub.add_option("--threads", a->threads, "threads for the fits: candidates and their replays in parallel")
       ->type_name("N");
   sub.add_flag("--no-plots", a->no_plots, "skip the PNG plots (they need /usr/bin/python3 with matplotlib)");
+  sub.add_flag("--verbose", a->verbose, "each fit's progress line also gives its replays and the solver's report");
 }
 
 /// The common options checked, and the diagnosis options they set; a UsageError naming the
@@ -337,6 +339,7 @@ CommonOptions analysisOptions(const AnalysisArgs& a, nb::DiagnosisOptions* optio
   if (t < 1 || t > 64 || t != std::floor(t))
     throw UsageError("--threads: expected a whole number 1..64, got '" + a.threads + "'");
   options->threads = static_cast<int>(t);
+  options->verbose = a.verbose;
   if (c.dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
   if (c.out_dir.empty()) throw UsageError("--out DIR is required");
   return c;
@@ -372,7 +375,7 @@ int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const c
 
 constexpr const char* kCalibrateSynopsis =
     "usage: gap calibrate DATASET --out DIR [--params NAME,NAME...] [--airbag FILE] [--topic TOPIC]\n"
-    "                     [--threads N] [--no-plots]\n"
+    "                     [--threads N] [--no-plots] [--verbose]\n"
     "Fits the model's own uncertain parameters on the fit runs of DATASET (the effects are not\n"
     "looked for) and writes DIR/calibrated_airbag.yaml (a complete parameter file: sim.launch\n"
     "cell_params:=..., the nodes and gap diagnose --airbag accept it), DIR/report.json (the\n"

@@ -2,7 +2,6 @@
 // model's own parameters fitted alone or jointly with a candidate's effects, and each move judged.
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 #include <set>
 
@@ -397,7 +396,7 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
     if (progress)
       progress("refitted " + joinNames(f.model.effects) + " with the calibration free: chi2/n " +
                fmt(f.outcome.chi2 / n) + " -> " + fmt(j.moved_chi2 / n) +
-               (std::getenv("NB_GAP_VERBOSE")
+               (options.verbose
                     ? " [" + std::to_string(j.fit.outcome.evaluations) + " replays, " + j.fit.outcome.message + "]"
                     : std::string()));
     // Whole models compared: a joint fit that drops a needless move pays ln n less for it.

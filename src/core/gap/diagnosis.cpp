@@ -4,7 +4,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <iomanip>
 #include <limits>
 #include <mutex>
@@ -306,7 +305,7 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
       say("fitted " + joinNames(fits[i].model.effects) + " (" + std::to_string(++done) + "/" +
           std::to_string(fits.size()) + "): chi2/n " + fmt(fits[i].outcome.chi2 / n) + ", " +
           std::to_string(fits[i].outcome.evaluations) + " replays" +
-          (std::getenv("NB_GAP_VERBOSE") ? " [" + fits[i].outcome.message + "]" : std::string()));
+          (options.verbose ? " [" + fits[i].outcome.message + "]" : std::string()));
     });
   }
   const int singles = static_cast<int>(fits.size());

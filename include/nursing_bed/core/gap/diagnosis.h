@@ -104,6 +104,8 @@ struct DiagnosisOptions {
 
   /// Called with one line per step ("fitting leak ... 3/7"). May be empty.
   std::function<void(const std::string&)> progress;
+  /// The fits' progress lines also carry their replays and the solver's report.
+  bool verbose = false;
   /// Called after each progress line of `gap diagnose` with the elapsed time and an estimate of
   /// the time left ("41 s elapsed, about 2 min left"). May be empty.
   std::function<void(const std::string&)> status;
