@@ -337,7 +337,7 @@ std::vector<int> jointRefitOrder(const std::vector<ModelFit>& fits, std::size_t 
 JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
                              std::size_t effects, int pool, const DiagnosisOptions& options,
                              const std::function<void(const std::string&)>& progress, const std::set<std::string>& also,
-                             const std::vector<ModelFit>& uncalibrated, double line_chi2) {
+                             const std::vector<ModelFit>& uncalibrated) {
   const int n = noise.fitResidualCount();
   const double log_n = std::log(static_cast<double>(n));
   // Each fit's counterpart on the nominal cell, if it was fitted there.
@@ -371,7 +371,7 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
   // The best first: when it lands within the noise the others (worse on the biased calibration)
   // are not refitted.
   std::vector<CalibrationFit> joint(order.size());
-  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, start_from[order[0]], line_chi2);
+  if (!order.empty()) joint[0] = refitJointly(noise, (*fits)[order[0]], base, options, start_from[order[0]]);
   if (!order.empty() && joint[0].moved_chi2 / n <= options.joint_refit_chi2) order.resize(1);
   // The others change the verdict only by overtaking the best, as refitted (or not, when its
   // refit did not pay; BIC's price of a parameter or two is the margin).
@@ -387,10 +387,8 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
     const CalibrationFit& j = joint[k];
     if (j.fit.outcome.stopped) {
       if (progress)
-        progress(
-            "refit of " + joinNames(f.model.effects) + " with the calibration free stopped at chi2/n " +
-            fmt(j.fit.outcome.chi2 / n) + ": at its pace it could not reach " +
-            (k == 0 ? "the line where a fit holds up, " + fmt(line_chi2 / n) : "the best's " + fmt(best_chi2 / n)));
+        progress("refit of " + joinNames(f.model.effects) + " with the calibration free stopped at chi2/n " +
+                 fmt(j.fit.outcome.chi2 / n) + ": at its pace it could not reach the best's " + fmt(best_chi2 / n));
       continue;
     }
     if (progress)
@@ -413,12 +411,6 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
     out.summaries[joinNames(f.model.effects)] = j.summary;
   }
   return out;
-}
-
-double holdsUpLineChi2(const NoiseModel& noise, const DiagnosisOptions& options, bool floor_applies) {
-  if (floor_applies) return INFINITY;
-  const double n = noise.fitResidualCount();
-  return std::max(options.explained_chi2 * n, n + (1.0 - options.explained_excess_removed) * (noise.chi2_nominal - n));
 }
 
 void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* rep,

@@ -722,10 +722,9 @@ FittedModels fitModels(DiagnosisStart& s, const std::vector<std::string>& candid
   // The best singles, then the best pair and every pair with a single that moved the
   // calibration, refitted with the calibration free as well.
   std::set<std::string> moved_calibration;
-  const double line_chi2 = holdsUpLineChi2(noise, options, modelFloorApplies(options, runMetadata(s.prepared)));
   auto settle = [&](std::vector<ModelFit>* fits, std::size_t effects, int pool) {
-    const JointRefits more = refitBestJointly(noise, calibration, fits, effects, pool, options, say, moved_calibration,
-                                              uncalibrated, line_chi2);
+    const JointRefits more =
+        refitBestJointly(noise, calibration, fits, effects, pool, options, say, moved_calibration, uncalibrated);
     out.joint.insert(more.summaries.begin(), more.summaries.end());
     if (effects == 1) moved_calibration = more.moved_calibration;
   };

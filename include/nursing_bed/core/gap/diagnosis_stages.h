@@ -185,18 +185,13 @@ struct JointRefits {
 /// best is within joint_refit_chi2 already, only it is refitted (if the calibration moved) and the
 /// others not at all; else the best first: when it lands within joint_refit_chi2 the others are
 /// not refitted, and otherwise each of them stops once, at its pace, it could not overtake the
-/// best (they decide nothing else) and stays as it was. The best's own refit stops the same way
-/// once it could not get below `line_chi2`, where a fit would hold up (holdsUpLineChi2()).
+/// best (they decide nothing else) and stays as it was. The best's own refit always runs in full:
+/// its point ranks it for the pairs, and a solve's pace over a few iterations does not forecast
+/// where it ends.
 JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base, std::vector<ModelFit>* fits,
                              std::size_t effects, int pool, const DiagnosisOptions& options,
                              const std::function<void(const std::string&)>& progress,
-                             const std::set<std::string>& also = {}, const std::vector<ModelFit>& uncalibrated = {},
-                             double line_chi2 = INFINITY);
-
-/// The fit runs' chi2 below which a fit can hold up (decideVerdict(): within the noise, or
-/// nearly all of the nominal excess removed); infinite where the verdict is taken above a
-/// model-form floor (`floor_applies`), where any removal may count.
-double holdsUpLineChi2(const NoiseModel& noise, const DiagnosisOptions& options, bool floor_applies);
+                             const std::set<std::string>& also = {}, const std::vector<ModelFit>& uncalibrated = {});
 
 /// The verdict with calibration: "none" with moved parameters becomes "calibrated" when the
 /// calibrated model holds up on the withheld runs (within the noise or 99 % of their gap removed,
