@@ -644,7 +644,7 @@ double CellModel::attemptStep(double dt, const CellInputs& in, const StateVector
   const StateVector estimate = step_matrix_.solve(0.5 * dt * (k1 + k2));
   double sum = 0.0;
   for (int i = 0; i < n; ++i) {
-    const double tol = params_.relative_tolerance * (scale_[i] + std::fabs(state_[i]));
+    const double tol = params_.relative_tolerance * errorScale(i);
     const double e = estimate[i] / tol;
     sum += e * e;
   }
@@ -665,7 +665,8 @@ double CellModel::attemptNominalStep(double dt, const CellInputs& in, const Stat
   const Vector x_next = x + dt * (1.5 * k1 + 0.5 * k2);
   *next = x_next;
   const Vector estimate = step_matrix_.solveNominal(0.5 * dt * (k1 + k2));
-  const Vector tolerance = params_.relative_tolerance * (scale_.head<n>() + x.cwiseAbs());
+  Vector tolerance;
+  for (int i = 0; i < n; ++i) tolerance[i] = params_.relative_tolerance * errorScale(i);
   const double err = std::sqrt((estimate.cwiseQuotient(tolerance)).squaredNorm() / n);
   return std::isfinite(err) && x_next.allFinite() ? err : 1e10;
 }
@@ -788,7 +789,7 @@ bool CellModel::jacobianTracksStep(double h, const StateVector& dx, const StateV
   double miss_sq = 0.0, change_sq = 0.0;
   for (int i = 0; i < n; ++i) {
     const double change = rate_at_state_[i] - rate_before[i];
-    const double scale = scale_[i] + std::fabs(state_[i]);
+    const double scale = errorScale(i);
     const double w_sq = 1.0 / (scale * scale);
     miss_sq += w_sq * (change - predicted[i]) * (change - predicted[i]);
     change_sq += w_sq * change * change;

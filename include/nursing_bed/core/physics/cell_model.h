@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <string>
@@ -215,6 +216,8 @@ class CellModel {
   /// Whether jacobian_ predicts the change of rate over the step just taken (dx from the state
   /// whose rate was `rate_before`): the secant test that lets a long step keep it.
   bool jacobianTracksStep(double h, const StateVector& dx, const StateVector& rate_before) const;
+  /// The error norm's weight of state i: its typical magnitude plus its present size.
+  double errorScale(int i) const { return scale_[i] + std::fabs(state_[i]); }
   /// One ROS2 attempt of size dt from the current state; returns the scaled error norm.
   double attemptStep(double dt, const CellInputs& inputs, const StateVector& f0, StateVector* next);
   /// attemptStep for the nominal size (fixed-size vectors).
