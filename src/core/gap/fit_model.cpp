@@ -528,11 +528,13 @@ class BestPoint : public ceres::IterationCallback {
 };
 
 /// The distinct starts, the `held` axes at their off value, probed in one batch: those that
-/// replay, by chi2. A repeated start (the hold merges some; a calibration that moved nothing
-/// starts its joint refits twice at nominal) would be solved twice to the same end.
+/// replay, by chi2, the best `solves` of them remembered. A repeated start (the hold merges some;
+/// a calibration that moved nothing starts its joint refits twice at nominal) would be solved
+/// twice to the same end.
 std::vector<std::pair<double, std::vector<double>>> rankStarts(ResidualEvaluator* evaluator, const FitData& fit,
                                                                const ModelSpec& model, const std::vector<int>& held,
-                                                               const std::vector<std::vector<double>>& starts) {
+                                                               const std::vector<std::vector<double>>& starts,
+                                                               std::size_t solves) {
   std::vector<std::vector<double>> tried;
   for (auto s : starts) {
     for (int j : held) s[j] = model.axes[j].toU(model.axes[j].spec.off_value);
@@ -550,8 +552,9 @@ std::vector<std::pair<double, std::vector<double>>> rankStarts(ResidualEvaluator
   for (std::size_t i = 0; i < tried.size(); ++i)
     if (ok[i]) order.emplace_back(sumSquares(std::vector<double>(outs[i], outs[i] + n)), i);
   std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  // The solves start at the best two: their residuals are remembered last, whatever the grid's size.
-  for (std::size_t k = std::min<std::size_t>(order.size(), 2); k-- > 0;)
+  // The solves start at the best `solves`: their residuals are remembered last, whatever the
+  // grid's size.
+  for (std::size_t k = std::min(order.size(), solves); k-- > 0;)
     evaluator->remember(tried[order[k].second], outs[order[k].second], true);
   std::vector<std::pair<double, std::vector<double>>> ranked;
   for (const auto& [chi2, i] : order) ranked.emplace_back(chi2, tried[i]);
@@ -598,14 +601,17 @@ FitOutcome fitModel(const FitData& fit, const ModelSpec& model, const std::vecto
                     int max_iterations, double overtake_chi2) {
   ResidualEvaluator evaluator(fit, model);
   const std::vector<int> held = heldAxes(fit, model);
-  const std::vector<std::pair<double, std::vector<double>>> ranked = rankStarts(&evaluator, fit, model, held, starts);
+  // With two or more parameters a valley can hold one solve: a second from the second-best start.
+  const std::size_t solves = model.axes.size() >= 2 ? 2 : 1;
+  const std::vector<std::pair<double, std::vector<double>>> ranked =
+      rankStarts(&evaluator, fit, model, held, starts, solves);
   FitOutcome best;
   if (ranked.empty()) {
     best.evaluations = evaluator.replays();
     best.message = "the model failed at every starting point";
     return best;
   }
-  const std::size_t refined = std::min<std::size_t>(ranked.size(), model.axes.size() >= 2 ? 2 : 1);
+  const std::size_t refined = std::min(ranked.size(), solves);
   best.ok = true;
   best.u = ranked[0].second;
   best.chi2 = ranked[0].first;
