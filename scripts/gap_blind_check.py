@@ -26,6 +26,13 @@ and for runs without a height sensor (`gap synth --no-height`, flow meter presen
 standard matrix, or with --cases no_height):
   - clean data: "none" and no parameter moved, every time
   - a leak (1.5e-8 m^2), heat exchange (10 W/(m^2 K)) and an inflow bias each named >= 2/3
+and, only with --cases distortion, every channel distortion gap synth can plant (`--distort`,
+each kind on each channel, magnitudes from a fifth of the plausible bound to the bound, either
+sign; log-uniform over the plausible range for lags; valve command and supply on runs driven
+through the valves):
+  - the right channel and kind named alone, magnitude within 25 % >= 80 % (also counted: named,
+    or named by the report as what these runs cannot tell from the verdict's)
+  - never a physical effect named, every time
 Exit code 0 when all hold, 1 otherwise, 2 for a bad command line.
 
 usage: gap_blind_check.py --out DIR [--protocol small|standard] [--seeds N] [--seed-base B]
@@ -34,6 +41,7 @@ usage: gap_blind_check.py --out DIR [--protocol small|standard] [--seeds N] [--s
 import argparse
 import concurrent.futures
 import json
+import math
 import os
 import random
 import shutil
@@ -43,6 +51,7 @@ import sys
 import threading
 import time
 import xml.sax.saxutils as su
+import zlib
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_GAP = os.path.join(HERE, "..", "devel", "lib", "nursing_bed", "gap")
@@ -50,6 +59,11 @@ DEFAULT_GAP = os.path.join(HERE, "..", "devel", "lib", "nursing_bed", "gap")
 TOP1_MIN, NONE_MIN, UNEXPLAINED_MIN, SHRINK_MIN = 0.90, 1.00, 0.70, 0.80
 MISMATCH_MIN, MISMATCH_EFFECT_MIN, PAIR_MIN, VALVE_MIN = 0.90, 0.90, 0.80, 0.90
 NO_HEIGHT_NONE_MIN, NO_HEIGHT_NAMED_MIN = 1.00, 2.0 / 3.0
+DISTORTION_NAMED_MIN, DISTORTION_NO_PHYSICAL_MIN = 0.80, 1.00
+# Planted distortions: magnitudes from this share of the plausible bound up; named within this.
+DISTORTION_FLOOR, DISTORTION_REL_TOL = 0.2, 0.25
+# Channels that exist only on runs driven through the valves (no flow meter).
+VALVE_CHANNELS = ("valve_cmd", "supply")
 # A mismatch is "too small to matter" below this many standard errors of the calibration's fit.
 SMALL_MISMATCH_SE = 6.0
 # ... or when the unmoved (nominal) model fits the withheld runs within the noise: chi2 per
@@ -104,6 +118,45 @@ def no_height_plan(seeds, seed_base):
     """The cases without a height sensor: (kind, name, effects, airbag params, synth flags, seed)."""
     return [("no_height", name, effects, {}, ["--no-height"], seed_base + k)
             for name, effects in NO_HEIGHT_CASES for k in range(seeds)]
+
+
+def distortion_kinds(gap):
+    """(channel, kind, lo, hi, log) of every distortion `gap synth --distort` plants, from its --help."""
+    out = subprocess.run([gap, "synth", "--help"], capture_output=True, text=True, check=True).stdout
+    listing = out.split("distortions (--distort", 1)[1].split("effects and their parameters:", 1)[0]
+    kinds = []
+    for line in listing.splitlines():
+        line = line.strip()
+        if "=VALUE" not in line or "plausible" not in line:
+            continue
+        channel, kind = line.split("=VALUE", 1)[0].split(":")
+        lo, hi = line.split("plausible", 1)[1].split(",", 1)[0].replace("(log)", "").split("..")
+        kinds.append((channel, kind, float(lo), float(hi), "(log)" in line.split("admissible")[0]))
+    return kinds
+
+
+def draw_distortion(lo, hi, log, rng):
+    """A planted magnitude: log-uniform over [lo, hi] for a lag, else from DISTORTION_FLOOR of the
+    bound to the bound (log-uniform), either sign."""
+    if log:
+        return math.exp(rng.uniform(math.log(lo), math.log(hi)))
+    bound = max(abs(lo), abs(hi))
+    return rng.choice([-1.0, 1.0]) * bound * math.exp(rng.uniform(math.log(DISTORTION_FLOOR), 0.0))
+
+
+def distortion_plan(gap, seeds, seed_base):
+    """Each channel distortion on its runs: (kind, name, effects, airbag params, synth flags, seed)."""
+    plan = []
+    for channel, kind, lo, hi, log in distortion_kinds(gap):
+        for k in range(seeds):
+            seed = seed_base + k
+            rng = random.Random(seed * 7919 + zlib.crc32(f"{channel}:{kind}".encode()))
+            value = draw_distortion(lo, hi, log, rng)
+            flags = ["--distort", f"{channel}:{kind}={value:.6g}"]
+            if channel in VALVE_CHANNELS:
+                flags.append("--no-flow-meter")
+            plan.append(("distortion", f"{channel}_{kind}", [], {}, flags, seed))
+    return plan
 
 
 def effect_lists(gap):
@@ -169,9 +222,10 @@ def read_record(out_dir, case_spec, diag_error=None, elapsed=None):
     _, report_dir, truth_path = case_paths(out_dir, case)
     with open(truth_path) as f:
         truth = json.load(f)
-    record = {"case": case, "kind": kind, "truth": name, "truth_effects": sorted(e["name"] for e in truth["effects"]),
+    planted = truth["effects"] + truth.get("distortions", [])
+    record = {"case": case, "kind": kind, "truth": name, "truth_effects": sorted(e["name"] for e in planted),
               "airbag": airbag,
-              "truth_params": {k: v for e in truth["effects"] for k, v in e["params"].items()}}
+              "truth_params": {k: v for e in planted for k, v in e["params"].items()}}
     if elapsed is None and os.path.isfile(os.path.join(report_dir, "elapsed_s")):
         with open(os.path.join(report_dir, "elapsed_s")) as f:
             elapsed = float(f.read())
@@ -191,6 +245,10 @@ def read_record(out_dir, case_spec, diag_error=None, elapsed=None):
     shrink = report["shrinkage"]
     before, after = shrink["withheld_nrmse_before"], shrink["withheld_nrmse_after"]
     record.update({"verdict": verdict, "status": status, "named": sorted(named), "moved": moved,
+                   "named_params": report["verdict"].get("params", {}),
+                   # explanations the report says these runs cannot tell from the verdict's
+                   "undecided": [(c["explanations"][1], c.get("rival_params", {}))
+                                 for c in report.get("identifiability", [])],
                    "std_errors": {p["name"]: p["std_error"] for p in params},
                    # the calibrated model on the withheld runs (the nominal one when nothing moved)
                    "withheld_chi2_calibrated": report.get("calibration", {}).get("withheld_chi2_per_sample"),
@@ -228,9 +286,31 @@ def mismatch_right(c):
     return c["below_line"]
 
 
+def distortion_right(c):
+    """The planted distortion named alone, its planted parameter within DISTORTION_REL_TOL. Also
+    marks c["undecided_right"]: named, or the one the report says these runs cannot tell from the
+    verdict's, within the tolerance."""
+    # The planted parameter: the one away from 0 (inflow_bias has two, one planted).
+    param, value = next((k, v) for k, v in c["truth_params"].items() if v != 0.0)
+
+    def within(params):
+        named = params.get(param)
+        return None if named is None else abs(named / value - 1.0)
+
+    right = c["status"] == "explained" and c["named"] == c["truth_effects"]
+    c["magnitude_error"] = within(c["named_params"]) if right else None
+    right = right and c["magnitude_error"] is not None and c["magnitude_error"] <= DISTORTION_REL_TOL
+    rivals = [within(p) for name, p in c.get("undecided", []) if name.split("+") == c["truth_effects"]]
+    c["undecided_right"] = right or (c["status"] == "explained" and
+                                     any(e is not None and e <= DISTORTION_REL_TOL for e in rivals))
+    return right
+
+
 def case_right(c):
     """Whether the verdict is right for its kind."""
     kind = c["kind"]
+    if kind == "distortion":
+        return distortion_right(c)
     if kind == "candidate":
         return c["verdict"] == c["truth"]
     if kind == "clean":
@@ -286,7 +366,8 @@ def main():
     ap.add_argument("--junit", help="also write a JUnit XML result file here")
     ap.add_argument("--cases", help="comma-separated subset of cases: effect names, clean, mismatch, mismatch_effect, "
                                     "pair, valve, no_height (runs without a height sensor; in the standard "
-                                    "matrix by default, in the small one only when named here)")
+                                    "matrix by default, in the small one only when named here), distortion "
+                                    "(every plantable channel distortion; only when named here)")
     ap.add_argument("--extended-seeds", type=int, default=1,
                     help="seeds of each calibration case (mismatch, mismatch + effect, pairs, valve-driven; default 1)")
     ap.add_argument("--jobs", type=int, default=1,
@@ -312,6 +393,8 @@ def main():
     wanted = set(args.cases.split(",")) if args.cases else set()
     if args.protocol == "standard" or "no_height" in wanted:
         plan += no_height_plan(args.seeds, args.seed_base)
+    if "distortion" in wanted:
+        plan += distortion_plan(args.gap, args.seeds, args.seed_base)
     if args.cases:
         # no_height selects those cases alone; a name selects it among the height-sensor cases
         plan = [p for p in plan if p[0] in wanted or (p[1] in wanted and p[0] != "no_height")]
@@ -356,6 +439,18 @@ def main():
              for name, _ in NO_HEIGHT_CASES if name != "clean"]:
         rates[key] = sum(c["right"] for c in group) / len(group) if group else None
         counts[key] = f"{sum(c['right'] for c in group)}/{len(group)}"
+    distorted = [c for c in cases if c["kind"] == "distortion"]
+    if distorted:
+        # A physical effect: a candidate that is not a channel's member (the sensor lag, the inflow bias).
+        physical = set(candidates) - {"pressure_sensor_lag", "inflow_bias"}
+        clear = [c for c in distorted if not set(c.get("named", [])) & physical]
+        rates["distortion_named"] = sum(c["right"] for c in distorted) / len(distorted)
+        counts["distortion_named"] = f"{sum(c['right'] for c in distorted)}/{len(distorted)}"
+        undecided = sum(c.get("undecided_right", False) for c in distorted)
+        rates["distortion_named_or_undecided"] = undecided / len(distorted)
+        counts["distortion_named_or_undecided"] = f"{undecided}/{len(distorted)}"
+        rates["distortion_no_physical"] = len(clear) / len(distorted)
+        counts["distortion_no_physical"] = f"{len(clear)}/{len(distorted)}"
     rates["median_withheld_shrink"] = statistics.median(shrinks) if shrinks else None
     counts["median_withheld_shrink"] = f"{len(shrinks)} named"
     limits = {"top1": TOP1_MIN, "clean_none": NONE_MIN, "out_of_library_unexplained": UNEXPLAINED_MIN,
@@ -363,6 +458,8 @@ def main():
               "pairs_named": PAIR_MIN, "valve_driven_leak_and_inlet": VALVE_MIN, "median_withheld_shrink": SHRINK_MIN,
               "no_height_clean_none": NO_HEIGHT_NONE_MIN}
     limits.update({f"no_height_{name}_named": NO_HEIGHT_NAMED_MIN for name, _ in NO_HEIGHT_CASES if name != "clean"})
+    limits.update({"distortion_named": DISTORTION_NAMED_MIN, "distortion_named_or_undecided": DISTORTION_NAMED_MIN,
+                   "distortion_no_physical": DISTORTION_NO_PHYSICAL_MIN})
     passed = {k: (v is None or v >= limits[k]) for k, v in rates.items()}
     matrix = confusion(cases, ["none", "unexplained"] + candidates)
     elapsed = time.time() - started
@@ -394,7 +491,10 @@ def main():
             truth = dict(c.get("truth_params", {}), **c.get("airbag", {}))
             params = ", ".join(f"{k}={v:.4g}" for k, v in truth.items())
             wb, wa = c.get("withheld_before"), c.get("withheld_after")
-            f.write(f"| {c['case']} | {params} | {c['verdict']} | "
+            verdict = c["verdict"]
+            if c.get("magnitude_error") is not None:
+                verdict += f" (magnitude off {100 * c['magnitude_error']:.1f} %)"
+            f.write(f"| {c['case']} | {params} | {verdict} | "
                     f"{'' if wb is None else f'{wb:.4f}'} -> {'' if wa is None else f'{wa:.4f}'} |\n")
     with open(os.path.join(args.out, "blind_check.json"), "w") as f:
         json.dump({"protocol": args.protocol, "seeds": args.seeds, "seed_base": args.seed_base, "rates": rates,

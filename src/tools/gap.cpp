@@ -64,8 +64,8 @@ std::string distortionList() {
   for (const auto& m : nb::distortionMembers()) {
     const nb::EffectParamSpec* p = nb::effectSpec(m.effect).param(m.param);  // the kind's parameter
     std::ostringstream line;
-    line << "  " << m.channel << ":" << m.kind << "=VALUE [" << p->unit << "], admissible " << p->min_value << " .. "
-         << p->max_value << "\n";
+    line << "  " << m.channel << ":" << m.kind << "=VALUE [" << p->unit << "], plausible " << p->lo << " .. " << p->hi
+         << (p->log_scale ? " (log)" : "") << ", admissible " << p->min_value << " .. " << p->max_value << "\n";
     s += line.str();
   }
   return s;
@@ -82,7 +82,7 @@ double parseNumber(const std::string& option, const std::string& text) {
 /// `gap synth`'s options as given; checked by synthOptions.
 struct SynthArgs {
   std::string out_dir, seed = "1", noise_scale = "1", protocol = "standard";
-  std::vector<std::string> effects, distortions, airbag_params;
+  std::vector<std::string> effects, distortions, airbag_params, extra_runs;
   bool no_flow_meter = false, no_height = false;
 };
 
@@ -90,7 +90,7 @@ constexpr const char* kSynthSynopsis =
     "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--distort CHANNEL:KIND=VALUE]...\n"
     "                 [--seed N]\n"
     "                 [--noise-scale S] [--protocol standard|small] [--airbag-param NAME=VALUE]...\n"
-    "                 [--no-flow-meter] [--no-height]\n"
+    "                 [--no-flow-meter] [--no-height] [--add-run load_n=N,flow=low|high[,rise_scale=K]]...\n"
     "Simulates the run-data protocol (paper-shaped inflow, 60 s hold with the inlet closed,\n"
     "10 s vent through the inlet) on the cell model with the given 'truth' effects and\n"
     "realistic sensors, and writes DIR/<run>.csv, DIR/dataset.yaml and DIR/truth.json.";
@@ -102,8 +102,9 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
                                 "their plausible range (e.g. --effect leak:leak_area_m2=1e-8)"))
       ->type_name("NAME[:param=value,...]");
   tools::takeAll(sub.add_option("--distort", a->distortions,
-                                "a channel distortion, repeatable: pressure, height, inflow or load with gain, "
-                                "offset, drift, shift or lag (e.g. --distort height:gain=-0.04)"))
+                                "a channel distortion, repeatable: pressure, height, load, inflow (metered runs), "
+                                "valve_cmd or supply (with --no-flow-meter) with gain, offset, drift, shift or lag "
+                                "(e.g. --distort height:gain=-0.04)"))
       ->type_name("CHANNEL:KIND=VALUE[,KIND=VALUE]");
   sub.add_option("--seed", a->seed, "random seed for drawn parameters and noise")->type_name("N");
   sub.add_option("--noise-scale", a->noise_scale, "multiplies every sensor noise and quantisation step (0: exact)")
@@ -121,6 +122,11 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
       "--no-flow-meter", a->no_flow_meter,
       "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (doc/formats/run_data.md)");
   sub.add_flag("--no-height", a->no_height, "no height sensor: h_m left out");
+  tools::takeAll(sub.add_option("--add-run", a->extra_runs,
+                                "a run added to the protocol's, repeatable (gap diagnose proposes them where two "
+                                "explanations fit alike): load in N, flow low or high, the rise rise_scale times "
+                                "as long, role fit (default) or withheld"))
+      ->type_name("load_n=N,flow=low|high[,rise_scale=K][,role=fit|withheld]");
   // The distortions first: scripts read the effects from "effects and their parameters:" on.
   sub.footer("distortions (--distort; diagnosed as the candidates <channel>_<kind>):\n" + distortionList() +
              "effects and their parameters:\n" + effectList());
@@ -161,6 +167,14 @@ nb::SynthOptions synthOptions(const SynthArgs& a) {
   }
   o.flow_meter = !a.no_flow_meter;
   o.height_sensor = !a.no_height;
+  for (const std::string& v : a.extra_runs) {
+    try {
+      nb::parseRunPlan(v, o.params);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--add-run: ") + e.what());
+    }
+    o.extra_runs.push_back(v);
+  }
   o.protocol = a.protocol;
   if (o.protocol != "standard" && o.protocol != "small")
     throw UsageError("--protocol: expected standard or small, got '" + o.protocol + "'");
@@ -187,6 +201,7 @@ int runSynth(const SynthArgs& args) {
     }
     std::vector<nb::SynthEffectRequest> requests = o.effects;
     nb::SynthResult planned;
+    planned.protocol.valve_driven = !o.flow_meter;
     try {
       nb::synthDistortions(o.distortions, &requests, &planned);
     } catch (const std::invalid_argument& e) {
@@ -199,7 +214,8 @@ int runSynth(const SynthArgs& args) {
 
 constexpr const char* kDiagnoseSynopsis =
     "usage: gap diagnose DATASET --out DIR [--topic TOPIC] [--effects NAME,NAME...] [--threads N]\n"
-    "                    [--params NAME,...] [--no-calibration] [--no-discovery] [--airbag FILE] [--no-plots]\n"
+    "                    [--params NAME,...] [--no-calibration] [--no-discovery] [--no-proposals]\n"
+    "                    [--airbag FILE] [--no-plots]\n"
     "                    [--verbose]\n"
     "Replays every run of DATASET (a directory of run CSVs and/or bags, optional dataset.yaml)\n"
     "through the nominal cell model, localises the gap, fits every candidate effect (and pairs)\n"
@@ -296,7 +312,7 @@ std::vector<nb::RunData> datasetRuns(const std::string& dataset, const std::stri
 struct AnalysisArgs {
   std::vector<std::string> datasets;  ///< exactly one, checked after parsing (named in the error)
   std::string out_dir, topic, airbag_override, params, threads = "2", effects, model_floor = "auto";
-  bool no_plots = false, no_calibration = false, no_discovery = false, verbose = false;
+  bool no_plots = false, no_calibration = false, no_discovery = false, no_proposals = false, verbose = false;
 };
 
 /// The checked common options.
@@ -400,6 +416,8 @@ void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
       ->type_name("NAME,NAME...");
   sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");
   sub.add_flag("--no-discovery", a->no_discovery, "an unexplained gap stays unexplained (no dictionary terms)");
+  sub.add_flag("--no-proposals", a->no_proposals,
+               "do not look for what the runs cannot tell from the verdict, nor propose the run that would");
   sub.add_option("--model-floor", a->model_floor,
                  "judge candidates above the calibrated model's floor when it never fits to the noise: auto (runs "
                  "imported from recordings), on, off")
@@ -411,6 +429,7 @@ int runDiagnose(const AnalysisArgs& a) {
   const CommonOptions c = analysisOptions(a, &options);
   options.calibrate = !a.no_calibration;
   options.discover = !a.no_discovery;
+  options.propose_runs = !a.no_proposals;
   options.model_floor = a.model_floor;
   if (!a.effects.empty())
     options.candidates = nameList("--effects", a.effects, [](const std::string& name) {

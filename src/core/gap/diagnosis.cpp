@@ -1,5 +1,7 @@
 #include "nursing_bed/core/gap/diagnosis.h"
 
+#include "nursing_bed/core/gap/identifiability.h"
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -343,7 +345,18 @@ std::vector<std::pair<int, int>> pairsToFit(const std::vector<ModelFit>& fits, c
   // Partners: every physical effect, and the best kPairedDistortions channel distortions of the
   // new family (there are many; a pair of two costs a fit of its own each).
   constexpr int kPairedDistortions = 3;
-  for (int a = 0; a < std::min<int>(pool, ok.size()); ++a) {
+  std::vector<int> members;
+  for (int a = 0; a < std::min<int>(pool, ok.size()); ++a) members.push_back(a);
+  // A channel distortion may imitate one of two physical effects alone (a load offset a plate's
+  // friction): the best physical single joins the pool then, so that the two are tried together.
+  const auto physical = [&](int k) { return isPhysicalCatalogEffect(fits[ok[k]].model.effects[0]); };
+  if (!members.empty() && std::none_of(members.begin(), members.end(), physical))
+    for (int k = static_cast<int>(members.size()); k < static_cast<int>(ok.size()); ++k)
+      if (physical(k)) {
+        members.push_back(k);
+        break;
+      }
+  for (int a : members) {
     int distortions = 0;
     for (std::size_t b = a + 1; b < ok.size(); ++b) {
       const bool distortion = !isPhysicalCatalogEffect(fits[ok[b]].model.effects[0]);
@@ -839,6 +852,12 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   }
   for (const auto& note : rep.calibration.notes)
     if (note.rfind("cannot tell apart: ", 0) == 0) rep.reasons.push_back(note);
+  if (verdict.winner >= 0 && drift.winner < 0 && options.propose_runs) {
+    say("identifiability: the explanations within " + fmt(options.near_tie_bic) + " BIC of the verdict's");
+    rep.confusions =
+        findConfusions(scored, verdict.winner, prepared, noise, params, s.calibrated, options, rep.noise_p_pa);
+    for (const auto& c : rep.confusions) rep.reasons.push_back(describeConfusion(c));
+  }
   settleCalibratedStatus(noise, options, &rep, above_floor);
   if (rep.status == "unexplained" && options.discover)
     discoverWhatIsLeft(prepared, noise, params, options, say, &rep, &verdict_effects);

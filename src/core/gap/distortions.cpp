@@ -71,24 +71,33 @@ bool anyFinite(const std::vector<double>& v) {
   return std::any_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
 }
 
-/// x at time s by linear interpolation on (t, x), the end values held beyond the ends; where a
-/// neighbour is NaN, the other one.
+/// x at time s by linear interpolation on (t, x), the end values held beyond the ends.
 double sampleAt(const std::vector<double>& t, const std::vector<double>& x, double s) {
   if (s <= t.front()) return x.front();
   if (s >= t.back()) return x.back();
   const std::size_t j = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), s) - t.begin());
-  const double a = x[j - 1], b = x[j];
-  if (!std::isfinite(a)) return b;
-  if (!std::isfinite(b)) return a;
   const double w = (s - t[j - 1]) / (t[j] - t[j - 1]);
-  return a + w * (b - a);
+  return x[j - 1] + w * (x[j] - x[j - 1]);
 }
 
-void shiftSeries(double d, const std::vector<double>& t, std::vector<double>* x) {
+/// x(t - d) on the finite samples alone: a replay's samples after its plate landed are NaN, and
+/// a reading early (d < 0) near them takes the last finite value, as at a run's end. Before the
+/// first sample, its value held, or (finite `at_rest`) `at_rest` |d| before it.
+void shiftSeries(double d, const std::vector<double>& t, std::vector<double>* x, double at_rest) {
   if (d == 0.0 || x->empty()) return;
-  const std::vector<double> in = *x;
-  for (std::size_t i = 0; i < in.size(); ++i)
-    if (std::isfinite(in[i])) (*x)[i] = sampleAt(t, in, t[i] - d);
+  std::vector<double> tf, xf;
+  if (std::isfinite(at_rest)) {
+    tf.push_back(t.front() - std::fabs(d));
+    xf.push_back(at_rest);
+  }
+  for (std::size_t i = 0; i < x->size(); ++i)
+    if (std::isfinite((*x)[i])) {
+      tf.push_back(t[i]);
+      xf.push_back((*x)[i]);
+    }
+  if (tf.empty()) return;
+  for (std::size_t i = 0; i < x->size(); ++i)
+    if (std::isfinite((*x)[i])) (*x)[i] = sampleAt(tf, xf, t[i] - d);
 }
 
 /// tau dy/dt = x - y with x linear between samples: y1 = x1 - tau s + (y0 - x0 + tau s) e^(-dt/tau),
@@ -237,8 +246,9 @@ std::string describeDistortion(const std::string& effect_name, const std::map<st
   return s;
 }
 
-void distortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x) {
-  if (kind == "shift") return shiftSeries(value, t, x);
+void distortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x,
+                   double at_rest) {
+  if (kind == "shift") return shiftSeries(value, t, x, at_rest);
   if (kind == "lag") return lagSeries(value, t, x);
   for (std::size_t i = 0; i < x->size(); ++i) {
     double& v = (*x)[i];
@@ -250,8 +260,9 @@ void distortSeries(const std::string& kind, double value, const std::vector<doub
   }
 }
 
-void undistortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x) {
-  if (kind == "shift") return shiftSeries(-value, t, x);
+void undistortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x,
+                     double at_rest) {
+  if (kind == "shift") return shiftSeries(-value, t, x, at_rest);
   if (kind == "lag")
     throw std::invalid_argument("a lag of a measured input cannot be undone (it differentiates noise)");
   for (std::size_t i = 0; i < x->size(); ++i) {
@@ -280,6 +291,13 @@ bool onlyOutputDistortions(const std::vector<CellEffectPtr>& effects) {
   });
 }
 
+bool readsHeightEarly(const std::vector<CellEffectPtr>& effects) {
+  return std::any_of(effects.begin(), effects.end(), [](const CellEffectPtr& e) {
+    const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get());
+    return d && d->channel() == "height" && d->kind() == "shift" && d->value() < 0.0;
+  });
+}
+
 bool applyInputDistortions(const std::vector<CellEffectPtr>& effects, RunData* run) {
   bool any = false;
   for (const auto& e : effects) {
@@ -287,9 +305,10 @@ bool applyInputDistortions(const std::vector<CellEffectPtr>& effects, RunData* r
     if (!d || d->outputSide() || d->value() == 0.0) continue;
     any = true;
     const std::string& c = d->channel();
-    if (c == "inflow") undistortSeries(d->kind(), d->value(), run->t_s, &run->mdot_in_kg_s);
+    // A run starts at rest: no flow and valves shut before its first sample.
+    if (c == "inflow") undistortSeries(d->kind(), d->value(), run->t_s, &run->mdot_in_kg_s, 0.0);
     if (c == "supply") undistortSeries(d->kind(), d->value(), run->t_s, &run->p_supply_gauge_pa);
-    if (c == "valve_cmd") distortSeries(d->kind(), d->value(), run->t_s, &run->valve_cmd);
+    if (c == "valve_cmd") distortSeries(d->kind(), d->value(), run->t_s, &run->valve_cmd, 0.0);
     if (c == "load") {
       std::vector<double> constant{run->load_n};
       undistortSeries(d->kind(), d->value(), {run->t_s.front()}, &constant);

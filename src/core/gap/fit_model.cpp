@@ -218,6 +218,7 @@ class ResidualEvaluator {
         offset_(probe.offset_),
         output_only_(probe.output_only_),
         base_(probe.base_),
+        base_early_(probe.base_early_),
         entries_(probe.entries_) {}
 
   /// Residuals at each of `points` into outs[i] (residualCount() values each); ok[i] false where
@@ -241,12 +242,14 @@ class ResidualEvaluator {
       }
     }
     const int runs = static_cast<int>(fit_.runs.size());
-    if (output_only_ && !misses.empty()) baseReplays(misses.front().params);
+    std::vector<const std::vector<Replay>*> bases(misses.size(), nullptr);
+    for (std::size_t k = 0; output_only_ && k < misses.size(); ++k)
+      bases[k] = baseReplays(misses[k].params, readsHeightEarly(misses[k].effects));
     std::vector<char> run_ok(misses.size() * runs, 1);
     parallelFor(static_cast<int>(run_ok.size()), fit_.threads, [&](int task) {
       const Miss& m = misses[task / runs];
       const int r = task % runs;
-      const Replay* base = base_ ? &(*base_)[r] : nullptr;
+      const Replay* base = bases[task / runs] ? &(*bases[task / runs])[r] : nullptr;
       run_ok[task] = runResiduals(fit_.runs[r], m.params, m.effects, outs[m.point] + offset_[r], base);
     });
     for (std::size_t k = 0; k < misses.size(); ++k) {
@@ -290,14 +293,20 @@ class ResidualEvaluator {
   };
 
   /// The fit runs replayed once without effects on `params` (the same at every point of a model
-  /// without free calibrated parameters), for a model of output-side distortions only.
-  void baseReplays(const CellParams& params) {
+  /// without free calibrated parameters), for a model of output-side distortions only; with
+  /// `early` the replays start as a height read early has them start (ReplayStart::kNotHeight).
+  const std::vector<Replay>* baseReplays(const CellParams& params, bool early) {
     std::lock_guard<std::mutex> lock(base_mutex_);
-    if (base_) return;
+    std::shared_ptr<const std::vector<Replay>>& base = early ? base_early_ : base_;
+    if (base) return base.get();
     auto replays = std::make_shared<std::vector<Replay>>(fit_.runs.size());
-    parallelFor(static_cast<int>(fit_.runs.size()), fit_.threads,
-                [&](int r) { (*replays)[r] = replayRun(*fit_.runs[r].data, params, {}, fit_.runs[r].max_substeps); });
-    base_ = replays;
+    const ReplayStart start = early ? ReplayStart::kNotHeight : ReplayStart::kReadings;
+    parallelFor(static_cast<int>(fit_.runs.size()), fit_.threads, [&](int r) {
+      (*replays)[r] =
+          replayRun(*fit_.runs[r].data, params, {}, fit_.runs[r].max_substeps, IntervalShape::kSpread, start);
+    });
+    base = replays;
+    return base.get();
   }
 
   bool recall(const std::vector<double>& u, double* out, char* ok) const {
@@ -315,7 +324,7 @@ class ResidualEvaluator {
   const ModelSpec& model_;
   std::vector<int> offset_;   ///< each run's first residual slot
   bool output_only_ = false;  ///< output-side channel distortions only: base_ transformed
-  std::shared_ptr<const std::vector<Replay>> base_;
+  std::shared_ptr<const std::vector<Replay>> base_, base_early_;
   std::mutex base_mutex_;
   mutable std::mutex mutex_;
   std::deque<Entry> entries_;

@@ -37,16 +37,21 @@ double initialPressure(const RunData& run) {
   return std::accumulate(p.begin(), p.end(), 0.0) / p.size();
 }
 
-/// The height to start a replay at rest from (NaN: start flat): the measured one above
-/// kLandedHeightM, or without height readings the structure's equilibrium at the first pressure
-/// (a spring-loaded chamber at a low resting pressure holds it a few mm up: not landed).
-double startHeight(const RunData& run, const CellStructure& structure, double load_n) {
-  const InitialHeight h0 = initialHeight(run);
-  if (h0.samples > 0) return h0.h_m > kLandedHeightM ? h0.h_m : NAN;
+/// The structure's equilibrium at the first pressure (NaN: start flat; a spring-loaded chamber
+/// at a low resting pressure holds it a few mm up: not landed).
+double startHeightFromPressure(const RunData& run, const CellStructure& structure, double load_n) {
   const double p0 = initialPressure(run);
   if (!(p0 > kRestingPressureMinPa)) return NAN;
   const StructureEquilibrium eq = structure.equilibriumAtPressure(p0, load_n);
   return eq.converged && eq.height_m > 0.0 ? eq.height_m : NAN;
+}
+
+/// The height to start a replay at rest from (NaN: start flat): the measured one above
+/// kLandedHeightM, or without height readings the pressure's (startHeightFromPressure()).
+double startHeight(const RunData& run, const CellStructure& structure, double load_n) {
+  const InitialHeight h0 = initialHeight(run);
+  if (h0.samples > 0) return h0.h_m > kLandedHeightM ? h0.h_m : NAN;
+  return startHeightFromPressure(run, structure, load_n);
 }
 /// Whether the finite samples of x in [begin, end) (at least 10) have a mean within 3 standard
 /// errors of zero.
@@ -203,7 +208,7 @@ void valveInputs(const RunData& run, std::size_t i, CellInputs* in) {
 namespace {
 
 Replay replayThroughModel(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                          long max_substeps, IntervalShape shape) {
+                          long max_substeps, IntervalShape shape, ReplayStart start) {
   Replay out;
   out.phases = classifyPhases(run);
   const std::size_t n = run.size();
@@ -229,7 +234,8 @@ Replay replayThroughModel(const RunData& run, const CellParams& params, const st
     // At rest at the first measured height (or, without height readings, at the first measured
     // pressure), with the measured gas temperature if there is one.
     const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
-    const double h_start = startHeight(run, model.structure(), load0);
+    const double h_start = start == ReplayStart::kNotHeight ? startHeightFromPressure(run, model.structure(), load0)
+                                                            : startHeight(run, model.structure(), load0);
     if (std::isfinite(h_start)) model.resetToEquilibrium(h_start, load0, t_gas0);
     else model.reset(load0);
     // Model time starts at the run's first sample.
@@ -278,6 +284,12 @@ Replay replayThroughModel(const RunData& run, const CellParams& params, const st
 
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
                  long max_substeps, IntervalShape shape) {
+  return replayRun(run, params, effects, max_substeps, shape,
+                   readsHeightEarly(effects) ? ReplayStart::kNotHeight : ReplayStart::kReadings);
+}
+
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps, IntervalShape shape, ReplayStart start) {
   // Channel distortions (distortions.h) act on the inputs before and on the readings after the
   // model; in the model they add nothing.
   const bool inputs = std::any_of(effects.begin(), effects.end(), [](const CellEffectPtr& e) {
@@ -286,7 +298,7 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
   });
   RunData corrected;
   if (inputs) applyInputDistortions(effects, &(corrected = run));
-  Replay out = replayThroughModel(inputs ? corrected : run, params, effects, max_substeps, shape);
+  Replay out = replayThroughModel(inputs ? corrected : run, params, effects, max_substeps, shape, start);
   applyOutputDistortions(effects, run.t_s, &out.p_gauge_pa, &out.h_m);
   return out;
 }

@@ -13,6 +13,7 @@
 #include "nursing_bed/core/gap/discovery_terms.h"
 #include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/effects.h"
+#include "nursing_bed/core/gap/identifiability.h"
 
 namespace nursing_bed {
 namespace {
@@ -133,6 +134,27 @@ Json candidatesJson(const std::vector<CandidateFit>& candidates) {
 
 }  // namespace
 
+Json confusionsJson(const std::vector<Confusion>& confusions) {
+  Json j = Json::array();
+  for (const auto& c : confusions) {
+    Json e = {{"explanations", {c.a, c.b}},
+              {"rival_params", numbers(c.b_params)},
+              {"bic_delta", {number(c.bic_a), number(c.bic_b)}},
+              {"withheld_chi2", {number(c.withheld_chi2_a), number(c.withheld_chi2_b)}},
+              {"correlation", number(c.correlation)},
+              {"fit_separation_chi2", number(c.fit_separation_chi2)},
+              {"proposed_run", nullptr}};
+    if (c.proposed)
+      e["proposed_run"] = {{"load_n", c.load_n},
+                           {"flow", c.flow},
+                           {"rise_scale", c.rise_scale},
+                           {"separation_chi2", number(c.separation_chi2)},
+                           {"gap_synth_add_run", gap::addRunArgument(c)}};
+    j.push_back(e);
+  }
+  return j;
+}
+
 std::string reportJson(const DiagnosisReport& r) {
   Json j;
   j["format"] = "nursing_bed_gap_report/1";
@@ -147,6 +169,7 @@ std::string reportJson(const DiagnosisReport& r) {
                   {"params", numbers(r.verdict_params)},
                   {"status", r.status},
                   {"discovered", r.discovered}};
+  j["identifiability"] = confusionsJson(r.confusions);
   j["shrinkage"] = {{"withheld_nrmse_before", number(r.withheld_before)},
                     {"withheld_nrmse_after", number(r.withheld_after)},
                     {"by_signal",
@@ -197,6 +220,22 @@ void calibrationSection(std::ostream& m, const DiagnosisReport& r) {
   for (const auto& note : c.notes) m << "- " << note << "\n";
   m << "- The calibrated model alone: withheld nrmse " << general(c.withheld_nrmse) << " (nominal "
     << general(r.withheld_before) << ").\n\n";
+}
+
+/// report.md: what the runs cannot tell from the verdict, and the run that would.
+void identifiabilitySection(std::ostream& m, const DiagnosisReport& r) {
+  if (r.confusions.empty()) return;
+  m << "## What these runs cannot tell apart\n\n"
+    << "Explanations within a few BIC of the verdict's on the fit runs that the withheld runs do not decide "
+       "either, and the gap synth run on which the two, each replayed, differ most:\n\n"
+    << "| verdict | rival | BIC (fit runs) | correlation | proposed run | chi2 apart there (here) |\n"
+       "|---|---|---|---|---|---|\n";
+  for (const auto& c : r.confusions)
+    m << "| " << c.a << " | " << c.b << " (" << paramsText(c.b_params) << ") | " << general(c.bic_a, 5) << " / "
+      << general(c.bic_b, 5) << " | " << fixed(c.correlation, 3) << " | "
+      << (c.proposed ? "`--add-run " + gap::addRunArgument(c) + "`" : std::string("none in the grid")) << " | "
+      << general(c.separation_chi2, 3) << " (" << general(c.fit_separation_chi2, 3) << ") |\n";
+  m << "\n";
 }
 
 /// report.md: the verdict and the reasons behind it, and the noise.
@@ -344,6 +383,7 @@ std::string reportMarkdown(const DiagnosisReport& r) {
   std::ostringstream m;
   headerSection(m, r);
   verdictSection(m, r);
+  identifiabilitySection(m, r);
   calibrationSection(m, r);
   whereSection(m, r);
   whichEffectSection(m, r);

@@ -118,21 +118,62 @@ SynthProtocol synthProtocol(const std::string& name, const CellParams& params) {
   } else {
     throw std::invalid_argument("unknown protocol '" + name + "' (known: standard, small)");
   }
-  const PillowStructure structure(params.structure);
   for (double load : loads) {
-    for (const auto& [flow, height] : {std::pair<std::string, double>{"low", kLowTargetHeightM},
-                                       std::pair<std::string, double>{"high", kHighTargetHeightM}}) {
-      SynthRunPlan r;
-      r.load_n = load;
-      r.flow = flow;
-      r.target_height_m = height;
-      r.inflow_mass_kg = massToReach(params, structure, height, load);
-      r.name = "load" + loadTag(load) + "N_" + flow + ".csv";
+    for (const std::string flow : {"low", "high"}) {
+      SynthRunPlan r = synthRunPlan(params, load, flow, 1.0);
       r.role = withheld.count({load, flow}) ? "withheld" : "fit";
       p.runs.push_back(r);
     }
   }
   return p;
+}
+
+SynthRunPlan synthRunPlan(const CellParams& params, double load_n, const std::string& flow, double rise_scale) {
+  if (!(load_n >= 0.1 && load_n <= 200.0))
+    throw std::invalid_argument("run load " + shortNumber(load_n) + " N outside 0.1-200 N");
+  if (flow != "low" && flow != "high") throw std::invalid_argument("run flow '" + flow + "' (known: low, high)");
+  if (!(rise_scale >= 0.25 && rise_scale <= 10.0))
+    throw std::invalid_argument("run rise_scale " + shortNumber(rise_scale) + " outside 0.25-10");
+  SynthRunPlan r;
+  r.load_n = load_n;
+  r.flow = flow;
+  r.rise_scale = rise_scale;
+  r.target_height_m = flow == "low" ? kLowTargetHeightM : kHighTargetHeightM;
+  r.inflow_mass_kg = massToReach(params, PillowStructure(params.structure), r.target_height_m, load_n);
+  r.name = "load" + loadTag(load_n) + "N_" + flow + (rise_scale == 1.0 ? "" : "_rise" + loadTag(rise_scale)) + ".csv";
+  r.role = "fit";
+  return r;
+}
+
+SynthRunPlan parseRunPlan(const std::string& text, const CellParams& params) {
+  std::map<std::string, std::string> fields;
+  std::stringstream items(text);
+  std::string item;
+  while (std::getline(items, item, ',')) {
+    const auto eq = item.find('=');
+    const std::string key = item.substr(0, eq);
+    if (eq == std::string::npos || (key != "load_n" && key != "flow" && key != "rise_scale" && key != "role"))
+      throw std::invalid_argument("run '" + text + "': '" + item +
+                                  "' is not one of load_n=N, flow=low|high, rise_scale=K, role=fit|withheld");
+    if (!fields.emplace(key, item.substr(eq + 1)).second)
+      throw std::invalid_argument("run '" + text + "': " + key + " given twice");
+  }
+  if (!fields.count("load_n") || !fields.count("flow"))
+    throw std::invalid_argument("run '" + text + "': load_n and flow are required");
+  auto number = [&](const std::string& key, double fallback) {
+    if (!fields.count(key)) return fallback;
+    double v = 0.0;
+    if (!parseFiniteNumber(fields.at(key), &v))
+      throw std::invalid_argument("run '" + text + "': " + key + " '" + fields.at(key) + "' is not a finite number");
+    return v;
+  };
+  SynthRunPlan r = synthRunPlan(params, number("load_n", 0.0), fields.at("flow"), number("rise_scale", 1.0));
+  if (fields.count("role")) {
+    r.role = fields.at("role");
+    if (r.role != "fit" && r.role != "withheld")
+      throw std::invalid_argument("run '" + text + "': role '" + r.role + "' (known: fit, withheld)");
+  }
+  return r;
 }
 
 SensorNoise SensorNoise::scaled(double factor) const {
@@ -158,11 +199,30 @@ double quantise(double x, double step) {
 
 namespace {
 
+/// The valve command a valve-driven run gives, as a step function (signed like valve_cmd: +
+/// inlet opening, - vent opening), each value in force from its start time on.
+struct ValveSchedule {
+  std::vector<double> start_s, value;
+
+  void add(double t, double v) {
+    if (value.empty() || value.back() != v) {
+      start_s.push_back(t);
+      value.push_back(v);
+    }
+  }
+  /// The command in force at time s (shut before the first).
+  double at(double s) const {
+    const auto k = std::upper_bound(start_s.begin(), start_s.end(), s) - start_s.begin();
+    return k == 0 ? 0.0 : value[static_cast<std::size_t>(k - 1)];
+  }
+};
+
 /// Advances `model` over one sample interval ending at `t` on the valve-driven protocol: the
 /// inlet open to the supply (by `opening`) until the bag holds `target_mass_kg`, closed for the
-/// hold, the vent valve open for the vent. Returns the mean valve command over the interval.
+/// hold, the vent valve open for the vent. Returns the mean valve command over the interval;
+/// `told` (if given) gets the command step by step.
 double advanceValveDriven(CellModel* model, const SynthProtocol& protocol, double t, double opening,
-                          double target_mass_kg, CellInputs* in) {
+                          double target_mass_kg, CellInputs* in, ValveSchedule* told) {
   const double hold_end = protocol.inflate_s + protocol.hold_s;
   in->prescribed_inflow = nullptr;
   in->inlet_opening = in->vent_opening = 0.0;
@@ -172,14 +232,47 @@ double advanceValveDriven(CellModel* model, const SynthProtocol& protocol, doubl
     while (t - model->time() > 1e-12) {  // 1 ms steps: the valve closes once the mass is in
       const double dt = std::min(1e-3, t - model->time());
       in->inlet_opening = model->state()[CellModel::kMass] < target_mass_kg ? opening : 0.0;
+      if (told) told->add(model->time(), in->inlet_opening);
       command += in->inlet_opening * dt;
       model->advance(dt, *in);
     }
     return command / (t - t0);
   }
   if (t > hold_end + 1e-9) in->vent_opening = 1.0;
+  if (told) told->add(t0, -in->vent_opening);
   model->advance(t - t0, *in);
   return -in->vent_opening;
+}
+
+/// The rig's valves acting on `told` through a planted valve_cmd distortion (the valve d late,
+/// or following with a first-order lag tau): the run's readings simulated again, in 1 ms steps,
+/// from the same start; the recorded command stays the one given.
+void simulateDistortedValves(CellModel* model, const ChannelDistortionEffect& d, const ValveSchedule& told,
+                             RunData* run) {
+  constexpr double kStepS = 1e-3;
+  CellInputs in;
+  in.load_n = run->load_n;
+  double lagged = 0.0;  // the lagging valve's opening
+  const double tau = d.kind() == "lag" ? d.value() : 0.0;
+  for (std::size_t i = 1; i < run->size(); ++i) {
+    while (run->t_s[i] - model->time() > 1e-12) {
+      const double dt = std::min(kStepS, run->t_s[i] - model->time());
+      const double mid = model->time() + 0.5 * dt;
+      double open = told.at(mid - (d.kind() == "shift" ? d.value() : 0.0));
+      if (tau > 0.0) {
+        // tau dy/dt = c - y with c constant over the step: y's mean over it, then its end value.
+        const double c = open, decay = std::exp(-dt / tau);
+        open = c + (lagged - c) * tau / dt * (1.0 - decay);
+        lagged = c + (lagged - c) * decay;
+      }
+      in.inlet_opening = std::max(0.0, open);
+      in.vent_opening = std::max(0.0, -open);
+      model->advance(dt, in);
+    }
+    const Readings m = model->measure();
+    run->p_gauge_pa[i] = m.gauge_pressure_pa;
+    run->h_m[i] = m.height_m;
+  }
 }
 
 /// The metadata of a synthetic run.
@@ -235,7 +328,8 @@ void distortRecording(const std::vector<CellEffectPtr>& effects, RunData* run) {
   for (const auto& e : effects) {
     const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get());
     if (!d || d->outputSide()) continue;
-    if (d->channel() == "inflow") distortSeries(d->kind(), d->value(), run->t_s, &run->mdot_in_kg_s);
+    if (d->channel() == "inflow") distortSeries(d->kind(), d->value(), run->t_s, &run->mdot_in_kg_s, 0.0);
+    if (d->channel() == "supply") distortSeries(d->kind(), d->value(), run->t_s, &run->p_supply_gauge_pa);
     if (d->channel() == "load") {
       std::vector<double> load{run->load_n};
       distortSeries(d->kind(), d->value(), {run->t_s.front()}, &load);
@@ -261,8 +355,11 @@ void addSensorNoise(const SensorNoise& noise, std::mt19937* rng, RunData* run) {
 }  // namespace
 
 RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                         const SynthProtocol& protocol, const SynthRunPlan& plan, const SensorNoise& noise,
+                         const SynthProtocol& standard_rise, const SynthRunPlan& plan, const SensorNoise& noise,
                          std::mt19937* rng, const std::string& airbag_name) {
+  SynthProtocol protocol = standard_rise;
+  protocol.inflate_s *= plan.rise_scale;
+  protocol.peak_s *= plan.rise_scale;
   CellParams p = params;
   // Metered: the vent's supply sits at 0 gauge at once. Valve-driven: the rig's regulator.
   if (!protocol.valve_driven) p.regulator_time_constant_s = 0.0;
@@ -270,7 +367,7 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
   for (const auto& e : effects) model.addEffect(e);
   model.reset(plan.load_n);
   const double target_mass = model.state()[CellModel::kMass] + plan.inflow_mass_kg;
-  const double opening = plan.flow == "low" ? 0.5 : 1.0;
+  const double opening = std::min(1.0, (plan.flow == "low" ? 0.5 : 1.0) / plan.rise_scale);
 
   const double hz = protocol.sample_hz;
   const TimeSeries inflow = paperShapedInflow(plan.inflow_mass_kg, protocol.peak_s, protocol.inflate_s, 1.0 / hz);
@@ -280,13 +377,19 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
   for (auto* v : {&run.t_s, &run.mdot_in_kg_s, &run.p_gauge_pa, &run.h_m, &run.valve_cmd})
     v->reserve(static_cast<std::size_t>(n_total + 1));
 
+  // A planted valve_cmd distortion: the rig's valves act on the command distorted (below).
+  const ChannelDistortionEffect* valve_distortion = nullptr;
+  for (const auto& e : effects)
+    if (const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get()); d && d->channel() == "valve_cmd")
+      valve_distortion = d;
+  ValveSchedule told;
   CellInputs in;
   in.load_n = plan.load_n;
   for (long i = 0; i <= n_total; ++i) {
     const double t = static_cast<double>(i) / hz;
     double command = 0.0;
     if (protocol.valve_driven)
-      command = i > 0 ? advanceValveDriven(&model, protocol, t, opening, target_mass, &in) : 0.0;
+      command = i > 0 ? advanceValveDriven(&model, protocol, t, opening, target_mass, &in, &told) : 0.0;
     else if (i > 0) command = advanceMetered(&model, protocol, t, inflow, &in);
     else command = 1.0;
     const Readings m = model.measure();
@@ -298,12 +401,16 @@ RunData simulateSynthRun(const CellParams& params, const std::vector<CellEffectP
     // the interval that ends here (doc/formats/run_data.md).
     run.valve_cmd.push_back(command);
   }
+  if (valve_distortion && valve_distortion->value() != 0.0) {
+    CellModel rig(p);
+    for (const auto& e : effects) rig.addEffect(e);
+    rig.reset(plan.load_n);
+    simulateDistortedValves(&rig, *valve_distortion, told, &run);
+  }
+  if (protocol.valve_driven) run.p_supply_gauge_pa.assign(run.size(), p.supply_pressure_pa);
   distortRecording(effects, &run);
   if (rng) addSensorNoise(noise, rng, &run);
-  if (protocol.valve_driven) {
-    run.mdot_in_kg_s.assign(run.size(), std::numeric_limits<double>::quiet_NaN());
-    run.p_supply_gauge_pa.assign(run.size(), p.supply_pressure_pa);
-  }
+  if (protocol.valve_driven) run.mdot_in_kg_s.assign(run.size(), std::numeric_limits<double>::quiet_NaN());
   return run;
 }
 
@@ -408,6 +515,7 @@ Json runsJson(const SynthProtocol& protocol) {
                  {"flow", r.flow},
                  {"target_height_m", r.target_height_m},
                  {"inflow_mass_kg", r.inflow_mass_kg},
+                 {"rise_scale", r.rise_scale},
                  {"role", r.role}});
   return j;
 }
@@ -458,10 +566,14 @@ std::vector<CellEffectPtr> synthDistortions(const std::vector<std::string>& text
   std::vector<CellEffectPtr> out;
   for (const auto& [effect, params] : planted) {
     const EffectSpec& spec = effectSpec(effect);
-    if (spec.channel == "valve_cmd" || spec.channel == "supply")
+    // A metered run records the flow, not the valves and their supply.
+    if ((spec.channel == "valve_cmd" || spec.channel == "supply") && !result->protocol.valve_driven)
       throw std::invalid_argument("gap synth: the " + spec.channel +
-                                  " channel cannot be planted (the protocols' runs are metered or keep their "
-                                  "valve record exact); plantable: pressure, height, inflow, load");
+                                  " channel is planted only on runs driven through the valves (--no-flow-meter)");
+    if (spec.channel == "inflow" && result->protocol.valve_driven)
+      throw std::invalid_argument(
+          "gap synth: the inflow channel is planted only on metered runs (not with "
+          "--no-flow-meter)");
     if (std::any_of(requests->begin(), requests->end(), [&](const SynthEffectRequest& r) { return r.name == effect; }))
       throw std::invalid_argument("gap synth: " + effect + " given both as --effect and as --distort");
     // The physical catalogue's members (pressure_sensor_lag, inflow_bias) are effects of the model.
@@ -508,6 +620,13 @@ SynthResult synthesizeDataset(const SynthOptions& o) {
   SynthResult result;
   const CellParams rig = rigAirbag(o.params, o.airbag_params);
   result.protocol = synthProtocol(o.protocol, rig);
+  for (const std::string& text : o.extra_runs) {
+    SynthRunPlan extra = parseRunPlan(text, rig);
+    for (const auto& r : result.protocol.runs)
+      if (r.name == extra.name)
+        throw std::invalid_argument("gap synth: run '" + text + "' is the protocol's " + r.name + " already");
+    result.protocol.runs.push_back(extra);
+  }
   result.protocol.valve_driven = !o.flow_meter;
   std::vector<CellEffectPtr> effects;
   std::vector<SynthEffectRequest> requests = o.effects;

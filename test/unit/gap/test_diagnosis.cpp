@@ -340,6 +340,24 @@ nb::DiagnosisReport handMadeReport() {
   r.verdict_effects = {"leak"};
   r.verdict_params = leak.params;
   r.reasons = {"leak lowers BIC by 812.5", "leaves chi2/n 1.03"};
+  nb::Confusion told;  // told apart by a proposed run
+  told.a = "leak";
+  told.b = "heat_transfer";
+  told.b_params = heat.params;
+  told.bic_a = -812.5;
+  told.bic_b = -806.0;
+  told.correlation = 0.98;
+  told.fit_separation_chi2 = 6.5;
+  told.proposed = true;
+  told.load_n = 40.0;
+  told.flow = "high";
+  told.rise_scale = 3.0;
+  told.separation_chi2 = 2400.0;
+  nb::Confusion untold = told;  // nothing withheld, no run of the grid tells them apart
+  untold.b = "film_stiffness_scale";
+  untold.b_params = {{"film_stiffness_scale", 1.1}};
+  untold.proposed = false;
+  r.confusions = {told, untold};
   r.withheld_before = 0.071;
   r.withheld_after = 0.009;
   r.withheld_p_before = 0.08;
@@ -357,7 +375,8 @@ d = json.loads(text)
 def keys(obj, expected, where):
     assert isinstance(obj, dict), where + ": not an object"
     assert set(obj) == set(expected), where + ": keys " + repr(sorted(obj)) + " != " + repr(sorted(expected))
-keys(d, ["format", "dataset", "runs", "noise", "localization", "events", "candidates", "verdict", "shrinkage"], "top level")
+keys(d, ["format", "dataset", "runs", "noise", "localization", "events", "candidates", "verdict", "identifiability",
+         "shrinkage"], "top level")
 assert isinstance(d["events"], list)
 assert d["format"] == "nursing_bed_gap_report/1", d["format"]
 assert d["dataset"] == 'rig "B" \\ 2024', repr(d["dataset"])
@@ -380,6 +399,15 @@ assert c1["withheld_nrmse"] is None, "NaN withheld_nrmse not written as null: %r
 keys(d["verdict"], ["effects", "params", "status", "discovered"], "verdict")
 assert d["verdict"] == {"effects": ["leak"], "params": {"leak_area_m2": 1.1e-8}, "status": "explained",
                         "discovered": []}, d["verdict"]
+assert len(d["identifiability"]) == 2
+for i, c in enumerate(d["identifiability"]):
+    keys(c, ["explanations", "rival_params", "bic_delta", "withheld_chi2", "correlation", "fit_separation_chi2",
+             "proposed_run"], "identifiability[%d]" % i)
+told, untold = d["identifiability"]
+assert told["explanations"] == ["leak", "heat_transfer"] and told["withheld_chi2"] == [None, None], told
+keys(told["proposed_run"], ["load_n", "flow", "rise_scale", "separation_chi2", "gap_synth_add_run"], "proposed_run")
+assert told["proposed_run"]["gap_synth_add_run"] == "load_n=40,flow=high,rise_scale=3", told
+assert untold["proposed_run"] is None and untold["rival_params"] == {"film_stiffness_scale": 1.1}, untold
 keys(d["shrinkage"], ["withheld_nrmse_before", "withheld_nrmse_after", "by_signal"], "shrinkage")
 s = d["shrinkage"]
 assert s["withheld_nrmse_before"] == 0.071 and s["withheld_nrmse_after"] == 0.009, s
@@ -573,7 +601,10 @@ TEST(GapDiagnoseReport, MarkdownNamesTheVerdictAndHasTheThreeSections) {
   std::istringstream lines(md);
   for (std::string line; std::getline(lines, line);)
     if (line.rfind("#", 0) == 0) headings.push_back(line);
-  for (const std::string word : {"Where", "Which effect", "shrinks"}) {
+  // What the runs cannot tell apart: the rival and the gap synth run that would.
+  EXPECT_NE(md.find("--add-run load_n=40,flow=high,rise_scale=3"), std::string::npos) << md;
+  EXPECT_NE(md.find("none in the grid"), std::string::npos) << md;
+  for (const std::string word : {"Where", "Which effect", "shrinks", "cannot tell apart"}) {
     bool found = false;
     for (const auto& h : headings) found = found || h.find(word) != std::string::npos;
     EXPECT_TRUE(found) << "no heading with '" << word << "' in:\n" << md;

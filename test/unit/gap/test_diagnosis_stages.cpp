@@ -210,6 +210,20 @@ TEST(DiagnosisStages, PairsAreTheBestSingleWithEveryOtherAndThePoolsPairs) {
   EXPECT_EQ(gs::pairsToFit(fits, {4, 1}, 3, 1000, 1.1), Pairs{}) << "one ok single: nothing to pair";
 }
 
+TEST(DiagnosisStages, WhereTheBestSinglesAreDistortionsTheBestPhysicalEffectJoinsThePool) {
+  // A load offset imitates a plate's friction alone; the friction's partner (viscoelasticity)
+  // is reached only from the friction.
+  const std::vector<gs::ModelFit> fits = {
+      rankedFit({"load_offset"}, 1000.0),               // 0: the best
+      rankedFit({"plate_friction"}, 1100.0),            // 1: the best physical effect
+      rankedFit({"membrane_viscoelasticity"}, 5000.0),  // 2
+  };
+  using Pairs = std::vector<std::pair<int, int>>;
+  EXPECT_EQ(gs::pairsToFit(fits, {0, 1, 2}, 1, 100, 1.1), (Pairs{{0, 1}, {0, 2}, {1, 2}}));
+  // A physical effect the best: the pool as it is.
+  EXPECT_EQ(gs::pairsToFit(fits, {1, 0, 2}, 1, 100, 1.1), (Pairs{{1, 0}, {1, 2}}));
+}
+
 TEST(DiagnosisStages, MedianAndFmt) {
   EXPECT_DOUBLE_EQ(gs::median({3.0, 1.0, 2.0}), 2.0);
   EXPECT_DOUBLE_EQ(gs::median({4.0, 1.0, 2.0, 3.0}), 2.5);

@@ -52,6 +52,22 @@ TEST(ChannelDistortion, ShiftReadsTheTruthLateOrEarlyAndHoldsTheEnds) {
   expectNear(distorted("shift", -1.0, {0.0, 2.0, 4.0, 6.0}), {2.0, 4.0, 6.0, 6.0});
 }
 
+TEST(ChannelDistortion, AShiftReadsOverAReplaysMissingTailAndFromRestBeforeTheRecord) {
+  // A replay's samples after its plate landed are NaN: read early, the last finite one is held.
+  std::vector<double> tail{0.0, 2.0, 4.0, NAN};
+  nb::distortSeries("shift", -1.0, kT, &tail);
+  EXPECT_DOUBLE_EQ(tail[1], 4.0);
+  EXPECT_DOUBLE_EQ(tail[2], 4.0);
+  EXPECT_TRUE(std::isnan(tail[3]));
+  // A series at rest (0) before its record: 2 s late, the first two seconds ramp up from rest.
+  std::vector<double> x{4.0, 4.0, 4.0, 4.0};
+  nb::distortSeries("shift", 2.0, kT, &x, 0.0);
+  expectNear(x, {0.0, 2.0, 4.0, 4.0});
+  std::vector<double> y{4.0, 4.0, 4.0, 4.0};
+  nb::undistortSeries("shift", -2.0, kT, &y, 0.0);  // a meter 2 s early, undone
+  expectNear(y, {0.0, 2.0, 4.0, 4.0});
+}
+
 TEST(ChannelDistortion, LagIsTheExactFirstOrderResponseToALinearlyInterpolatedInput) {
   // A ramp 0 -> 1 over the first second, then 1: tau = 1 s.
   const double a = std::exp(-1.0);
@@ -174,6 +190,21 @@ TEST(ChannelDistortion, ReplayAppliesOutputAndInputDistortions) {
   for (std::size_t i = 0; i < run.size(); i += 50) EXPECT_EQ(corrected.p_gauge_pa[i], direct.p_gauge_pa[i]);
 }
 
+TEST(ChannelDistortion, AHeightReadEarlyDoesNotGiveTheReplayItsStart) {
+  const nb::SynthResult clean = nb::synthesizeDataset(exactSmall("early_start"));
+  const nb::RunData& run = clean.runs[0];
+  nb::RunData lifted = run;  // its first readings 20 mm up, as a sensor early through a fast lift
+  for (std::size_t i = 0; i < lifted.size() && lifted.t_s[i] <= nb::kInitialRestS; ++i) lifted.h_m[i] = 0.02;
+  const nb::CellParams params;
+  for (const double d : {-0.1, 0.1}) {
+    const std::vector<nb::CellEffectPtr> shift{nb::makeEffect("height_shift", {{"height_shift_s", d}})};
+    const nb::Replay a = nb::replayRun(run, params, shift), b = nb::replayRun(lifted, params, shift);
+    const std::size_t i = run.size() / 2;
+    if (d < 0.0) EXPECT_DOUBLE_EQ(a.h_m[i], b.h_m[i]) << "read early: the start from the pressure";
+    else EXPECT_GT(std::fabs(a.h_m[i] - b.h_m[i]), 1e-3) << "read late: the start from the height";
+  }
+}
+
 TEST(ChannelDistortion, SynthPlantsDistortionsOnTheTrueReadings) {
   const nb::SynthResult clean = nb::synthesizeDataset(exactSmall("clean"));
   nb::SynthOptions o = exactSmall("planted");
@@ -190,11 +221,47 @@ TEST(ChannelDistortion, SynthPlantsDistortionsOnTheTrueReadings) {
   EXPECT_NE(nb::test::slurp(fs::path(o.out_dir) / "truth.json").find("\"channel\": \"height\""), std::string::npos);
 }
 
+TEST(ChannelDistortion, SynthPlantsTheValvesDistortionsOnValveDrivenRuns) {
+  nb::SynthOptions o = exactSmall("valves_clean");
+  o.flow_meter = false;
+  const nb::SynthResult clean = nb::synthesizeDataset(o);
+  const nb::CellParams params;
+  for (const char* planted : {"valve_cmd:shift=0.1", "valve_cmd:lag=0.1", "supply:gain=0.08"}) {
+    nb::SynthOptions d = exactSmall("valves_planted");
+    d.flow_meter = false;
+    d.distortions = {planted};
+    const nb::SynthResult r = nb::synthesizeDataset(d);
+    ASSERT_EQ(r.distortion_names.size(), 1u) << planted;
+    const nb::RunData& run = r.runs[1];
+    const std::string effect = r.distortion_names[0];
+    const double value = r.distortion_params[0].begin()->second;
+    // The recorded command is the one given; what the readings follow is the distorted one.
+    EXPECT_EQ(run.valve_cmd, clean.runs[1].valve_cmd) << planted;
+    // The replay with the planted distortion reproduces the readings; the nominal one does not.
+    const nb::Replay nominal = nb::replayRun(run, params, {});
+    const nb::Replay given = nb::replayRun(run, params, {nb::makeEffect(effect, r.distortion_params[0])});
+    double off_nominal = 0.0, off_given = 0.0;
+    for (std::size_t i = 0; i < run.size(); ++i)
+      if (std::isfinite(nominal.h_m[i]) && std::isfinite(given.h_m[i])) {
+        off_nominal = std::max(off_nominal, std::fabs(nominal.h_m[i] - run.h_m[i]));
+        off_given = std::max(off_given, std::fabs(given.h_m[i] - run.h_m[i]));
+      }
+    EXPECT_GT(off_nominal, 1e-3) << planted << " " << value;
+    EXPECT_LT(off_given, 0.25 * off_nominal) << planted << " " << value;
+  }
+}
+
 TEST(ChannelDistortion, SynthRefusesWhatItCannotPlantAndWritesNothing) {
   nb::SynthOptions o = exactSmall("refused");
   fs::remove_all(o.out_dir);
-  o.distortions = {"valve_cmd:shift=0.04"};
+  o.distortions = {"valve_cmd:shift=0.04"};  // a metered run has no valve record to distort
   EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  o.distortions = {"supply:gain=0.05"};
+  EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  o.flow_meter = false;  // ... and a valve-driven one no flow meter
+  o.distortions = {"inflow:shift=0.04"};
+  EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  o.flow_meter = true;
   o.distortions = {"height:gain=0.01", "height:gain=0.02"};
   EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
   o.distortions = {"pressure:lag=0.1"};

@@ -80,6 +80,9 @@ struct DiagnosisOptions {
   /// differences below 10 are not "very strong" evidence): the withheld runs, which no fit has
   /// seen, decide between them when one lowers their chi2 by min_withheld_gain more.
   double near_tie_bic = 10.0;
+  /// Name the explanations within near_tie_bic of the verdict's that no run here tells from it,
+  /// and propose the gap synth run that would (identifiability.h).
+  bool propose_runs = true;
   /// Fitted parameters may lie this factor outside their plausible range (log-scale ones; linear
   /// ones this many range widths) before the fit is called implausible.
   double plausible_slack = 3.0;
@@ -147,6 +150,21 @@ struct RunTrace {
   std::vector<RunPhase> phases;
 };
 
+/// Two explanations the runs cannot tell apart, and the run that would (identifiability.h).
+struct Confusion {
+  std::string a, b;  ///< the winner and its rival (effects joined by '+', or a calibrated parameter)
+  std::map<std::string, double> b_params;               ///< the rival's fitted (or least-squares) parameters
+  double bic_a = NAN, bic_b = NAN;                      ///< fit runs, against the baseline model
+  double withheld_chi2_a = NAN, withheld_chi2_b = NAN;  ///< whitened, summed (NaN: nothing withheld)
+  double correlation = NAN;                             ///< of their whitened changes to the fit residuals
+  double fit_separation_chi2 = NAN;                     ///< their replays' difference on the fit runs, in noise floors
+  bool proposed = false;                                ///< a run of the grid separates them
+  double load_n = NAN;                                  ///< the proposed run (SynthRunPlan)
+  std::string flow;
+  double rise_scale = 1.0;
+  double separation_chi2 = NAN;  ///< their replays' difference on it, in noise floors
+};
+
 // size: a plain record of every figure and table the diagnosis reports
 struct DiagnosisReport {
   std::string dataset;
@@ -173,6 +191,9 @@ struct DiagnosisReport {
   /// Status "discovered": each term as an equation in units with its stability
   /// ("plate force: −420 N·s²/m² · |v|v, stable in 19 of 20 resamples").
   std::vector<std::string> discovered;
+  /// Explanations within a few BIC of the verdict's that no run here tells from it, each with the
+  /// run that would.
+  std::vector<Confusion> confusions;
   std::vector<std::string> reasons;  ///< the decision in words, one line each
   // Shrinkage on the withheld runs: nominal vs verdict model (equal when nothing is named).
   double withheld_before = 0.0, withheld_after = 0.0;

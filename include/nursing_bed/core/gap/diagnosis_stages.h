@@ -98,7 +98,8 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
                                     const std::vector<ModelFit>& fitted_singles = {});
 
 /// The pairs fitCandidates() fits, as indices into `fits` (singles; `order` ranks them, best
-/// first): each of the `pool` best ok singles with every ok single ranked below it (forward
+/// first): each of the `pool` best ok singles (and the best physical effect, where those are all
+/// channel distortions) with every ok single ranked below it (forward
 /// selection: a second effect whose signature the first one hides ranks low alone, as a
 /// pressure sensor lag does beside a flow meter's bias; a pair of two poor singles is not
 /// tried: its replays are the slowest and it rarely fits). None when the best already fits

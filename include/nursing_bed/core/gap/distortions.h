@@ -7,6 +7,7 @@
 // (the pressure's lag) and inflow_bias (the inflow's gain and offset). doc/gap_effects.md.
 #pragma once
 
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -57,11 +58,16 @@ std::string describeDistortion(const std::string& effect_name, const std::map<st
 ///   gain: (1 + g) x;  offset: x + b;  drift: x + r (t - t0);  shift: x(t - d) (d > 0: late,
 ///   linear interpolation, the end values held beyond the ends);  lag: tau dy/dt = x - y, y(t0) =
 ///   x(t0), exact for x linear between samples.
-void distortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x);
+/// `at_rest` (finite): the series' value before its record, for a shift: what a run that starts
+/// at rest had (an inflow, a valve command: 0), the value |d| before the first sample; the
+/// unrecorded stretch between them linear.
+void distortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x,
+                   double at_rest = NAN);
 /// The true series from a distorted one: the inverse of distortSeries() for gain, offset, drift
 /// and shift (a lag's inverse would differentiate the noise: throws std::invalid_argument).
 /// Exact zeros are kept for gain and drift (a closed inlet's zeroed flow passes no gas).
-void undistortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x);
+void undistortSeries(const std::string& kind, double value, const std::vector<double>& t, std::vector<double>* x,
+                     double at_rest = NAN);
 
 /// A channel distortion as a CellEffect: it adds nothing to the model and has no state; the
 /// replay applies it to the run's inputs before (applyInputDistortions) or to the simulated
@@ -87,6 +93,9 @@ class ChannelDistortionEffect : public CellEffect {
 /// True when `effects` is not empty and every one is an output-side channel distortion (a replay
 /// with them is the replay without them, its readings transformed).
 bool onlyOutputDistortions(const std::vector<CellEffectPtr>& effects);
+/// Whether `effects` read the height early (a height shift below 0): its first readings then
+/// show the plate after the run's start.
+bool readsHeightEarly(const std::vector<CellEffectPtr>& effects);
 /// The run's inputs as the model should see them under `effects`' input-side distortions
 /// (inflow, supply and load corrected, the valve command distorted); false when there are none
 /// (the run is left as it is).

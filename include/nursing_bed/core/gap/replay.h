@@ -58,6 +58,11 @@ InitialHeight initialHeight(const RunData& run);
 /// end, at the flow (or the vent's full opening) that gives the same gas.
 enum class IntervalShape { kSpread, kPulseAtStart, kPulseAtEnd };
 
+/// Which readings give a replay its start. kReadings: the height's, else the pressure's
+/// (replayRun()). kNotHeight: the pressure's alone, for a height sensor that reads early (a
+/// negative height shift, distortions.h): its first readings show the plate after the start.
+enum class ReplayStart { kReadings, kNotHeight };
+
 /**
  * Replays `run` through a cell with `params` and `effects`: the measured inflow is the input
  * (the paper's way), the load follows the run's load (column or constant), and the cell starts
@@ -68,9 +73,14 @@ enum class IntervalShape { kSpread, kPulseAtStart, kPulseAtEnd };
  * vent (kLanded) are not simulated: NaN. `max_substeps` bounds the integration's cost (0: 50
  * sub-steps per default step on average): a replay that needs more accepted sub-steps fails
  * ("too stiff"), as a fit may wander into parameters that make the model needlessly stiff.
+ * With a height sensor read early among `effects`, the start is ReplayStart::kNotHeight's.
  */
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
                  long max_substeps = 0, IntervalShape shape = IntervalShape::kSpread);
+/// The same with the start given (the replay without effects that output-side distortions
+/// transform, fit_model.cpp).
+Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
+                 long max_substeps, IntervalShape shape, ReplayStart start);
 
 /// Noise of a measured signal: robust (median absolute deviation) estimate from second
 /// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.

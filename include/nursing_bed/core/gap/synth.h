@@ -35,6 +35,9 @@ struct SynthRunPlan {
   double target_height_m = 0.0;  ///< height the injected gas holds at rest at ambient temperature
   double inflow_mass_kg = 0.0;   ///< mass the paper-shaped inflow carries
   std::string role;              ///< "fit" or "withheld"
+  /// The rise takes this many times the protocol's inflate_s (and peak_s); driven through the
+  /// valves, the inlet opens this many times less.
+  double rise_scale = 1.0;
 };
 
 /// Timing of a protocol and its runs.
@@ -61,6 +64,16 @@ struct SynthProtocol {
  * std::invalid_argument for another name.
  */
 SynthProtocol synthProtocol(const std::string& name, const CellParams& params);
+
+/// One run: `load_n` with the gas that holds the cell at the flow's height at rest ("low"
+/// ~110 mm, "high" ~145 mm), the rise `rise_scale` times as long, role "fit"; named
+/// load<L>N_<flow>[_rise<k>].csv. Throws std::invalid_argument naming a load outside 0.1-200 N,
+/// an unknown flow, a rise_scale outside 0.25-10, or a load no equilibrium holds.
+SynthRunPlan synthRunPlan(const CellParams& params, double load_n, const std::string& flow, double rise_scale);
+
+/// A run from "load_n=L,flow=low|high[,rise_scale=k][,role=fit|withheld]" (gap synth
+/// --add-run; identifiability.h proposes them). Throws std::invalid_argument naming what is wrong.
+SynthRunPlan parseRunPlan(const std::string& text, const CellParams& params);
 
 /// Sensor noise: Gaussian with these standard deviations, then quantisation to these steps.
 struct SensorNoise {
@@ -104,6 +117,8 @@ struct SynthOptions {
   std::map<std::string, double> airbag_params;
   bool flow_meter = true;     ///< false: valve-driven runs without mdot_in_kg_s (SynthProtocol::valve_driven)
   bool height_sensor = true;  ///< false: h_m left out (pressure sensors only)
+  /// Runs added to the protocol's (parseRunPlan(): "load_n=36,flow=high,rise_scale=3").
+  std::vector<std::string> extra_runs;
   std::string airbag_name = "tpu_double_100";              ///< written to the runs' metadata
   std::string airbag_file = "airbag_tpu_double_100.yaml";  ///< written to dataset.yaml
   std::ostream* progress = nullptr;                        ///< one line per run when set
@@ -131,7 +146,8 @@ void resolveSynthEffects(const std::vector<SynthEffectRequest>& requests, std::u
 /// catalogue's members (pressure:lag, inflow:gain/offset) appended to `requests` as effects, the
 /// others returned (ChannelDistortionEffect) and recorded in `result`. Throws
 /// std::invalid_argument naming a bad spec, a distortion planted twice or given as an effect
-/// too, or a channel gap synth cannot plant (valve_cmd, supply).
+/// too, or a channel the runs do not have (valve_cmd and supply only on valve-driven runs,
+/// inflow only on metered ones).
 std::vector<CellEffectPtr> synthDistortions(const std::vector<std::string>& texts,
                                             std::vector<SynthEffectRequest>* requests, SynthResult* result);
 /// Effects from a list "NAME[:param=value,...][;NAME...]" (empty: none), parameters not given

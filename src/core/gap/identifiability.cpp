@@ -1,0 +1,370 @@
+#include "nursing_bed/core/gap/identifiability.h"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <random>
+#include <sstream>
+
+#include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/fit_model.h"
+#include "nursing_bed/core/gap/noise_model.h"
+#include "nursing_bed/core/gap/replay.h"
+
+namespace nursing_bed {
+namespace gap {
+namespace {
+
+constexpr std::size_t kMaxConfusions = 3;
+// A calibration parameter's sensitivity: its move over this share of its prior range.
+constexpr double kSensitivityStep = 0.02;
+
+/// Whitened fit residuals of `cell` with `effects` (residualCount() values); empty when a replay
+/// failed.
+std::vector<double> residuals(const FitData& fit, const CellParams& cell, const std::vector<CellEffectPtr>& effects) {
+  std::vector<double> r(fit.residualCount());
+  if (!fitResiduals(fit, cell, effects, r.data())) return {};
+  return r;
+}
+
+double heldChi2(const NoiseModel& noise, const CellParams& held_cell, const std::vector<CellEffectPtr>& effects) {
+  if (noise.heldResidualCount() == 0) return NAN;
+  std::vector<double> r(noise.held.residualCount());
+  fitResiduals(noise.held, held_cell, effects, r.data());
+  return sumSquares(r);
+}
+
+/// `e` scored: chi2, BIC against the baseline with `extra` parameters, withheld chi2, and its
+/// change of the fit residuals from `base`. False when a replay failed.
+bool score(const NoiseModel& noise, const std::vector<double>& base, int extra, Explanation* e,
+           const CellParams& held_cell) {
+  const std::vector<double> r = residuals(noise.fit, e->params, e->effects);
+  if (r.empty()) return false;
+  e->chi2 = sumSquares(r);
+  e->bic_delta = (e->chi2 - noise.baseline_chi2) + extra * std::log(static_cast<double>(noise.fitResidualCount()));
+  e->held_chi2 = heldChi2(noise, held_cell, e->effects);
+  e->change.resize(r.size());
+  for (std::size_t i = 0; i < r.size(); ++i) e->change[i] = r[i] - base[i];
+  return true;
+}
+
+double correlation(const std::vector<double>& a, const std::vector<double>& b) {
+  double ab = 0.0, aa = 0.0, bb = 0.0;
+  for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) {
+    ab += a[i] * b[i];
+    aa += a[i] * a[i];
+    bb += b[i] * b[i];
+  }
+  return aa > 0.0 && bb > 0.0 ? ab / std::sqrt(aa * bb) : 0.0;
+}
+
+double distance2(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0.0;
+  for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) d += (a[i] - b[i]) * (a[i] - b[i]);
+  return d;
+}
+
+/// Whether `rival` is one the runs do not tell from `winner`: within near_tie_bic on the fit
+/// runs, and the withheld runs (where there are any) within min_withheld_gain of each other.
+bool undecided(const Explanation& winner, const Explanation& rival, const DiagnosisOptions& options) {
+  if (!(std::fabs(rival.bic_delta - winner.bic_delta) < options.near_tie_bic)) return false;
+  if (std::isnan(winner.held_chi2) || std::isnan(rival.held_chi2)) return true;
+  return std::fabs(rival.held_chi2 - winner.held_chi2) < options.min_withheld_gain;
+}
+
+/// Calibration parameter `name` alone fitted on `cell` by Gauss-Newton (a few iterations, each a
+/// replay at the point and one a `step` away), within [lo, hi]; its value, and the chi2 there in
+/// `chi2` (infinite when no replay succeeds).
+double fitOneParameter(const FitData& fit, const CellParams& cell, const std::string& name, double step, double lo,
+                       double hi, double* chi2) {
+  constexpr int kIterations = 4;
+  double x = calibrationParam(name).get(cell), best = x;
+  *chi2 = INFINITY;
+  for (int k = 0; k < kIterations; ++k) {
+    const std::vector<double> r = residuals(fit, applyCalibration({{name, x}}, cell), {});
+    if (r.empty()) break;
+    if (sumSquares(r) < *chi2) *chi2 = sumSquares(r), best = x;
+    const std::vector<double> moved = residuals(fit, applyCalibration({{name, x + step}}, cell), {});
+    if (moved.empty()) break;
+    double ss = 0.0, sr = 0.0;
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      const double s = (moved[i] - r[i]) / step;
+      ss += s * s;
+      sr += s * r[i];
+    }
+    if (!(ss > 0.0)) break;
+    const double next = std::clamp(x - sr / ss, lo, hi);
+    if (std::fabs(next - x) < 1e-3 * step) break;
+    x = next;
+  }
+  return best;
+}
+
+/// Each calibration parameter not moved already, fitted alone on the baseline cell.
+std::vector<Explanation> calibrationRivals(const NoiseModel& noise, const CellParams& params,
+                                           const std::vector<std::string>& calibrated,
+                                           const std::vector<double>& base) {
+  std::vector<Explanation> out;
+  const CellParams cell = applyCalibration(noise.baseline_calibration, noise.fit.params);
+  const CellParams held_cell = applyCalibration(noise.baseline_calibration, noise.held.params);
+  for (const FitAxis& axis : calibrationAxes(calibrated, params)) {
+    const std::string& name = axis.spec.name;
+    if (noise.baseline_calibration.count(name)) continue;  // moved already: part of the baseline
+    const double step = kSensitivityStep * (axis.spec.hi - axis.spec.lo);
+    double chi2 = INFINITY;
+    const double value = fitOneParameter(noise.fit, cell, name, step, axis.spec.lo, axis.spec.hi, &chi2);
+    if (!std::isfinite(chi2)) continue;
+    Explanation e;
+    e.name = name;
+    e.params = applyCalibration({{name, value}}, cell);
+    e.moved.emplace_back(applyCalibration({{name, value + step}}, cell), std::vector<CellEffectPtr>{});
+    if (score(noise, base, 1, &e, applyCalibration({{name, value}}, held_cell))) out.push_back(std::move(e));
+  }
+  return out;
+}
+
+/// Columns of `e.fit_sensitivity`: the fit residuals' change along each of e.moved.
+void fitSensitivity(const NoiseModel& noise, Explanation* e) {
+  const std::vector<double> at = residuals(noise.fit, e->params, e->effects);
+  e->fit_sensitivity.setZero(static_cast<Eigen::Index>(at.size()), static_cast<Eigen::Index>(e->moved.size()));
+  if (at.empty()) return;
+  for (std::size_t j = 0; j < e->moved.size(); ++j) {
+    const std::vector<double> r = residuals(noise.fit, e->moved[j].first, e->moved[j].second);
+    for (std::size_t i = 0; i < r.size(); ++i) e->fit_sensitivity(i, j) = r[i] - at[i];
+  }
+}
+
+/// A candidate's effects with each effect parameter moved by a small step (a share of its
+/// plausible range; on a log scale, a factor), the other way where that step is not admitted.
+std::vector<std::pair<CellParams, std::vector<CellEffectPtr>>> movedEffects(const ScoredCandidate& c,
+                                                                            const CellParams& cell) {
+  std::vector<std::pair<CellParams, std::vector<CellEffectPtr>>> out;
+  for (const FitAxis& axis : c.second.axes) {
+    if (axis.calibration) continue;
+    const EffectParamSpec& p = axis.spec;
+    const double x = c.first.params.at(p.name);
+    for (const double sign : {1.0, -1.0}) {
+      std::map<std::string, double> values = c.first.params;
+      values[p.name] = p.log_scale ? x * std::exp(sign * 0.05) : x + sign * kSensitivityStep * (p.hi - p.lo);
+      try {
+        out.emplace_back(cell, buildEffects(c.second, values));
+        break;
+      } catch (const std::invalid_argument&) {
+        // outside what the effect admits: the step the other way
+      }
+    }
+  }
+  return out;
+}
+
+Explanation fromCandidate(const ScoredCandidate& c, const NoiseModel& noise, const std::vector<double>& base) {
+  Explanation e;
+  e.name = joinNames(c.first.effects);
+  e.params = applyCalibration(c.first.calibration, noise.fit.params);
+  e.effects = buildEffects(c.second, c.first.params);
+  score(noise, base, 0, &e, applyCalibration(c.first.calibration, noise.held.params));
+  e.bic_delta = c.first.bic_delta;  // the diagnosis's own figure (its parameter count)
+  e.moved = movedEffects(c, e.params);
+  return e;
+}
+
+/// The median supply gauge reading of the runs driven through the valves (the parameter file's
+/// supply without one): a proposed run reads what the dataset's gauge reads.
+double recordedSupply(const PreparedRuns& prepared, const CellParams& params) {
+  std::vector<double> readings;
+  for (const RunData& r : prepared.runs)
+    for (double p : r.p_supply_gauge_pa)
+      if (std::isfinite(p)) readings.push_back(p);
+  return readings.empty() ? params.supply_pressure_pa : median(readings);
+}
+
+bool containsAll(const std::vector<std::string>& outer, const std::vector<std::string>& inner) {
+  return std::all_of(inner.begin(), inner.end(),
+                     [&](const std::string& x) { return std::find(outer.begin(), outer.end(), x) != outer.end(); });
+}
+
+Confusion describe(const Explanation& a, const Explanation& b, const std::map<std::string, double>& b_params) {
+  Confusion c;
+  c.a = a.name;
+  c.b = b.name;
+  c.b_params = b_params;
+  c.bic_a = a.bic_delta;
+  c.bic_b = b.bic_delta;
+  c.withheld_chi2_a = a.held_chi2;
+  c.withheld_chi2_b = b.held_chi2;
+  c.correlation = correlation(a.change, b.change);
+  c.fit_separation_chi2 = distance2(a.change, b.change);
+  return c;
+}
+
+}  // namespace
+
+namespace {
+
+/// A proposed run as the diagnosis would take it in: simulated on the nominal cell with sensor
+/// noise at the dataset's floor (a fixed draw), then prepared for the fits like the dataset's
+/// runs (its noise floor and the flow meter's random walk in its whitening).
+struct ProposedRecording {
+  PreparedRuns prepared;
+  FitData fit;
+};
+
+void recordProposal(const SynthProtocol& protocol, const SynthRunPlan& plan, const CellParams& nominal,
+                    const NoiseModel& noise, const ProposalSetting& setting, ProposedRecording* out) {
+  std::mt19937 rng(0x5eed + static_cast<unsigned>(plan.load_n * 10.0));
+  const SensorNoise sensors = SensorNoise{}.scaled(setting.noise_p_pa / SensorNoise{}.pressure_sd_pa);
+  RunData run = simulateSynthRun(nominal, {}, protocol, plan, sensors, &rng, "proposed");
+  if (protocol.valve_driven) {
+    run.mdot_in_kg_s.assign(run.size(), NAN);
+    run.p_supply_gauge_pa.assign(run.size(), setting.supply_gauge_pa);
+  }
+  if (!setting.has_height) run.h_m.assign(run.size(), NAN);
+  run.role = "fit";
+  out->prepared = prepareRuns({std::move(run)});
+  out->fit.params = noise.fit.params;
+  out->fit.runs.push_back(prepareFitRun(out->prepared.runs[0], out->prepared.measured_flow[0], out->prepared.noises[0],
+                                        noise.fit.params, setting.fit_sample_hz));
+}
+
+/// x - y with a failed replay's slots as 0.
+Eigen::VectorXd difference(const std::vector<double>& x, const std::vector<double>& y) {
+  Eigen::VectorXd d = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(std::max(x.size(), y.size())));
+  if (x.size() != y.size()) return d;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (std::isfinite(x[i] - y[i])) d(static_cast<Eigen::Index>(i)) = x[i] - y[i];
+  return d;
+}
+
+/// The chi2 `b` leaves on `a`'s readings of the run once refitted (Gauss-Newton along b.moved,
+/// its move priced by b.fit_sensitivity on the fit runs); residuals whitened, `ra` and `rb`
+/// with every reading, so their difference is the readings'.
+double chi2AfterRefit(const std::vector<double>& ra, const std::vector<double>& rb,
+                      const std::vector<std::vector<double>>& rb_moved, const Explanation& b) {
+  const Eigen::VectorXd d = difference(ra, rb);
+  const Eigen::Index k = static_cast<Eigen::Index>(rb_moved.size());
+  if (k == 0) return d.squaredNorm();
+  Eigen::MatrixXd s(d.size(), k);
+  for (Eigen::Index j = 0; j < k; ++j) s.col(j) = difference(rb_moved[j], rb);
+  Eigen::MatrixXd normal = s.transpose() * s;
+  if (b.fit_sensitivity.cols() == k) normal += b.fit_sensitivity.transpose() * b.fit_sensitivity;
+  const Eigen::VectorXd step = normal.ldlt().solve(s.transpose() * d);
+  if (!step.allFinite()) return d.squaredNorm();
+  return std::max(0.0, d.squaredNorm() - d.dot(s * step));
+}
+
+}  // namespace
+
+ProposedExperiment proposeExperiment(const Explanation& a, const Explanation& b, const CellParams& nominal,
+                                     const NoiseModel& noise, const ProposalSetting& setting,
+                                     const ExperimentGrid& grid) {
+  SynthProtocol protocol = synthProtocol("standard", nominal);
+  protocol.valve_driven = setting.valve_driven;
+  std::vector<SynthRunPlan> plans;
+  for (double load : grid.loads_n)
+    for (const std::string& flow : grid.flows)
+      for (double rise : grid.rise_scales) {
+        try {
+          plans.push_back(synthRunPlan(nominal, load, flow, rise));
+        } catch (const std::invalid_argument&) {
+          // a load the nominal cell cannot hold at that height: not proposed
+        }
+      }
+  std::vector<double> separation(plans.size(), -1.0);
+  parallelFor(static_cast<int>(plans.size()), setting.threads, [&](int k) {
+    ProposedRecording rec;
+    try {
+      recordProposal(protocol, plans[k], nominal, noise, setting, &rec);
+    } catch (const std::invalid_argument&) {
+      return;  // the nominal cell does not replay it
+    }
+    const std::vector<double> ra = residuals(rec.fit, a.params, a.effects),
+                              rb = residuals(rec.fit, b.params, b.effects);
+    if (ra.empty() || rb.empty()) return;
+    std::vector<std::vector<double>> ra_moved, rb_moved;
+    for (const auto& m : a.moved) ra_moved.push_back(residuals(rec.fit, m.first, m.second));
+    for (const auto& m : b.moved) rb_moved.push_back(residuals(rec.fit, m.first, m.second));
+    separation[k] = std::min(chi2AfterRefit(ra, rb, rb_moved, b), chi2AfterRefit(rb, ra, ra_moved, a));
+  });
+  ProposedExperiment best;
+  best.separation_chi2 = -1.0;
+  for (std::size_t k = 0; k < plans.size(); ++k)
+    if (separation[k] > best.separation_chi2) best = {plans[k], separation[k]};
+  return best;
+}
+
+std::vector<Confusion> findConfusions(const std::vector<ScoredCandidate>& scored, int winner,
+                                      const PreparedRuns& prepared, const NoiseModel& noise, const CellParams& params,
+                                      const std::vector<std::string>& calibrated, const DiagnosisOptions& options,
+                                      double noise_p_pa, const ExperimentGrid& grid) {
+  std::vector<Confusion> out;
+  if (winner < 0) return out;
+  const std::vector<double> base =
+      residuals(noise.fit, applyCalibration(noise.baseline_calibration, noise.fit.params), {});
+  if (base.empty()) return out;
+  const Explanation w = fromCandidate(scored[winner], noise, base);
+  if (w.change.empty()) return out;
+  std::vector<std::pair<Explanation, std::map<std::string, double>>> rivals;
+  for (std::size_t i = 0; i < scored.size(); ++i) {
+    const CandidateFit& c = scored[i].first;
+    if (static_cast<int>(i) == winner || !c.ok || !c.plausible) continue;
+    if (containsAll(c.effects, scored[winner].first.effects)) continue;  // the winner and more
+    if (!(std::fabs(c.bic_delta - w.bic_delta) < options.near_tie_bic)) continue;
+    Explanation e = fromCandidate(scored[i], noise, base);
+    if (!e.change.empty() && undecided(w, e, options)) rivals.emplace_back(std::move(e), c.params);
+  }
+  for (Explanation& e : calibrationRivals(noise, params, calibrated, base)) {
+    if (!undecided(w, e, options)) continue;
+    std::map<std::string, double> value{{e.name, calibrationParam(e.name).get(e.params)}};
+    rivals.emplace_back(std::move(e), std::move(value));
+  }
+  std::sort(rivals.begin(), rivals.end(),
+            [](const auto& x, const auto& y) { return x.first.bic_delta < y.first.bic_delta; });
+  if (rivals.size() > kMaxConfusions) rivals.resize(kMaxConfusions);
+  ProposalSetting setting;
+  setting.valve_driven =
+      std::all_of(prepared.runs.begin(), prepared.runs.end(), [](const RunData& r) { return runIsValveDriven(r); });
+  setting.has_height = !std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
+  setting.noise_p_pa = noise_p_pa;
+  setting.supply_gauge_pa = recordedSupply(prepared, params);
+  setting.fit_sample_hz = options.fit_sample_hz;
+  setting.threads = options.threads;
+  Explanation winner_refit = w;
+  if (!rivals.empty()) fitSensitivity(noise, &winner_refit);
+  for (auto& [rival, rival_params] : rivals) {
+    fitSensitivity(noise, &rival);
+    Confusion c = describe(w, rival, rival_params);
+    const ProposedExperiment p = proposeExperiment(winner_refit, rival, params, noise, setting, grid);
+    c.proposed = p.separation_chi2 >= options.significant_bic_drop;
+    c.load_n = p.run.load_n;
+    c.flow = p.run.flow;
+    c.rise_scale = p.run.rise_scale;
+    c.separation_chi2 = p.separation_chi2;
+    out.push_back(c);
+  }
+  return out;
+}
+
+std::string addRunArgument(const Confusion& c) {
+  std::ostringstream s;
+  s << "load_n=" << c.load_n << ",flow=" << c.flow << ",rise_scale=" << c.rise_scale;
+  return s.str();
+}
+
+std::string describeConfusion(const Confusion& c) {
+  std::ostringstream s;
+  s << std::setprecision(4) << c.a << " and " << c.b << " fit alike (BIC " << c.bic_a << " and " << c.bic_b
+    << " on the fit runs";
+  if (std::isfinite(c.withheld_chi2_a))
+    s << "; chi2 " << c.withheld_chi2_a << " and " << c.withheld_chi2_b << " on the withheld runs";
+  s << std::setprecision(3) << "; their changes to the readings correlate " << c.correlation
+    << "): these runs cannot tell them apart. ";
+  if (!c.proposed) return s.str() + "No run of the proposal grid (loads, hold heights, rises) sets them apart.";
+  s << "A run at " << c.load_n << " N, " << c.flow << " flow" << (c.rise_scale != 1.0 ? ", the rise " : "");
+  if (c.rise_scale != 1.0) s << c.rise_scale << " times as long";
+  s << std::setprecision(2) << " would set them chi2 " << c.separation_chi2 << " apart (" << c.fit_separation_chi2
+    << " on these fit runs): gap synth --add-run " << addRunArgument(c);
+  return s.str();
+}
+
+}  // namespace gap
+}  // namespace nursing_bed

@@ -1,0 +1,133 @@
+// Identifiability and the next experiment: the run plans gap synth adds (--add-run), the
+// explanations one load cannot tell apart, and the proposed run that tells them apart.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "nursing_bed/core/gap/diagnosis.h"
+#include "nursing_bed/core/gap/identifiability.h"
+#include "nursing_bed/core/gap/synth.h"
+
+#include "../../test_helpers.h"
+
+namespace nb = nursing_bed;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path tmpDir(const std::string& name) { return nursing_bed::test::freshTestDir("gap_identify", name, false); }
+
+TEST(RunPlan, ParsesWhatGapSynthAddsAndRefusesTheRestNamingIt) {
+  const nb::CellParams params;
+  const nb::SynthRunPlan r = nb::parseRunPlan("load_n=36,flow=high,rise_scale=3", params);
+  EXPECT_DOUBLE_EQ(r.load_n, 36.0);
+  EXPECT_EQ(r.flow, "high");
+  EXPECT_DOUBLE_EQ(r.rise_scale, 3.0);
+  EXPECT_EQ(r.role, "fit");
+  EXPECT_EQ(r.name, "load36p0N_high_rise3p0.csv");
+  EXPECT_GT(r.inflow_mass_kg, 0.0);
+  EXPECT_EQ(nb::parseRunPlan("flow=low,load_n=5,role=withheld", params).role, "withheld");
+  for (const auto& [text, named] :
+       std::vector<std::pair<std::string, std::string>>{{"load_n=36", "load_n and flow are required"},
+                                                        {"load_n=36,flow=medium", "medium"},
+                                                        {"load_n=abc,flow=low", "abc"},
+                                                        {"load_n=1e9,flow=low", "outside"},
+                                                        {"load_n=5,flow=low,rise_scale=0", "rise_scale"},
+                                                        {"load_n=5,flow=low,speed=2", "speed=2"},
+                                                        {"load_n=5,load_n=6,flow=low", "twice"},
+                                                        {"load_n=5,flow=low,role=test", "role"}}) {
+    try {
+      nb::parseRunPlan(text, params);
+      ADD_FAILURE() << text << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(named), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(RunPlan, SynthAddsTheRunsAndRefusesOneThatIsThereAlready) {
+  nb::SynthOptions o;
+  o.protocol = "small";
+  o.noise_scale = 0.0;
+  o.out_dir = tmpDir("added").string();
+  o.extra_runs = {"load_n=25,flow=low,rise_scale=2"};
+  const nb::SynthResult r = nb::synthesizeDataset(o);
+  ASSERT_EQ(r.runs.size(), 5u);
+  EXPECT_EQ(r.runs.back().name, "load25p0N_low_rise2p0.csv");
+  EXPECT_EQ(r.runs.back().role, "fit");
+  // The rise twice as long: the run is the protocol's inflation time longer.
+  EXPECT_NEAR(r.runs.back().t_s.back() - r.runs.front().t_s.back(), r.protocol.inflate_s, 1e-9);
+  o.out_dir = tmpDir("refused").string();
+  fs::remove_all(o.out_dir);
+  o.extra_runs = {"load_n=15.6,flow=low"};
+  EXPECT_THROW(nb::synthesizeDataset(o), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(fs::path(o.out_dir) / "dataset.yaml"));
+}
+
+/// One run at 15.6 N, low flow, with a pressure gain of +5 % to fit, the same run of another
+/// seed withheld, and `extra` runs added to the fit runs: one load, where a recorded load that
+/// is too light reads like a pressure gauge that reads high.
+std::vector<nb::RunData> oneLoad(const std::vector<std::string>& extra) {
+  std::vector<nb::RunData> runs;
+  for (const std::uint32_t seed : {5u, 6u}) {
+    nb::SynthOptions o;
+    o.protocol = "small";
+    o.seed = seed;
+    o.distortions = {"pressure:gain=0.05"};
+    o.extra_runs = seed == 5u ? extra : std::vector<std::string>{};
+    o.out_dir = tmpDir("one_load_" + std::to_string(seed)).string();
+    nb::SynthResult r = nb::synthesizeDataset(o);
+    const std::size_t protocol_runs = r.runs.size() - o.extra_runs.size();
+    for (std::size_t k = 0; k < r.runs.size(); ++k) {
+      nb::RunData& run = r.runs[k];
+      if (k >= protocol_runs) runs.push_back(run);  // the added runs, fitted
+      if (run.name != "load15p6N_low.csv") continue;
+      run.role = seed == 5u ? "fit" : "withheld";
+      if (seed == 6u) run.name = "load15p6N_low_seed6.csv";
+      runs.push_back(run);
+    }
+  }
+  return runs;
+}
+
+nb::DiagnosisOptions gainsOnly() {
+  nb::DiagnosisOptions o;
+  o.candidates = {"pressure_gain", "load_gain"};
+  o.pair_pool = 0;
+  o.calibrate = false;
+  o.discover = false;
+  return o;
+}
+
+TEST(Identifiability, OneLoadCannotTellAPressureGainFromALoadGainAndTheProposedRunCan) {
+  const nb::CellParams params;
+  const nb::DiagnosisReport one = nb::diagnoseRuns(oneLoad({}), params, gainsOnly(), "one load");
+  ASSERT_EQ(one.status, "explained");
+  ASSERT_EQ(one.confusions.size(), 1u);
+  const nb::Confusion& c = one.confusions[0];
+  EXPECT_EQ(c.a, one.verdict_effects[0]);
+  EXPECT_EQ(c.a == "pressure_gain" ? c.b : c.a, "load_gain");
+  EXPECT_GT(c.correlation, 0.99);
+  EXPECT_LT(std::fabs(c.bic_a - c.bic_b), gainsOnly().near_tie_bic);
+  ASSERT_TRUE(c.proposed) << nb::gap::describeConfusion(c);
+  EXPECT_NE(c.load_n, 15.6);  // another load: the one they read alike at says nothing
+  EXPECT_GT(c.separation_chi2, 100.0 * c.fit_separation_chi2);
+  bool said = false;
+  for (const auto& line : one.reasons) said = said || line.find("gap synth --add-run load_n=") != std::string::npos;
+  EXPECT_TRUE(said);
+
+  // The run it proposes, synthesised with the same truth: the two are told apart.
+  const nb::DiagnosisReport two =
+      nb::diagnoseRuns(oneLoad({nb::gap::addRunArgument(c)}), params, gainsOnly(), "with the proposed run");
+  EXPECT_EQ(two.status, "explained");
+  EXPECT_EQ(two.verdict_effects, std::vector<std::string>{"pressure_gain"});
+  EXPECT_TRUE(two.confusions.empty());
+  ASSERT_GE(two.candidates.size(), 2u);
+  EXPECT_GT(two.candidates[1].bic_delta - two.candidates[0].bic_delta, 10.0 * gainsOnly().near_tie_bic);
+}
+
+}  // namespace
