@@ -337,6 +337,8 @@ void defineCommon(CLI::App& sub, AnalysisArgs* a) {
       ->type_name("N");
   sub.add_flag("--no-plots", a->no_plots, "skip the PNG plots (they need /usr/bin/python3 with matplotlib)");
   sub.add_flag("--verbose", a->verbose, "each fit's progress line also gives its replays and the solver's report");
+  sub.add_flag("--no-proposals", a->no_proposals,
+               "do not look for what the runs cannot tell apart, nor propose the run that would");
 }
 
 /// The common options checked, and the diagnosis options they set; a UsageError naming the
@@ -356,6 +358,7 @@ CommonOptions analysisOptions(const AnalysisArgs& a, nb::DiagnosisOptions* optio
     throw UsageError("--threads: expected a whole number 1..64, got '" + a.threads + "'");
   options->threads = static_cast<int>(t);
   options->verbose = a.verbose;
+  options->propose_runs = !a.no_proposals;
   if (c.dataset.empty()) throw UsageError("DATASET (a directory of runs) is required");
   if (c.out_dir.empty()) throw UsageError("--out DIR is required");
   return c;
@@ -391,7 +394,7 @@ int analyseDataset(const CommonOptions& c, nb::DiagnosisOptions options, const c
 
 constexpr const char* kCalibrateSynopsis =
     "usage: gap calibrate DATASET --out DIR [--params NAME,NAME...] [--airbag FILE] [--topic TOPIC]\n"
-    "                     [--threads N] [--no-plots] [--verbose]\n"
+    "                     [--threads N] [--no-plots] [--verbose] [--no-proposals]\n"
     "Fits the model's own uncertain parameters on the fit runs of DATASET (the effects are not\n"
     "looked for) and writes DIR/calibrated_airbag.yaml (a complete parameter file: sim.launch\n"
     "cell_params:=..., the nodes and gap diagnose --airbag accept it), DIR/report.json (the\n"
@@ -416,8 +419,6 @@ void defineDiagnose(CLI::App& sub, AnalysisArgs* a) {
       ->type_name("NAME,NAME...");
   sub.add_flag("--no-calibration", a->no_calibration, "effects on top of the nominal model only");
   sub.add_flag("--no-discovery", a->no_discovery, "an unexplained gap stays unexplained (no dictionary terms)");
-  sub.add_flag("--no-proposals", a->no_proposals,
-               "do not look for what the runs cannot tell from the verdict, nor propose the run that would");
   sub.add_option("--model-floor", a->model_floor,
                  "judge candidates above the calibrated model's floor when it never fits to the noise: auto (runs "
                  "imported from recordings), on, off")
@@ -429,7 +430,6 @@ int runDiagnose(const AnalysisArgs& a) {
   const CommonOptions c = analysisOptions(a, &options);
   options.calibrate = !a.no_calibration;
   options.discover = !a.no_discovery;
-  options.propose_runs = !a.no_proposals;
   options.model_floor = a.model_floor;
   if (!a.effects.empty())
     options.candidates = nameList("--effects", a.effects, [](const std::string& name) {

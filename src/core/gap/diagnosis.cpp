@@ -789,6 +789,10 @@ DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& param
                           " (a recording of real hardware); gap diagnose judges the candidates above it");
   if (rep.status == "unexplained")
     rep.reasons.push_back("calibration alone leaves a significant gap: run gap diagnose");
+  if (options.propose_runs)
+    rep.confusions =
+        findCalibrationConfusions(s.prepared, s.noise, params, s.calibrated, rep.calibration, options, rep.noise_p_pa);
+  for (const auto& c : rep.confusions) rep.reasons.push_back(describeConfusion(c));
   shrinkage(s.prepared, params, rep.calibration.movedValues(), {}, s.nominal, options, &rep);
   calibratedOutcome(s.prepared, s.noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
@@ -856,8 +860,12 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     say("identifiability: the explanations within " + fmt(options.near_tie_bic) + " BIC of the verdict's");
     rep.confusions =
         findConfusions(scored, verdict.winner, prepared, noise, params, s.calibrated, options, rep.noise_p_pa);
-    for (const auto& c : rep.confusions) rep.reasons.push_back(describeConfusion(c));
   }
+  if (options.propose_runs && rep.calibration.done)
+    for (auto& c :
+         findCalibrationConfusions(prepared, noise, params, s.calibrated, rep.calibration, options, rep.noise_p_pa))
+      rep.confusions.push_back(std::move(c));
+  for (const auto& c : rep.confusions) rep.reasons.push_back(describeConfusion(c));
   settleCalibratedStatus(noise, options, &rep, above_floor);
   if (rep.status == "unexplained" && options.discover)
     discoverWhatIsLeft(prepared, noise, params, options, say, &rep, &verdict_effects);

@@ -100,25 +100,33 @@ double fitOneParameter(const FitData& fit, const CellParams& cell, const std::st
   return best;
 }
 
+/// Calibration parameter `axis` fitted alone on the cell with the calibration `calibration`,
+/// scored against `base` (that cell's fit residuals); false when no replay succeeds.
+bool oneParameterExplanation(const NoiseModel& noise, const std::map<std::string, double>& calibration,
+                             const FitAxis& axis, const std::vector<double>& base, Explanation* e) {
+  const std::string& name = axis.spec.name;
+  const CellParams cell = applyCalibration(calibration, noise.fit.params);
+  const double step = kSensitivityStep * (axis.spec.hi - axis.spec.lo);
+  double chi2 = INFINITY;
+  const double value = fitOneParameter(noise.fit, cell, name, step, axis.spec.lo, axis.spec.hi, &chi2);
+  if (!std::isfinite(chi2)) return false;
+  e->name = name;
+  e->params = applyCalibration({{name, value}}, cell);
+  e->moved.emplace_back(applyCalibration({{name, value + step}}, cell), std::vector<CellEffectPtr>{});
+  std::map<std::string, double> held = calibration;
+  held[name] = value;
+  return score(noise, base, 1, e, applyCalibration(held, noise.held.params));
+}
+
 /// Each calibration parameter not moved already, fitted alone on the baseline cell.
 std::vector<Explanation> calibrationRivals(const NoiseModel& noise, const CellParams& params,
                                            const std::vector<std::string>& calibrated,
                                            const std::vector<double>& base) {
   std::vector<Explanation> out;
-  const CellParams cell = applyCalibration(noise.baseline_calibration, noise.fit.params);
-  const CellParams held_cell = applyCalibration(noise.baseline_calibration, noise.held.params);
   for (const FitAxis& axis : calibrationAxes(calibrated, params)) {
-    const std::string& name = axis.spec.name;
-    if (noise.baseline_calibration.count(name)) continue;  // moved already: part of the baseline
-    const double step = kSensitivityStep * (axis.spec.hi - axis.spec.lo);
-    double chi2 = INFINITY;
-    const double value = fitOneParameter(noise.fit, cell, name, step, axis.spec.lo, axis.spec.hi, &chi2);
-    if (!std::isfinite(chi2)) continue;
+    if (noise.baseline_calibration.count(axis.spec.name)) continue;  // moved already: the baseline's
     Explanation e;
-    e.name = name;
-    e.params = applyCalibration({{name, value}}, cell);
-    e.moved.emplace_back(applyCalibration({{name, value + step}}, cell), std::vector<CellEffectPtr>{});
-    if (score(noise, base, 1, &e, applyCalibration({{name, value}}, held_cell))) out.push_back(std::move(e));
+    if (oneParameterExplanation(noise, noise.baseline_calibration, axis, base, &e)) out.push_back(std::move(e));
   }
   return out;
 }
@@ -292,6 +300,38 @@ ProposedExperiment proposeExperiment(const Explanation& a, const Explanation& b,
   return best;
 }
 
+namespace {
+
+ProposalSetting proposalSetting(const PreparedRuns& prepared, const CellParams& params, double noise_p_pa,
+                                const DiagnosisOptions& options) {
+  ProposalSetting setting;
+  setting.valve_driven =
+      std::all_of(prepared.runs.begin(), prepared.runs.end(), [](const RunData& r) { return runIsValveDriven(r); });
+  setting.has_height = !std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
+  setting.noise_p_pa = noise_p_pa;
+  setting.supply_gauge_pa = recordedSupply(prepared, params);
+  setting.fit_sample_hz = options.fit_sample_hz;
+  setting.threads = options.threads;
+  setting.min_separation_chi2 = options.significant_bic_drop;
+  return setting;
+}
+
+/// `a` against `b` in a Confusion, with the run of `grid` that separates them best.
+Confusion proposed(const Explanation& a, const Explanation& b, const std::map<std::string, double>& b_params,
+                   const CellParams& params, const NoiseModel& noise, const ProposalSetting& setting,
+                   const ExperimentGrid& grid) {
+  Confusion c = describe(a, b, b_params);
+  const ProposedExperiment p = proposeExperiment(a, b, params, noise, setting, grid);
+  c.proposed = p.separation_chi2 >= setting.min_separation_chi2;
+  c.load_n = p.run.load_n;
+  c.flow = p.run.flow;
+  c.rise_scale = p.run.rise_scale;
+  c.separation_chi2 = p.separation_chi2;
+  return c;
+}
+
+}  // namespace
+
 std::vector<Confusion> findConfusions(const std::vector<ScoredCandidate>& scored, int winner,
                                       const PreparedRuns& prepared, const NoiseModel& noise, const CellParams& params,
                                       const std::vector<std::string>& calibrated, const DiagnosisOptions& options,
@@ -320,26 +360,43 @@ std::vector<Confusion> findConfusions(const std::vector<ScoredCandidate>& scored
   std::sort(rivals.begin(), rivals.end(),
             [](const auto& x, const auto& y) { return x.first.bic_delta < y.first.bic_delta; });
   if (rivals.size() > kMaxConfusions) rivals.resize(kMaxConfusions);
-  ProposalSetting setting;
-  setting.valve_driven =
-      std::all_of(prepared.runs.begin(), prepared.runs.end(), [](const RunData& r) { return runIsValveDriven(r); });
-  setting.has_height = !std::all_of(prepared.runs.begin(), prepared.runs.end(), runHasNoHeight);
-  setting.noise_p_pa = noise_p_pa;
-  setting.supply_gauge_pa = recordedSupply(prepared, params);
-  setting.fit_sample_hz = options.fit_sample_hz;
-  setting.threads = options.threads;
+  const ProposalSetting setting = proposalSetting(prepared, params, noise_p_pa, options);
   Explanation winner_refit = w;
   if (!rivals.empty()) fitSensitivity(noise, &winner_refit);
   for (auto& [rival, rival_params] : rivals) {
     fitSensitivity(noise, &rival);
-    Confusion c = describe(w, rival, rival_params);
-    const ProposedExperiment p = proposeExperiment(winner_refit, rival, params, noise, setting, grid);
-    c.proposed = p.separation_chi2 >= options.significant_bic_drop;
-    c.load_n = p.run.load_n;
-    c.flow = p.run.flow;
-    c.rise_scale = p.run.rise_scale;
-    c.separation_chi2 = p.separation_chi2;
-    out.push_back(c);
+    out.push_back(proposed(winner_refit, rival, rival_params, params, noise, setting, grid));
+  }
+  return out;
+}
+
+std::vector<Confusion> findCalibrationConfusions(const PreparedRuns& prepared, const NoiseModel& noise,
+                                                 const CellParams& params, const std::vector<std::string>& calibrated,
+                                                 const CalibrationSummary& summary, const DiagnosisOptions& options,
+                                                 double noise_p_pa, const ExperimentGrid& grid) {
+  std::vector<Confusion> out;
+  const std::vector<FitAxis> axes = calibrationAxes(calibrated, params);
+  auto axis = [&](const std::string& name) -> const FitAxis* {
+    const auto a = std::find_if(axes.begin(), axes.end(), [&](const FitAxis& x) { return x.spec.name == name; });
+    return a == axes.end() ? nullptr : &*a;
+  };
+  const ProposalSetting setting = proposalSetting(prepared, params, noise_p_pa, options);
+  for (const auto& group : summary.unidentifiable) {
+    if (group.size() != 2 || !axis(group[0]) || !axis(group[1]) || out.size() >= kMaxConfusions) continue;
+    // The cell with the calibration's other moves; each of the two alone on it.
+    std::map<std::string, double> rest = noise.baseline_calibration;
+    rest.erase(group[0]);
+    rest.erase(group[1]);
+    const std::vector<double> base = residuals(noise.fit, applyCalibration(rest, noise.fit.params), {});
+    Explanation a, b;
+    if (base.empty() || !oneParameterExplanation(noise, rest, *axis(group[0]), base, &a) ||
+        !oneParameterExplanation(noise, rest, *axis(group[1]), base, &b))
+      continue;
+    if (b.bic_delta < a.bic_delta) std::swap(a, b);
+    if (!undecided(a, b, options)) continue;
+    fitSensitivity(noise, &a);
+    fitSensitivity(noise, &b);
+    out.push_back(proposed(a, b, {{b.name, calibrationParam(b.name).get(b.params)}}, params, noise, setting, grid));
   }
   return out;
 }

@@ -68,6 +68,7 @@ struct ProposalSetting {
   double supply_gauge_pa = NAN;  ///< what the dataset's supply gauge reads (valve-driven runs)
   double fit_sample_hz = 10.0;
   int threads = 1;
+  double min_separation_chi2 = 20.0;  ///< a run is proposed where it leaves at least this
 };
 
 /// The run of `grid` that separates `a` and `b` best: recorded on the nominal cell with the
@@ -77,6 +78,15 @@ struct ProposalSetting {
 ProposedExperiment proposeExperiment(const Explanation& a, const Explanation& b, const CellParams& nominal,
                                      const NoiseModel& noise, const ProposalSetting& setting,
                                      const ExperimentGrid& grid);
+
+/// The calibrated parameters the fit's covariance cannot tell apart (CalibrationSummary::
+/// unidentifiable pairs of `calibrated`, not the structural ones): each alone on the calibrated
+/// cell without the two, where the fit and withheld runs do not decide between them, with the
+/// run of `grid` that would.
+std::vector<Confusion> findCalibrationConfusions(const PreparedRuns& prepared, const NoiseModel& noise,
+                                                 const CellParams& params, const std::vector<std::string>& calibrated,
+                                                 const CalibrationSummary& summary, const DiagnosisOptions& options,
+                                                 double noise_p_pa, const ExperimentGrid& grid = {});
 
 /// The confusion in words, with the proposed run as a gap synth argument.
 std::string describeConfusion(const Confusion& c);
