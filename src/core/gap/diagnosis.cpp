@@ -27,8 +27,8 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-/// Catalogue position of an effect (pairs list their effects in catalogue order, so that their
-/// parameters line up with the singles' fits).
+}  // namespace
+
 std::ptrdiff_t catalogPosition(const std::string& name) {
   const auto& c = effectCatalog();
   const auto& d = distortionCatalog();
@@ -37,12 +37,12 @@ std::ptrdiff_t catalogPosition(const std::string& name) {
   return i + (std::find_if(d.begin(), d.end(), [&](const EffectSpec& e) { return e.name == name; }) - d.begin());
 }
 
-/// An effect of the physical catalogue (effectCatalog(); its two channel-distortion members
-/// included), not one of the distortion catalogue's.
 bool isPhysicalCatalogEffect(const std::string& name) {
   const auto& c = effectCatalog();
   return std::any_of(c.begin(), c.end(), [&](const EffectSpec& e) { return e.name == name; });
 }
+
+namespace {
 
 /// Indices of the fitted singles, best (lowest BIC) first, failed fits last.
 std::vector<int> singlesByBic(const std::vector<ModelFit>& fits, int n) {
@@ -55,10 +55,8 @@ std::vector<int> singlesByBic(const std::vector<ModelFit>& fits, int n) {
   return order;
 }
 
-/// The starts of a pair's fit: each single's fitted coordinates, and each effect also at the
-/// middle of its plausible range and near off (its lower bound), in every combination. A single
-/// fitted alone soaks up part of the other effect's signature (a leak fitted alone also bends to
-/// the heat transfer's relaxation), so its own fit can be a poor start for the pair.
+}  // namespace
+
 std::vector<std::vector<double>> pairStarts(const ModelSpec& pair, const ModelFit& a, const ModelFit& b) {
   std::map<std::string, double> fitted;
   std::map<std::string, int> owner;  // 0: a's parameter, 1: b's
@@ -81,6 +79,8 @@ std::vector<std::vector<double>> pairStarts(const ModelSpec& pair, const ModelFi
     }
   return starts;
 }
+
+namespace {
 
 /// A fitted model's values split into the effects' parameters and the calibrated cell's (fixed
 /// and fitted).

@@ -16,6 +16,11 @@ namespace gap {
 namespace {
 
 constexpr std::size_t kMaxConfusions = 3;
+// The winner's best physical partners fitted beside it where the diagnosis fitted no pair.
+constexpr int kExtensions = 6;
+// A rival holding the winner and more counts where it moves the fit runs' readings by this
+// (chi2 in noise floors): else what it adds is off.
+constexpr double kInPlayChi2 = 1.0;
 // A calibration parameter's sensitivity: its move over this share of its prior range.
 constexpr double kSensitivityStep = 0.02;
 
@@ -118,6 +123,17 @@ bool oneParameterExplanation(const NoiseModel& noise, const std::map<std::string
   return score(noise, base, 1, e, applyCalibration(held, noise.held.params));
 }
 
+/// Whether `more` (the winner and another effect) is a rival: what it adds moves the readings,
+/// it fits the fit runs within near_tie_bic of the winner or better, and the withheld runs do
+/// not confirm the winner. The verdict names the simpler answer while it holds up alone, so a
+/// better fit of the winner and more is left to a run that tells.
+bool moreInPlay(const Explanation& winner, const Explanation& more, const DiagnosisOptions& options) {
+  if (more.change.empty() || distance2(winner.change, more.change) < kInPlayChi2) return false;
+  if (!(more.bic_delta < winner.bic_delta + options.near_tie_bic)) return false;
+  return std::isnan(winner.held_chi2) || std::isnan(more.held_chi2) ||
+         more.held_chi2 < winner.held_chi2 + options.min_withheld_gain;
+}
+
 /// Each calibration parameter not moved already, fitted alone on the baseline cell.
 std::vector<Explanation> calibrationRivals(const NoiseModel& noise, const CellParams& params,
                                            const std::vector<std::string>& calibrated,
@@ -184,6 +200,56 @@ double recordedSupply(const PreparedRuns& prepared, const CellParams& params) {
     for (double p : r.p_supply_gauge_pa)
       if (std::isfinite(p)) readings.push_back(p);
   return readings.empty() ? params.supply_pressure_pa : median(readings);
+}
+
+/// The winner (a single) with each of the best `count` other physical singles beside it that the
+/// diagnosis did not fit as a pair (it fits none where a single fits within the noise), fitted
+/// together from their own fits.
+std::vector<std::pair<Explanation, std::map<std::string, double>>> extensions(
+    const std::vector<ScoredCandidate>& scored, int winner, const NoiseModel& noise, const DiagnosisOptions& options,
+    const std::vector<double>& base, int count) {
+  std::vector<std::pair<Explanation, std::map<std::string, double>>> out;
+  const CandidateFit& w = scored[winner].first;
+  if (w.effects.size() != 1) return out;
+  auto single = [&](const CandidateFit& c) {
+    ModelFit f;
+    f.model = makeModelSpec(c.effects);
+    f.model.fixed_calibration = w.calibration;
+    f.outcome.u = coordinatesOf(f.model, c.params);
+    f.outcome.ok = true;
+    return f;
+  };
+  for (std::size_t i = 0; i < scored.size() && static_cast<int>(out.size()) < count; ++i) {
+    const CandidateFit& c = scored[i].first;
+    if (static_cast<int>(i) == winner || c.effects.size() != 1 || !c.ok || !c.plausible ||
+        !isPhysicalCatalogEffect(c.effects[0]))
+      continue;
+    std::vector<std::string> names{w.effects[0], c.effects[0]};
+    std::sort(names.begin(), names.end(),
+              [](const auto& x, const auto& y) { return catalogPosition(x) < catalogPosition(y); });
+    if (std::any_of(scored.begin(), scored.end(), [&](const ScoredCandidate& s) { return s.first.effects == names; }))
+      continue;  // fitted as a pair already
+    ScoredCandidate pair;
+    pair.second = makeModelSpec(names);
+    pair.second.fixed_calibration = w.calibration;
+    const FitOutcome f =
+        fitModel(noise.fit, pair.second, pairStarts(pair.second, single(w), single(c)), options.max_iterations);
+    if (!f.ok) continue;
+    const std::map<std::string, double> values = valuesOf(pair.second, f.u);
+    if (!plausibleValues(pair.second, values, options.plausible_slack)) continue;
+    pair.first.effects = names;
+    pair.first.params = values;
+    pair.first.calibration = w.calibration;
+    Explanation e;
+    e.name = joinNames(names);
+    e.params = applyCalibration(w.calibration, noise.fit.params);
+    e.effects = buildEffects(pair.second, values);
+    const int k = static_cast<int>(pair.second.axes.size() - heldAxes(noise.fit, pair.second).size());
+    if (!score(noise, base, k, &e, applyCalibration(w.calibration, noise.held.params))) continue;
+    e.moved = movedEffects(pair, e.params);
+    out.emplace_back(std::move(e), values);
+  }
+  return out;
 }
 
 bool containsAll(const std::vector<std::string>& outer, const std::vector<std::string>& inner) {
@@ -347,11 +413,17 @@ std::vector<Confusion> findConfusions(const std::vector<ScoredCandidate>& scored
   for (std::size_t i = 0; i < scored.size(); ++i) {
     const CandidateFit& c = scored[i].first;
     if (static_cast<int>(i) == winner || !c.ok || !c.plausible) continue;
-    if (containsAll(c.effects, scored[winner].first.effects)) continue;  // the winner and more
-    if (!(std::fabs(c.bic_delta - w.bic_delta) < options.near_tie_bic)) continue;
+    // The winner and more: a rival only where what it adds moves the readings (moreInPlay()).
+    const bool more = containsAll(c.effects, scored[winner].first.effects);
+    if (!(c.bic_delta < w.bic_delta + options.near_tie_bic &&
+          (more || c.bic_delta > w.bic_delta - options.near_tie_bic)))
+      continue;
     Explanation e = fromCandidate(scored[i], noise, base);
-    if (!e.change.empty() && undecided(w, e, options)) rivals.emplace_back(std::move(e), c.params);
+    if (!e.change.empty() && (more ? moreInPlay(w, e, options) : undecided(w, e, options)))
+      rivals.emplace_back(std::move(e), c.params);
   }
+  for (auto& [e, values] : extensions(scored, winner, noise, options, base, kExtensions))
+    if (moreInPlay(w, e, options)) rivals.emplace_back(std::move(e), std::move(values));
   for (Explanation& e : calibrationRivals(noise, params, calibrated, base)) {
     if (!undecided(w, e, options)) continue;
     std::map<std::string, double> value{{e.name, calibrationParam(e.name).get(e.params)}};
@@ -409,12 +481,17 @@ std::string addRunArgument(const Confusion& c) {
 
 std::string describeConfusion(const Confusion& c) {
   std::ostringstream s;
-  s << std::setprecision(4) << c.a << " and " << c.b << " fit alike (BIC " << c.bic_a << " and " << c.bic_b
-    << " on the fit runs";
+  const bool better = c.bic_b < c.bic_a;  // the winner and more: the verdict kept the simpler answer
+  s << std::setprecision(4);
+  if (better) s << c.b << " fits better than " << c.a << " (BIC " << c.bic_b << " against " << c.bic_a;
+  else s << c.a << " and " << c.b << " fit alike (BIC " << c.bic_a << " and " << c.bic_b;
+  s << " on the fit runs";
   if (std::isfinite(c.withheld_chi2_a))
-    s << "; chi2 " << c.withheld_chi2_a << " and " << c.withheld_chi2_b << " on the withheld runs";
-  s << std::setprecision(3) << "; their changes to the readings correlate " << c.correlation
-    << "): these runs cannot tell them apart. ";
+    s << "; chi2 " << (better ? c.withheld_chi2_b : c.withheld_chi2_a) << (better ? " against " : " and ")
+      << (better ? c.withheld_chi2_a : c.withheld_chi2_b) << " on the withheld runs";
+  s << std::setprecision(3) << "; their changes to the readings correlate " << c.correlation << "): "
+    << (better ? c.a + " holds up alone, and the verdict names the simpler answer while it does. "
+               : std::string("these runs cannot tell them apart. "));
   if (!c.proposed) return s.str() + "No run of the proposal grid (loads, hold heights, rises) sets them apart.";
   s << "A run at " << c.load_n << " N, " << c.flow << " flow" << (c.rise_scale != 1.0 ? ", the rise " : "");
   if (c.rise_scale != 1.0) s << c.rise_scale << " times as long";

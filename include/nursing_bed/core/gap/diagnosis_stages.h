@@ -84,6 +84,18 @@ struct ModelFit {
   FitOutcome outcome;
 };
 
+/// Catalogue position of an effect (pairs list their effects in catalogue order, so that their
+/// parameters line up with the singles' fits): the physical catalogue's, then the distortions'.
+std::ptrdiff_t catalogPosition(const std::string& name);
+/// An effect of the physical catalogue (effectCatalog(); its two channel-distortion members
+/// included), not one of the distortion catalogue's.
+bool isPhysicalCatalogEffect(const std::string& name);
+/// The starts of a pair's fit: each single's fitted coordinates, and each effect also at the
+/// middle of its plausible range and near off (its lower bound), in every combination. A single
+/// fitted alone soaks up part of the other effect's signature (a leak fitted alone also bends to
+/// the heat transfer's relaxation), so its own fit can be a poor start for the pair.
+std::vector<std::vector<double>> pairStarts(const ModelSpec& pair, const ModelFit& a, const ModelFit& b);
+
 /// Fits every single candidate from a grid, then pairs from the singles' fits (pairsToFit: the
 /// `options.pair_pool` best singles by BIC, each with every other); no pair when the best single
 /// fits within options.joint_refit_chi2. Singles first, in `candidates`
