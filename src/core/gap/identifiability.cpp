@@ -19,8 +19,9 @@ constexpr std::size_t kMaxConfusions = 3;
 // The winner's best physical partners fitted beside it where the diagnosis fitted no pair.
 constexpr int kExtensions = 6;
 // A rival holding the winner and more counts where it moves the fit runs' readings by this
-// (chi2 in noise floors): else what it adds is off.
-constexpr double kInPlayChi2 = 1.0;
+// (chi2 in noise floors, as much as the withheld runs must gain to decide): else what it adds is
+// as good as off.
+constexpr double kInPlayChi2 = 10.0;
 // A calibration parameter's sensitivity: its move over this share of its prior range.
 constexpr double kSensitivityStep = 0.02;
 
