@@ -98,10 +98,28 @@ std::vector<double> coordinatesOf(const ModelSpec& m, const std::map<std::string
   return u;
 }
 
+namespace {
+
+/// A channel's time shift or lag below this is below what a replay resolves (its fits integrate
+/// in 10 ms steps, the runs' intervals are 10-20 ms): the replay's own timing, not the channel's.
+constexpr double kMinChannelTimingS = 1e-3;
+
+/// Whether parameter `name` is the time of a channel's shift or lag (distortions.h).
+bool channelTiming(const ModelSpec& m, const std::string& name) {
+  for (const auto& e : m.effects) {
+    const EffectSpec& spec = effectSpec(e);
+    if ((spec.kind == "shift" || spec.kind == "lag") && spec.param(name)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 bool plausibleValues(const ModelSpec& m, const std::map<std::string, double>& values, double slack) {
   for (const auto& a : m.axes) {
     if (a.calibration) continue;
     const double x = values.at(a.spec.name);
+    if (std::fabs(x) < kMinChannelTimingS && channelTiming(m, a.spec.name)) return false;
     if (a.spec.log_scale) {
       // Only too large is implausible: a small value is an effect that barely uses that
       // parameter (a short supply line), and the range's low end is what matters for a bed,

@@ -10,6 +10,7 @@
 
 #include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/distortions.h"
+#include "nursing_bed/core/gap/fit_model.h"
 #include "nursing_bed/core/gap/replay.h"
 #include "nursing_bed/core/gap/synth.h"
 
@@ -66,6 +67,20 @@ TEST(ChannelDistortion, AShiftReadsOverAReplaysMissingTailAndFromRestBeforeTheRe
   std::vector<double> y{4.0, 4.0, 4.0, 4.0};
   nb::undistortSeries("shift", -2.0, kT, &y, 0.0);  // a meter 2 s early, undone
   expectNear(y, {0.0, 2.0, 4.0, 4.0});
+}
+
+TEST(ChannelDistortion, ATimingBelowAMillisecondIsNotAChannelsButTheReplays) {
+  // Clean valve-driven runs fitted a valve lag of 0.43 ms (a tenth of a fit's integration step).
+  for (const std::string effect : {"valve_cmd_lag", "valve_cmd_shift", "pressure_shift", "height_lag"}) {
+    const nb::gap::ModelSpec m = nb::gap::makeModelSpec({effect});
+    const std::string param = m.axes.at(0).spec.name;
+    EXPECT_FALSE(nb::gap::plausibleValues(m, {{param, 4.3e-4}}, 3.0)) << effect;
+    EXPECT_TRUE(nb::gap::plausibleValues(m, {{param, 0.02}}, 3.0)) << effect;
+  }
+  EXPECT_FALSE(
+      nb::gap::plausibleValues(nb::gap::makeModelSpec({"pressure_shift"}), {{"pressure_shift_s", -5e-4}}, 3.0));
+  // Not the other kinds: a small gain is a small gain.
+  EXPECT_TRUE(nb::gap::plausibleValues(nb::gap::makeModelSpec({"pressure_gain"}), {{"pressure_gain", 1e-4}}, 3.0));
 }
 
 TEST(ChannelDistortion, LagIsTheExactFirstOrderResponseToALinearlyInterpolatedInput) {
