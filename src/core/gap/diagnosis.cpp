@@ -57,6 +57,15 @@ std::vector<int> singlesByBic(const std::vector<ModelFit>& fits, int n) {
 
 }  // namespace
 
+ModelSpec pairSpec(const std::string& a, const std::string& b, const std::map<std::string, double>& calibration) {
+  std::vector<std::string> names{a, b};
+  std::sort(names.begin(), names.end(),
+            [](const std::string& x, const std::string& y) { return catalogPosition(x) < catalogPosition(y); });
+  ModelSpec m = makeModelSpec(names);
+  m.fixed_calibration = calibration;
+  return m;
+}
+
 std::vector<std::vector<double>> pairStarts(const ModelSpec& pair, const ModelFit& a, const ModelFit& b) {
   std::map<std::string, double> fitted;
   std::map<std::string, int> owner;  // 0: a's parameter, 1: b's
@@ -315,13 +324,8 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
   const std::vector<std::pair<int, int>> pairs =
       pairsToFit(fits, singlesByBic(fits, n), options.pair_pool, n, options.joint_refit_chi2);
   if (pairs.empty() && options.pair_pool > 0) say("no pairs fitted: a single fits within the noise");
-  for (const auto& [a, b] : pairs) {
-    std::vector<std::string> names{fits[a].model.effects[0], fits[b].model.effects[0]};
-    std::sort(names.begin(), names.end(),
-              [](const std::string& x, const std::string& y) { return catalogPosition(x) < catalogPosition(y); });
-    fits.push_back({makeModelSpec(names), {}});
-    fits.back().model.fixed_calibration = noise.baseline_calibration;
-  }
+  for (const auto& [a, b] : pairs)
+    fits.push_back({pairSpec(fits[a].model.effects[0], fits[b].model.effects[0], noise.baseline_calibration), {}});
   done = 0;
   const int pair_count = static_cast<int>(pairs.size());
   parallelFor(pair_count, options.threads, [&](int k) {

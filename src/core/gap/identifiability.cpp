@@ -5,6 +5,9 @@
 #include <iomanip>
 #include <random>
 #include <sstream>
+#include <utility>
+
+#include <Eigen/Dense>
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/fit_model.h"
@@ -14,6 +17,32 @@
 namespace nursing_bed {
 namespace gap {
 namespace {
+
+/// One explanation of the gap: a cell (calibrated where it moved) with effects.
+struct Explanation {
+  std::string name;  ///< "pressure_gain", "leak+heat_transfer", or a calibrated parameter's name
+  CellParams params;
+  std::vector<CellEffectPtr> effects;
+  /// The same with each of its parameters moved a small step: the directions a refit may take.
+  std::vector<std::pair<CellParams, std::vector<CellEffectPtr>>> moved;
+  /// Columns: the whitened fit residuals' change along each of `moved` (what a refit costs there).
+  Eigen::MatrixXd fit_sensitivity;
+  double chi2 = 0.0;           ///< fit runs, whitened, summed
+  double bic_delta = 0.0;      ///< against the baseline model, as CandidateFit::bic_delta
+  double held_chi2 = NAN;      ///< withheld runs, whitened, summed (NaN: none)
+  std::vector<double> change;  ///< its whitened fit residuals less the baseline's
+};
+
+/// What a proposed run is recorded with: the dataset's kind of run and its noise floor.
+struct ProposalSetting {
+  bool valve_driven = false;  ///< driven through the valves (no flow meter)
+  bool has_height = true;
+  double noise_p_pa = 30.0;      ///< the dataset's pressure noise (the height's scales with it)
+  double supply_gauge_pa = NAN;  ///< what the dataset's supply gauge reads (valve-driven runs)
+  double fit_sample_hz = 10.0;
+  int threads = 1;
+  double min_separation_chi2 = 20.0;  ///< a run is proposed where it leaves at least this
+};
 
 constexpr std::size_t kMaxConfusions = 3;
 // The winner's best physical partners fitted beside it where the diagnosis fitted no pair.
@@ -40,17 +69,23 @@ double heldChi2(const NoiseModel& noise, const CellParams& held_cell, const std:
   return sumSquares(r);
 }
 
-/// `e` scored: chi2, BIC against the baseline with `extra` parameters, withheld chi2, and its
+/// `e` scored on the fit runs: chi2, BIC against the baseline with `extra` parameters, and its
 /// change of the fit residuals from `base`. False when a replay failed.
-bool score(const NoiseModel& noise, const std::vector<double>& base, int extra, Explanation* e,
-           const CellParams& held_cell) {
+bool scoreFit(const NoiseModel& noise, const std::vector<double>& base, int extra, Explanation* e) {
   const std::vector<double> r = residuals(noise.fit, e->params, e->effects);
   if (r.empty()) return false;
   e->chi2 = sumSquares(r);
   e->bic_delta = (e->chi2 - noise.baseline_chi2) + extra * std::log(static_cast<double>(noise.fitResidualCount()));
-  e->held_chi2 = heldChi2(noise, held_cell, e->effects);
   e->change.resize(r.size());
   for (std::size_t i = 0; i < r.size(); ++i) e->change[i] = r[i] - base[i];
+  return true;
+}
+
+/// scoreFit(), and the withheld runs' chi2 on `held_cell`.
+bool score(const NoiseModel& noise, const std::vector<double>& base, int extra, Explanation* e,
+           const CellParams& held_cell) {
+  if (!scoreFit(noise, base, extra, e)) return false;
+  e->held_chi2 = heldChi2(noise, held_cell, e->effects);
   return true;
 }
 
@@ -78,44 +113,19 @@ bool undecided(const Explanation& winner, const Explanation& rival, const Diagno
   return std::fabs(rival.held_chi2 - winner.held_chi2) < options.min_withheld_gain;
 }
 
-/// Calibration parameter `name` alone fitted on `cell` by Gauss-Newton (a few iterations, each a
-/// replay at the point and one a `step` away), within [lo, hi]; its value, and the chi2 there in
-/// `chi2` (infinite when no replay succeeds).
-double fitOneParameter(const FitData& fit, const CellParams& cell, const std::string& name, double step, double lo,
-                       double hi, double* chi2) {
-  constexpr int kIterations = 4;
-  double x = calibrationParam(name).get(cell), best = x;
-  *chi2 = INFINITY;
-  for (int k = 0; k < kIterations; ++k) {
-    const std::vector<double> r = residuals(fit, applyCalibration({{name, x}}, cell), {});
-    if (r.empty()) break;
-    if (sumSquares(r) < *chi2) *chi2 = sumSquares(r), best = x;
-    const std::vector<double> moved = residuals(fit, applyCalibration({{name, x + step}}, cell), {});
-    if (moved.empty()) break;
-    double ss = 0.0, sr = 0.0;
-    for (std::size_t i = 0; i < r.size(); ++i) {
-      const double s = (moved[i] - r[i]) / step;
-      ss += s * s;
-      sr += s * r[i];
-    }
-    if (!(ss > 0.0)) break;
-    const double next = std::clamp(x - sr / ss, lo, hi);
-    if (std::fabs(next - x) < 1e-3 * step) break;
-    x = next;
-  }
-  return best;
-}
-
 /// Calibration parameter `axis` fitted alone on the cell with the calibration `calibration`,
 /// scored against `base` (that cell's fit residuals); false when no replay succeeds.
 bool oneParameterExplanation(const NoiseModel& noise, const std::map<std::string, double>& calibration,
                              const FitAxis& axis, const std::vector<double>& base, Explanation* e) {
+  constexpr int kIterations = 4;  // from the calibrated value: a few steps reach a single minimum
   const std::string& name = axis.spec.name;
   const CellParams cell = applyCalibration(calibration, noise.fit.params);
   const double step = kSensitivityStep * (axis.spec.hi - axis.spec.lo);
-  double chi2 = INFINITY;
-  const double value = fitOneParameter(noise.fit, cell, name, step, axis.spec.lo, axis.spec.hi, &chi2);
-  if (!std::isfinite(chi2)) return false;
+  ModelSpec alone = makeModelSpec({}, {axis});
+  alone.fixed_calibration = calibration;
+  const FitOutcome f = fitModel(noise.fit, alone, {{axis.toU(calibrationParam(name).get(cell))}}, kIterations);
+  if (!f.ok) return false;
+  const double value = axis.toValue(f.u[0]);
   e->name = name;
   e->params = applyCalibration({{name, value}}, cell);
   e->moved.emplace_back(applyCalibration({{name, value + step}}, cell), std::vector<CellEffectPtr>{});
@@ -187,8 +197,10 @@ Explanation fromCandidate(const ScoredCandidate& c, const NoiseModel& noise, con
   e.name = joinNames(c.first.effects);
   e.params = applyCalibration(c.first.calibration, noise.fit.params);
   e.effects = buildEffects(c.second, c.first.params);
-  score(noise, base, 0, &e, applyCalibration(c.first.calibration, noise.held.params));
-  e.bic_delta = c.first.bic_delta;  // the diagnosis's own figure (its parameter count)
+  scoreFit(noise, base, 0, &e);
+  // The diagnosis's own figures (its parameter count; its withheld replay).
+  e.bic_delta = c.first.bic_delta;
+  e.held_chi2 = c.first.withheld_chi2_per_sample * noise.heldResidualCount();
   e.moved = movedEffects(c, e.params);
   return e;
 }
@@ -225,14 +237,11 @@ std::vector<std::pair<Explanation, std::map<std::string, double>>> extensions(
     if (static_cast<int>(i) == winner || c.effects.size() != 1 || !c.ok || !c.plausible ||
         !isPhysicalCatalogEffect(c.effects[0]))
       continue;
-    std::vector<std::string> names{w.effects[0], c.effects[0]};
-    std::sort(names.begin(), names.end(),
-              [](const auto& x, const auto& y) { return catalogPosition(x) < catalogPosition(y); });
+    ScoredCandidate pair;
+    pair.second = pairSpec(w.effects[0], c.effects[0], w.calibration);
+    const std::vector<std::string>& names = pair.second.effects;
     if (std::any_of(scored.begin(), scored.end(), [&](const ScoredCandidate& s) { return s.first.effects == names; }))
       continue;  // fitted as a pair already
-    ScoredCandidate pair;
-    pair.second = makeModelSpec(names);
-    pair.second.fixed_calibration = w.calibration;
     const FitOutcome f =
         fitModel(noise.fit, pair.second, pairStarts(pair.second, single(w), single(c)), options.max_iterations);
     if (!f.ok) continue;
@@ -271,10 +280,6 @@ Confusion describe(const Explanation& a, const Explanation& b, const std::map<st
   c.fit_separation_chi2 = distance2(a.change, b.change);
   return c;
 }
-
-}  // namespace
-
-namespace {
 
 /// A proposed run as the diagnosis would take it in: simulated on the nominal cell with sensor
 /// noise at the dataset's floor (a fixed draw), then prepared for the fits like the dataset's
@@ -327,47 +332,65 @@ double chi2AfterRefit(const std::vector<double>& ra, const std::vector<double>& 
   return std::max(0.0, d.squaredNorm() - d.dot(s * step));
 }
 
-}  // namespace
+/// The grid's runs, each recorded once for every rival it is to judge.
+struct GridRecordings {
+  std::vector<SynthRunPlan> plans;
+  std::vector<ProposedRecording> runs;  ///< in place: each FitData points into its own runs
+  std::vector<char> ok;                 ///< false: the nominal cell does not replay it
+};
 
-ProposedExperiment proposeExperiment(const Explanation& a, const Explanation& b, const CellParams& nominal,
-                                     const NoiseModel& noise, const ProposalSetting& setting,
-                                     const ExperimentGrid& grid) {
+void recordGrid(const CellParams& nominal, const NoiseModel& noise, const ProposalSetting& setting,
+                const ExperimentGrid& grid, GridRecordings* out) {
   SynthProtocol protocol = synthProtocol("standard", nominal);
   protocol.valve_driven = setting.valve_driven;
-  std::vector<SynthRunPlan> plans;
   for (double load : grid.loads_n)
     for (const std::string& flow : grid.flows)
       for (double rise : grid.rise_scales) {
         try {
-          plans.push_back(synthRunPlan(nominal, load, flow, rise));
-        } catch (const std::invalid_argument&) {
+          out->plans.push_back(synthRunPlan(nominal, load, flow, rise));
+        } catch (const std::exception&) {
           // a load the nominal cell cannot hold at that height: not proposed
         }
       }
-  std::vector<double> separation(plans.size(), -1.0);
-  parallelFor(static_cast<int>(plans.size()), setting.threads, [&](int k) {
-    ProposedRecording rec;
+  out->runs.resize(out->plans.size());
+  out->ok.assign(out->plans.size(), 0);
+  parallelFor(static_cast<int>(out->plans.size()), setting.threads, [&](int k) {
     try {
-      recordProposal(protocol, plans[k], nominal, noise, setting, &rec);
+      recordProposal(protocol, out->plans[k], nominal, noise, setting, &out->runs[k]);
+      out->ok[k] = 1;
     } catch (const std::invalid_argument&) {
-      return;  // the nominal cell does not replay it
+      // the nominal cell does not replay it
     }
-    const std::vector<double> ra = residuals(rec.fit, a.params, a.effects),
-                              rb = residuals(rec.fit, b.params, b.effects);
+  });
+}
+
+/// The proposal for one confused pair: the run, and how far apart the two put its readings.
+struct ProposedExperiment {
+  SynthRunPlan run;
+  double separation_chi2 = -1.0;
+};
+
+/// The run of `grid` that separates `a` and `b` best: each replayed on it, the other refitted
+/// (Gauss-Newton along its `moved` directions, paying on the fit runs by its fit_sensitivity) to
+/// the first's readings; the smaller of the two chi2 left.
+ProposedExperiment proposeExperiment(const Explanation& a, const Explanation& b, const GridRecordings& grid,
+                                     int threads) {
+  std::vector<double> separation(grid.plans.size(), -1.0);
+  parallelFor(static_cast<int>(grid.plans.size()), threads, [&](int k) {
+    if (!grid.ok[k]) return;
+    const FitData& fit = grid.runs[k].fit;
+    const std::vector<double> ra = residuals(fit, a.params, a.effects), rb = residuals(fit, b.params, b.effects);
     if (ra.empty() || rb.empty()) return;
     std::vector<std::vector<double>> ra_moved, rb_moved;
-    for (const auto& m : a.moved) ra_moved.push_back(residuals(rec.fit, m.first, m.second));
-    for (const auto& m : b.moved) rb_moved.push_back(residuals(rec.fit, m.first, m.second));
+    for (const auto& m : a.moved) ra_moved.push_back(residuals(fit, m.first, m.second));
+    for (const auto& m : b.moved) rb_moved.push_back(residuals(fit, m.first, m.second));
     separation[k] = std::min(chi2AfterRefit(ra, rb, rb_moved, b), chi2AfterRefit(rb, ra, ra_moved, a));
   });
   ProposedExperiment best;
-  best.separation_chi2 = -1.0;
-  for (std::size_t k = 0; k < plans.size(); ++k)
-    if (separation[k] > best.separation_chi2) best = {plans[k], separation[k]};
+  for (std::size_t k = 0; k < grid.plans.size(); ++k)
+    if (separation[k] > best.separation_chi2) best = {grid.plans[k], separation[k]};
   return best;
 }
-
-namespace {
 
 ProposalSetting proposalSetting(const PreparedRuns& prepared, const CellParams& params, double noise_p_pa,
                                 const DiagnosisOptions& options) {
@@ -385,10 +408,9 @@ ProposalSetting proposalSetting(const PreparedRuns& prepared, const CellParams& 
 
 /// `a` against `b` in a Confusion, with the run of `grid` that separates them best.
 Confusion proposed(const Explanation& a, const Explanation& b, const std::map<std::string, double>& b_params,
-                   const CellParams& params, const NoiseModel& noise, const ProposalSetting& setting,
-                   const ExperimentGrid& grid) {
+                   const ProposalSetting& setting, const GridRecordings& grid) {
   Confusion c = describe(a, b, b_params);
-  const ProposedExperiment p = proposeExperiment(a, b, params, noise, setting, grid);
+  const ProposedExperiment p = proposeExperiment(a, b, grid, setting.threads);
   c.proposed = p.separation_chi2 >= setting.min_separation_chi2;
   c.load_n = p.run.load_n;
   c.flow = p.run.flow;
@@ -408,7 +430,7 @@ std::vector<Confusion> findConfusions(const std::vector<ScoredCandidate>& scored
   const std::vector<double> base =
       residuals(noise.fit, applyCalibration(noise.baseline_calibration, noise.fit.params), {});
   if (base.empty()) return out;
-  const Explanation w = fromCandidate(scored[winner], noise, base);
+  Explanation w = fromCandidate(scored[winner], noise, base);
   if (w.change.empty()) return out;
   std::vector<std::pair<Explanation, std::map<std::string, double>>> rivals;
   for (std::size_t i = 0; i < scored.size(); ++i) {
@@ -434,11 +456,13 @@ std::vector<Confusion> findConfusions(const std::vector<ScoredCandidate>& scored
             [](const auto& x, const auto& y) { return x.first.bic_delta < y.first.bic_delta; });
   if (rivals.size() > kMaxConfusions) rivals.resize(kMaxConfusions);
   const ProposalSetting setting = proposalSetting(prepared, params, noise_p_pa, options);
-  Explanation winner_refit = w;
-  if (!rivals.empty()) fitSensitivity(noise, &winner_refit);
+  if (rivals.empty()) return out;
+  fitSensitivity(noise, &w);
+  GridRecordings recordings;
+  recordGrid(params, noise, setting, grid, &recordings);
   for (auto& [rival, rival_params] : rivals) {
     fitSensitivity(noise, &rival);
-    out.push_back(proposed(winner_refit, rival, rival_params, params, noise, setting, grid));
+    out.push_back(proposed(w, rival, rival_params, setting, recordings));
   }
   return out;
 }
@@ -454,6 +478,7 @@ std::vector<Confusion> findCalibrationConfusions(const PreparedRuns& prepared, c
     return a == axes.end() ? nullptr : &*a;
   };
   const ProposalSetting setting = proposalSetting(prepared, params, noise_p_pa, options);
+  GridRecordings recordings;  // recorded at the first pair that needs them
   for (const auto& group : summary.unidentifiable) {
     if (group.size() != 2 || !axis(group[0]) || !axis(group[1]) || out.size() >= kMaxConfusions) continue;
     // The cell with the calibration's other moves; each of the two alone on it.
@@ -469,7 +494,8 @@ std::vector<Confusion> findCalibrationConfusions(const PreparedRuns& prepared, c
     if (!undecided(a, b, options)) continue;
     fitSensitivity(noise, &a);
     fitSensitivity(noise, &b);
-    out.push_back(proposed(a, b, {{b.name, calibrationParam(b.name).get(b.params)}}, params, noise, setting, grid));
+    if (recordings.plans.empty()) recordGrid(params, noise, setting, grid, &recordings);
+    out.push_back(proposed(a, b, {{b.name, calibrationParam(b.name).get(b.params)}}, setting, recordings));
   }
   return out;
 }

@@ -90,6 +90,8 @@ std::ptrdiff_t catalogPosition(const std::string& name);
 /// An effect of the physical catalogue (effectCatalog(); its two channel-distortion members
 /// included), not one of the distortion catalogue's.
 bool isPhysicalCatalogEffect(const std::string& name);
+/// The pair of effects `a` and `b` in catalogue order, on the cell with `calibration` fixed.
+ModelSpec pairSpec(const std::string& a, const std::string& b, const std::map<std::string, double>& calibration);
 /// The starts of a pair's fit: each single's fitted coordinates, and each effect also at the
 /// middle of its plausible range and near off (its lower bound), in every combination. A single
 /// fitted alone soaks up part of the other effect's signature (a leak fitted alone also bends to
