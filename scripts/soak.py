@@ -13,6 +13,8 @@ either the estimate is within 6 mm of the truth or the cell is flagged (faulty o
 /bed_manager/state within --flag-slack-s of the stamp). Prints and writes (--json):
   - cell-seconds with an unflagged error over 6 mm, RMS and worst of the unflagged error;
   - per fault kind: time from injection to the cell's first flag (and the cells never flagged);
+    a valve stuck shut from the first move the plan asked of it (its target 1 mm up for an
+    inlet, down for a vent; a cell only held meanwhile is harmless, counted apart);
   - time from a fault's clearing to the cell unflagged again;
   - false flags: flags raised on a cell with no fault injected since --recover-s.
 
@@ -92,6 +94,8 @@ class Score:
         self.sum_sq, self.n, self.worst_m, self.bad_cell_s = 0.0, 0, 0.0, 0.0
         self.worst_at, self.bad_by_cell = (None, None), {}  # (cell, stamp); cell-seconds over 6 mm
         self.flag_onsets = []  # (stamp, cell)
+        self.target_moves = collections.defaultdict(list)  # cell -> [(stamp, target)] where it moved
+        self.last_target = {}
         self.flagged_now = set()
         self.recording = False
         self.t0 = 0.0
@@ -107,6 +111,10 @@ class Score:
             if self.recording:
                 self.flag_onsets += [(t, c) for c in flagged - self.flagged_now]
             self.flagged_now = flagged
+            for cell, target in enumerate(msg.target_heights_m):
+                if abs(target - self.last_target.get(cell, math.inf)) > 2e-4:
+                    self.last_target[cell] = target
+                    self.target_moves[cell].append((t, target))
             self.flags.append((t, flagged))
 
     def on_truth(self, msg):
@@ -210,7 +218,7 @@ def summarise(score, injections, recoveries, wall_s, faulted_until):
     print("soak %.0f s, %d samples: unflagged RMS %s mm, worst %.2f mm, %.2f cell-seconds unflagged over 6 mm"
           % (wall_s, score.n, "%.2f" % result["unflagged_rms_mm"] if score.n else "-", result["unflagged_worst_mm"],
              score.bad_cell_s))
-    for name, _, _, _ in FAULTS:
+    for name in [f[0] + held for f in FAULTS for held in ("", ", held")]:
         if name in by_kind or name in missed:
             v = by_kind.get(name, [])
             print("  %-22s flagged %d (median %s s, max %s s), never flagged %d" % (
@@ -228,6 +236,20 @@ def summarise(score, injections, recoveries, wall_s, faulted_until):
     return result
 
 
+def first_command(score, cell, direction, since, until):
+    """The first stamp in [since, until] at which the cell's target stood 1 mm `direction` (+1 up,
+    -1 down) of where it stood at `since`; None when the plan never asked that."""
+    with score.lock:
+        moves = list(score.target_moves.get(cell, []))
+    base = None
+    for t, target in moves:
+        if t <= since:
+            base = target
+        elif t <= until and base is not None and direction * (target - base) >= 1e-3:
+            return t
+    return None
+
+
 def first_flag(score, cell, since, timeout_s):
     t_end = since + timeout_s
     with score.lock:
@@ -239,6 +261,19 @@ def first_flag(score, cell, since, timeout_s):
         if since <= t <= t_end and cell in f:
             return t - since
     return None
+
+
+def judged_injection(score, name, cell, at, cleared, flag_within_s):
+    """(name, cell, from, seconds to flag or None): a valve stuck shut is timed from the first move
+    that needs it ("stuck-shut ..., held" when none came before `cleared`), the rest from `at`."""
+    kind = next(f for f in FAULTS if f[0] == name)
+    if kind[1] != "stuck_closed":
+        return name, cell, at, first_flag(score, cell, at, flag_within_s)
+    command = first_command(score, cell, +1 if kind[2] == "inlet" else -1, at, cleared)
+    if command is None:
+        return name + ", held", cell, at, first_flag(score, cell, at, flag_within_s)
+    flag_s = first_flag(score, cell, at, command - at + flag_within_s)
+    return name, cell, command, None if flag_s is None else max(0.0, flag_s - (command - at))
 
 
 def run(args, score, n_cells):
@@ -275,7 +310,7 @@ def run(args, score, n_cells):
                 inject("clear", cells)
                 open_faults.remove((name, cells, at))
                 for c in cells:
-                    injections.append((name, c, at, first_flag(score, c, at, args.flag_within_s)))
+                    injections.append(judged_injection(score, name, c, at, now, args.flag_within_s))
                 for c in terminal_cells(cells, n_cells) if name.endswith("dropped replies") else cells:
                     faulted_until[c] = now + args.recover_s
                 recoveries += [(c, now) for c in cells]
@@ -283,7 +318,7 @@ def run(args, score, n_cells):
     for name, cells, at in open_faults:
         inject("clear", cells)
         for c in cells:
-            injections.append((name, c, at, first_flag(score, c, at, args.flag_within_s)))
+            injections.append(judged_injection(score, name, c, at, rospy.get_time(), args.flag_within_s))
     with score.lock:
         score.recording = False
         flags = list(score.flags)

@@ -28,6 +28,9 @@ Status ConsistencyMonitorParams::validate() const {
   positive("jump_pa", jump_pa);
   nonNegative("response_min_pa", response_min_pa);
   positive("response_sds", response_sds);
+  nonNegative("response_silent_sum_pa", response_silent_sum_pa);
+  positive("response_single_pa", response_single_pa);
+  errors.addIf(response_silent_pulses < 1, "response_silent_pulses must be >= 1, got ", response_silent_pulses);
   nonNegative("response_window_s", response_window_s);
   nonNegative("response_min_period_s", response_min_period_s);
   nonNegative("max_load_n", max_load_n);
@@ -182,21 +185,7 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
     after_s_ += dt_s;
     // Judged once the window after the counted flow has passed, or when the other valve opens.
     if (direction == 0 && after_s_ < params.response_window_s) return why;
-    const double needed_pa = params.response_sds * sample.noise_sd_pa;
-    // A vent can take the pressure down to ambient at most: a plate that rests at a few
-    // reading sds (a light one) has no room to show its vent working.
-    const bool room = (direction_ > 0 || baseline_pa_ >= 2.0 * needed_pa) && slow_enough_;
-    // A valve that does not open leaves the readings where they were; readings that stayed
-    // against the pulse by more than that all along (a load shifting meanwhile) do not judge it.
-    const bool still = best_pa_ > -needed_pa;
-    if (params.response_min_pa > 0.0 && std::fabs(counted_pa_) >= params.response_min_pa && room && still &&
-        best_pa_ < needed_pa) {
-      std::ostringstream w;
-      w << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << std::fabs(counted_pa_)
-        << " Pa at fixed volume but the pressure moved " << best_pa_ << " Pa its way (less than " << needed_pa
-        << " Pa): a valve that does not open";
-      why = w.str();
-    }
+    why = judge(sample.noise_sd_pa, params);
     direction_ = 0;
     pre_count_ = 0;
   }
@@ -216,7 +205,40 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
   return why;
 }
 
+std::string ValveResponseCheck::judge(double noise_sd_pa, const ConsistencyMonitorParams& params) {
+  const double needed_pa = params.response_sds * noise_sd_pa;
+  const double counted_pa = std::fabs(counted_pa_);
+  // A vent can take the pressure down to ambient at most: a plate that rests at a few
+  // reading sds (a light one) has no room to show its vent working.
+  const bool room = (direction_ > 0 || baseline_pa_ >= 2.0 * needed_pa) && slow_enough_;
+  // A valve that does not open leaves the readings where they were; readings that stayed
+  // against the pulse by more than that all along (a load shifting meanwhile) do not judge it.
+  const bool still = best_pa_ > -needed_pa;
+  if (params.response_min_pa <= 0.0 || counted_pa < params.response_min_pa || !room || !still) return "";
+  const int v = direction_ > 0 ? 0 : 1;
+  if (best_pa_ >= needed_pa) {
+    silent_[v] = 0;
+    silent_pa_[v] = 0.0;
+    return "";
+  }
+  // A run counts only vent pulses with room for their whole step: near ambient a plate under a
+  // body's part can settle with it and hold the pressure while its vent works.
+  if (direction_ < 0 && baseline_pa_ < 2.0 * counted_pa && counted_pa < params.response_single_pa) return "";
+  silent_pa_[v] += counted_pa;
+  ++silent_[v];
+  const bool run = params.response_silent_sum_pa > 0.0 && silent_[v] >= params.response_silent_pulses &&
+                   silent_pa_[v] >= params.response_silent_sum_pa;
+  if (!run && counted_pa < params.response_single_pa) return "";
+  std::ostringstream why;
+  why << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << silent_pa_[v]
+      << " Pa at fixed volume over " << silent_[v] << " pulse(s), none moving the pressure " << needed_pa
+      << " Pa its way: a valve that does not open";
+  return why.str();
+}
+
 void ValveResponseCheck::restart() {
+  silent_.fill(0);
+  silent_pa_.fill(0.0);
   direction_ = 0;
   pre_count_ = 0;
   pre_next_ = 0;

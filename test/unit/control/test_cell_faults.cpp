@@ -62,14 +62,11 @@ class FaultyHardware : public nb::CellHardware {
 
 /// A cell resting at `height_m` under `load_n` on faulty hardware, controlled every 5 ms.
 struct FaultyCell {
-  /// `progress_check`: the failure-to-reach-target test on, at the values that suit the model.
-  FaultyCell(double height_m, double load_n, bool progress_check = false) {
+  /// `monitor`: the consistency monitor's tests (the shipped ones by default).
+  FaultyCell(double height_m, double load_n, const nb::ConsistencyMonitorParams& monitor = {}) {
     nb::AirbagCellParams p;
     nb::AirbagObserverSetup observer;
-    if (progress_check) {
-      observer.monitor.progress_inlet_s = 0.035;
-      observer.monitor.progress_vent_s = 0.1;
-    }
+    observer.monitor = monitor;
     observer.params.valve_dead_time_s = 0.015;  // the valve's 10 ms and a reading one cycle old
     // The plant is the truth: integrated well below the pressure input's 12.2 Pa step, so which
     // side of a step a reading falls on is the physics' (the default tolerance, 1e-4 of the
@@ -100,6 +97,14 @@ struct FaultyCell {
   std::unique_ptr<nb::AirbagCell> cell;
   double t = 0.005;
 };
+
+/// The silent-pulse rows on, as a rig with rigid loads (this plant's) runs them; a
+/// healthy cell flagged with them on would be flagged without them too.
+nb::ConsistencyMonitorParams rowsOn() {
+  nb::ConsistencyMonitorParams m;
+  m.response_silent_sum_pa = 1000.0;
+  return m;
+}
 
 struct FaultCase {
   const char* name;
@@ -161,7 +166,7 @@ TEST(CellFaults, AValveStuckShutIsFlaggedOnlyWhenItIsCommanded) {
 TEST(CellFaults, AHealthyCellMovedAroundUnderThreeLoadsIsNeverFlagged) {
   const double targets[] = {0.06, 0.10, 0.045, 0.08, 0.03, 0.07, 0.12, 0.05};
   for (const double load_n : {0.6, 15.6, 36.0}) {
-    FaultyCell c(0.02, load_n);
+    FaultyCell c(0.02, load_n, rowsOn());
     int flags = 0;
     bool was = false;
     for (int i = 0; i < 16; ++i) {
@@ -182,7 +187,7 @@ TEST(CellFaults, SmallMovesOfAHealthyCellUnderLoadsFromThePlateAloneUpAreNeverFl
   // Steps of 0.5-7 mm: the valve pulses the response test is most likely to misjudge, where
   // the plate is light enough to follow the gas almost at once.
   for (const double load_n : {0.6, 3.0, 7.0, 12.0, 25.0}) {
-    FaultyCell c(0.06, load_n);
+    FaultyCell c(0.06, load_n, rowsOn());
     int flags = 0;
     bool was = false;
     std::string reason;
@@ -250,11 +255,21 @@ TEST(CellFaults, AVentStuckOpenKeepsTheCellFlaggedThroughItsRefillsUntilAHoldPro
 }
 
 namespace {
+/// The failure-to-reach-target test alone, at the values that suit the model.
+nb::ConsistencyMonitorParams progressCheckOnly() {
+  nb::ConsistencyMonitorParams m;
+  m.progress_inlet_s = 0.035;
+  m.progress_vent_s = 0.1;
+  m.response_min_pa = 0.0;
+  return m;
+}
+
 /// Ramps the cell's target from `from_m` to `to_m` over 60 s in small steps, as a turn does (the
-/// controller's pulses then are far below the response test's); returns the time to the first
-/// FAULT_INCONSISTENT after the ramp began (-1: none).
-double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double from_m, double to_m) {
-  FaultyCell c(from_m, load_n, /*progress_check=*/true);
+/// controller's pulses then are a few hundred pascals each at fixed volume); returns the time to
+/// the first FAULT_INCONSISTENT after the ramp began (-1: none).
+double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double from_m, double to_m,
+                         const nb::ConsistencyMonitorParams& monitor = {}) {
+  FaultyCell c(from_m, load_n, monitor);
   EXPECT_EQ(c.cell->requestHeight(from_m, 0.0), "");
   c.runTo(6.0);
   c.hw->stuck_inlet = stuck_inlet;
@@ -271,28 +286,43 @@ double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double 
 }
 }  // namespace
 
-TEST(CellFaults, AValveStuckShutUnderASlowRampIsFlaggedAsAFailureToReachTarget) {
-  // A 40 mm ramp over a minute: each pulse is a few pascals at fixed volume, none judged alone;
-  // summed, a working valve moves the pressure along the structure and a stuck one does not.
+TEST(CellFaults, AValveStuckShutUnderASlowRampIsFlaggedWithinFiveSecondsByTheSilentPulseRows) {
+  // A 40 mm ramp over a minute: each pulse is a few hundred pascals at fixed volume, each
+  // silent where the valve is stuck; a few of them in a row are a valve that does not open.
   for (const double load_n : {15.6, 36.0}) {
-    const double inlet_s = rampedFlagSeconds(load_n, 0, -1, 0.05, 0.09);
-    const double vent_s = rampedFlagSeconds(load_n, -1, 0, 0.09, 0.05);
+    const double inlet_s = rampedFlagSeconds(load_n, 0, -1, 0.05, 0.09, rowsOn());
+    const double vent_s = rampedFlagSeconds(load_n, -1, 0, 0.09, 0.05, rowsOn());
     std::printf("[faults] under %.1f N on a 60 s ramp: stuck-shut inlet flagged after %.1f s, vent after %.1f s\n",
                 load_n, inlet_s, vent_s);
     EXPECT_GE(inlet_s, 0.0) << "inlet under " << load_n << " N";
+    EXPECT_LE(inlet_s, 5.0) << "inlet under " << load_n << " N";
     EXPECT_GE(vent_s, 0.0) << "vent under " << load_n << " N";
+    EXPECT_LE(vent_s, 5.0) << "vent under " << load_n << " N";
   }
-  // Half as fast: about 0.1 s of inlet in the minute, summed over the whole ramp.
-  const double slow_s = rampedFlagSeconds(15.6, 0, -1, 0.07, 0.09);
+  // Half as fast: 20 mm over the minute.
+  const double slow_s = rampedFlagSeconds(15.6, 0, -1, 0.07, 0.09, rowsOn());
   std::printf("[faults] under 15.6 N on a 20 mm ramp over 60 s: stuck-shut inlet flagged after %.1f s\n", slow_s);
   EXPECT_GE(slow_s, 0.0);
+  EXPECT_LE(slow_s, 5.0);
+}
+
+TEST(CellFaults, AValveStuckShutUnderASlowRampIsFlaggedAsAFailureToReachTarget) {
+  // The optional progress test alone: summed, a working valve moves the pressure along the
+  // structure and a stuck one does not.
+  for (const double load_n : {15.6, 36.0}) {
+    EXPECT_GE(rampedFlagSeconds(load_n, 0, -1, 0.05, 0.09, progressCheckOnly()), 0.0) << "inlet under " << load_n;
+    EXPECT_GE(rampedFlagSeconds(load_n, -1, 0, 0.09, 0.05, progressCheckOnly()), 0.0) << "vent under " << load_n;
+  }
+  EXPECT_GE(rampedFlagSeconds(15.6, 0, -1, 0.07, 0.09, progressCheckOnly()), 0.0);
 }
 
 TEST(CellFaults, AHealthyCellOnASlowRampIsNeverFlagged) {
   for (const double load_n : {0.6, 5.0, 15.6, 36.0}) {
-    EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.05, 0.09), 0.0) << "up under " << load_n << " N";
-    EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.09, 0.05), 0.0) << "down under " << load_n << " N";
-    EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.07, 0.09), 0.0) << "slowly up under " << load_n << " N";
+    for (const auto& monitor : {nb::ConsistencyMonitorParams{}, rowsOn(), progressCheckOnly()}) {
+      EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.05, 0.09, monitor), 0.0) << "up under " << load_n << " N";
+      EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.09, 0.05, monitor), 0.0) << "down under " << load_n << " N";
+      EXPECT_LT(rampedFlagSeconds(load_n, -1, -1, 0.07, 0.09, monitor), 0.0) << "slowly up under " << load_n << " N";
+    }
   }
 }
 
@@ -304,7 +334,7 @@ TEST(CellFaults, ABodyLoadingOrUnloadingAHeldCellQuicklyIsNotFlagged) {
   const std::pair<double, double> steps[] = {{10.0, 40.0}, {40.0, 5.0}, {40.0, 80.0}, {10.0, 80.0}, {40.0, 25.0}};
   for (const auto& [from_n, to_n] : steps)
     for (const double ramp_s : {0.0, 0.05, 0.2}) {
-      FaultyCell c(0.10, from_n);
+      FaultyCell c(0.10, from_n, rowsOn());
       ASSERT_EQ(c.cell->requestHeight(0.10, 0.0), "");
       ASSERT_LT(c.runTo(6.0), 0.0);
       const double t0 = c.t;

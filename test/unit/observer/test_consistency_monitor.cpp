@@ -62,6 +62,11 @@ TEST(ConsistencyMonitorParams, RefusesBadValuesNamingThem) {
   expectRefused("surprise_m", &nb::ConsistencyMonitorParams::surprise_m, -0.001);
   expectRefused("response_min_pa", &nb::ConsistencyMonitorParams::response_min_pa, -1.0);
   expectRefused("response_sds", &nb::ConsistencyMonitorParams::response_sds, 0.0);
+  expectRefused("response_silent_sum_pa", &nb::ConsistencyMonitorParams::response_silent_sum_pa, -1.0);
+  expectRefused("response_single_pa", &nb::ConsistencyMonitorParams::response_single_pa, NAN);
+  nb::ConsistencyMonitorParams none;
+  none.response_silent_pulses = 0;
+  EXPECT_NE(none.validate().message().find("response_silent_pulses"), std::string::npos);
   expectRefused("response_window_s", &nb::ConsistencyMonitorParams::response_window_s, INFINITY);
   expectRefused("response_min_period_s", &nb::ConsistencyMonitorParams::response_min_period_s, -0.01);
   expectRefused("max_load_n", &nb::ConsistencyMonitorParams::max_load_n, std::nan(""));
@@ -168,31 +173,38 @@ TEST(ConsistencyMonitor, AMissingReadingStartsTheTestsAgain) {
 namespace {
 
 /// A pulse of `periods` periods of one valve (+1 inlet, -1 vent), each counted to move the
-/// pressure by `step_pa` at fixed volume, after half a second of hold at `pressure_pa`; the
-/// readings move `response_pa` its way during it, the plate swinging with `plate_period_s`.
-/// Returns whether the monitor flagged it.
+/// pressure by `step_pa` at fixed volume, then 40 periods of hold, at `pressure_pa`; the readings
+/// move `response_pa` its way during it, the plate swinging with `plate_period_s`. Returns
+/// whether the monitor flagged it.
+bool pulseOn(nb::ConsistencyMonitor* monitor, Sensor* sensor, double pressure_pa, int direction, double step_pa,
+             int periods, double response_pa, double plate_period_s = 0.05) {
+  for (int i = 0; i < periods + 40; ++i) {
+    nb::ConsistencySample s =
+        sample(sensor->read(pressure_pa + direction * (i < periods ? response_pa : 0.0)), i >= periods);
+    s.counted_step_pa = i < periods ? direction * step_pa : 0.0;
+    s.plate_period_s = plate_period_s;
+    if (monitor->update(s, kPeriod)) return true;
+  }
+  return false;
+}
+
+/// The same pulse after half a second of hold, on a fresh monitor.
 bool pulse(double pressure_pa, int direction, double step_pa, int periods, double response_pa,
            double plate_period_s = 0.05) {
   nb::ConsistencyMonitor monitor;
   Sensor sensor(13);
   runHolds(&monitor, &sensor, 0.5, pressure_pa, 100.0);
-  for (int i = 0; i < periods + 40; ++i) {
-    nb::ConsistencySample s =
-        sample(sensor.read(pressure_pa + direction * (i < periods ? response_pa : 0.0)), i >= periods);
-    s.counted_step_pa = i < periods ? direction * step_pa : 0.0;
-    s.plate_period_s = plate_period_s;
-    if (monitor.update(s, kPeriod)) return true;
-  }
-  return false;
+  return pulseOn(&monitor, &sensor, pressure_pa, direction, step_pa, periods, response_pa, plate_period_s);
 }
 
 }  // namespace
 
 TEST(ConsistencyMonitor, AValvePulseThatMovesNoPressureIsFlaggedOneThatDoesIsNot) {
   for (const int direction : {1, -1}) {
-    EXPECT_FALSE(pulse(900.0, direction, 1000.0, 10, 300.0)) << direction << ": a working valve";
-    EXPECT_TRUE(pulse(900.0, direction, 1000.0, 10, 0.0)) << direction << ": a valve stuck shut";
-    EXPECT_FALSE(pulse(900.0, direction, 200.0, 10, 0.0)) << direction << ": too small a pulse to judge";
+    EXPECT_FALSE(pulse(8000.0, direction, 350.0, 10, 300.0)) << direction << ": a working valve";
+    EXPECT_TRUE(pulse(8000.0, direction, 350.0, 10, 0.0)) << direction << ": a valve stuck shut";
+    EXPECT_FALSE(pulse(8000.0, direction, 250.0, 10, 0.0)) << direction << ": one silent pulse below 3 kPa";
+    EXPECT_FALSE(pulse(8000.0, direction, 15.0, 10, 0.0)) << direction << ": too small a pulse to judge";
   }
   // A plate resting at a few sds of pressure has no room to show its vent.
   EXPECT_FALSE(pulse(40.0, -1, 1000.0, 10, 0.0));
@@ -207,6 +219,56 @@ TEST(ConsistencyMonitor, AValvePulseThatMovesNoPressureIsFlaggedOneThatDoesIsNot
   s.counted_step_pa = 5000.0;
   s.plate_period_s = 0.05;
   for (int i = 0; i < 50; ++i) EXPECT_FALSE(monitor.update(i < 10 ? s : sample(sensor.read(900.0), true), kPeriod));
+}
+
+namespace {
+/// The silent-pulse rows on, as a rig with rigid loads runs them.
+nb::ConsistencyMonitorParams rowsOn() {
+  nb::ConsistencyMonitorParams p;
+  p.response_silent_sum_pa = 1000.0;
+  return p;
+}
+}  // namespace
+
+TEST(ConsistencyMonitor, OneValvesSmallSilentPulsesInARowAreFlaggedOnceTheySumToTheLimit) {
+  // A slow ramp's pulses, 300 Pa each at fixed volume: three silent ones (900 Pa) are not yet
+  // a stuck valve, the fourth (1200 Pa) is.
+  for (const int direction : {1, -1}) {
+    nb::ConsistencyMonitor monitor(rowsOn());
+    Sensor sensor(17);
+    runHolds(&monitor, &sensor, 0.5, 2000.0, 100.0);
+    for (int i = 0; i < 3; ++i) EXPECT_FALSE(pulseOn(&monitor, &sensor, 2000.0, direction, 100.0, 3, 0.0)) << i;
+    EXPECT_TRUE(pulseOn(&monitor, &sensor, 2000.0, direction, 100.0, 3, 0.0)) << direction;
+    EXPECT_NE(monitor.reason().find(direction > 0 ? "inlet" : "vent"), std::string::npos) << monitor.reason();
+  }
+  // Two silent pulses of 1.25 kPa are not enough, a third is.
+  nb::ConsistencyMonitor two(rowsOn());
+  Sensor two_sensor(29);
+  runHolds(&two, &two_sensor, 0.5, 2000.0, 100.0);
+  EXPECT_FALSE(pulseOn(&two, &two_sensor, 2000.0, +1, 250.0, 5, 0.0));
+  EXPECT_FALSE(pulseOn(&two, &two_sensor, 2000.0, +1, 250.0, 5, 0.0));
+  EXPECT_TRUE(pulseOn(&two, &two_sensor, 2000.0, +1, 250.0, 5, 0.0));
+  // A pulse that shows starts its valve's sum again; the other valve's pulses do not.
+  nb::ConsistencyMonitor monitor(rowsOn());
+  Sensor sensor(19);
+  runHolds(&monitor, &sensor, 0.5, 2000.0, 100.0);
+  for (int i = 0; i < 12; ++i) {
+    const bool shows = i % 3 == 2;
+    EXPECT_FALSE(pulseOn(&monitor, &sensor, 2000.0, +1, 100.0, 3, shows ? 80.0 : 0.0)) << i;
+  }
+  for (int i = 0; i < 3; ++i) EXPECT_FALSE(pulseOn(&monitor, &sensor, 2000.0, +1, 100.0, 3, 0.0)) << i;
+  EXPECT_FALSE(pulseOn(&monitor, &sensor, 2000.0, -1, 100.0, 3, 80.0));
+  EXPECT_TRUE(pulseOn(&monitor, &sensor, 2000.0, +1, 100.0, 3, 0.0));
+  // Small vent pulses count only where the plate rests at twice their worth or more.
+  nb::ConsistencyMonitor low(rowsOn());
+  Sensor low_sensor(23);
+  runHolds(&low, &low_sensor, 0.5, 500.0, 100.0);
+  for (int i = 0; i < 8; ++i) EXPECT_FALSE(pulseOn(&low, &low_sensor, 500.0, -1, 100.0, 3, 0.0)) << i;
+  // Off by default (a body's part moves with its plate): no row flags.
+  nb::ConsistencyMonitor off;
+  Sensor off_sensor(31);
+  runHolds(&off, &off_sensor, 0.5, 2000.0, 100.0);
+  for (int i = 0; i < 12; ++i) EXPECT_FALSE(pulseOn(&off, &off_sensor, 2000.0, +1, 100.0, 3, 0.0)) << i;
 }
 
 TEST(ConsistencyMonitor, ALoadAboveAnyACellCarriesIsFlagged) {

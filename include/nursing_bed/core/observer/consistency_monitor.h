@@ -43,10 +43,19 @@ struct ConsistencyMonitorParams {
   /// volume (gamma p dm / m) is checked for a response: the pressure must move its way
   /// before the plate can take the gas up. Smaller pulses (a hold's corrections) are not
   /// judged; 0: off [Pa].
-  double response_min_pa = 3000.0;
+  double response_min_pa = 200.0;
   /// The response asked of such a pulse: the mean of the last few readings moves this many
   /// reading sds from the mean before it, in the pulse's direction [-].
   double response_sds = 3.0;
+  /// Under a rigid load a working valve's pulse shows nearly always, the larger the surer: one
+  /// valve's judged pulses in a row without a response, at least response_silent_pulses of
+  /// them and counted worth this in all, are a valve stuck shut (a slow ramp's pulses are a few
+  /// hundred pascals each; 1000 suits a rig). Under a body the part resting on the plate moves
+  /// with it and healthy pulses can show nothing three times in a row; 0: off [Pa].
+  double response_silent_sum_pa = 0.0;
+  int response_silent_pulses = 3;  ///< that many at least [-]
+  /// One silent pulse this large is a valve stuck shut on its own [Pa].
+  double response_single_pa = 3000.0;
   /// After the pulse's counted flow ends, the response is awaited this long [s].
   double response_window_s = 0.1;
   /// Pulses are judged only where the plate swings on its gas spring at least this slowly:
@@ -111,7 +120,8 @@ struct ConsistencySample {
 /// One job: whether a valve that was counted to pass gas moved the pressure at all. A valve
 /// stuck shut passes nothing, so the readings stay within their noise where a working one
 /// moves them by hundreds of pascals (even a light plate, which takes the gas up at once,
-/// moves its pressure along the structure). Judged per pulse of one direction.
+/// moves its pressure along the structure). Judged per pulse of one direction, and summed over
+/// one valve's silent pulses in a row.
 class ValveResponseCheck {
  public:
   /// One period; returns a non-empty reason when a judged pulse had no response.
@@ -130,6 +140,13 @@ class ValveResponseCheck {
   double best_pa_ = 0.0;      ///< largest move of the recent mean in its direction
   double after_s_ = 0.0;      ///< time since its counted flow ended
   bool slow_enough_ = false;  ///< its plate swings slowly enough to show the gas
+  /// The counted change of the judged pulses in a row without a response, summed per valve:
+  /// [0] inlet, [1] vent [Pa].
+  std::array<double, 2> silent_pa_{};
+  std::array<int, 2> silent_{};  ///< how many they were
+  /// The verdict on the pulse that just ended; non-empty when its valve's run of silent pulses
+  /// shows the valve stuck shut.
+  std::string judge(double noise_sd_pa, const ConsistencyMonitorParams& params);
 };
 
 /// One job: failure to reach target. Each valve's counted opening time is summed over its
@@ -176,8 +193,10 @@ class ValveProgressCheck {
  *    sensor, a sudden leak or valve flow under a settled plate, a terminal that restarted);
  *  - surprise: a correction of the observer's that does not prove the gas (a weight bound)
  *    larger than surprise_m: the estimate was that far wrong.
- *  - response: a valve pulse counted to move the pressure by response_min_pa at fixed volume
- *    that moved the readings by less than response_sds (ValveResponseCheck): a valve stuck shut;
+ *  - response: a valve's pulses, each counted to move the pressure by response_min_pa at fixed
+ *    volume, none moving the readings by response_sds: one worth response_single_pa, or
+ *    response_silent_pulses or more worth response_silent_sum_pa in all (ValveResponseCheck):
+ *    a valve stuck shut;
  *  - load: the observer's load estimate above max_load_n (gas passing a shut valve);
  *  - landed: the readings flat (below the observer's flat pressure) under an estimate
  *    above landed_height_m (gas gone uncounted);
