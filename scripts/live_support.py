@@ -9,16 +9,19 @@ waits --warmup-s, then measures --duration-s from /simulator/tissue_load as bed_
 region the highest peak, the share of the time above the threshold, the dose per hour, the lowest
 margin; the body's mean contact area; and whether any cell was dead, faulty or unverified. With
 --compare FILE (a bed_study_support.json of the same plan and body) it prints each figure's
-relative difference from the simulated one. --json writes the figures. Exit code 0 when the run
-was measured, 1 when the bed never came up or the plan was refused, 2 for a bad command line.
+relative difference from the simulated one. --json writes the figures. --launch-arg passes
+NAME:=VALUE to roslaunch: with ROS_MASTER_URI on another port and register_map:= a map on other
+Modbus ports, two beds run side by side. Exit code 0 when the run was measured, 1 when the bed
+never came up or the plan was refused, 2 for a bad command line.
 
 usage: live_support.py [--sim] [--plan adaptive] [--warmup-s S] [--duration-s S] [--json FILE]
-                       [--compare FILE] [KEY=VALUE ...]
+                       [--compare FILE] [--launch-arg NAME:=VALUE ...] [KEY=VALUE ...]
 e.g.   live_support.py --duration-s 7200 --json /tmp/live.json --compare doc/bed_study_support.json
 """
 import argparse
 import json
 import math
+import signal
 import sys
 import time
 
@@ -37,6 +40,8 @@ def parse_args(argv):
     p.add_argument("--startup-timeout", type=float, default=120.0, help="wait this long for the first state [s]")
     p.add_argument("--json", help="write the figures here")
     p.add_argument("--compare", help="bed_study_support.json of the same plan and body")
+    p.add_argument("--launch-arg", action="append", default=[], metavar="NAME:=VALUE",
+                   help="passed to roslaunch (repeatable), e.g. register_map:=FILE for a second bed on other ports")
     p.add_argument("plan_args", nargs="*", metavar="KEY=VALUE", help="the plan's arguments")
     a = p.parse_args(argv)
     for name in ("settle_s", "warmup_s", "duration_s", "startup_timeout"):
@@ -48,6 +53,9 @@ def parse_args(argv):
         p.error("--height-m must lie in [1.0, 2.3] (the patient simulator's range)")
     if not a.duration_s > 0.0:
         p.error("--duration-s must be positive")
+    for kv in a.launch_arg:
+        if ":=" not in kv or kv.startswith(":="):
+            p.error("--launch-arg '%s' is not NAME:=VALUE" % kv)
     for kv in a.plan_args:
         if "=" not in kv or kv.startswith("="):
             p.error("plan argument '%s' is not KEY=VALUE" % kv)
@@ -100,6 +108,7 @@ def measure(args):
     if not args.sim:
         launch.append("emulator:=true")
     launch += ["patient_articulated:=true", "patient_mass_kg:=%g" % args.mass_kg, "patient_height_m:=%g" % args.height_m]
+    launch += args.launch_arg
     flags = {"dead": set(), "faulty": set(), "unverified": set(), "plans": set(), "state": False}
     meter = Meter()
     recording = {"on": False}
@@ -180,6 +189,8 @@ def report(out, compare):
 
 
 def main():
+    # SIGTERM (kill, a batch system) ends the run through the launch's teardown, not around it.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     args = parse_args(sys.argv[1:])
     if args.compare:
         try:
