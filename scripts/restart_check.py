@@ -26,8 +26,7 @@ import time
 
 import rospy
 
-from roslaunch_session import launched
-from soak import Score, inject, small_map
+from soak import add_bed_arguments, emulated_bed, inject
 
 BACK_M = 0.002  # a cell is back when the truth is this close to its target, unflagged
 
@@ -98,44 +97,24 @@ def run(args, score, n_cells):
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeat", type=int, default=10)
-    parser.add_argument("--rows", type=int, default=20)
-    parser.add_argument("--cols", type=int, default=9)
     parser.add_argument("--silence-s", type=float, default=1.0, help="the terminals' silence [s]")
     parser.add_argument("--flag-s", type=float, default=2.0, help="a cell must be flagged this soon after [s]")
     parser.add_argument("--back-s", type=float, default=60.0, help="and back on its target this soon [s]")
     parser.add_argument("--every-s", type=float, default=75.0, help="a restart this often [s]")
-    parser.add_argument("--flag-slack-s", type=float, default=0.25, help="a flag counts this close to a height's stamp")
-    parser.add_argument("--startup-timeout", type=float, default=300.0)
-    parser.add_argument("--port", type=int, default=15120, help="the small bed's Modbus TCP port (one free on this host)")
-    parser.add_argument("--json", default="")
+    add_bed_arguments(parser)
     args, launch_args = parser.parse_known_args()
     for name in ("silence_s", "flag_s", "back_s", "every_s"):
         if not (getattr(args, name) > 0.0 and math.isfinite(getattr(args, name))):
             parser.error("--%s must be a finite number > 0" % name.replace("_", "-"))
     if args.repeat < 1:
         parser.error("--repeat must be >= 1")
-    n_cells = args.rows * args.cols
-    extra = [] if (args.rows, args.cols) == (20, 9) else ["register_map:=" + small_map(args.rows, args.cols, args.port)]
-    with launched(["roslaunch", "nursing_bed", "real_bed.launch", "emulator:=true", "rows:=%d" % args.rows,
-                   "cols:=%d" % args.cols] + extra + launch_args):
-        time.sleep(3.0)
-        rospy.init_node("restart_check", anonymous=True, disable_signals=True)
-        score = Score(args.flag_slack_s)
-        rospy.wait_for_service("/rig_emulator/inject_fault", timeout=args.startup_timeout)
-        t0 = time.monotonic()
-        while len(score.flags) == 0 or not score.truth:
-            if time.monotonic() - t0 > args.startup_timeout:
-                print("restart_check: no bed state or truth after %.0f s" % args.startup_timeout, file=sys.stderr)
-                return 1
-            time.sleep(0.5)
-        time.sleep(30.0)  # the cells find their gas and the bed goes flat
-        result = run(args, score, n_cells)
+    with emulated_bed(args, launch_args, "restart_check", 30.0) as score:
+        result = run(args, score, args.rows * args.cols)
         result.update({"rows": args.rows, "cols": args.cols, "launch_args": launch_args})
-        if args.json:
-            with open(args.json, "w") as f:
-                json.dump(result, f, indent=2)
-    return 0
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=2)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

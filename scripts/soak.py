@@ -24,6 +24,7 @@ e.g.   soak.py --minutes 10 --rows 9 --cols 3
 import argparse
 import bisect
 import collections
+import contextlib
 import json
 import math
 import random
@@ -331,11 +332,41 @@ def run(args, score, n_cells):
     return summarise(score, injections, times, rospy.get_time() - t0, faulted_until)
 
 
+def add_bed_arguments(parser):
+    """The emulated bed's arguments, shared with restart_check.py."""
+    parser.add_argument("--rows", type=int, default=20)
+    parser.add_argument("--cols", type=int, default=9)
+    parser.add_argument("--flag-slack-s", type=float, default=0.25, help="a flag counts this close to a height's stamp")
+    parser.add_argument("--startup-timeout", type=float, default=300.0)
+    parser.add_argument("--port", type=int, default=15120, help="the small bed's Modbus TCP port (one free on this host)")
+    parser.add_argument("--json", default="")
+
+
+@contextlib.contextmanager
+def emulated_bed(args, launch_args, node_name, settle_s):
+    """real_bed.launch emulator:=true of args.rows x args.cols with launch_args, this process a
+    node of it; waits for the bed's first state and the truth, then settle_s (the cells find their
+    gas and the bed goes flat). Yields the Score, already listening."""
+    extra = [] if (args.rows, args.cols) == (20, 9) else ["register_map:=" + small_map(args.rows, args.cols, args.port)]
+    with launched(["roslaunch", "nursing_bed", "real_bed.launch", "emulator:=true", "rows:=%d" % args.rows,
+                   "cols:=%d" % args.cols] + extra + launch_args):
+        time.sleep(3.0)
+        rospy.init_node(node_name, anonymous=True, disable_signals=True)
+        score = Score(args.flag_slack_s)
+        rospy.wait_for_service("/bed_manager/set_posture", timeout=args.startup_timeout)
+        rospy.wait_for_service("/rig_emulator/inject_fault", timeout=args.startup_timeout)
+        t0 = time.monotonic()
+        while len(score.flags) == 0 or not score.truth:
+            if time.monotonic() - t0 > args.startup_timeout:
+                sys.exit("%s: no bed state or truth after %.0f s" % (node_name, args.startup_timeout))
+            time.sleep(0.5)
+        time.sleep(settle_s)
+        yield score
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--minutes", type=float, default=10.0)
-    parser.add_argument("--rows", type=int, default=20)
-    parser.add_argument("--cols", type=int, default=9)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--plan-s", type=float, default=240.0, help="each plan runs this long (the alternating period)")
     parser.add_argument("--fault-every-s", type=float, default=120.0,
@@ -346,31 +377,14 @@ def main():
     parser.add_argument("--fault-hold-s", type=float, default=60.0, help="a fault is cleared after this long")
     parser.add_argument("--flag-within-s", type=float, default=30.0, help="a fault's flag counts this long after it")
     parser.add_argument("--recover-s", type=float, default=60.0, help="flags this long after a clearing are not false")
-    parser.add_argument("--flag-slack-s", type=float, default=0.25, help="a flag counts this close to a height's stamp")
-    parser.add_argument("--startup-timeout", type=float, default=300.0)
-    parser.add_argument("--port", type=int, default=15120, help="the small bed's Modbus TCP port (one free on this host)")
-    parser.add_argument("--json", default="")
+    add_bed_arguments(parser)
     args, launch_args = parser.parse_known_args()
     known = {fault_key(f) for f in FAULTS} | {f[1] for f in FAULTS}
     unknown = [k for k in args.faults if k not in known]
     if unknown:
         parser.error("--faults: unknown kind(s) %s; known: %s" % (", ".join(unknown), ", ".join(sorted(known))))
-    n_cells = args.rows * args.cols
-    extra = [] if (args.rows, args.cols) == (20, 9) else ["register_map:=" + small_map(args.rows, args.cols, args.port)]
-    with launched(["roslaunch", "nursing_bed", "real_bed.launch", "emulator:=true", "rows:=%d" % args.rows,
-                   "cols:=%d" % args.cols] + extra + launch_args):
-        time.sleep(3.0)
-        rospy.init_node("soak", anonymous=True, disable_signals=True)
-        score = Score(args.flag_slack_s)
-        rospy.wait_for_service("/bed_manager/set_posture", timeout=args.startup_timeout)
-        rospy.wait_for_service("/rig_emulator/inject_fault", timeout=args.startup_timeout)
-        t0 = time.monotonic()
-        while len(score.flags) == 0 or not score.truth:
-            if time.monotonic() - t0 > args.startup_timeout:
-                sys.exit("soak: no bed state or truth after %.0f s" % args.startup_timeout)
-            time.sleep(0.5)
-        time.sleep(20.0)  # the cells find their gas and the bed goes flat
-        result = run(args, score, n_cells)
+    with emulated_bed(args, launch_args, "soak", 20.0) as score:
+        result = run(args, score, args.rows * args.cols)
         result.update({"rows": args.rows, "cols": args.cols, "seed": args.seed, "launch_args": launch_args})
         if args.json:
             with open(args.json, "w") as f:
