@@ -12,7 +12,7 @@ of the silence):
 and over the whole run, as soak.py scores it, every reported height against the truth: the
 cell-seconds with an unflagged error over 6 mm and the worst unflagged error. Prints a line per
 restart and the totals; --json keeps them. Exit code 0 when measured, 1 when the bed never came
-up, 2 for a bad command line.
+up or the emulator refused the restart, 2 for a bad command line.
 
 usage: restart_check.py [--repeat N] [--rows R] [--cols C] [--json FILE] [launch args...]
 e.g.   restart_check.py --repeat 10
@@ -31,11 +31,6 @@ from soak import add_bed_arguments, emulated_bed, inject
 BACK_M = 0.002  # a cell is back when the truth is this close to its target, unflagged
 
 
-def latest_truth(score):
-    with score.lock:
-        return score.truth[-1][1] if score.truth else None
-
-
 def one_restart(args, score, n_cells):
     """Restarts the terminals once; returns (flagged within --flag-s of the reconnection, seconds
     from it until back on the target the bed manager gives it then, or None) per cell."""
@@ -46,10 +41,10 @@ def one_restart(args, score, n_cells):
     flagged, back = [False] * n_cells, [None] * n_cells
     while rospy.get_time() < reconnected + args.back_s and not rospy.is_shutdown():
         now = rospy.get_time()
-        truth = latest_truth(score)
         with score.lock:
+            truth = score.truth[-1][1] if score.truth else None
             now_flagged = set(score.flagged_now)
-            targets = dict(score.last_target)
+            targets = {c: moves[-1][1] for c, moves in score.target_moves.items()}
         for c in range(n_cells):
             if c in now_flagged and reconnected <= now <= reconnected + args.flag_s:
                 flagged[c] = True
@@ -67,6 +62,7 @@ def run(args, score, n_cells):
     score.t0 = rospy.get_time()
     reps = []
     for i in range(args.repeat):
+        next_at = rospy.get_time() + args.every_s
         flagged, back = one_restart(args, score, n_cells)
         times = [b for b in back if b is not None]
         rep = {"flagged": sum(flagged), "back": len(times), "back_median_s": statistics.median(times) if times else None,
@@ -77,8 +73,7 @@ def run(args, score, n_cells):
             i + 1, args.flag_s, rep["flagged"], n_cells, rep["back"],
             "%.1f" % rep["back_median_s"] if times else "-", "%.1f" % rep["back_max_s"] if times else "-"))
         sys.stdout.flush()
-        rest_until = rospy.get_time() + max(0.0, args.every_s - args.silence_s - args.back_s)
-        while rospy.get_time() < rest_until:
+        while rospy.get_time() < next_at:
             time.sleep(0.2)
     time.sleep(2.0)
     with score.lock:
@@ -100,12 +95,14 @@ def main():
     parser.add_argument("--silence-s", type=float, default=1.0, help="the terminals' silence [s]")
     parser.add_argument("--flag-s", type=float, default=2.0, help="a cell must be flagged this soon after [s]")
     parser.add_argument("--back-s", type=float, default=60.0, help="and back on its target this soon [s]")
-    parser.add_argument("--every-s", type=float, default=75.0, help="a restart this often [s]")
+    parser.add_argument("--every-s", type=float, default=75.0, help="a restart this often, from one to the next [s]")
     add_bed_arguments(parser)
     args, launch_args = parser.parse_known_args()
     for name in ("silence_s", "flag_s", "back_s", "every_s"):
         if not (getattr(args, name) > 0.0 and math.isfinite(getattr(args, name))):
             parser.error("--%s must be a finite number > 0" % name.replace("_", "-"))
+    if args.every_s < args.silence_s + args.back_s:
+        parser.error("--every-s must be at least --silence-s + --back-s (a restart measured to its end)")
     if args.repeat < 1:
         parser.error("--repeat must be >= 1")
     with emulated_bed(args, launch_args, "restart_check", 30.0) as score:

@@ -96,7 +96,6 @@ class Score:
         self.worst_at, self.bad_by_cell = (None, None), {}  # (cell, stamp); cell-seconds over 6 mm
         self.flag_onsets = []  # (stamp, cell)
         self.target_moves = collections.defaultdict(list)  # cell -> [(stamp, target)] where it moved
-        self.last_target = {}
         self.flagged_now = set()
         self.recording = False
         self.t0 = 0.0
@@ -113,9 +112,9 @@ class Score:
                 self.flag_onsets += [(t, c) for c in flagged - self.flagged_now]
             self.flagged_now = flagged
             for cell, target in enumerate(msg.target_heights_m):
-                if abs(target - self.last_target.get(cell, math.inf)) > 2e-4:
-                    self.last_target[cell] = target
-                    self.target_moves[cell].append((t, target))
+                moves = self.target_moves[cell]
+                if not moves or abs(target - moves[-1][1]) > 2e-4:
+                    moves.append((t, target))
             self.flags.append((t, flagged))
 
     def on_truth(self, msg):
