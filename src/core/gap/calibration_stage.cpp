@@ -446,6 +446,17 @@ void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& opt
   rep->status = rep->nominal_chi2_per_sample <= options.within_noise_chi2 ? "none" : "unexplained";
 }
 
+void settleNoneOnWithheld(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* rep,
+                          bool above_floor) {
+  const double held = noise.withheld_chi2_per_sample;  // the nominal model's: "none" keeps it
+  if (rep->status != "none" || above_floor || noise.heldResidualCount() == 0 || !(held > options.withheld_chi2)) return;
+  rep->status = "unexplained";
+  rep->reasons.push_back("the fit runs are within the noise but the withheld runs are not (chi2/n " + fmt(held) +
+                         ", above " + fmt(options.withheld_chi2) +
+                         "): the fit runs do not exercise what the withheld runs show; fit runs like the "
+                         "withheld ones (their loads, flows and heights) would let it be named");
+}
+
 void calibratedOutcome(const PreparedRuns& prepared, const NoiseModel& noise, const CellParams& params,
                        DiagnosisReport* rep) {
   const auto moved = rep->calibration.movedValues();

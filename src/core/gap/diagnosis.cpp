@@ -787,6 +787,7 @@ DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& param
                    ? "none"
                    : "unexplained";
   settleCalibratedStatus(s.noise, options, &rep, above_floor);
+  settleNoneOnWithheld(s.noise, options, &rep, above_floor);
   if (above_floor)
     rep.reasons.push_back("model-form floor: the calibrated model stays at chi2/n " +
                           fmt(s.noise.baseline_chi2 / s.noise.fitResidualCount()) +
@@ -873,6 +874,7 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   settleCalibratedStatus(noise, options, &rep, above_floor);
   if (rep.status == "unexplained" && options.discover)
     discoverWhatIsLeft(prepared, noise, params, options, say, &rep, &verdict_effects);
+  settleNoneOnWithheld(noise, options, &rep, above_floor);
   shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);
   calibratedOutcome(prepared, noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();

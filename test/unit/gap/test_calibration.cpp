@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "nursing_bed/core/gap/calibration.h"
+#include "nursing_bed/core/gap/diagnosis.h"
 #include "nursing_bed/core/gap/diagnosis_stages.h"
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/synth.h"
@@ -191,6 +192,41 @@ TEST(GapCalibrationStage, ARealMismatchKeepsItsCalibrationAgainstTheEffects) {
   ASSERT_TRUE(param(c.calibration.summary, "film_stiffness_scale").moved);
   EXPECT_FALSE(gs::dropCalibrationForEffect(c.noise, c.singles, nb::DiagnosisOptions{}, &c.calibration));
   EXPECT_TRUE(param(c.calibration.summary, "film_stiffness_scale").moved);
+}
+
+namespace {
+
+/// One load's low-flow run to fit and its high-flow run withheld: the low flow holds the bag
+/// below where the film's stiffness shows, the high flow above.
+std::vector<nb::RunData> lowFitHighWithheld(const std::map<std::string, double>& rig, std::uint32_t seed) {
+  std::vector<nb::RunData> runs;
+  for (nb::RunData& r : rigRuns(rig, seed)) {
+    if (r.name.rfind("load15p6N_", 0) != 0) continue;
+    r.role = r.name.find("_low") != std::string::npos ? "fit" : "withheld";
+    runs.push_back(std::move(r));
+  }
+  return runs;
+}
+
+}  // namespace
+
+TEST(GapVerdict, NoneNeedsTheWithheldRunsToAgreeElseTheGapIsUnexplained) {
+  nb::DiagnosisOptions options;
+  options.discover = false;
+  const std::vector<nb::RunData> stiff = lowFitHighWithheld({{"film_stiffness_scale", 1.15}}, 5);
+  ASSERT_EQ(stiff.size(), 2u);
+  const nb::DiagnosisReport r = nb::diagnoseRuns(stiff, nb::CellParams{}, options, "low fit, high withheld");
+  EXPECT_LE(r.nominal_chi2_per_sample, options.within_noise_chi2);       // the fit run sees nothing ...
+  EXPECT_GT(r.nominal_withheld_chi2_per_sample, options.withheld_chi2);  // ... the withheld run does
+  EXPECT_EQ(r.status, "unexplained");
+  EXPECT_TRUE(r.verdict_effects.empty());
+  bool said = false;
+  for (const auto& line : r.reasons) said = said || line.find("do not exercise what the withheld") != std::string::npos;
+  EXPECT_TRUE(said);
+
+  const nb::DiagnosisReport clean =
+      nb::diagnoseRuns(lowFitHighWithheld({}, 5), nb::CellParams{}, options, "clean, low fit, high withheld");
+  EXPECT_EQ(clean.status, "none");
 }
 
 TEST(GapCalibrationFile, TheCalibratedFileIsACompleteParameterFileThatReadsBack) {

@@ -215,6 +215,12 @@ JointRefits refitBestJointly(const NoiseModel& noise, const CalibrationFit& base
 /// removing floor_removed of the withheld runs' chi2 also holds up.
 void settleCalibratedStatus(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report,
                             bool above_floor = false);
+/// "none" holds only where the withheld runs agree: a nominal model within the noise on the fit
+/// runs that leaves the withheld runs above options.withheld_chi2 (the bar a named effect must
+/// meet there) means the fit runs do not exercise what the withheld runs show, so the status
+/// becomes "unexplained" with the reason. Not `above_floor` (its "none" is the model's form).
+void settleNoneOnWithheld(const NoiseModel& noise, const DiagnosisOptions& options, DiagnosisReport* report,
+                          bool above_floor);
 
 /// The calibrated model alone: its nrmse on fit and withheld runs, and the calibrated parameter
 /// file (report->calibrated_yaml; the cell's own settings with the moved values).
