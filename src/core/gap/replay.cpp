@@ -316,7 +316,30 @@ double noiseOfSecondDifferences(std::vector<double> d) {
 /// A local estimate of the meter's noise needs this many steady samples near.
 constexpr std::size_t kMinSteadySamples = 5;
 
+/// The sd of a reading's rounding to its quantisationStep(): uniform over one step.
+double quantisationNoise(const std::vector<double>& x) { return quantisationStep(x) / std::sqrt(12.0); }
+
 }  // namespace
+
+double quantisationStep(const std::vector<double>& x) {
+  constexpr double kOnLattice = 0.9;   // share of the changes that are whole steps
+  constexpr double kTolerance = 0.01;  // of a step: a printed decimal's float error is far below
+  double scale = 0.0;
+  for (double v : x)
+    if (std::isfinite(v)) scale = std::max(scale, std::fabs(v));
+  std::vector<double> d;
+  for (std::size_t i = 1; i < x.size(); ++i) {
+    const double v = std::fabs(x[i] - x[i - 1]);
+    if (std::isfinite(v) && v > 1e-9 * scale) d.push_back(v);  // below: the float's own rounding
+  }
+  if (d.size() < 10) return 0.0;
+  const double q = *std::min_element(d.begin(), d.end());
+  const auto whole = std::count_if(d.begin(), d.end(), [q](double v) {
+    const double k = v / q;
+    return std::fabs(k - std::round(k)) <= kTolerance;
+  });
+  return static_cast<double>(whole) >= kOnLattice * static_cast<double>(d.size()) ? q : 0.0;
+}
 
 double estimateNoise(const std::vector<double>& x) {
   std::vector<double> d;
@@ -324,7 +347,7 @@ double estimateNoise(const std::vector<double>& x) {
     const double v = x[i + 1] - 2.0 * x[i] + x[i - 1];
     if (std::isfinite(v)) d.push_back(v);
   }
-  return noiseOfSecondDifferences(d);
+  return std::max(noiseOfSecondDifferences(d), quantisationNoise(x));
 }
 
 std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w) {
@@ -349,13 +372,14 @@ std::vector<double> meterNoise(const RunData& run, const std::vector<double>& fl
     steady.erase(std::remove_if(steady.begin(), steady.end(), [](double v) { return !std::isfinite(v); }),
                  steady.end());
   }
-  const double whole_run = noiseOfSecondDifferences(steady);
+  const double rounding = quantisationNoise(flow);
+  const double whole_run = std::max(noiseOfSecondDifferences(steady), rounding);
   std::vector<double> out(n, whole_run);
   for (std::size_t i = 0; i < n; ++i) {
     std::vector<double> near;
     for (std::size_t k = i > w ? i - w : 0; k < std::min(n, i + w + 1); ++k)
       if (std::isfinite(d[k])) near.push_back(d[k]);
-    if (near.size() >= kMinSteadySamples) out[i] = noiseOfSecondDifferences(near);
+    if (near.size() >= kMinSteadySamples) out[i] = std::max(noiseOfSecondDifferences(near), rounding);
   }
   return out;
 }

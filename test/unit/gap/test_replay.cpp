@@ -94,6 +94,28 @@ TEST(GapReplay, NoiseEstimateRecoversTheSensorNoise) {
   EXPECT_NEAR(nb::estimateNoise(run.h_m), 0.3e-3, 0.06e-3);
 }
 
+TEST(GapReplay, ACoarselyQuantisedChannelsNoiseIsAtLeastItsRounding) {
+  std::mt19937 rng(4);
+  std::normal_distribution<double> noise(0.0, 30.0);
+  std::vector<double> slow, fine, smooth;
+  for (int i = 0; i < 5000; ++i) {
+    const double p = 10000.0 + 2000.0 * std::sin(i * 0.002) + noise(rng);
+    slow.push_back(250.0 * std::round(p / 250.0));  // steps far above the noise: flat stretches
+    fine.push_back(10.0 * std::round(p / 10.0));    // steps below it: the noise shows
+    smooth.push_back(p);
+  }
+  EXPECT_NEAR(nb::quantisationStep(slow), 250.0, 1e-9);
+  EXPECT_NEAR(nb::estimateNoise(slow), 250.0 / std::sqrt(12.0), 1e-9);
+  EXPECT_NEAR(nb::quantisationStep(fine), 10.0, 1e-9);
+  EXPECT_NEAR(nb::estimateNoise(fine), 30.0, 4.0);
+  EXPECT_EQ(nb::quantisationStep(smooth), 0.0);
+  EXPECT_EQ(nb::quantisationStep({1.0, 1.0, 2.0}), 0.0);  // too few changes to tell
+  // A lattice printed in decimals: 0.001 cmH2O, its float error far below the tolerance.
+  std::vector<double> printed;
+  for (int i = 0; i < 200; ++i) printed.push_back(std::round((15.0 + 0.3 * std::sin(i * 0.1)) * 1000.0) / 1000.0);
+  EXPECT_NEAR(nb::quantisationStep(printed), 0.001, 1e-9);
+}
+
 TEST(GapReplay, AFailedReplaySaysWhy) {
   nb::RunData run = synthRun({}, 0.0);
   for (double& q : run.mdot_in_kg_s) q = NAN;

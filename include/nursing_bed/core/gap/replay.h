@@ -83,11 +83,19 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
                  long max_substeps, IntervalShape shape, ReplayStart start);
 
 /// Noise of a measured signal: robust (median absolute deviation) estimate from second
-/// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal.
+/// differences, sd = 1.4826 MAD / sqrt(6); exact for white noise on a smooth signal. At least
+/// the rounding's sd, step / sqrt(12), of a signal read on a lattice (quantisationStep()): a
+/// channel whose steps are coarse against its noise reads constant for long stretches, and its
+/// second differences' MAD falls to 0.
 double estimateNoise(const std::vector<double>& signal);
 
+/// The step of a signal read on a lattice (an ADC's or a log's resolution): the smallest change
+/// between samples, where at least 90 % of the changes are whole multiples of it (within 1 %
+/// of a step); 0 where the readings are not on one or change fewer than 10 times.
+double quantisationStep(const std::vector<double>& signal);
+
 /// The flow meter's noise around each sample of `flow` (the run's inflow as measured): the
-/// estimate of estimateNoise() over the samples i-w .. i+w (a meter's noise grows with its
+/// estimate of estimateNoise() (its rounding floor included) over the samples i-w .. i+w (a meter's noise grows with its
 /// reading), from the samples where the valve held still (valve_cmd equal at i-1, i, i+1, when
 /// the run has it). A valve that the controller opens for a few ms at a time moves gas in
 /// pulses, and those are flow, not the meter's noise (taken as noise they would pose as one
