@@ -101,9 +101,25 @@ void profileMoves(const NoiseModel& noise, const DiagnosisOptions& options, Cali
   }
 }
 
+/// Nothing moved: every parameter at nominal; a calibration alone is then the nominal model, and
+/// a joint fit with effects that moved nothing this way is never taken (chi2 infinite).
+void moveNothing(const NoiseModel& noise, CalibrationFit* c) {
+  for (auto& p : c->summary.parameters) {
+    p.moved = false;
+    p.value = p.nominal;
+  }
+  c->moved_model = makeModelSpec(c->fit.model.effects);
+  c->moved_u.clear();
+  c->moved_chi2 = c->fit.model.effects.empty() ? noise.chi2_nominal : INFINITY;
+}
+
 /// The model with only the moved calibrated parameters free (and the effects), refitted from
 /// `fit` when some did not move; fills moved_model, moved_u, moved_chi2.
 void settleMoved(const NoiseModel& noise, const DiagnosisOptions& options, CalibrationFit* c) {
+  if (!c->fit.outcome.ok) {  // judgeCalibration() moved nothing
+    moveNothing(noise, c);
+    return;
+  }
   profileMoves(noise, options, c);
   const ModelFit& f = c->fit;
   const std::vector<std::string> names = movedNames(f, c->summary);
@@ -114,6 +130,12 @@ void settleMoved(const NoiseModel& noise, const DiagnosisOptions& options, Calib
     return;
   }
   const ModelFit refit = refitWith(noise, f, names, valuesOf(f.model, f.outcome.u), options.max_iterations);
+  if (!refit.outcome.ok) {  // the moves alone do not replay: a cell that cannot run is no calibration
+    c->summary.notes.push_back("the moved parameters alone do not replay (" + refit.outcome.message +
+                               "): nominal kept");
+    moveNothing(noise, c);
+    return;
+  }
   c->moved_model = refit.model;
   c->moved_u = refit.outcome.u;
   c->moved_chi2 = refit.outcome.chi2;
@@ -165,7 +187,12 @@ CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::st
   std::vector<double> start;
   for (const auto& a : c.fit.model.axes) start.push_back(a.toU(a.spec.off_value));
   c.fit.outcome = fitModel(noise.fit, c.fit.model, {start}, options.max_iterations);
+  if (!c.fit.outcome.ok) {  // the nominal cell stands (refitJointly() starts from these values)
+    c.fit.outcome.u = start;
+    c.fit.outcome.chi2 = noise.chi2_nominal;
+  }
   c.summary = judgeCalibration(noise, c.fit, options);
+  if (!c.fit.outcome.ok) c.summary.notes.push_back("the calibration's fit failed (" + c.fit.outcome.message + ")");
   settleMoved(noise, options, &c);
   const int n = noise.fitResidualCount();
   const int k = static_cast<int>(c.summary.movedValues().size());

@@ -311,7 +311,7 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
     for (const auto& c : candidates) fits.push_back({makeModelSpec({c}), {}});
     for (auto& f : fits) f.model.fixed_calibration = noise.baseline_calibration;
     parallelFor(static_cast<int>(fits.size()), options.threads, [&](int i) {
-      fits[i].outcome = fitModel(noise.fit, fits[i].model, gridStarts(fits[i].model), options.max_iterations);
+      fits[i].outcome = fitModel(noise.fit, fits[i].model, fitStarts(noise.fit, fits[i].model), options.max_iterations);
       std::lock_guard<std::mutex> lock(say_mutex);
       say("fitted " + joinNames(fits[i].model.effects) + " (" + std::to_string(++done) + "/" +
           std::to_string(fits.size()) + "): chi2/n " + fmt(fits[i].outcome.chi2 / n) + ", " +
@@ -391,6 +391,7 @@ std::vector<ScoredCandidate> scoreCandidates(const std::vector<ModelFit>& fits, 
       c.chi2 = f.outcome.chi2;
       c.bic_delta = (c.chi2 - noise.baseline_chi2) + extraParameters(f.model, noise) * std::log(static_cast<double>(n));
       c.plausible = plausibleValues(f.model, c.params, options.plausible_slack);
+      c.beyond_plausible = !c.plausible && timingResolved(f.model, c.params);
     }
     scored.emplace_back(c, f.model);
   }

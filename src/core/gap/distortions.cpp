@@ -319,6 +319,19 @@ bool applyInputDistortions(const std::vector<CellEffectPtr>& effects, RunData* r
   return any;
 }
 
+bool undoHeightReadingDistortions(const std::vector<CellEffectPtr>& effects, const std::vector<double>& t,
+                                  std::vector<double>* h) {
+  bool any = false;
+  for (const auto& e : effects) {
+    const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get());
+    if (!d || d->channel() != "height" || d->value() == 0.0) continue;
+    if (d->kind() != "gain" && d->kind() != "offset" && d->kind() != "drift") continue;
+    undistortSeries(d->kind(), d->value(), t, h);
+    any = true;
+  }
+  return any;
+}
+
 void applyOutputDistortions(const std::vector<CellEffectPtr>& effects, const std::vector<double>& t,
                             std::vector<double>* p, std::vector<double>* h) {
   for (const auto& e : effects) {

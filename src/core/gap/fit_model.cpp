@@ -115,11 +115,18 @@ bool channelTiming(const ModelSpec& m, const std::string& name) {
 
 }  // namespace
 
+bool timingResolved(const ModelSpec& m, const std::map<std::string, double>& values) {
+  for (const auto& a : m.axes)
+    if (!a.calibration && channelTiming(m, a.spec.name) && std::fabs(values.at(a.spec.name)) < kMinChannelTimingS)
+      return false;
+  return true;
+}
+
 bool plausibleValues(const ModelSpec& m, const std::map<std::string, double>& values, double slack) {
+  if (!timingResolved(m, values)) return false;
   for (const auto& a : m.axes) {
     if (a.calibration) continue;
     const double x = values.at(a.spec.name);
-    if (std::fabs(x) < kMinChannelTimingS && channelTiming(m, a.spec.name)) return false;
     if (a.spec.log_scale) {
       // Only too large is implausible: a small value is an effect that barely uses that
       // parameter (a short supply line), and the range's low end is what matters for a bed,
@@ -156,11 +163,12 @@ namespace {
 /// One run's whitened residuals (2 per sample) into `out`; false when its replay failed (its
 /// samples then count as kFailedResidual floors off).
 /// `base`, when given, is the run's replay without `effects`, which are output-side channel
-/// distortions only: their readings are then `base`'s transformed, with no new replay.
+/// distortions only: their readings are then `base`'s transformed, with no new replay, unless
+/// they move the replay's start (a height offset that makes a lifted start flat).
 bool runResiduals(const FitData::Run& r, const CellParams& params, const std::vector<CellEffectPtr>& effects,
                   double* out, const Replay* base = nullptr) {
   Replay rep;
-  if (base) {
+  if (base && !distortionsMoveTheStart(*r.data, effects)) {
     rep = *base;
     applyOutputDistortions(effects, r.data->t_s, &rep.p_gauge_pa, &rep.h_m);
   } else {
@@ -426,6 +434,22 @@ std::vector<std::vector<double>> gridStarts(const ModelSpec& m) {
     out = next;
   }
   return out;
+}
+
+std::vector<std::vector<double>> fitStarts(const FitData& fit, const ModelSpec& m) {
+  std::vector<std::vector<double>> starts = gridStarts(m);
+  if (m.axes.size() != 1 || m.axes[0].calibration || m.axes[0].spec.name != "height_offset_m") return starts;
+  double sum = 0.0;
+  int count = 0;
+  for (const auto& r : fit.runs) {
+    const double h0 = r.has_height ? initialHeight(*r.data).h_m : NAN;
+    if (std::isfinite(h0)) sum += h0, ++count;
+  }
+  if (count == 0) return starts;
+  const FitAxis& a = m.axes[0];
+  const double u = a.toU(sum / count);
+  if ((u < 0.0 || u > 1.0) && u > a.u_min && u < a.u_max) starts.push_back({u});
+  return starts;
 }
 
 /// Levenberg-Marquardt from the best `refined` points of `starts` (a grid); the best result.

@@ -142,6 +142,19 @@ std::vector<RunPhase> classifyPhases(const RunData& run) {
   return phases;
 }
 
+bool distortionsMoveTheStart(const RunData& run, const std::vector<CellEffectPtr>& effects) {
+  RunData head;  // the readings the start is taken from
+  for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i) {
+    head.t_s.push_back(run.t_s[i]);
+    head.h_m.push_back(i < run.h_m.size() ? run.h_m[i] : NAN);
+  }
+  const InitialHeight read = initialHeight(head);
+  if (!undoHeightReadingDistortions(effects, head.t_s, &head.h_m)) return false;
+  const InitialHeight truth = initialHeight(head);
+  const bool flat_read = !(read.h_m > kLandedHeightM), flat_truth = !(truth.h_m > kLandedHeightM);
+  return !(flat_read && flat_truth) && read.h_m != truth.h_m;
+}
+
 InitialHeight initialHeight(const RunData& run) {
   std::vector<double> h;
   for (std::size_t i = 0; i < run.size() && run.t_s[i] <= run.t_s[0] + kInitialRestS; ++i)
@@ -207,10 +220,23 @@ void valveInputs(const RunData& run, std::size_t i, CellInputs* in) {
 
 namespace {
 
-Replay replayThroughModel(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
-                          long max_substeps, IntervalShape shape, ReplayStart start) {
+/// The samples after a replay's last simulated one (the plate landed in the vent, which goes on
+/// emptying the cell) read flat and at ambient.
+void flatAfterLanding(Replay* rep) {
+  std::size_t last = rep->h_m.size();
+  while (last > 0 && !(std::isfinite(rep->h_m[last - 1]) && std::isfinite(rep->p_gauge_pa[last - 1]))) --last;
+  if (last == 0) return;
+  std::fill(rep->h_m.begin() + last, rep->h_m.end(), 0.0);
+  std::fill(rep->p_gauge_pa.begin() + last, rep->p_gauge_pa.end(), 0.0);
+}
+
+/// `run` through the model; its start and phases (where the plate landed) from `start_readings`
+/// (the run's readings, or those a true height sensor would give: undoHeightReadingDistortions()).
+Replay replayThroughModel(const RunData& run, const RunData& start_readings, const CellParams& params,
+                          const std::vector<CellEffectPtr>& effects, long max_substeps, IntervalShape shape,
+                          ReplayStart start) {
   Replay out;
-  out.phases = classifyPhases(run);
+  out.phases = classifyPhases(start_readings);
   const std::size_t n = run.size();
   out.p_gauge_pa.assign(n, NAN);
   out.h_m.assign(n, NAN);
@@ -234,8 +260,9 @@ Replay replayThroughModel(const RunData& run, const CellParams& params, const st
     // At rest at the first measured height (or, without height readings, at the first measured
     // pressure), with the measured gas temperature if there is one.
     const double t_gas0 = run.t_gas_k.size() == n && run.t_gas_k[0] > 0.0 ? run.t_gas_k[0] : NAN;
-    const double h_start = start == ReplayStart::kNotHeight ? startHeightFromPressure(run, model.structure(), load0)
-                                                            : startHeight(run, model.structure(), load0);
+    const double h_start = start == ReplayStart::kNotHeight
+                               ? startHeightFromPressure(start_readings, model.structure(), load0)
+                               : startHeight(start_readings, model.structure(), load0);
     if (std::isfinite(h_start)) model.resetToEquilibrium(h_start, load0, t_gas0);
     else model.reset(load0);
     // Model time starts at the run's first sample.
@@ -298,7 +325,19 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
   });
   RunData corrected;
   if (inputs) applyInputDistortions(effects, &(corrected = run));
-  Replay out = replayThroughModel(inputs ? corrected : run, params, effects, max_substeps, shape, start);
+  const RunData& driven = inputs ? corrected : run;
+  // The start at rest where the plate was, not where a distorted height sensor put it.
+  std::vector<double> true_h = run.h_m;
+  const bool undone = undoHeightReadingDistortions(effects, run.t_s, &true_h);
+  RunData start_readings;
+  if (undone) {
+    start_readings = driven;
+    start_readings.h_m = std::move(true_h);
+  }
+  Replay out =
+      replayThroughModel(driven, undone ? start_readings : driven, params, effects, max_substeps, shape, start);
+  // Landed in truth where the distorted readings never show it.
+  if (undone) flatAfterLanding(&out);
   applyOutputDistortions(effects, run.t_s, &out.p_gauge_pa, &out.h_m);
   return out;
 }

@@ -27,6 +27,7 @@ class VerdictRules {
   bool anythingWithheld() const { return std::isfinite(held_before_); }
   double heldBefore() const { return held_before_; }
   double chi2nNominal() const { return nominal_.chi2 / n_; }
+  int fitResiduals() const { return n_; }
 
   /// Lowers BIC and chi2/n enough, with plausible parameters.
   bool significant(const CandidateFit& c) const {
@@ -47,6 +48,16 @@ class VerdictRules {
     return within && (held_before_ - after) * nominal_.withheld_residuals >= options_.min_withheld_gain;
   }
   bool explainsAlone(const CandidateFit& c) const { return significant(c) && fitsFitRuns(c) && fitsWithheld(c); }
+  /// A single that would explain the gap but for its magnitude, leaving both the fit runs and the
+  /// withheld runs within the noise (not only most of a deep gap removed): where nothing
+  /// plausible explains it, the runs prove the magnitude. Needs withheld runs.
+  bool explainsBeyondPlausible(const CandidateFit& c) const {
+    const double held = c.withheld_chi2_per_sample;
+    return c.ok && c.beyond_plausible && c.effects.size() == 1 && anythingWithheld() &&
+           c.bic_delta < -options_.significant_bic_drop && drop(c) >= options_.min_chi2_drop &&
+           c.chi2 / n_ <= options_.explained_chi2 && held <= options_.withheld_chi2 &&
+           (held_before_ - held) * nominal_.withheld_residuals >= options_.min_withheld_gain;
+  }
 
   /// A pair only where it beats the better of its two singles significantly, and neither single
   /// explains the gap alone (the simpler answer first) -- unless that single explains it only by
@@ -133,6 +144,27 @@ int firstThatExplains(const std::vector<CandidateFit>& candidates, const Verdict
   return -1;
 }
 
+/// Where nothing plausible explains the gap: the first single in BIC order that does but for its
+/// magnitude (VerdictRules::explainsBeyondPlausible()), named with that said. -1: none.
+int firstBeyondPlausible(const std::vector<CandidateFit>& candidates, const VerdictRules& rules,
+                         std::vector<std::string>* reasons) {
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const CandidateFit& c = candidates[i];
+    if (!rules.explainsBeyondPlausible(c)) continue;
+    std::ostringstream e;
+    e << joinNames(c.effects) << " (";
+    for (auto p = c.params.begin(); p != c.params.end(); ++p)
+      e << (p == c.params.begin() ? "" : ", ") << p->first << " = " << fmt(p->second, 3);
+    e << ") lies beyond its plausible range, and alone leaves the fit runs and the withheld runs within the noise "
+         "(chi2/n "
+      << fmt(c.chi2 / rules.fitResiduals()) << " and " << fmt(c.withheld_chi2_per_sample)
+      << "): named; the magnitude is unusual, check that channel or part of the rig";
+    reasons->push_back(e.str());
+    return static_cast<int>(i);
+  }
+  return -1;
+}
+
 /// A near tie on the fit runs: a candidate (no more effects than the winner) that also explains
 /// the gap and fits the fit runs about as well; the withheld runs decide. Returns the winner.
 int settleNearTies(const std::vector<CandidateFit>& candidates, int winner, const VerdictRules& rules,
@@ -173,6 +205,7 @@ Verdict decideVerdict(const std::vector<CandidateFit>& candidates, const Nominal
   v.reasons.push_back(rulesInWords(options));
   v.winner = firstThatExplains(candidates, rules, nominal, &v.reasons);
   v.winner = settleNearTies(candidates, v.winner, rules, nominal, options, &v.reasons);
+  if (v.winner < 0) v.winner = firstBeyondPlausible(candidates, rules, &v.reasons);
   if (v.winner >= 0) {
     v.status = "explained";
   } else if (rules.chi2nNominal() <= options.within_noise_chi2) {

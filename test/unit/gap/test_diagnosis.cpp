@@ -553,6 +553,42 @@ TEST(GapDecision, AGapNothingRemovesIsUnexplainedAndImplausibleFitsDoNotCount) {
   EXPECT_EQ(v.winner, -1);
 }
 
+TEST(GapDecision, AMagnitudeBeyondThePlausibleIsNamedOnlyWhereBothRunSetsAreWithinTheNoise) {
+  // A pressure transducer 2 kPa off (plausible: +-500 Pa) fits everything to the noise.
+  const auto nominal = nominalScore(960.0, 900.0);
+  auto beyond = fitOf({"pressure_offset"}, 0.96, 1.0, nominal);
+  beyond.plausible = false;
+  beyond.beyond_plausible = true;
+  beyond.params = {{"pressure_offset_pa", 2000.0}};
+  const auto partial = fitOf({"pressure_gain"}, 717.0, 700.0, nominal);
+  auto c = byBic({partial, beyond});
+  nb::Verdict v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  EXPECT_EQ(v.status, "explained") << named(v, c);
+  ASSERT_GE(v.winner, 0);
+  EXPECT_EQ(c[v.winner].effects, std::vector<std::string>{"pressure_offset"});
+  bool said = false;
+  for (const auto& r : v.reasons) said = said || r.find("beyond its plausible range") != std::string::npos;
+  EXPECT_TRUE(said) << named(v, c);
+
+  // Most of the withheld runs' gap removed is not enough at such a magnitude.
+  beyond.withheld_chi2_per_sample = 5.0;
+  c = byBic({partial, beyond});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  EXPECT_EQ(v.status, "unexplained") << named(v, c);
+
+  // A plausible explanation comes first, even where the magnitude beyond fits better.
+  beyond.withheld_chi2_per_sample = 1.0;
+  c = byBic({fitOf({"leak"}, 1.2, 1.3, nominal), beyond});
+  v = nb::decideVerdict(c, nominal, nb::DiagnosisOptions{});
+  ASSERT_GE(v.winner, 0) << named(v, c);
+  EXPECT_EQ(c[v.winner].effects, std::vector<std::string>{"leak"});
+
+  // Implausible for a timing below what a replay resolves: never named.
+  beyond.beyond_plausible = false;
+  c = byBic({partial, beyond});
+  EXPECT_EQ(nb::decideVerdict(c, nominal, nb::DiagnosisOptions{}).status, "unexplained");
+}
+
 TEST(GapDiagnoseReport, JsonHasExactlyTheSpecifiedKeysNullForNaNAndEscapes) {
   const nb::DiagnosisReport report = handMadeReport();
   const std::string json = nb::reportJson(report);

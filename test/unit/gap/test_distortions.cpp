@@ -220,6 +220,36 @@ TEST(ChannelDistortion, AHeightReadEarlyDoesNotGiveTheReplayItsStart) {
   }
 }
 
+TEST(ChannelDistortion, AHeightOffsetDoesNotGiveTheReplayItsStart) {
+  const nb::SynthResult clean = nb::synthesizeDataset(exactSmall("offset_start"));
+  const nb::CellParams params;
+  // A run whose plate lands in the vent (its replay's last samples NaN).
+  std::size_t k = 0;
+  nb::Replay truth;
+  for (; k < clean.runs.size(); ++k)
+    if (truth = nb::replayRun(clean.runs[k], params, {}); !std::isfinite(truth.h_m.back())) break;
+  ASSERT_LT(k, clean.runs.size()) << "no run lands";
+  const nb::RunData& run = clean.runs[k];
+  nb::RunData offset = run;  // a flat start read 10 mm up: at rest there, were it the truth
+  for (double& h : offset.h_m) h += 0.01;
+  const nb::Replay fitted =
+      nb::replayRun(offset, params, {nb::makeEffect("height_offset", {{"height_offset_m", 0.01}})});
+  std::size_t simulated = 0;
+  for (std::size_t i = 0; i < run.size(); ++i) {
+    if (!std::isfinite(truth.h_m[i])) break;  // landed in the vent
+    EXPECT_NEAR(fitted.h_m[i], truth.h_m[i] + 0.01, 1e-9) << i;
+    EXPECT_NEAR(fitted.p_gauge_pa[i], truth.p_gauge_pa[i], 1e-6) << i;
+    simulated = i + 1;
+  }
+  // Read 10 mm up, the plate never shows landing in the vent: after it, flat and at ambient.
+  ASSERT_GT(simulated, 0u);
+  ASSERT_LT(simulated, run.size());
+  for (std::size_t i = simulated; i < run.size(); ++i) {
+    EXPECT_DOUBLE_EQ(fitted.h_m[i], 0.01) << i;
+    EXPECT_DOUBLE_EQ(fitted.p_gauge_pa[i], 0.0) << i;
+  }
+}
+
 TEST(ChannelDistortion, SynthPlantsDistortionsOnTheTrueReadings) {
   const nb::SynthResult clean = nb::synthesizeDataset(exactSmall("clean"));
   nb::SynthOptions o = exactSmall("planted");

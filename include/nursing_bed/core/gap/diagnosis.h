@@ -127,9 +127,11 @@ struct CandidateFit {
   double withheld_nrmse = 0.0;            ///< on the withheld runs (NaN when there are none)
   double withheld_chi2_per_sample = NAN;  ///< whitened, on the withheld runs (NaN: none)
   bool plausible = true;                  ///< every parameter within its (slackened) plausible range
-  bool ok = true;                         ///< false: the model failed on some run
-  std::string message;                    ///< why not ok, or notes
-  int evaluations = 0;                    ///< replays of the fit-run set spent on it
+  /// Implausible by a magnitude beyond that range only (not a timing below resolution).
+  bool beyond_plausible = false;
+  bool ok = true;       ///< false: the model failed on some run
+  std::string message;  ///< why not ok, or notes
+  int evaluations = 0;  ///< replays of the fit-run set spent on it
 };
 
 /// Per-run numbers for the report.

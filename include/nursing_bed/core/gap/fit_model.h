@@ -58,6 +58,9 @@ std::vector<double> coordinatesOf(const ModelSpec& m, const std::map<std::string
 /// Every effect parameter within its plausible range widened by `slack` (too large only, for
 /// log-scale); calibrated parameters are judged by calibration (calibration.h).
 bool plausibleValues(const ModelSpec& m, const std::map<std::string, double>& values, double slack);
+/// Every channel time shift or lag of `values` at least 1 ms (below, it is the replay's own
+/// timing: plausibleValues() refuses it whatever the rest).
+bool timingResolved(const ModelSpec& m, const std::map<std::string, double>& values);
 /// "leak+heat_transfer"; "nominal" for none.
 std::string joinNames(const std::vector<std::string>& names, const char* sep = "+");
 
@@ -102,6 +105,11 @@ double sumSquares(const std::vector<double>& r);
 /// Starting points: a grid over the plausible range (5 points per parameter, 4 with two or
 /// more parameters; plus one near off for log-scale ones).
 std::vector<std::vector<double>> gridStarts(const ModelSpec& m);
+/// gridStarts() and, for a height offset alone, the offset that reads the fit runs' mean first
+/// height as a flat start, where that lies beyond the grid and within the fit's bounds: past a
+/// few mm the replay's start moves with the offset (undoHeightReadingDistortions()), and from
+/// the grid's points a fit cannot reach the offset that starts the runs flat.
+std::vector<std::vector<double>> fitStarts(const FitData& fit, const ModelSpec& m);
 
 struct FitOutcome {
   std::vector<double> u;  ///< best fit coordinates

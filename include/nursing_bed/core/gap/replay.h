@@ -58,6 +58,11 @@ InitialHeight initialHeight(const RunData& run);
 /// end, at the flow (or the vent's full opening) that gives the same gas.
 enum class IntervalShape { kSpread, kPulseAtStart, kPulseAtEnd };
 
+/// Whether `effects`' height gain, offset or drift move the start replayRun() takes from `run`'s
+/// height readings (a start read flat and flat in truth does not move): a replay without them,
+/// its readings transformed, then is not the replay with them.
+bool distortionsMoveTheStart(const RunData& run, const std::vector<CellEffectPtr>& effects);
+
 /// Which readings give a replay its start. kReadings: the height's, else the pressure's
 /// (replayRun()). kNotHeight: the pressure's alone, for a height sensor that reads early (a
 /// negative height shift, distortions.h): its first readings show the plate after the start.
@@ -73,7 +78,9 @@ enum class ReplayStart { kReadings, kNotHeight };
  * vent (kLanded) are not simulated: NaN. `max_substeps` bounds the integration's cost (0: 50
  * sub-steps per default step on average): a replay that needs more accepted sub-steps fails
  * ("too stiff"), as a fit may wander into parameters that make the model needlessly stiff.
- * With a height sensor read early among `effects`, the start is ReplayStart::kNotHeight's.
+ * With a height sensor read early among `effects`, the start is ReplayStart::kNotHeight's; with
+ * a height gain, offset or drift among them, the start is taken from the height readings those
+ * undo (undoHeightReadingDistortions()): a flat start read 10 mm up is still flat.
  */
 Replay replayRun(const RunData& run, const CellParams& params, const std::vector<CellEffectPtr>& effects,
                  long max_substeps = 0, IntervalShape shape = IntervalShape::kSpread);
