@@ -323,7 +323,10 @@ std::vector<ModelFit> fitCandidates(const NoiseModel& noise, const std::vector<s
   if (after_singles) after_singles(&fits);
   const std::vector<std::pair<int, int>> pairs =
       pairsToFit(fits, singlesByBic(fits, n), options.pair_pool, n, options.joint_refit_chi2);
-  if (pairs.empty() && options.pair_pool > 0) say("no pairs fitted: a single fits within the noise");
+  const auto fitted = std::count_if(fits.begin(), fits.end(), [](const ModelFit& f) { return f.outcome.ok; });
+  if (pairs.empty() && options.pair_pool > 0)
+    say(fitted < 2 ? "no pairs fitted: fewer than two candidates fitted"
+                   : "no pairs fitted: a single fits within the noise");
   for (const auto& [a, b] : pairs)
     fits.push_back({pairSpec(fits[a].model.effects[0], fits[b].model.effects[0], noise.baseline_calibration), {}});
   done = 0;
