@@ -203,13 +203,8 @@ CalibrationFit calibrateModel(const NoiseModel& noise, const std::vector<std::st
   if (k > 0 && !pays) {
     c.summary.notes.push_back("the calibrated moves lower chi2/n by " + fmt((noise.chi2_nominal - c.moved_chi2) / n) +
                               " only (BIC " + fmt(c.summary.bic_delta, 4) + "): too little to count; nominal kept");
-    for (auto& p : c.summary.parameters) {
-      p.moved = false;
-      p.value = p.nominal;
-    }
-    c.moved_model = makeModelSpec({});
-    c.moved_u.clear();
-    c.moved_chi2 = c.summary.chi2 = noise.chi2_nominal;
+    moveNothing(noise, &c);
+    c.summary.chi2 = c.moved_chi2;
     c.summary.bic_delta = 0.0;
   }
   std::string moved;

@@ -320,13 +320,14 @@ bool applyInputDistortions(const std::vector<CellEffectPtr>& effects, RunData* r
 }
 
 bool undoHeightReadingDistortions(const std::vector<CellEffectPtr>& effects, const std::vector<double>& t,
-                                  std::vector<double>* h) {
+                                  const std::vector<double>& h, std::vector<double>* out) {
   bool any = false;
   for (const auto& e : effects) {
     const auto* d = dynamic_cast<const ChannelDistortionEffect*>(e.get());
     if (!d || d->channel() != "height" || d->value() == 0.0) continue;
     if (d->kind() != "gain" && d->kind() != "offset" && d->kind() != "drift") continue;
-    undistortSeries(d->kind(), d->value(), t, h);
+    if (!any) *out = h;  // copied only for a distortion that undoes it
+    undistortSeries(d->kind(), d->value(), t, out);
     any = true;
   }
   return any;

@@ -149,7 +149,7 @@ bool distortionsMoveTheStart(const RunData& run, const std::vector<CellEffectPtr
     head.h_m.push_back(i < run.h_m.size() ? run.h_m[i] : NAN);
   }
   const InitialHeight read = initialHeight(head);
-  if (!undoHeightReadingDistortions(effects, head.t_s, &head.h_m)) return false;
+  if (!undoHeightReadingDistortions(effects, head.t_s, head.h_m, &head.h_m)) return false;
   const InitialHeight truth = initialHeight(head);
   const bool flat_read = !(read.h_m > kLandedHeightM), flat_truth = !(truth.h_m > kLandedHeightM);
   return !(flat_read && flat_truth) && read.h_m != truth.h_m;
@@ -327,8 +327,8 @@ Replay replayRun(const RunData& run, const CellParams& params, const std::vector
   if (inputs) applyInputDistortions(effects, &(corrected = run));
   const RunData& driven = inputs ? corrected : run;
   // The start at rest where the plate was, not where a distorted height sensor put it.
-  std::vector<double> true_h = run.h_m;
-  const bool undone = undoHeightReadingDistortions(effects, run.t_s, &true_h);
+  std::vector<double> true_h;
+  const bool undone = undoHeightReadingDistortions(effects, run.t_s, run.h_m, &true_h);
   RunData start_readings;
   if (undone) {
     start_readings = driven;

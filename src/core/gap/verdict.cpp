@@ -30,8 +30,10 @@ class VerdictRules {
   int fitResiduals() const { return n_; }
 
   /// Lowers BIC and chi2/n enough, with plausible parameters.
-  bool significant(const CandidateFit& c) const {
-    return c.ok && c.plausible && c.bic_delta < -options_.significant_bic_drop && drop(c) >= options_.min_chi2_drop;
+  bool significant(const CandidateFit& c) const { return c.plausible && significantAtAnyMagnitude(c); }
+  /// Lowers BIC and chi2/n enough, whatever its parameters.
+  bool significantAtAnyMagnitude(const CandidateFit& c) const {
+    return c.ok && c.bic_delta < -options_.significant_bic_drop && drop(c) >= options_.min_chi2_drop;
   }
   /// Leaves the fit runs within the noise, or removes nearly all of the nominal excess.
   bool fitsFitRuns(const CandidateFit& c) const {
@@ -53,8 +55,7 @@ class VerdictRules {
   /// plausible explains it, the runs prove the magnitude. Needs withheld runs.
   bool explainsBeyondPlausible(const CandidateFit& c) const {
     const double held = c.withheld_chi2_per_sample;
-    return c.ok && c.beyond_plausible && c.effects.size() == 1 && anythingWithheld() &&
-           c.bic_delta < -options_.significant_bic_drop && drop(c) >= options_.min_chi2_drop &&
+    return c.beyond_plausible && c.effects.size() == 1 && anythingWithheld() && significantAtAnyMagnitude(c) &&
            c.chi2 / n_ <= options_.explained_chi2 && held <= options_.withheld_chi2 &&
            (held_before_ - held) * nominal_.withheld_residuals >= options_.min_withheld_gain;
   }

@@ -100,11 +100,11 @@ bool readsHeightEarly(const std::vector<CellEffectPtr>& effects);
 /// (inflow, supply and load corrected, the valve command distorted); false when there are none
 /// (the run is left as it is).
 bool applyInputDistortions(const std::vector<CellEffectPtr>& effects, RunData* run);
-/// `h` (readings at times `t`) as a true height sensor would give them under `effects`' height
-/// gain, offset and drift (a shift or lag leaves a run's start at rest as it is); false where
-/// there are none (`h` untouched).
+/// The height readings `h` (at times `t`) as a true height sensor would give them under
+/// `effects`' height gain, offset and drift (a shift or lag leaves a run's start at rest as it
+/// is), into `out`; false where there are none (`out` untouched).
 bool undoHeightReadingDistortions(const std::vector<CellEffectPtr>& effects, const std::vector<double>& t,
-                                  std::vector<double>* h);
+                                  const std::vector<double>& h, std::vector<double>* out);
 /// The simulated readings `p`, `h` (at times `t`) as the distorted sensors report them.
 void applyOutputDistortions(const std::vector<CellEffectPtr>& effects, const std::vector<double>& t,
                             std::vector<double>* p, std::vector<double>* h);
