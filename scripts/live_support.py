@@ -9,13 +9,15 @@ waits --warmup-s, then measures --duration-s from /simulator/tissue_load as bed_
 region the highest peak, the share of the time above the threshold, the dose per hour, the lowest
 margin; the body's mean contact area; and whether any cell was dead, faulty or unverified. With
 --compare FILE (a bed_study_support.json of the same plan and body) it prints each figure's
-relative difference from the simulated one. --json writes the figures. --launch-arg passes
+relative difference from the simulated one. --json writes the figures; --trace writes a CSV, once
+a second of the measured window: time, phase, each region's peak [mmHg] and each cell's target
+height [m] (the columns bed_study --trace writes). --launch-arg passes
 NAME:=VALUE to roslaunch: with ROS_MASTER_URI on another port and register_map:= a map on other
 Modbus ports, two beds run side by side. Exit code 0 when the run was measured, 1 when the bed
 never came up or the plan was refused, 2 for a bad command line.
 
 usage: live_support.py [--sim] [--plan adaptive] [--warmup-s S] [--duration-s S] [--json FILE]
-                       [--compare FILE] [--launch-arg NAME:=VALUE ...] [KEY=VALUE ...]
+                       [--trace CSV] [--compare FILE] [--launch-arg NAME:=VALUE ...] [KEY=VALUE ...]
 e.g.   live_support.py --duration-s 7200 --json /tmp/live.json --compare doc/bed_study_support.json
 """
 import argparse
@@ -38,6 +40,7 @@ def parse_args(argv):
     p.add_argument("--duration-s", type=float, default=600.0, help="measured [s]")
     p.add_argument("--startup-timeout", type=float, default=120.0, help="wait this long for the first state [s]")
     p.add_argument("--json", help="write the figures here")
+    p.add_argument("--trace", help="write a CSV of region peaks and cell targets, once a second")
     p.add_argument("--compare", help="bed_study_support.json of the same plan and body")
     p.add_argument("--launch-arg", action="append", default=[], metavar="NAME:=VALUE",
                    help="passed to roslaunch (repeatable), e.g. register_map:=FILE for a second bed on other ports")
@@ -97,6 +100,31 @@ class Meter:
                 "regions": regions}
 
 
+class Trace:
+    """Once a second of the measured window: the plan's elapsed time and phase, each region's
+    peak now [mmHg], each cell's target height [m]."""
+
+    def __init__(self, path):
+        self.file = open(path, "w") if path else None
+        self.state = None
+        self.last_s = -math.inf
+
+    def add(self, tissue):
+        if self.file is None or self.state is None or self.state.elapsed_s - self.last_s < 1.0:
+            return
+        if self.last_s == -math.inf:
+            self.file.write(",".join(["elapsed_s", "phase"] + ["peak_mmhg_" + r for r in tissue.region] +
+                                     ["target_m_%d" % i for i in range(len(self.state.target_heights_m))]) + "\n")
+        self.last_s = self.state.elapsed_s
+        self.file.write(",".join(["%.2f" % self.state.elapsed_s, self.state.phase.replace(",", ";")] +
+                                 ["%.2f" % v for v in tissue.peak_pressure_mmhg] +
+                                 ["%.5f" % v for v in self.state.target_heights_m]) + "\n")
+
+    def close(self):
+        if self.file:
+            self.file.close()
+
+
 def measure(args):
     import rospy
     from roslaunch_session import launched
@@ -110,6 +138,7 @@ def measure(args):
     launch += args.launch_arg
     flags = {"dead": set(), "faulty": set(), "unverified": set(), "plans": set(), "state": False}
     meter = Meter()
+    trace = Trace(args.trace)
     recording = {"on": False}
     with launched(launch):
         time.sleep(3.0)
@@ -118,6 +147,7 @@ def measure(args):
         def on_state(msg):
             flags["state"] = True
             flags["plans"].add(msg.plan)
+            trace.state = msg
             if recording["on"]:
                 flags["dead"].update(msg.dead_cells)
                 flags["faulty"].update(msg.faulty_cells)
@@ -126,6 +156,7 @@ def measure(args):
         def on_tissue(msg):
             if recording["on"]:
                 meter.add(msg)
+                trace.add(msg)
 
         subs = [rospy.Subscriber("/bed_manager/state", BedState, on_state, queue_size=20),
                 rospy.Subscriber("/simulator/tissue_load", TissueLoad, on_tissue, queue_size=20)]
@@ -147,6 +178,7 @@ def measure(args):
         recording["on"] = False
         for s in subs:
             s.unregister()
+        trace.close()
     if meter.samples < 2:
         raise RuntimeError("fewer than two /simulator/tissue_load messages in the measured window")
     out = meter.figures()

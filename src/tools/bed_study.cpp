@@ -113,6 +113,10 @@ class Bed {
     return h;
   }
   double time() const { return t_; }
+  /// Time since the running plan started [s].
+  double planElapsed() const { return t_ - plan_start_; }
+  /// The height last sent to each cell (NaN: none since the plan started) [m].
+  const std::vector<double>& sentTargets() const { return last_sent_; }
 
  private:
   // What a bed senses, as the bed manager gets it: each cell's gauge pressure and the load its
@@ -326,15 +330,45 @@ const std::map<std::string, nb::PlanRequest>& comparablePlans() {
   return plans;
 }
 
+/// One line of the --trace CSV (live_support.py --trace writes the same columns): the plan's
+/// elapsed time and phase, each region's peak now [mmHg], each cell's target [m].
+void traceLine(std::ostream& out, const Bed& bed, const std::vector<nb::RegionLoad>& loads) {
+  if (out.tellp() == 0) {
+    out << "elapsed_s,phase";
+    for (const nb::TissueRegion& r : nb::defaultTissueRegions()) out << ",peak_mmhg_" << r.name;
+    for (std::size_t i = 0; i < bed.sentTargets().size(); ++i) out << ",target_m_" << i;
+    out << "\n";
+  }
+  std::string phase = bed.phase();
+  std::replace(phase.begin(), phase.end(), ',', ';');
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f", bed.planElapsed());
+  out << buf << "," << phase;
+  for (const nb::RegionLoad& l : loads) {
+    std::snprintf(buf, sizeof buf, ",%.2f", mmhg(l.peak_pressure_pa));
+    out << buf;
+  }
+  for (double h : bed.sentTargets()) {
+    std::snprintf(buf, sizeof buf, ",%.5f", h);
+    out << buf;
+  }
+  out << "\n";
+}
+
 /// 5. One plan on the patient: settled on the flat bed, then `warmup_s` under the plan (its
 /// transition), then `duration_s` measured: per region the highest peak, the share of time
-/// above 32 mmHg, the dose per hour, the lowest margin; the body's mean contact area.
+/// above 32 mmHg, the dose per hour, the lowest margin; the body's mean contact area. With
+/// `trace`, a traceLine() each second of the measured time. `plan_args` are added to the plan's
+/// request (the plan refuses what it does not know).
 Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
-                const nb::PatientParams& patient, const std::string& name, double warmup_s, double duration_s) {
+                const nb::PatientParams& patient, const std::string& name, double warmup_s, double duration_s,
+                const std::map<std::string, std::string>& plan_args, std::ostream* trace = nullptr) {
   Bed bed(grid, config, supply_pa, patient);
   bed.start({"flat", {}, {}});
   bed.run(15.0);
-  bed.start(comparablePlans().at(name));
+  nb::PlanRequest request = comparablePlans().at(name);
+  for (const auto& [key, value] : plan_args) request.args[key] = value;
+  bed.start(request);
   bed.run(warmup_s);
   nb::TissueLoadMeter meter(nb::TissueLoadParams{}, nb::defaultTissueRegions());
   double area_sum = 0.0;
@@ -342,7 +376,9 @@ Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double su
   std::map<std::string, double> phase_s;
   bed.run(duration_s, [&](double) {
     if (++samples % kMeterEvery != 0) return;
-    meter.sample(bed.regionLoads(), kMeterEvery * kBodyStepS);
+    const std::vector<nb::RegionLoad> loads = bed.regionLoads();
+    meter.sample(loads, kMeterEvery * kBodyStepS);
+    if (trace && samples % (2 * kMeterEvery) == 0) traceLine(*trace, bed, loads);
     area_sum += bed.contactAreaM2();
     phase_s[bed.phase()] += kMeterEvery * kBodyStepS;
   });
@@ -354,16 +390,71 @@ Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double su
   return out;
 }
 
+/// What --plans runs: the plans, their timing, the body, extra request arguments, a trace file.
+struct SupportOptions {
+  std::vector<std::string> plans;
+  double duration_s = 3600.0, warmup_s = 300.0;
+  nb::PatientParams body;
+  bool articulated = false;
+  std::map<std::string, std::string> plan_args;
+  std::string trace_path;
+};
+
+/// The support table of `o.plans` into OUT_DIR/bed_study_support.json; the exit code.
+int supportTable(const SupportOptions& o, const std::string& out_dir, double supply_pa) {
+  nb::PatientParams patient = o.body;
+  patient.articulated = o.articulated;
+  Json study;
+  study["patient"] = o.articulated ? "articulated" : "free segments";
+  study["mass_kg"] = patient.mass_kg;
+  study["height_m"] = patient.height_m;
+  study["warmup_s"] = o.warmup_s;
+  study["duration_s"] = o.duration_s;
+  if (!o.plan_args.empty()) study["plan_args"] = o.plan_args;
+  std::ofstream trace;
+  if (!o.trace_path.empty()) {
+    trace.open(o.trace_path);
+    if (!trace) {
+      std::cerr << "bed_study: --trace " << o.trace_path << ": cannot write\n";
+      return 2;
+    }
+  }
+  try {
+    for (const std::string& name : o.plans)
+      study["plans"][name] = supportRow(nb::BedGrid{}, nb::PlanConfig{}, supply_pa, patient, name, o.warmup_s,
+                                        o.duration_s, o.plan_args, trace.is_open() ? &trace : nullptr);
+  } catch (const std::runtime_error& e) {  // the plan refused its request (e.g. a bad --plan-args key)
+    std::cerr << "bed_study: " << e.what() << "\n";
+    return 2;
+  }
+  std::ofstream(std::filesystem::path(out_dir) / "bed_study_support.json") << study.dump(2) << "\n";
+  std::cout << "wrote " << out_dir << "/bed_study_support.json\n";
+  return 0;
+}
+
+/// KEY=VALUE items into *out; false (and the reason on stderr) for an item without a key or '='.
+bool keyValues(const std::vector<std::string>& items, std::map<std::string, std::string>* out) {
+  for (const std::string& kv : items) {
+    const std::size_t eq = kv.find('=');
+    if (eq == 0 || eq == std::string::npos) {
+      std::cerr << "bed_study: --plan-args: '" << kv << "' is not KEY=VALUE\n";
+      return false;
+    }
+    (*out)[kv.substr(0, eq)] = kv.substr(eq + 1);
+  }
+  return true;
+}
+
 constexpr const char* kSynopsis =
     "usage: bed_study --out DIR [--period S] [--articulated] [--plans LIST [--duration S] [--warmup S]\n"
-    "                 [--mass-kg M] [--height-m H]]\n"
+    "                 [--mass-kg M] [--height-m H] [--plan-args K=V,...] [--trace CSV]]\n"
     "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
     "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
     "lateral turns only (DIR/bed_study_articulated.json). With --plans (comma-separated: flat,\n"
     "alternating_1in2, alternating_1in3, lateral_turn_30, adaptive, adaptive_turn_30: adaptive with\n"
     "a 30 deg left turn), only the support table of those plans (DIR/bed_study_support.json), on\n"
     "the articulated patient with --articulated, for a body of --mass-kg and --height-m (default\n"
-    "70 kg, 1.70 m).";
+    "70 kg, 1.70 m); --trace, with one plan, a CSV of its region peaks and cell targets each second.";
 
 }  // namespace
 
@@ -393,11 +484,25 @@ int main(int argc, char** argv) {
   app.add_option("--warmup", warmup_s, "support table: time under the plan before measuring [s]")
       ->type_name("S")
       ->check(CLI::NonNegativeNumber);
+  std::string trace_path;
+  std::vector<std::string> plan_arg_list;
+  app.add_option("--plan-args", plan_arg_list, "support table: KEY=VALUE arguments added to every plan's request")
+      ->delimiter(',')
+      ->type_name("LIST");
+  app.add_option("--trace", trace_path,
+                 "support table of one plan: a CSV of region peaks and cell targets, once a second")
+      ->type_name("CSV");
   nb::PatientParams body;
   app.add_option("--mass-kg", body.mass_kg, "support table: the patient's mass [kg]")->type_name("M");
   app.add_option("--height-m", body.height_m, "support table: the patient's stature [m]")->type_name("H");
   const int parsed = tools::parseCommandLine(app, argc, argv);
   if (parsed != tools::kRun) return parsed;
+  if (!trace_path.empty() && plans.size() != 1) {
+    std::cerr << "bed_study: --trace needs exactly one plan in --plans\n";
+    return 2;
+  }
+  std::map<std::string, std::string> plan_args;
+  if (!keyValues(plan_arg_list, &plan_args)) return 2;
   if (const nb::Status valid = body.validate(); !valid.ok()) {
     std::cerr << "bed_study: --mass-kg / --height-m: " << valid.message() << "\n";
     return 2;
@@ -407,20 +512,8 @@ int main(int argc, char** argv) {
   const nb::BedGrid grid;
   const nb::PlanConfig config;
   Json study;
-  if (!plans.empty()) {
-    nb::PatientParams patient = body;
-    patient.articulated = articulated;
-    study["patient"] = articulated ? "articulated" : "free segments";
-    study["mass_kg"] = patient.mass_kg;
-    study["height_m"] = patient.height_m;
-    study["warmup_s"] = warmup_s;
-    study["duration_s"] = duration_s;
-    for (const std::string& name : plans)
-      study["plans"][name] = supportRow(grid, config, supply_pa, patient, name, warmup_s, duration_s);
-    std::ofstream(std::filesystem::path(out_dir) / "bed_study_support.json") << study.dump(2) << "\n";
-    std::cout << "wrote " << out_dir << "/bed_study_support.json\n";
-    return 0;
-  }
+  if (!plans.empty())
+    return supportTable({plans, duration_s, warmup_s, body, articulated, plan_args, trace_path}, out_dir, supply_pa);
   if (articulated) {
     nb::PatientParams patient;
     patient.articulated = true;
