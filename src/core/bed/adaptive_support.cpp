@@ -32,6 +32,7 @@ Status AdaptiveSupportParams::validate(double min_height_m, double nominal_heigh
           "level_gain_m_n_s must lie in [0, 1e-3]");
   e.addIf(!(level_range_m >= 0.0 && level_range_m <= span_m), k,
           "level_range_m must lie in [0, max_height_m - min_height_m]");
+  e.addIf(!(reach_m >= 0.0 && reach_m <= level_range_m), k, "reach_m must lie in [0, level_range_m]");
   e.addIf(!(finite(relief_budget_s) && relief_budget_s > relief_s), k, "relief_budget_s must exceed relief_s");
   e.addIf(!(finite(dose_limit) && dose_limit > 0.0), k, "dose_limit must be positive");
   e.addIf(!(finite(relief_s) && relief_s > 0.0), k, "relief_s must be positive");
@@ -64,6 +65,7 @@ const ParamTable<AdaptiveSupportParams>& adaptiveSupportFields() {
       NB_FIELD("margin_height_m", "lowest height of a cell under the trunk or pelvis [m]", p.margin_height_m),
       NB_FIELD("level_gain_m_n_s", "levelling: height change per N of excess load per s [m/(N s)]", p.level_gain_m_n_s),
       NB_FIELD("level_range_m", "levelling moves a cell at most this far from nominal [m]", p.level_range_m),
+      NB_FIELD("reach_m", "levelling raises a cell not under the body at most this far above nominal [m]", p.reach_m),
       NB_FIELD("relief_budget_s", "a region is relieved after this long under load [s]", p.relief_budget_s),
       NB_FIELD("dose_limit", "or sooner, when its sensed dose reaches this [-]", p.dose_limit),
       NB_FIELD("relief_s", "a relief lasts this long [s]", p.relief_s),
@@ -243,7 +245,8 @@ void AdaptiveSupport::level(const std::vector<double>& loads, double dt_s) {
           ++n;
         }
     const double step = params_.level_gain_m_n_s * (sum / n - loads[id]) * dt_s;
-    offset_m_[id] = std::clamp(offset_m_[id] + step, -params_.level_range_m, params_.level_range_m);
+    const double top_m = loads[id] > params_.contact_load_n ? params_.level_range_m : params_.reach_m;
+    offset_m_[id] = std::clamp(offset_m_[id] + step, -params_.level_range_m, std::max(top_m, offset_m_[id]));
   }
 }
 

@@ -244,6 +244,24 @@ TEST(AdaptiveSupport, LevelsEveryCellUnderTheBodyButTheHeelsAndCalves) {
   EXPECT_NEAR(s.targets()[grid.id(14, 3)], calf_m, 1e-9);
 }
 
+TEST(AdaptiveSupport, RaisesACellThatDoesNotSenseTheBodyOnlyWithinItsReach) {
+  // Beside the chest, cell (4, 1) senses nothing while its neighbours carry the arm: levelling
+  // raises it by reach_m and no further (raising it moves no load); (5, 1), under the arm,
+  // goes up to the levelling range. Once (4, 1) senses the body it may go on rising.
+  const nb::BedGrid grid;
+  nb::SensedCells sensed = supineSensed(grid);
+  sensed.load_n[grid.id(4, 1)] = 0.0;
+  const nb::AdaptiveSupportParams& p = kConfig.adaptive;
+  ASSERT_LT(p.reach_m, p.level_range_m);
+  nb::AdaptiveSupport s = support();
+  run(&s, sensed, 0.0, 1000.0);
+  EXPECT_NEAR(s.targets()[grid.id(4, 1)], kConfig.nominal_height_m + p.reach_m, 1e-9);
+  EXPECT_GT(s.targets()[grid.id(5, 1)], kConfig.nominal_height_m + p.reach_m + 1e-3);
+  sensed.load_n[grid.id(4, 1)] = 1.5;
+  run(&s, sensed, 1000.1, 1600.0);
+  EXPECT_GT(s.targets()[grid.id(4, 1)], kConfig.nominal_height_m + p.reach_m + 1e-3);
+}
+
 TEST(AdaptiveSupport, LevellingWaitsWhileARegionIsRelieved) {
   // The relief's load shift is no imbalance to level: the other cells hold still through it.
   const nb::BedGrid grid;
@@ -396,9 +414,11 @@ TEST(AdaptivePlan, RefusesABadConfigurationNamingTheKey) {
   nb::PlanConfig config;
   config.adaptive.heel_height_m = 0.2;
   config.adaptive.tolerance.exponent = -1.0;
+  config.adaptive.reach_m = config.adaptive.level_range_m + 0.01;
   const nb::Status s = config.validate();
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find("adaptive/heel_height_m"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("adaptive/reach_m"), std::string::npos) << s.message();
   EXPECT_NE(s.message().find("adaptive/tolerance"), std::string::npos) << s.message();
   // Every key is in the parameter table, so YAML and the parameter server reach it.
   int adaptive_keys = 0;

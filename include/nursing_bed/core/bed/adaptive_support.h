@@ -51,8 +51,12 @@ struct AdaptiveSupportParams {
   double thigh_lift_m = 0.05;
   /// Lowest height of a cell under the trunk or pelvis: its bottoming-out margin [m].
   double margin_height_m = 0.07;
-  double level_gain_m_n_s = 6e-5;   ///< levelling: height change per N of excess load per s [m/(N s)]
-  double level_range_m = 0.03;      ///< levelling moves a cell at most this far from the nominal height [m]
+  double level_gain_m_n_s = 6e-5;  ///< levelling: height change per N of excess load per s [m/(N s)]
+  double level_range_m = 0.03;     ///< levelling moves a cell at most this far from the nominal height [m]
+  /// Levelling raises a cell that does not sense the body at most this far above the nominal
+  /// height: it reaches for the body, but raising it further moves no load, and a lightly
+  /// loaded bag near its top is where pressure tells its height worst [m].
+  double reach_m = 0.015;
   double relief_budget_s = 1800.0;  ///< a region is relieved after this long under load ... [s]
   double dose_limit = 0.25;         ///< ... or sooner, when its sensed dose reaches this [-]
   double relief_s = 120.0;          ///< a relief lasts this long [s]
