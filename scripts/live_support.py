@@ -6,8 +6,8 @@ Starts `roslaunch nursing_bed real_bed.launch emulator:=true` (or sim.launch wit
 articulated patient of --mass-kg and --height-m, waits for the bed's first state and --settle-s
 on the flat bed, starts --plan through /bed_manager/set_posture (KEY=VALUE arguments after it),
 waits --warmup-s, then measures --duration-s from /simulator/tissue_load as bed_study does: per
-region the highest peak, the share of the time above the threshold, the dose per hour, the lowest
-margin; the body's mean contact area; and whether any cell was dead, faulty or unverified. With
+region the highest and the time-mean peak, the share of the time above the threshold, the dose
+per hour, the lowest margin; the body's mean contact area; and whether any cell was dead, faulty or unverified. With
 --compare FILE (a bed_study_support.json of the same plan and body) it prints each figure's
 relative difference from the simulated one. --json writes the figures; --trace writes a CSV, once
 a second of the measured window: time, phase, each region's peak [mmHg] and each cell's target
@@ -71,6 +71,7 @@ class Meter:
         self.first = None
         self.last = None
         self.peak = {}
+        self.peak_sum = {}
         self.margin = {}
         self.area_sum = 0.0
         self.samples = 0
@@ -81,6 +82,7 @@ class Meter:
         self.last = msg
         for i, name in enumerate(msg.region):
             self.peak[name] = max(self.peak.get(name, 0.0), msg.peak_pressure_mmhg[i])
+            self.peak_sum[name] = self.peak_sum.get(name, 0.0) + msg.peak_pressure_mmhg[i]
             if math.isfinite(msg.margin_m[i]):
                 self.margin[name] = min(self.margin.get(name, math.inf), msg.margin_m[i])
         self.area_sum += msg.body_contact_area_m2
@@ -93,6 +95,7 @@ class Meter:
             above = self.last.time_above_threshold_s[i] - self.first.time_above_threshold_s[i]
             dose = self.last.dose[i] - self.first.dose[i]
             regions[name] = {"max_peak_mmhg": self.peak[name],
+                             "mean_peak_mmhg": self.peak_sum[name] / self.samples,
                              "share_above_threshold": above / observed if observed > 0 else 0.0,
                              "dose_per_hour": dose * 3600.0 / observed if observed > 0 else 0.0,
                              "min_margin_mm": 1e3 * self.margin.get(name, math.nan)}
@@ -207,15 +210,21 @@ def report(out, compare):
                                                                             sim["contact_area_cm2"])) if sim else ""))
     print("cells dead %d faulty %d unverified %d" % (len(out["cells_dead"]), len(out["cells_faulty"]),
                                                      len(out["cells_unverified"])))
-    print("  %-17s %14s %10s %11s %14s" % ("region", "max peak mmHg", "share >32", "dose per h", "min margin mm"))
+    print("  %-17s %14s %15s %10s %11s %14s" % ("region", "max peak mmHg", "mean peak mmHg", "share >32", "dose per h",
+                                                "min margin mm"))
     for name, r in out["regions"].items():
-        line = "  %-17s %14.1f %9.0f%% %11.3f %14.1f" % (name, r["max_peak_mmhg"], 100 * r["share_above_threshold"],
-                                                      r["dose_per_hour"], r["min_margin_mm"])
+        line = "  %-17s %14.1f %15.1f %9.0f%% %11.3f %14.1f" % (
+            name, r["max_peak_mmhg"], r["mean_peak_mmhg"], 100 * r["share_above_threshold"], r["dose_per_hour"],
+            r["min_margin_mm"])
         s = sim["regions"].get(name) if sim else None
         if s:
-            line += "   simulated %.1f mmHg (%+.0f %%), %.0f%%, %.3f, %.1f mm" % (
-                s["max_peak_mmhg"], 100 * relative(r["max_peak_mmhg"], s["max_peak_mmhg"]),
-                100 * s["share_above_threshold"], s["dose_per_hour"], s["min_margin_mm"])
+            line += "   simulated %.1f mmHg (%+.0f %%)" % (s["max_peak_mmhg"],
+                                                       100 * relative(r["max_peak_mmhg"], s["max_peak_mmhg"]))
+            if "mean_peak_mmhg" in s:
+                line += ", mean %.1f (%+.0f %%)" % (s["mean_peak_mmhg"],
+                                                  100 * relative(r["mean_peak_mmhg"], s["mean_peak_mmhg"]))
+            line += ", %.0f%%, %.3f, %.1f mm" % (100 * s["share_above_threshold"], s["dose_per_hour"],
+                                                s["min_margin_mm"])
         print(line)
 
 

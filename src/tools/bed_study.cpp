@@ -199,6 +199,7 @@ Json regionDoses(const nb::TissueLoadMeter& meter) {
     out[meter.regions()[r].name] = {{"share_above_threshold", number(share)},
                                     {"dose_per_hour", number(per_hour)},
                                     {"max_peak_mmhg", number(mmhg(d.max_peak_pressure_pa))},
+                                    {"mean_peak_mmhg", number(mmhg(d.peak_integral_pa_s / meter.observedS()))},
                                     {"min_margin_mm", number(1e3 * d.min_margin_m)}};
   }
   return out;

@@ -155,6 +155,7 @@ void TissueLoadMeter::sample(const std::vector<RegionLoad>& loads, double dt_s) 
     // Cumulative damage (Miner's rule): each interval uses up dt / t_allow of the tolerance.
     d.dose += dt_s / params_.tolerance.allowedTimeS(now.peak_pressure_pa);
     d.max_peak_pressure_pa = std::max(d.max_peak_pressure_pa, now.peak_pressure_pa);
+    d.peak_integral_pa_s += now.peak_pressure_pa * dt_s;
     if (std::isfinite(now.margin_m) && !(d.min_margin_m <= now.margin_m)) d.min_margin_m = now.margin_m;
   }
   observed_s_ += dt_s;

@@ -93,6 +93,21 @@ TEST(TissueLoadMeter, ARegionAboveTheThresholdHalfTheTimeCountsHalfTheTime) {
   EXPECT_NEAR(d.dose, 50.0 / 3600.0, 1e-12);
   EXPECT_DOUBLE_EQ(d.now.peak_pressure_pa, 20.0 * kMmHg);
   EXPECT_DOUBLE_EQ(d.max_peak_pressure_pa, 200.0 * kMmHg);
+  EXPECT_NEAR(d.peak_integral_pa_s / meter.observedS(), 110.0 * kMmHg, 1e-9);  // the time-mean peak
+}
+
+TEST(TissueLoadMeter, TheMeanPeakDoesNotJumpWhereThePeakCrossesTheThreshold) {
+  // A peak a hair above the threshold and one a hair below: share and dose jump from all to
+  // nothing, the time-mean peak moves by the hair.
+  nb::TissueLoadMeter above(handParams(), oneRegion()), below(handParams(), oneRegion());
+  const double threshold_pa = handParams().threshold_pa;
+  for (int i = 0; i < 600; ++i) {
+    above.sample({constantLoad(threshold_pa + 10.0, 0.001)}, 1.0);
+    below.sample({constantLoad(threshold_pa - 10.0, 0.001)}, 1.0);
+  }
+  EXPECT_NEAR(above.doses()[0].time_above_s, 600.0, 1e-9);
+  EXPECT_EQ(below.doses()[0].time_above_s, 0.0);
+  EXPECT_NEAR((above.doses()[0].peak_integral_pa_s - below.doses()[0].peak_integral_pa_s) / 600.0, 20.0, 1e-9);
 }
 
 TEST(TissueLoadMeter, ResetClearsTheAccumulatedDose) {

@@ -84,7 +84,10 @@ struct RegionDose {
   double time_above_s = 0.0;          ///< time with the peak above the threshold [s]
   double dose = 0.0;                  ///< sum of dt / t_allow(peak) (1: the tolerance curve's limit)
   double max_peak_pressure_pa = 0.0;  ///< highest peak seen [Pa]
-  double min_margin_m = 0.0;          ///< lowest margin seen [m] (NaN until a finite margin is seen)
+  /// Sum of peak x dt [Pa s]; over the meter's observedS(), the time-mean peak: unlike
+  /// time_above_s and dose it does not jump where the peak crosses the threshold.
+  double peak_integral_pa_s = 0.0;
+  double min_margin_m = 0.0;  ///< lowest margin seen [m] (NaN until a finite margin is seen)
 };
 
 /// Accumulates region snapshots: sample(loads, dt) counts `loads` for the dt seconds before it
