@@ -7,14 +7,15 @@ articulated patient of --mass-kg and --height-m, waits for the bed's first state
 on the flat bed, starts --plan through /bed_manager/set_posture (KEY=VALUE arguments after it),
 waits --warmup-s, then measures --duration-s from /simulator/tissue_load as bed_study does: per
 region the highest and the time-mean peak, the share of the time above the threshold, the dose
-per hour, the lowest margin; the body's mean contact area; and whether any cell was dead, faulty or unverified. With
---compare FILE (a bed_study_support.json of the same plan and body) it prints each figure's
-relative difference from the simulated one. --json writes the figures; --trace writes a CSV, once
-a second of the measured window: time, phase, each region's peak [mmHg] and each cell's target
-height [m] (the columns bed_study --trace writes). --launch-arg passes
-NAME:=VALUE to roslaunch: with ROS_MASTER_URI on another port and register_map:= a map on other
-Modbus ports, two beds run side by side. Exit code 0 when the run was measured, 1 when the bed
-never came up or the plan was refused, 2 for a bad command line.
+per hour, the lowest margin; the body's mean contact area; and whether any cell was dead,
+faulty or unverified. With --compare FILE (a bed_study_support.json of the same plan and body)
+it prints each figure's relative difference from the simulated one. --json writes the figures;
+--trace writes a CSV, once a second of the measured window: the plan's elapsed time, its phase,
+each region's peak [mmHg] and each cell's target height [m] (the columns of bed_study --trace).
+--launch-arg passes NAME:=VALUE to roslaunch: with ROS_MASTER_URI on another port and
+register_map:= a map on other Modbus ports, two beds run side by side. Exit code 0 when the run
+was measured, 1 when the bed never came up or the plan was refused, 2 for a bad command line or
+an unwritable --trace.
 
 usage: live_support.py [--sim] [--plan adaptive] [--warmup-s S] [--duration-s S] [--json FILE]
                        [--trace CSV] [--compare FILE] [--launch-arg NAME:=VALUE ...] [KEY=VALUE ...]
@@ -107,13 +108,14 @@ class Trace:
     """Once a second of the measured window: the plan's elapsed time and phase, each region's
     peak now [mmHg], each cell's target height [m]."""
 
-    def __init__(self, path):
-        self.file = open(path, "w") if path else None
+    def __init__(self, file):
+        self.file = file
         self.state = None
         self.last_s = -math.inf
 
     def add(self, tissue):
-        if self.file is None or self.state is None or self.state.elapsed_s - self.last_s < 1.0:
+        # A new plan (safe_level after a dead cell, say) starts its elapsed time again.
+        if self.file is None or self.state is None or abs(self.state.elapsed_s - self.last_s) < 1.0:
             return
         if self.last_s == -math.inf:
             self.file.write(",".join(["elapsed_s", "phase"] + ["peak_mmhg_" + r for r in tissue.region] +
@@ -128,7 +130,7 @@ class Trace:
             self.file.close()
 
 
-def measure(args):
+def measure(args, trace_file=None):
     import rospy
     from roslaunch_session import launched
     from nursing_bed.msg import BedState, TissueLoad
@@ -141,7 +143,7 @@ def measure(args):
     launch += args.launch_arg
     flags = {"dead": set(), "faulty": set(), "unverified": set(), "plans": set(), "state": False}
     meter = Meter()
-    trace = Trace(args.trace)
+    trace = Trace(trace_file)
     recording = {"on": False}
     with launched(launch):
         time.sleep(3.0)
@@ -240,7 +242,12 @@ def main():
             print("live_support: --compare %s: %s" % (args.compare, e), file=sys.stderr)
             return 2
     try:
-        out = measure(args)
+        trace_file = open(args.trace, "w") if args.trace else None
+    except OSError as e:
+        print("live_support: --trace %s: %s" % (args.trace, e.strerror), file=sys.stderr)
+        return 2
+    try:
+        out = measure(args, trace_file)
     except RuntimeError as e:
         print("live_support: %s" % e, file=sys.stderr)
         return 1
