@@ -333,14 +333,13 @@ const std::map<std::string, nb::PlanRequest>& comparablePlans() {
 
 /// One line of the --trace CSV (live_support.py --trace writes the same columns): the plan's
 /// elapsed time and phase, each region's peak now [mmHg], each cell's target [m].
-void traceLine(std::ostream& out, const Bed& bed, const std::vector<nb::RegionLoad>& loads) {
+void traceLine(std::ostream& out, const Bed& bed, std::string phase, const std::vector<nb::RegionLoad>& loads) {
   if (out.tellp() == 0) {
     out << "elapsed_s,phase";
     for (const nb::TissueRegion& r : nb::defaultTissueRegions()) out << ",peak_mmhg_" << r.name;
     for (std::size_t i = 0; i < bed.sentTargets().size(); ++i) out << ",target_m_" << i;
     out << "\n";
   }
-  std::string phase = bed.phase();
   std::replace(phase.begin(), phase.end(), ',', ';');
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.2f", bed.planElapsed());
@@ -378,10 +377,11 @@ Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double su
   bed.run(duration_s, [&](double) {
     if (++samples % kMeterEvery != 0) return;
     const std::vector<nb::RegionLoad> loads = bed.regionLoads();
+    const std::string phase = bed.phase();
     meter.sample(loads, kMeterEvery * kBodyStepS);
-    if (trace && samples % (2 * kMeterEvery) == 0) traceLine(*trace, bed, loads);
+    if (trace && samples % (2 * kMeterEvery) == 0) traceLine(*trace, bed, phase, loads);
     area_sum += bed.contactAreaM2();
-    phase_s[bed.phase()] += kMeterEvery * kBodyStepS;
+    phase_s[phase] += kMeterEvery * kBodyStepS;
   });
   const double area_cm2 = 1e4 * area_sum / (samples / kMeterEvery);
   std::printf("%s (%.0f s after a %.0f s warm-up): body contact area %.0f cm^2\n", name.c_str(), duration_s, warmup_s,
@@ -435,13 +435,13 @@ int supportTable(const SupportOptions& o, const std::string& out_dir, double sup
 
 /// KEY=VALUE items into *out; false (and the reason on stderr) for an item without a key or '='.
 bool keyValues(const std::vector<std::string>& items, std::map<std::string, std::string>* out) {
-  for (const std::string& kv : items) {
-    const std::size_t eq = kv.find('=');
-    if (eq == 0 || eq == std::string::npos) {
-      std::cerr << "bed_study: --plan-args: '" << kv << "' is not KEY=VALUE\n";
+  for (const std::string& item : items) {
+    const auto kv = tools::splitKeyValue(item);
+    if (!kv) {
+      std::cerr << "bed_study: --plan-args: '" << item << "' is not KEY=VALUE\n";
       return false;
     }
-    (*out)[kv.substr(0, eq)] = kv.substr(eq + 1);
+    (*out)[kv->first] = kv->second;
   }
   return true;
 }

@@ -161,9 +161,9 @@ nb::SynthOptions synthOptions(const SynthArgs& a) {
   o.noise_scale = parseNumber("--noise-scale", a.noise_scale);
   if (o.noise_scale < 0.0) throw UsageError("--noise-scale: expected a number >= 0, got '" + a.noise_scale + "'");
   for (const std::string& v : a.airbag_params) {
-    const auto eq = v.find('=');
-    if (eq == std::string::npos || eq == 0) throw UsageError("--airbag-param: expected NAME=VALUE, got '" + v + "'");
-    o.airbag_params[v.substr(0, eq)] = parseNumber("--airbag-param " + v.substr(0, eq), v.substr(eq + 1));
+    const auto kv = tools::splitKeyValue(v);
+    if (!kv) throw UsageError("--airbag-param: expected NAME=VALUE, got '" + v + "'");
+    o.airbag_params[kv->first] = parseNumber("--airbag-param " + kv->first, kv->second);
   }
   o.flow_meter = !a.no_flow_meter;
   o.height_sensor = !a.no_height;

@@ -10,8 +10,10 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace nursing_bed {
@@ -61,6 +63,13 @@ inline void setSynopsis(CLI::App& sub, const std::string& text) {
 /// `--effect a --effect b`. (The default keeps the last value only.)
 inline CLI::Option* takeAll(CLI::Option* option) {
   return option->multi_option_policy(CLI::MultiOptionPolicy::TakeAll)->default_str("");
+}
+
+/// "NAME=VALUE" split at its first '=' (the value may hold more); nullopt without a name or '='.
+inline std::optional<std::pair<std::string, std::string>> splitKeyValue(const std::string& item) {
+  const std::size_t eq = item.find('=');
+  if (eq == 0 || eq == std::string::npos) return std::nullopt;
+  return std::make_pair(item.substr(0, eq), item.substr(eq + 1));
 }
 
 /// Accepts a finite number > 0 (CLI11's PositiveNumber names the whole double range instead).
