@@ -219,8 +219,11 @@ void AirbagNode::reportGasSearch() {
   const bool anchoring = cell_->anchoringGas();
   if (anchoring != anchoring_gas_) {
     ROS_DEBUG("%s: %s", layout_.link_name.c_str(),
-              anchoring ? "lowered into the low band (observer/reanchor_below_m): venting flat to re-anchor its gas"
-                        : "re-anchoring over");
+              !anchoring               ? "re-anchoring over"
+              : cell_->recountingGas() ? "its counted vent gas doubtful (observer/recount_doubt_m): venting flat to "
+                                         "re-anchor its gas"
+                                       : "lowered into the low band (observer/reanchor_below_m): venting flat to "
+                                         "re-anchor its gas");
   }
   anchoring_gas_ = anchoring;
 }

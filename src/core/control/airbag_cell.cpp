@@ -375,6 +375,7 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   const CellEstimate before = observer_->estimate();
   const ObserverEvents events = observer_->step(in, z, dt_s);
   gas_.note(events);
+  if (use_estimate_) gas_.noteCountDoubt(observer_->estimate().count_doubt_m, observer_->estimate().load_n);
   if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
   if (!sim_) monitorStep(events, before, dt_s > 0.0 ? dt_s : params_.control_period_s);
 }

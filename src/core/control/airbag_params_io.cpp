@@ -85,6 +85,13 @@ ParamTable<GasVerifierParams> makeGasCheckFields() {
                    "a height target at or below this, sent while the cell is above it, is reached through a flat cell "
                    "(vented until re-anchored, then filled); 0 = never [m]",
                    [](G& p) -> double& { return p.reanchor_below_m; }),
+      realField<G>("recount_doubt_m",
+                   "a cell whose counted vent gas may be off by more than this height is re-anchored at its target "
+                   "(vented until re-anchored, then filled); 0 = never [m]",
+                   [](G& p) -> double& { return p.recount_doubt_m; }),
+      realField<G>("recount_max_load_n",
+                   "only a cell whose load estimate is below this is re-anchored for its count's doubt [N]",
+                   [](G& p) -> double& { return p.recount_max_load_n; }),
       realField<G>("verify_hold_s",
                    "after a lost link: valves shut this long, then the pressure is compared with the one before the "
                    "loss [s]",

@@ -16,6 +16,10 @@ Status GasVerifierParams::validate() const {
                "resume_vent_s must lie in [0, 0.2] s (a check, not a vent), got ", resume_vent_s);
   errors.addIf(!(reanchor_below_m >= 0.0 && std::isfinite(reanchor_below_m)), "reanchor_below_m must be >= 0, got ",
                reanchor_below_m);
+  errors.addIf(!(recount_doubt_m >= 0.0 && std::isfinite(recount_doubt_m)), "recount_doubt_m must be >= 0, got ",
+               recount_doubt_m);
+  errors.addIf(!(recount_max_load_n > 0.0 && std::isfinite(recount_max_load_n)),
+               "recount_max_load_n must be finite and > 0, got ", recount_max_load_n);
   errors.addIf(!(verify_hold_s >= 0.0 && verify_hold_s <= 2.0), "verify_hold_s must lie in [0, 2] s, got ",
                verify_hold_s);
   errors.addIf(!(verify_tolerance_pa > 0.0 && std::isfinite(verify_tolerance_pa)),
@@ -58,6 +62,7 @@ GasVerifier::GasVerifier(const GasVerifierParams& params) : params_(validated(pa
 void GasVerifier::reset(bool verified) {
   gas_ = verified ? GasKnowledge::kKnown : GasKnowledge::kUnverified;
   found_flat_ = false;
+  recounting_ = false;
   check_pending_ = false;
   check_vent_left_s_ = 0.0;
   check_until_s_ = -1.0;
@@ -120,7 +125,7 @@ void GasVerifier::heightRequested(double target_m, double height_m) {
   // to lose there, so it passes through flat on the way.
   const double band = params_.reanchor_below_m;
   const bool low = target_m <= band;
-  if (gas_ == GasKnowledge::kAnchoring && !low) {
+  if (gas_ == GasKnowledge::kAnchoring && !low && !recounting_) {
     gas_ = GasKnowledge::kKnown;  // raised again before it was found flat
   } else if (gas_ == GasKnowledge::kKnown && low && band > 0.0 && height_m > band) {
     gas_ = GasKnowledge::kAnchoring;
@@ -130,6 +135,20 @@ void GasVerifier::heightRequested(double target_m, double height_m) {
 
 void GasVerifier::pressureRequested() {
   if (gas_ == GasKnowledge::kAnchoring) gas_ = GasKnowledge::kKnown;
+  recounting_ = false;
+}
+
+void GasVerifier::noteCountDoubt(double doubt_m, double load_n) {
+  // Near the bag's top a light plate's height moves 5-15 mm per 1 % of gas, and pressure alone
+  // cannot tell a higher plate from a heavier load: a doubtful count is ended where the gas is
+  // measured, on the flat cell.
+  if (gas_ != GasKnowledge::kKnown || !(params_.recount_doubt_m > 0.0) || !(doubt_m > params_.recount_doubt_m) ||
+      !(load_n < params_.recount_max_load_n))
+    return;
+  gas_ = GasKnowledge::kAnchoring;
+  found_flat_ = false;
+  recounting_ = true;
+  ++recounts_;
 }
 
 ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double gauge_pressure_pa,
@@ -216,6 +235,7 @@ ValveOpenings GasVerifier::findingValves(double period_s, CellObserver* observer
   if (found_flat_) {
     const bool vented = gas_ != GasKnowledge::kUnverified;
     gas_ = GasKnowledge::kKnown;
+    recounting_ = false;
     if (!vented) return wanted;  // found flat before any command (a bed started flat)
     *found_after_vent = true;
     return ValveOpenings{};

@@ -32,6 +32,8 @@ constexpr double kStillSettleS = 0.5;
 // 60 s holds of a right inventory were pulled down, one by 0.4 mm: 1 % of a light plate's gas
 // at a low hold, 3-4 mm at the top); at 4 none.
 constexpr double kBoundStandardErrors = 4.0;
+// A valve edge rings the plate on its gas spring; the swing has died down within this time [s].
+constexpr double kRingS = 0.03;
 constexpr double kNoisePriorReadings = 20.0;
 constexpr double kNoiseMemoryReadings = 24000.0;
 
@@ -65,6 +67,8 @@ Status CellObserverParams::validate() const {
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
   non_negative("weight_bound_window_s", weight_bound_window_s);
+  errors.addIf(!(vent_count_doubt >= 0.0 && vent_count_doubt <= 1.0), "vent_count_doubt must be in [0, 1], got ",
+               vent_count_doubt);
   return errors.status();
 }
 
@@ -105,6 +109,8 @@ void CellObserver::reset(double load_n) {
   weight_bound_.reset();
   pulse_.reset();
   still_s_ = 0.0;
+  count_doubt_kg_ = 0.0;
+  since_edge_s_ = 0.0;
   reading_noise_.interrupt();
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
@@ -336,7 +342,9 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
   if (std::isfinite(readings.inflow_kg_s)) in.prescribed_inflow_kg_s = readings.inflow_kg_s;
   propagateCovariance(dt);
-  integrateFlows(in, dt, pulse_.factor(model_, time_, x_, vars_.pressure_pa, in, p_old, dt));
+  const double pulse = pulse_.factor(model_, time_, x_, vars_.pressure_pa, in, p_old, dt);
+  integrateFlows(in, dt, pulse);
+  doubtVentCount(pulse * std::fabs(vars_.vent_flow_kg_s) * dt, in.flow_gauge_pressure_pa);
   isentropicWork(p_old, p_new);
   keepPhysical();
   bool lifted = invertVolume(p_new, dt);
@@ -346,8 +354,10 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
     const double v_flat = model_.structure().evaluate(0.0, &x_[CellModel::kShape]).volume_m3;
     const double u = (pa + p_new) * v_flat / (gamma_ - 1.0);
     measureEnergy(u, std::pow(pressureNoise() * v_flat / (gamma_ - 1.0), 2));
+    count_doubt_kg_ = 0.0;  // the flat cell's gas is measured
   }
   if (std::isfinite(readings.height_m)) {
+    count_doubt_kg_ = 0.0;  // the height is measured
     const double v = model_.structure().evaluate(readings.height_m, &x_[CellModel::kShape]).volume_m3;
     const double sd = (pa + p_new) * vars_.structure.effective_area_m2 * params_.height_noise_m / (gamma_ - 1.0);
     measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
@@ -369,6 +379,16 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   return events;
 }
 
+void CellObserver::doubtVentCount(double vent_kg, double flow_gauge_pressure_pa) {
+  // Only while the plate rings after a valve edge (a steady vent moves the plate steadily). The
+  // swing is tens to hundreds of Pa whatever the pressure: its share of the flows falls with
+  // the pressure beyond the curved bands.
+  const double ringing_pa = kCurvedFlowBands * model_.params().orifice_linear_band_pa;
+  const double p = std::fabs(flow_gauge_pressure_pa);
+  if (!(vent_kg > 0.0) || !std::isfinite(p) || since_edge_s_ > kRingS) return;
+  count_doubt_kg_ += params_.vent_count_doubt * std::min(1.0, ringing_pa / std::max(p, 1e-9)) * vent_kg;
+}
+
 void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
   still_s_ = valvesShut() ? still_s_ + dt_s : 0.0;
   if (still_s_ > kStillSettleS) {
@@ -379,7 +399,11 @@ void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
 }
 
 void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
+  const ValveOpenings before = applied_.valves;
   applied_ = delay_.delayed(inputs, dt);
+  const bool edge =
+      std::fabs(applied_.valves.inlet - before.inlet) > 1e-6 || std::fabs(applied_.valves.vent - before.vent) > 1e-6;
+  since_edge_s_ = edge ? 0.0 : since_edge_s_ + dt;
   if (std::isfinite(inputs.measured_supply_pa)) x_[CellModel::kRegulator] = inputs.measured_supply_pa;
 }
 
@@ -471,6 +495,7 @@ void CellObserver::anchorFlat(double gauge_pressure_pa) {
   p_(0, 0) = std::pow(1e-4 * x_[CellModel::kMass], 2);
   p_(1, 1) = std::pow(1e-4 * x_[CellModel::kEnergy], 2);
   ++reanchors_;
+  count_doubt_kg_ = 0.0;
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
@@ -489,6 +514,11 @@ CellEstimate CellObserver::estimate() const {
   e.reanchors = reanchors_;
   e.weight_bounds = weight_bounds_;
   e.pressure_noise_pa = pressureNoise();
+  // At the pressure, the volume (and the height over dV/dh) goes with the gas.
+  const double m = x_[CellModel::kMass];
+  e.count_doubt_m = x_[CellModel::kHeight] > 0.0 && m > 0.0
+                        ? count_doubt_kg_ / m * vars_.structure.volume_m3 / std::max(volume_slope_m2_, 1e-5)
+                        : 0.0;
   return e;
 }
 

@@ -36,6 +36,8 @@ TEST(GasVerifierParams, RefusesBadValuesNamingThem) {
   // The gas check after a lost link: a short vent, not an emptying.
   expectRefused("resume_vent_s", &nb::GasVerifierParams::resume_vent_s, {-0.01, 0.5, std::nan("")});
   expectRefused("reanchor_below_m", &nb::GasVerifierParams::reanchor_below_m, {-0.01, std::nan("")});
+  expectRefused("recount_doubt_m", &nb::GasVerifierParams::recount_doubt_m, {-0.01, std::nan("")});
+  expectRefused("recount_max_load_n", &nb::GasVerifierParams::recount_max_load_n, {0.0, -1.0, std::nan("")});
   expectRefused("verify_hold_s", &nb::GasVerifierParams::verify_hold_s, {-0.1, 5.0, std::nan("")});
   expectRefused("verify_tolerance_pa", &nb::GasVerifierParams::verify_tolerance_pa, {0.0, std::nan("")});
   expectRefused("verify_tolerance_rel", &nb::GasVerifierParams::verify_tolerance_rel, {-0.1, 1.0});
@@ -105,6 +107,36 @@ TEST(GasVerifier, OnlyACellLoweredIntoTheLowBandFromAboveItAnchors) {
   p.reanchor_below_m = 0.0;  // never
   nb::GasVerifier never(p);
   never.heightRequested(0.0, 0.10);
+  EXPECT_FALSE(never.anchoringGas());
+}
+
+TEST(GasVerifier, ADoubtfulCountOnALightCellAnchorsItWhateverTargetsComeUntilFoundFlat) {
+  nb::GasVerifierParams p;  // recount_doubt_m 4 mm, recount_max_load_n 5 N
+  nb::GasVerifier gas(p);
+  gas.noteCountDoubt(0.003, 0.6);
+  EXPECT_FALSE(gas.anchoringGas()) << "within the doubt allowed";
+  gas.noteCountDoubt(0.01, 20.0);
+  EXPECT_FALSE(gas.anchoringGas()) << "a loaded cell keeps its count";
+  gas.noteCountDoubt(0.005, 0.6);
+  EXPECT_TRUE(gas.anchoringGas());
+  EXPECT_TRUE(gas.recounting());
+  EXPECT_EQ(gas.recounts(), 1);
+  EXPECT_FALSE(gas.unverified()) << "its height is tracked meanwhile";
+  gas.heightRequested(0.13, 0.12);  // a plan's next target, above the low band
+  EXPECT_TRUE(gas.anchoringGas()) << "a new target does not end it";
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  bool found = true;
+  EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).vent, 1.0);
+  gas.noteCountDoubt(0.02, 0.6);
+  EXPECT_EQ(gas.recounts(), 1) << "one anchoring at a time";
+  gas.note(reanchored());
+  gas.findingValves(kPeriod, &observer, kWanted, &found);
+  EXPECT_TRUE(found);
+  EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
+  EXPECT_FALSE(gas.recounting());
+  p.recount_doubt_m = 0.0;  // never
+  nb::GasVerifier never(p);
+  never.noteCountDoubt(1.0, 0.6);
   EXPECT_FALSE(never.anchoringGas());
 }
 

@@ -337,6 +337,7 @@ TEST(CellObserver, RefusesBadParametersNamingThem) {
   p.weight_bound_window_s = -0.5;
   EXPECT_THROW(nb::CellObserver(nb::CellParams{}, p), std::invalid_argument);
   expectRefused("reanchor_time_s", &nb::CellObserverParams::reanchor_time_s, {-0.1, std::nan("")});
+  expectRefused("vent_count_doubt", &nb::CellObserverParams::vent_count_doubt, {-0.1, 1.5, std::nan("")});
 }
 
 namespace {
@@ -591,4 +592,53 @@ TEST(CellObserver, CountsIsolatedVentPulsesAsTheRestingPlateSwingsThrough) {
   EXPECT_NEAR(observer.estimate().height_m, plant.variables().height_m, 2e-5);
   std::cout << "[observer] 25 isolated vent pulses at " << plant.variables().gauge_pressure_pa << " Pa: vented "
             << vented << " kg, counted " << counted_too_much << " kg more\n";
+}
+
+TEST(CellObserver, DoubtsTheVentGasCountedWhileThePlateRingsUntilTheCellIsFoundFlat) {
+  // The plate alone high in its bag: vent pulses at 30-60 Pa, each an edge that rings the plate.
+  // Their gas is doubted by vent_count_doubt, a steady vent's after the ring is not, and the
+  // doubt, as a height, is large where the bag's top makes the height sensitive to the gas.
+  const nb::CellParams cell;
+  nb::CellModel plant(cell);
+  plant.resetToEquilibrium(0.13, 0.6);
+  nb::CellObserverParams op;
+  nb::CellObserver observer(cell, op);
+  observer.resetToHeight(0.13, 0.6);
+  auto run = [&](int periods, auto vent_of) {
+    for (int k = 0; k < periods; ++k) {
+      nb::CellInputs in;
+      in.vent_opening = vent_of(k);
+      in.load_n = 0.6;
+      plant.advance(op.period_s, in);
+      nb::Readings z;
+      z.gauge_pressure_pa = plant.variables().gauge_pressure_pa;
+      observer.step({{0.0, in.vent_opening}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+    }
+  };
+  EXPECT_EQ(observer.estimate().count_doubt_m, 0.0);
+  const double before_kg = plant.variables().mass_kg;
+  run(400, [](int k) { return k % 20 == 0 ? 1.0 : 0.0; });  // 20 pulses, 0.1 s apart
+  const double pulsed_kg = before_kg - plant.variables().mass_kg;
+  const double doubt_m = observer.estimate().count_doubt_m;
+  std::cout << "[observer] 20 vent pulses on the plate alone at 130 mm: " << pulsed_kg << " kg vented, doubt "
+            << 1e3 * doubt_m << " mm\n";
+  EXPECT_GT(doubt_m, 0.0);
+  // Every pulse rang the plate at under 300 Pa: the doubt is vent_count_doubt of the gas
+  // vented, a height at the volume's slope dV/dh near the top.
+  const nb::CellEstimate e = observer.estimate();
+  const nb::CellStructure& structure = observer.model().structure();
+  const double dh = 1e-3;
+  const double slope = (structure.evaluate(e.height_m + dh, &observer.state()[nb::CellModel::kShape]).volume_m3 -
+                        structure.evaluate(e.height_m - dh, &observer.state()[nb::CellModel::kShape]).volume_m3) /
+                       (2.0 * dh);
+  EXPECT_NEAR(doubt_m, op.vent_count_doubt * pulsed_kg / e.mass_kg * e.volume_m3 / slope, 0.3 * doubt_m);
+  const double mid_kg = plant.variables().mass_kg;
+  run(60, [](int) { return 1.0; });  // a steady vent: its first 30 ms ring
+  const double steady_kg = mid_kg - plant.variables().mass_kg;
+  const double added_m = observer.estimate().count_doubt_m - doubt_m;
+  EXPECT_LT(added_m / doubt_m, 0.5 * (steady_kg / pulsed_kg)) << "a steady vent's gas is doubted only after its edge";
+  run(8000, [](int) { return 1.0; });  // vented flat and held there: re-anchored
+  EXPECT_GE(observer.estimate().reanchors, 1)
+      << "plate at " << plant.variables().height_m << " m, " << plant.variables().gauge_pressure_pa << " Pa";
+  EXPECT_EQ(observer.estimate().count_doubt_m, 0.0);
 }

@@ -170,6 +170,8 @@ class AirbagCell {
   /// Lowered into the low band (gas check reanchor_below_m): venting flat so that the observer
   /// re-anchors its gas, the target kept; its height is still tracked.
   bool anchoringGas() const { return gas_.anchoringGas(); }
+  /// Anchoring because the observer's vent count became doubtful (observer/recount_doubt_m).
+  bool recountingGas() const { return gas_.recounting(); }
   /// The checks of the observer's gas (with their parameters).
   const GasVerifier& gasVerifier() const { return gas_; }
   /// The reported height is an estimate whose gas is not proven (a lost link not yet checked,

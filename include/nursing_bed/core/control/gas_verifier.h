@@ -25,6 +25,14 @@ struct GasVerifierParams {
   /// the target. The gas the moves before left uncounted is gone before the low hold and the
   /// next rise; 0: never [m].
   double reanchor_below_m = 0.035;
+  /// A cell whose counted vent gas may be off by more than this height (the observer's
+  /// count_doubt_m) is re-anchored the same way at its kept target: it vents until the
+  /// re-anchor test finds it flat, its height tracked, then fills to the target; 0: never [m].
+  double recount_doubt_m = 0.004;
+  /// Only a cell whose load estimate is below this is re-anchored for its count's doubt: one
+  /// that carries little more than its plate (0.6 N), where a flat cell moves no load; one the
+  /// body touches (a head's cradle, a bony prominence) keeps its count [N].
+  double recount_max_load_n = 1.5;
   /// After a lost link both valves stay shut this long and the mean pressure is compared
   /// with the last one before the loss: the gas kept at the height kept holds the load kept
   /// at that pressure. Outside the tolerance the gas is found again by venting flat; 0: no
@@ -93,6 +101,14 @@ class GasVerifier {
   void heightRequested(double target_m, double height_m);
   /// A pressure setpoint is held from where the cell is: no re-anchoring on the way.
   void pressureRequested();
+  /// The height `doubt_m` the observer's vent count may be off by, on a cell carrying `load_n`:
+  /// beyond recount_doubt_m, below recount_max_load_n, a known gas is re-anchored (kAnchoring
+  /// until found flat, whatever targets come meanwhile).
+  void noteCountDoubt(double doubt_m, double load_n);
+  /// Re-anchorings started by the count's doubt since construction.
+  int recounts() const { return recounts_; }
+  /// Anchoring because of the count's doubt (not a target in the low band).
+  bool recounting() const { return recounting_ && gas_ == GasKnowledge::kAnchoring; }
 
   GasKnowledge knowledge() const { return gas_; }
   /// The gas (and the height from it) is not proven: lost link not yet checked, suspected, or
@@ -135,6 +151,8 @@ class GasVerifier {
   GasVerifierParams params_;
   GasKnowledge gas_ = GasKnowledge::kKnown;
   bool found_flat_ = false;         ///< re-anchored since the search (or the anchoring) began
+  bool recounting_ = false;         ///< the anchoring was started by the count's doubt
+  int recounts_ = 0;                ///< see recounts()
   bool check_pending_ = false;      ///< the link came back: the gas is to be checked
   double check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double check_until_s_ = -1.0;     ///< valves kept shut until then for the re-anchor test [s]

@@ -42,6 +42,13 @@ struct CellObserverParams {
   /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
+  /// Share of the vent gas counted while the plate may ring (within 30 ms of a valve edge; the
+  /// gauge pressure within the flows' curved bands, 300 Pa by default; beyond, this share times
+  /// that pressure over the cell's) that the count may be off: flows at readings 5 ms apart
+  /// miss the plate's 40-100 Hz swing, and a few ms' error in the valves' timing moves them
+  /// onto another part of it. Summed since the cell was last found flat
+  /// (CellEstimate::count_doubt_m) [-].
+  double vent_count_doubt = 0.1;
 
   /// Success when valid, else an error with every problem found, separated by "; ".
   Status validate() const;
@@ -66,6 +73,9 @@ struct CellEstimate {
   int reanchors = 0;               ///< how often the mass was re-anchored on a flat cell
   int weight_bounds = 0;           ///< how often the plate's weight bounded the height
   double pressure_noise_pa = 0.0;  ///< the readings' sd as measured (ReadingNoise) [Pa]
+  /// The height the vent gas counted since the cell was last found flat may be off by
+  /// (CellObserverParams::vent_count_doubt); 0 on a flat cell or with a height sensor [m].
+  double count_doubt_m = 0.0;
 };
 
 /**
@@ -96,6 +106,10 @@ struct CellEstimate {
  *  - Reading noise: measured from the readings while both valves are shut and the plate has
  *    settled (ReadingNoise), the configured pressure_noise_pa until then; it sets the flows'
  *    noise bias near ambient, the measurements' variances and the weight bound's error.
+ *  - Count doubt: vent gas counted within 30 ms of a valve edge, near ambient (a swing the
+ *    readings do not resolve), is summed as the count's doubt, reported as the height it spans
+ *    (count_doubt_m) and cleared where the gas is measured (flat, a height reading); the control
+ *    side re-anchors a light cell on it (GasVerifier).
  *  - Weight bound: no load is less than the plate's own weight and the plate alone rests
  *    higher the more pressure holds it, so a settled plate's mean pressure bounds its height
  *    from above (p A_eff(h) >= m_plate g). An inventory drifted past it is measured back to it.
@@ -179,6 +193,8 @@ class CellObserver {
   bool boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
   /// Scalar measurement of U: the plate at rest at `height_m` (sd `sd_m`) under the pressure.
   void measureSettledHeight(double height_m, double sd_m, double gauge_pressure_pa);
+  /// Adds the period's vent gas `vent_kg` counted at the flows' pressure to the count's doubt.
+  void doubtVentCount(double vent_kg, double flow_gauge_pressure_pa);
   /// Feeds the readings taken while the gas is still (both valves shut a settling time) to
   /// reading_noise_.
   void trackReadingNoise(double gauge_pressure_pa, double dt_s);
@@ -208,8 +224,10 @@ class CellObserver {
   double unstretched_top_m_ = 0.0;  ///< the structure's height limit with the film at rest
   WeightBound weight_bound_;        ///< the plate alone's rests and the quiet windows
   int weight_bounds_ = 0;
-  ReadingNoise reading_noise_;  ///< kept over resets: the sensor's, not the gas's
-  double still_s_ = 0.0;        ///< both valves shut this long, for the noise [s]
+  ReadingNoise reading_noise_;   ///< kept over resets: the sensor's, not the gas's
+  double still_s_ = 0.0;         ///< both valves shut this long, for the noise [s]
+  double count_doubt_kg_ = 0.0;  ///< gas the vent count may be off by since found flat [kg]
+  double since_edge_s_ = 0.0;    ///< since the valves' openings last changed [s]
 };
 
 /// Height errors (true minus estimated) accumulated over a run: RMS and worst.
