@@ -148,7 +148,6 @@ void GasVerifier::noteCountDoubt(double doubt_m, double load_n) {
   gas_ = GasKnowledge::kAnchoring;
   found_flat_ = false;
   recounting_ = true;
-  ++recounts_;
 }
 
 ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double gauge_pressure_pa,

@@ -105,8 +105,6 @@ class GasVerifier {
   /// beyond recount_doubt_m, below recount_max_load_n, a known gas is re-anchored (kAnchoring
   /// until found flat, whatever targets come meanwhile).
   void noteCountDoubt(double doubt_m, double load_n);
-  /// Re-anchorings started by the count's doubt since construction.
-  int recounts() const { return recounts_; }
   /// Anchoring because of the count's doubt (not a target in the low band).
   bool recounting() const { return recounting_ && gas_ == GasKnowledge::kAnchoring; }
 
@@ -152,7 +150,6 @@ class GasVerifier {
   GasKnowledge gas_ = GasKnowledge::kKnown;
   bool found_flat_ = false;         ///< re-anchored since the search (or the anchoring) began
   bool recounting_ = false;         ///< the anchoring was started by the count's doubt
-  int recounts_ = 0;                ///< see recounts()
   bool check_pending_ = false;      ///< the link came back: the gas is to be checked
   double check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double check_until_s_ = -1.0;     ///< valves kept shut until then for the re-anchor test [s]
