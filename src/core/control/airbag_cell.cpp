@@ -375,8 +375,11 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   const CellEstimate before = observer_->estimate();
   const ObserverEvents events = observer_->step(in, z, dt_s);
   gas_.note(events);
-  if (use_estimate_) gas_.noteCountDoubt(observer_->estimate().count_doubt_m, observer_->estimate().load_n);
-  if (use_estimate_) measurement_.height_m = observer_->estimate().height_m;
+  if (use_estimate_) {
+    const CellEstimate e = observer_->estimate();
+    gas_.noteCountDoubt(e.count_doubt_m, e.load_n);
+    measurement_.height_m = e.height_m;
+  }
   if (!sim_) monitorStep(events, before, dt_s > 0.0 ? dt_s : params_.control_period_s);
 }
 

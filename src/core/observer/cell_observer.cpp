@@ -32,8 +32,6 @@ constexpr double kStillSettleS = 0.5;
 // 60 s holds of a right inventory were pulled down, one by 0.4 mm: 1 % of a light plate's gas
 // at a low hold, 3-4 mm at the top); at 4 none.
 constexpr double kBoundStandardErrors = 4.0;
-// A valve edge rings the plate on its gas spring; the swing has died down within this time [s].
-constexpr double kRingS = 0.03;
 constexpr double kNoisePriorReadings = 20.0;
 constexpr double kNoiseMemoryReadings = 24000.0;
 
@@ -385,7 +383,7 @@ void CellObserver::doubtVentCount(double vent_kg, double flow_gauge_pressure_pa)
   // the pressure beyond the curved bands.
   const double ringing_pa = kCurvedFlowBands * model_.params().orifice_linear_band_pa;
   const double p = std::fabs(flow_gauge_pressure_pa);
-  if (!(vent_kg > 0.0) || !std::isfinite(p) || since_edge_s_ > kRingS) return;
+  if (!(vent_kg > 0.0) || !std::isfinite(p) || since_edge_s_ > RestingPlatePulse::kRingDownS) return;
   count_doubt_kg_ += params_.vent_count_doubt * std::min(1.0, ringing_pa / std::max(p, 1e-9)) * vent_kg;
 }
 

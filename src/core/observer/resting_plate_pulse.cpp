@@ -6,8 +6,6 @@
 namespace nursing_bed {
 namespace {
 
-// A plate's swing after the valves shut has died down within this time [s].
-constexpr double kRingDownS = 0.03;
 // The pressure a plate rests at: the readings with the valves shut, filtered over this time [s].
 constexpr double kRestPressureFilterS = 0.02;
 // Openings below this are shut (the valve delay line's rounding leaves such slivers) [-].

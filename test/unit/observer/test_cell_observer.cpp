@@ -159,6 +159,18 @@ struct PlateAlone {
   nb::CellObserver observer;
 };
 
+/// One period of the vent at `vent` on `plant` (under `load_n`), the observer reading its exact
+/// pressure.
+void ventPeriod(nb::CellModel& plant, nb::CellObserver& observer, double vent, double load_n) {
+  nb::CellInputs in;
+  in.vent_opening = vent;
+  in.load_n = load_n;
+  plant.advance(observer.params().period_s, in);
+  nb::Readings z;
+  z.gauge_pressure_pa = plant.variables().gauge_pressure_pa;
+  observer.step({{0.0, vent}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+}
+
 std::vector<nb::CellEffectPtr> hiddenEffects() {
   return {std::make_shared<nb::LeakEffect>(1e-8), std::make_shared<nb::HeatTransferEffect>(8.0)};
 }
@@ -575,15 +587,7 @@ TEST(CellObserver, CountsIsolatedVentPulsesAsTheRestingPlateSwingsThrough) {
   ASSERT_NEAR(plant.variables().gauge_pressure_pa, 100.0, 30.0);
   const double mass_error_before = observer.estimate().mass_kg - plant.variables().mass_kg;
   const double mass_before = plant.variables().mass_kg;
-  for (int k = 0; k < 25 * 40; ++k) {
-    nb::CellInputs in;
-    in.vent_opening = k % 40 == 0 ? 1.0 : 0.0;
-    in.load_n = 2.0;
-    plant.advance(op.period_s, in);
-    nb::Readings z;
-    z.gauge_pressure_pa = plant.variables().gauge_pressure_pa;
-    observer.step({{0.0, in.vent_opening}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
-  }
+  for (int k = 0; k < 25 * 40; ++k) ventPeriod(plant, observer, k % 40 == 0 ? 1.0 : 0.0, 2.0);
   const double vented = mass_before - plant.variables().mass_kg;
   const double counted_too_much = (plant.variables().mass_kg - observer.estimate().mass_kg) + mass_error_before;
   EXPECT_GT(vented, 0.01 * mass_before) << "the pulses vent gas";
@@ -605,15 +609,7 @@ TEST(CellObserver, DoubtsTheVentGasCountedWhileThePlateRingsUntilTheCellIsFoundF
   nb::CellObserver observer(cell, op);
   observer.resetToHeight(0.13, 0.6);
   auto run = [&](int periods, auto vent_of) {
-    for (int k = 0; k < periods; ++k) {
-      nb::CellInputs in;
-      in.vent_opening = vent_of(k);
-      in.load_n = 0.6;
-      plant.advance(op.period_s, in);
-      nb::Readings z;
-      z.gauge_pressure_pa = plant.variables().gauge_pressure_pa;
-      observer.step({{0.0, in.vent_opening}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
-    }
+    for (int k = 0; k < periods; ++k) ventPeriod(plant, observer, vent_of(k), 0.6);
   };
   EXPECT_EQ(observer.estimate().count_doubt_m, 0.0);
   const double before_kg = plant.variables().mass_kg;

@@ -38,6 +38,9 @@ class RestingPlatePulse {
   double factor(CellModel& model, double time_s, const CellModel::StateVector& estimate, double estimate_pressure_pa,
                 const CellInputs& in, double old_pressure_pa, double dt_s);
 
+  /// A valve edge rings the plate on its gas spring; the swing has died down within this [s].
+  static constexpr double kRingDownS = 0.03;
+
  private:
   double swing_pressure_pa_;
   double quiet_s_ = std::numeric_limits<double>::infinity();            ///< both valves shut this long [s]
