@@ -235,10 +235,6 @@ CalibrationFit refitJointly(const NoiseModel& noise, const ModelFit& candidate, 
   return c;
 }
 
-namespace {
-
-/// Whitened chi2 per residual of the withheld runs under `calibration` and `effects` (NaN when
-/// nothing is withheld or the replay failed).
 double withheldChi2(const NoiseModel& noise, const std::map<std::string, double>& calibration,
                     const std::vector<CellEffectPtr>& effects) {
   const int n_held = noise.heldResidualCount();
@@ -247,6 +243,8 @@ double withheldChi2(const NoiseModel& noise, const std::map<std::string, double>
   if (!fitResiduals(noise.held, applyCalibration(calibration, noise.held.params), effects, r.data())) return NAN;
   return sumSquares(r) / n_held;
 }
+
+namespace {
 
 /// `out`: the effects of `model` (a pair) at their singles' fits in `uncalibrated` (the nominal
 /// cell's), with no calibration; false when a single is missing there.
@@ -292,6 +290,7 @@ bool dropCalibrationForEffect(const NoiseModel& noise, const std::vector<ModelFi
       c->summary.notes.push_back("cannot tell apart: " + moved_names + " vs " +
                                  describeDistortion(f.model.effects[0], values) + " (BIC " + fmt(bic - cal_bic) +
                                  ", withheld chi2 " + fmt(-held_gain) + " against the calibration)");
+      c->summary.distortion_ties.emplace_back(f.model.effects[0], values);
       continue;
     }
     if (!(bic < cal_bic) || !(held_gain >= options.min_withheld_gain)) continue;

@@ -769,7 +769,31 @@ FittedModels fitModels(DiagnosisStart& s, const std::vector<std::string>& candid
   return out;
 }
 
+/// The explanations the runs cannot tell from the verdict's (`winner`, -1 for none to judge),
+/// from the calibration's own pairs, and from its moves (identifiability.h), each with its run.
+std::vector<Confusion> whatTheRunsCannotTellApart(const std::vector<gap::ScoredCandidate>& scored, int winner,
+                                                  const DiagnosisStart& s, const CellParams& params,
+                                                  const DiagnosisOptions& options, const DiagnosisReport& rep) {
+  using namespace gap;
+  std::vector<Confusion> out;
+  if (winner >= 0)
+    out = findConfusions(scored, winner, s.prepared, s.noise, params, s.calibrated, options, rep.noise_p_pa);
+  if (!rep.calibration.done) return out;
+  for (auto& c :
+       findCalibrationConfusions(s.prepared, s.noise, params, s.calibrated, rep.calibration, options, rep.noise_p_pa))
+    out.push_back(std::move(c));
+  for (auto& c : findCalibrationDistortionConfusions(s.prepared, s.noise, params, s.calibrated, rep.calibration,
+                                                     options, rep.noise_p_pa))
+    out.push_back(std::move(c));
+  return out;
+}
+
 }  // namespace
+
+double DiagnosisReport::withheldGapInFloors(bool after) const {
+  const double chi2 = after ? withheld_chi2_after : nominal_withheld_chi2_per_sample;
+  return std::isfinite(chi2) ? std::sqrt(std::max(0.0, chi2 - 1.0)) : NAN;
+}
 
 DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& params, const DiagnosisOptions& options,
                               const std::string& dataset_name) {
@@ -803,6 +827,7 @@ DiagnosisReport calibrateRuns(std::vector<RunData> runs, const CellParams& param
         findCalibrationConfusions(s.prepared, s.noise, params, s.calibrated, rep.calibration, options, rep.noise_p_pa);
   for (const auto& c : rep.confusions) rep.reasons.push_back(describeConfusion(c));
   shrinkage(s.prepared, params, rep.calibration.movedValues(), {}, s.nominal, options, &rep);
+  rep.withheld_chi2_after = withheldChi2(s.noise, rep.calibration.movedValues(), {});
   calibratedOutcome(s.prepared, s.noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return rep;
@@ -865,21 +890,19 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
   }
   for (const auto& note : rep.calibration.notes)
     if (note.rfind("cannot tell apart: ", 0) == 0) rep.reasons.push_back(note);
-  if (verdict.winner >= 0 && drift.winner < 0 && options.propose_runs) {
-    say("identifiability: the explanations within " + fmt(options.near_tie_bic) + " BIC of the verdict's");
+  if (options.propose_runs) {
+    if (drift.winner < 0 && verdict.winner >= 0)
+      say("identifiability: the explanations within " + fmt(options.near_tie_bic) + " BIC of the verdict's");
     rep.confusions =
-        findConfusions(scored, verdict.winner, prepared, noise, params, s.calibrated, options, rep.noise_p_pa);
+        whatTheRunsCannotTellApart(scored, drift.winner < 0 ? verdict.winner : -1, s, params, options, rep);
   }
-  if (options.propose_runs && rep.calibration.done)
-    for (auto& c :
-         findCalibrationConfusions(prepared, noise, params, s.calibrated, rep.calibration, options, rep.noise_p_pa))
-      rep.confusions.push_back(std::move(c));
   for (const auto& c : rep.confusions) rep.reasons.push_back(describeConfusion(c));
   settleCalibratedStatus(noise, options, &rep, above_floor);
   if (rep.status == "unexplained" && options.discover)
     discoverWhatIsLeft(prepared, noise, params, options, say, &rep, &verdict_effects);
   settleNoneOnWithheld(noise, options, &rep, above_floor);
   shrinkage(prepared, params, rep.calibration.movedValues(), verdict_effects, s.nominal, options, &rep);
+  rep.withheld_chi2_after = withheldChi2(noise, rep.calibration.movedValues(), verdict_effects);
   calibratedOutcome(prepared, noise, params, &rep);
   rep.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   say("verdict: " + rep.status + (verdict.winner >= 0 ? " by " + joinNames(rep.verdict_effects) : std::string()) +

@@ -500,6 +500,67 @@ std::vector<Confusion> findCalibrationConfusions(const PreparedRuns& prepared, c
   return out;
 }
 
+namespace {
+
+/// The calibration's moved parameters as an explanation on the nominal cell (`base`: its fit
+/// residuals), each parameter stepped for the refit's directions.
+bool calibrationExplanation(const NoiseModel& noise, const CellParams& params,
+                            const std::vector<std::string>& calibrated, const std::map<std::string, double>& moved,
+                            const std::vector<double>& base, Explanation* e) {
+  for (const auto& [name, value] : moved) e->name += (e->name.empty() ? "" : "+") + name;
+  e->params = applyCalibration(moved, noise.fit.params);
+  for (const FitAxis& axis : calibrationAxes(calibrated, params)) {
+    if (!moved.count(axis.spec.name)) continue;
+    std::map<std::string, double> step = moved;
+    step[axis.spec.name] += kSensitivityStep * (axis.spec.hi - axis.spec.lo);
+    e->moved.emplace_back(applyCalibration(step, noise.fit.params), std::vector<CellEffectPtr>{});
+  }
+  return score(noise, base, static_cast<int>(moved.size()), e, applyCalibration(moved, noise.held.params));
+}
+
+/// A channel distortion with its fitted `values` as an explanation on the nominal cell.
+bool distortionExplanation(const NoiseModel& noise, const std::string& name,
+                           const std::map<std::string, double>& values, const std::vector<double>& base,
+                           Explanation* e) {
+  ScoredCandidate c;
+  c.first.effects = {name};
+  c.first.params = values;
+  c.second = makeModelSpec({name});
+  e->name = name;
+  e->params = noise.fit.params;
+  e->effects = buildEffects(c.second, values);
+  e->moved = movedEffects(c, e->params);
+  return score(noise, base, static_cast<int>(c.second.axes.size()), e, noise.held.params);
+}
+
+}  // namespace
+
+std::vector<Confusion> findCalibrationDistortionConfusions(const PreparedRuns& prepared, const NoiseModel& noise,
+                                                           const CellParams& params,
+                                                           const std::vector<std::string>& calibrated,
+                                                           const CalibrationSummary& summary,
+                                                           const DiagnosisOptions& options, double noise_p_pa,
+                                                           const ExperimentGrid& grid) {
+  std::vector<Confusion> out;
+  const std::map<std::string, double> moved = summary.movedValues();
+  if (summary.distortion_ties.empty() || moved.empty()) return out;
+  const std::vector<double> base = residuals(noise.fit, noise.fit.params, {});
+  if (base.empty()) return out;
+  Explanation a;
+  if (!calibrationExplanation(noise, params, calibrated, moved, base, &a)) return out;
+  fitSensitivity(noise, &a);
+  const ProposalSetting setting = proposalSetting(prepared, params, noise_p_pa, options);
+  GridRecordings recordings;
+  for (const auto& [name, values] : summary.distortion_ties) {
+    Explanation b;
+    if (out.size() >= kMaxConfusions || !distortionExplanation(noise, name, values, base, &b)) continue;
+    fitSensitivity(noise, &b);
+    if (recordings.plans.empty()) recordGrid(params, noise, setting, grid, &recordings);
+    out.push_back(proposed(a, b, values, setting, recordings));
+  }
+  return out;
+}
+
 std::string addRunArgument(const Confusion& c) {
   std::ostringstream s;
   s << "load_n=" << c.load_n << ",flow=" << c.flow << ",rise_scale=" << c.rise_scale;

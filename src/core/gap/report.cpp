@@ -71,6 +71,15 @@ std::string paramsText(const std::map<std::string, double>& params) {
 
 double shrinkPercent(double before, double after) { return before > 0.0 ? 100.0 * (1.0 - after / before) : NAN; }
 
+/// "; above the noise floor, 1.22 -> 0 floors (100 % smaller)": the gap a model can remove.
+std::string aboveNoiseText(const DiagnosisReport& r) {
+  const double before = r.withheldGapInFloors(false), after = r.withheldGapInFloors(true);
+  if (!std::isfinite(before) || !std::isfinite(after) || !(before > 0.0)) return {};
+  return "; above the noise floor (whitened chi2/n " + fixed(r.nominal_withheld_chi2_per_sample, 2) + " -> " +
+         fixed(r.withheld_chi2_after, 2) + ") from " + fixed(before, 2) + " to " + fixed(after, 2) + " noise floors (" +
+         fixed(shrinkPercent(before, after), 0) + " % smaller)";
+}
+
 /// The `calibration` block of report.json (doc/formats/gap_report.md).
 Json calibrationJson(const CalibrationSummary& c) {
   Json parameters = Json::array();
@@ -170,11 +179,14 @@ std::string reportJson(const DiagnosisReport& r) {
                   {"status", r.status},
                   {"discovered", r.discovered}};
   j["identifiability"] = confusionsJson(r.confusions);
-  j["shrinkage"] = {{"withheld_nrmse_before", number(r.withheld_before)},
-                    {"withheld_nrmse_after", number(r.withheld_after)},
-                    {"by_signal",
-                     {{"pressure", {number(r.withheld_p_before), number(r.withheld_p_after)}},
-                      {"height", {number(r.withheld_h_before), number(r.withheld_h_after)}}}}};
+  j["shrinkage"] = {
+      {"withheld_nrmse_before", number(r.withheld_before)},
+      {"withheld_nrmse_after", number(r.withheld_after)},
+      {"by_signal",
+       {{"pressure", {number(r.withheld_p_before), number(r.withheld_p_after)}},
+        {"height", {number(r.withheld_h_before), number(r.withheld_h_after)}}}},
+      {"withheld_chi2_per_sample", {number(r.nominal_withheld_chi2_per_sample), number(r.withheld_chi2_after)}},
+      {"gap_in_noise_floors", {number(r.withheldGapInFloors(false)), number(r.withheldGapInFloors(true))}}};
   // Bytes that are not UTF-8 (a path from another system) are replaced, not an exception.
   return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
@@ -248,7 +260,7 @@ void verdictSection(std::ostream& m, const DiagnosisReport& r) {
                                    : "no model parameter needed recalibration. ");
     m << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
       << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)
-      << " % smaller).\n\n";
+      << " % smaller)" << aboveNoiseText(r) << ".\n\n";
   } else if (r.status == "calibrated") {
     m << "**Calibrated: the model's own parameters were off; no missing physics is needed.** Recalibrating "
       << calibrationText(r.calibration) << " removes the gap; the calibrated parameter file is `" << r.calibration.file
@@ -263,7 +275,8 @@ void verdictSection(std::ostream& m, const DiagnosisReport& r) {
       << (r.calibration.anyMoved() ? "On top of the calibrated " + calibrationText(r.calibration) + ". " : "")
       << "On the withheld runs the normalised RMS residual falls from " << fixed(r.withheld_before, 3) << " to "
       << fixed(r.withheld_after, 3) << " (" << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0)
-      << " % smaller). A discovered term names the form of what is missing, not its cause.\n\n";
+      << " % smaller)" << aboveNoiseText(r)
+      << ". A discovered term names the form of what is missing, not its cause.\n\n";
   } else if (r.status == "none") {
     m << "**No significant gap.** The nominal model already fits the runs within the noise, and no candidate "
          "effect improves the fit by more than its extra parameters cost.\n\n";
@@ -350,9 +363,15 @@ void shrinkSection(std::ostream& m, const DiagnosisReport& r) {
     m << "| height | " << fixed(r.withheld_h_before, 4) << " | " << fixed(r.withheld_h_after, 4) << " | "
       << fixed(shrinkPercent(r.withheld_h_before, r.withheld_h_after), 0) << " % |\n";
     m << "| both (mean) | " << fixed(r.withheld_before, 4) << " | " << fixed(r.withheld_after, 4) << " | "
-      << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0) << " % |\n\n";
+      << fixed(shrinkPercent(r.withheld_before, r.withheld_after), 0) << " % |\n";
+    const double above_before = r.withheldGapInFloors(false), above_after = r.withheldGapInFloors(true);
+    m << "| above the noise floor, in floors | " << fixed(above_before, 2) << " | " << fixed(above_after, 2) << " | "
+      << fixed(shrinkPercent(above_before, above_after), 0) << " % |\n\n";
     if (r.status != "explained" && r.status != "discovered")
       m << "(Nothing was named, so \"after\" is the nominal model.)\n\n";
+    m << "No model leaves less than the noise floor (the sensor noise and the replay's accuracy the fits "
+         "whiten by): \"above the noise floor\" is sqrt(chi2/n − 1) of the whitened withheld residuals, the gap "
+         "a model can remove, in floors.\n\n";
   }
   m << "nrmse = RMS(measured − simulated) / range of the measured signal, averaged over pressure and height.\n\n";
 }

@@ -66,13 +66,15 @@ class VerdictRules {
   /// (leaves the fit runs within the noise, or removes explained_excess_removed of what the
   /// single leaves above it) and lowers the withheld runs' chi2 by min_withheld_gain more: two
   /// effects whose single fits each bend to the other's signature (a flow meter's bias and a
-  /// sensor lag: in a gap 1.16e5 deep the bias alone left chi2/n 174, the pair 1.51).
+  /// sensor lag: in a gap 1.16e5 deep the bias alone left chi2/n 174, the pair 1.51) -- or
+  /// where the withheld runs need the pair (withheldRunsNeedThePair()).
   bool pairEarnsItsPlace(const CandidateFit& pair) const {
     bool first = true;
     for (const CandidateFit& c : candidates_) {
       if (!c.ok || c.effects.size() != 1) continue;
       if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
-      if (explainsAlone(c) && !pairWithinNoiseWhereSingleIsNot(c, pair)) return false;
+      if (explainsAlone(c) && !pairWithinNoiseWhereSingleIsNot(c, pair) && !withheldRunsNeedThePair(c, pair))
+        return false;
       if (first && (c.bic_delta - pair.bic_delta < options_.significant_bic_drop ||
                     (c.chi2 - pair.chi2) / n_ < options_.min_chi2_drop))
         return false;
@@ -88,6 +90,32 @@ class VerdictRules {
                                 pair_n - 1.0 <= (1.0 - options_.explained_excess_removed) * (single_n - 1.0);
     return single_n > options_.explained_chi2 && takes_the_rest &&
            (!anythingWithheld() || held_gain >= options_.min_withheld_gain);
+  }
+  /// The withheld runs show what a single within the noise on the fit runs misses
+  /// (DiagnosisOptions::pair_withheld_share): it leaves their chi2 more than 3 sd of chi2 above
+  /// the noise and the pair removes that share of it. A single that only removes most of a deep
+  /// gap is judged by pairWithinNoiseWhereSingleIsNot().
+  bool withheldRunsNeedThePair(const CandidateFit& single, const CandidateFit& pair) const {
+    if (!anythingWithheld() || single.chi2 / n_ > options_.explained_chi2) return false;
+    const double n_held = nominal_.withheld_residuals;
+    const double excess = (single.withheld_chi2_per_sample - 1.0) * n_held;
+    const double gain = (single.withheld_chi2_per_sample - pair.withheld_chi2_per_sample) * n_held;
+    return excess > 3.0 * std::sqrt(2.0 * n_held) && gain >= options_.min_withheld_gain &&
+           gain >= options_.pair_withheld_share * excess;
+  }
+  /// Why `pair` was named over a single that explains the gap alone, in words; empty if not so.
+  std::string pairNeededInWords(const CandidateFit& pair) const {
+    for (const CandidateFit& c : candidates_) {
+      if (!c.ok || c.effects.size() != 1 || !explainsAlone(c) || !withheldRunsNeedThePair(c, pair)) continue;
+      if (std::find(pair.effects.begin(), pair.effects.end(), c.effects[0]) == pair.effects.end()) continue;
+      const double n_held = nominal_.withheld_residuals;
+      return c.effects[0] + " alone leaves the withheld runs' chi2 " +
+             fmt((c.withheld_chi2_per_sample - 1.0) * n_held, 4) +
+             " above their noise (3 sd: " + fmt(3.0 * std::sqrt(2.0 * n_held), 3) + "); " + joinNames(pair.effects) +
+             " lowers it by " + fmt((c.withheld_chi2_per_sample - pair.withheld_chi2_per_sample) * n_held, 4) +
+             ": the withheld runs need the pair";
+    }
+    return {};
   }
   bool admissible(const CandidateFit& c) const {
     return significant(c) && (c.effects.size() == 1 || pairEarnsItsPlace(c));
@@ -138,7 +166,11 @@ int firstThatExplains(const std::vector<CandidateFit>& candidates, const Verdict
     if (!rules.admissible(c)) continue;
     ++significant_count;
     reasons->push_back(candidateInWords(c, rules, nominal));
-    if (rules.fitsFitRuns(c) && rules.fitsWithheld(c)) return static_cast<int>(i);
+    if (rules.fitsFitRuns(c) && rules.fitsWithheld(c)) {
+      const std::string needed = c.effects.size() > 1 ? rules.pairNeededInWords(c) : std::string();
+      if (!needed.empty()) reasons->push_back(needed);
+      return static_cast<int>(i);
+    }
     if (significant_count >= 4) break;  // the rest fit worse still
   }
   if (significant_count == 0) reasons->push_back("no candidate improves the fit significantly");

@@ -408,7 +408,8 @@ assert told["explanations"] == ["leak", "heat_transfer"] and told["withheld_chi2
 keys(told["proposed_run"], ["load_n", "flow", "rise_scale", "separation_chi2", "gap_synth_add_run"], "proposed_run")
 assert told["proposed_run"]["gap_synth_add_run"] == "load_n=40,flow=high,rise_scale=3", told
 assert untold["proposed_run"] is None and untold["rival_params"] == {"film_stiffness_scale": 1.1}, untold
-keys(d["shrinkage"], ["withheld_nrmse_before", "withheld_nrmse_after", "by_signal"], "shrinkage")
+keys(d["shrinkage"], ["withheld_nrmse_before", "withheld_nrmse_after", "by_signal", "withheld_chi2_per_sample",
+                     "gap_in_noise_floors"], "shrinkage")
 s = d["shrinkage"]
 assert s["withheld_nrmse_before"] == 0.071 and s["withheld_nrmse_after"] == 0.009, s
 keys(s["by_signal"], ["pressure", "height"], "shrinkage.by_signal")
@@ -517,9 +518,28 @@ size_t namedEffects(const std::vector<nb::CandidateFit>& candidates, const nb::N
 TEST(GapDecision, APairOnlyWhereNoSingleExplainsTheGap) {
   const auto nominal = nominalScore(3.0, 3.0);
   const auto pair = fitOf({"leak", "membrane_viscoelasticity"}, 1.0, 1.0, nominal);  // 150 better in chi2
-  EXPECT_EQ(namedEffects({fitOf({"leak"}, 1.3, 1.3, nominal), pair}, nominal), 1u);  // the leak explains it alone
+  // The leak explains it alone, the withheld runs within their noise (25 above n, 3 sd are 67).
+  EXPECT_EQ(namedEffects({fitOf({"leak"}, 1.3, 1.1, nominal), pair}, nominal), 1u);
   // A single that leaves too much (chi2/n 2): the pair.
   EXPECT_EQ(namedEffects({fitOf({"leak"}, 2.0, 2.0, nominal), pair}, nominal), 2u);
+}
+
+TEST(GapDecision, APairTheWithheldRunsNeedBeatsASingleThatExplainsAlone) {
+  // Viscoelasticity + friction on two runs: the viscoelasticity alone fits the fit runs (1.08)
+  // and holds up on the withheld runs by the bar (1.42 <= 3), but leaves them 105 in chi2 above
+  // n (3 sd: 67), which the pair removes: the withheld runs need the pair.
+  const auto nominal = nominalScore(22.9, 6.5);
+  const auto visco = fitOf({"membrane_viscoelasticity"}, 1.08, 1.42, nominal);
+  const std::vector<std::string> both{"membrane_viscoelasticity", "plate_friction"};
+  EXPECT_EQ(namedEffects({visco, fitOf(both, 1.0, 1.0, nominal)}, nominal), 2u);
+  // A pair that removes under half of that excess (17 of 105) does not earn its place.
+  EXPECT_EQ(namedEffects({visco, fitOf(both, 1.0, 1.35, nominal)}, nominal), 1u);
+  // Nor where the single leaves the withheld runs within their noise (30 above n).
+  EXPECT_EQ(
+      namedEffects({fitOf({"membrane_viscoelasticity"}, 1.08, 1.12, nominal), fitOf(both, 1.0, 1.0, nominal)}, nominal),
+      1u);
+  // Nor where the pair does not fit the fit runs better by the rule (0.01 in chi2/n).
+  EXPECT_EQ(namedEffects({visco, fitOf(both, 1.07, 1.0, nominal)}, nominal), 1u);
 }
 
 TEST(GapDecision, APairWithinTheNoiseBeatsASingleThatOnlyRemovesMostOfADeepGap) {
@@ -531,8 +551,8 @@ TEST(GapDecision, APairWithinTheNoiseBeatsASingleThatOnlyRemovesMostOfADeepGap) 
   EXPECT_EQ(namedEffects({lag, fitOf(both, 1.0, 1.0, deep)}, deep), 2u);
   // Not when the pair does no better on the withheld runs (it only bends to the fit runs).
   EXPECT_EQ(namedEffects({lag, fitOf(both, 1.0, 2.0, deep)}, deep), 1u);
-  // Nor when the single is within the noise itself (the simpler answer).
-  EXPECT_EQ(namedEffects({fitOf({"pressure_sensor_lag"}, 1.3, 1.3, deep), fitOf(both, 1.0, 1.0, deep)}, deep), 1u);
+  // Nor when the single is within the noise itself on both run sets (the simpler answer).
+  EXPECT_EQ(namedEffects({fitOf({"pressure_sensor_lag"}, 1.3, 1.1, deep), fitOf(both, 1.0, 1.0, deep)}, deep), 1u);
   // Blind pair s302, a very deep gap: a flow meter's bias alone took chi2/n 1.16e5 to 174; with
   // the sensor lag the pair left 1.51, just above the noise's 1.5 but 99.7 % of what the bias left.
   const auto deeper = nominalScore(1.16e5, 1.79e5);
@@ -647,6 +667,18 @@ TEST(GapDiagnoseReport, MarkdownNamesTheVerdictAndHasTheThreeSections) {
   }
 }
 
+TEST(GapDiagnoseReport, TheGapAboveTheNoiseFloorIsWhatAModelCanRemove) {
+  nb::DiagnosisReport r;
+  r.nominal_withheld_chi2_per_sample = 2.5;
+  r.withheld_chi2_after = 0.92;  // within the noise: nothing left a model could remove
+  EXPECT_NEAR(r.withheldGapInFloors(false), std::sqrt(1.5), 1e-12);
+  EXPECT_EQ(r.withheldGapInFloors(true), 0.0);
+  r.withheld_chi2_after = 1.25;
+  EXPECT_NEAR(r.withheldGapInFloors(true), 0.5, 1e-12);
+  const std::string json = nb::reportJson(r);
+  EXPECT_NE(json.find("\"gap_in_noise_floors\""), std::string::npos) << json;
+}
+
 TEST(GapDiagnoseReport, WriteReportFilesWritesJsonAndMarkdown) {
   const fs::path dir = tmpDir("write", false);
   const nb::DiagnosisReport report = handMadeReport();
@@ -721,8 +753,11 @@ TEST(GapDiagnoseEndToEnd, PlantedLeakIsNamedWithItsSizeAndShrinksTheWithheldGap)
   EXPECT_EQ(r.fit_runs.size(), 2u);
   EXPECT_EQ(r.withheld_runs.size(), 2u);
   EXPECT_LT(r.withheld_after, r.withheld_before);
+  // Named rightly, the model leaves little above the noise floor.
+  EXPECT_LT(r.withheldGapInFloors(true), 0.1 * r.withheldGapInFloors(false));
   std::cout << "             leak_area_m2 " << area << ", withheld nrmse " << r.withheld_before << " -> "
-            << r.withheld_after << "\n";
+            << r.withheld_after << ", above the noise floor " << r.withheldGapInFloors(false) << " -> "
+            << r.withheldGapInFloors(true) << " floors\n";
 }
 
 TEST(GapDiagnoseEndToEnd, CleanDatasetHasNoSignificantGap) {
@@ -730,6 +765,11 @@ TEST(GapDiagnoseEndToEnd, CleanDatasetHasNoSignificantGap) {
   EXPECT_EQ(r.status, "none");
   EXPECT_TRUE(r.verdict_effects.empty());
   EXPECT_EQ(r.withheld_after, r.withheld_before);
+  // Clean runs: the nominal model within the noise floor on the withheld runs too.
+  EXPECT_LT(r.withheldGapInFloors(false), 0.3);
+  EXPECT_EQ(r.withheldGapInFloors(true), r.withheldGapInFloors(false));
+  std::cout << "             withheld nrmse " << r.withheld_before << ", above the noise floor "
+            << r.withheldGapInFloors(false) << " floors\n";
 }
 
 }  // namespace

@@ -68,30 +68,36 @@ TEST(RunPlan, SynthAddsTheRunsAndRefusesOneThatIsThereAlready) {
   EXPECT_FALSE(fs::exists(fs::path(o.out_dir) / "dataset.yaml"));
 }
 
-/// One run at 15.6 N, low flow, with a pressure gain of +5 % to fit, the same run of another
-/// seed withheld, and `extra` runs added to the fit runs: one load, where a recorded load that
-/// is too light reads like a pressure gauge that reads high.
-std::vector<nb::RunData> oneLoad(const std::vector<std::string>& extra) {
+/// One run of the small protocol (`run`, with a pressure gain of +5 %) to fit, the same run of
+/// another seed withheld, and `extra` runs added to the fit runs.
+std::vector<nb::RunData> oneRun(const std::string& run_name, bool height, const std::vector<std::string>& extra) {
   std::vector<nb::RunData> runs;
   for (const std::uint32_t seed : {5u, 6u}) {
     nb::SynthOptions o;
     o.protocol = "small";
     o.seed = seed;
     o.distortions = {"pressure:gain=0.05"};
+    o.height_sensor = height;
     o.extra_runs = seed == 5u ? extra : std::vector<std::string>{};
-    o.out_dir = tmpDir("one_load_" + std::to_string(seed)).string();
+    o.out_dir = tmpDir("one_run_" + std::to_string(seed)).string();
     nb::SynthResult r = nb::synthesizeDataset(o);
     const std::size_t protocol_runs = r.runs.size() - o.extra_runs.size();
     for (std::size_t k = 0; k < r.runs.size(); ++k) {
       nb::RunData& run = r.runs[k];
       if (k >= protocol_runs) runs.push_back(run);  // the added runs, fitted
-      if (run.name != "load15p6N_low.csv") continue;
+      if (run.name != run_name) continue;
       run.role = seed == 5u ? "fit" : "withheld";
-      if (seed == 6u) run.name = "load15p6N_low_seed6.csv";
+      if (seed == 6u) run.name = "withheld_seed6.csv";
       runs.push_back(run);
     }
   }
   return runs;
+}
+
+/// One load (15.6 N, low flow), where a recorded load that is too light reads like a pressure
+/// gauge that reads high.
+std::vector<nb::RunData> oneLoad(const std::vector<std::string>& extra) {
+  return oneRun("load15p6N_low.csv", true, extra);
 }
 
 nb::DiagnosisOptions gainsOnly() {
@@ -128,6 +134,68 @@ TEST(Identifiability, OneLoadCannotTellAPressureGainFromALoadGainAndTheProposedR
   EXPECT_TRUE(two.confusions.empty());
   ASSERT_GE(two.candidates.size(), 2u);
   EXPECT_GT(two.candidates[1].bic_delta - two.candidates[0].bic_delta, 10.0 * gainsOnly().near_tie_bic);
+}
+
+TEST(Identifiability, OneRunOnPressureAloneCannotTellAPressureGainFromTheFilmAndTheProposedRunCan) {
+  // 0.6 N, high flow, no height: the film holds the plate at the bag's top, and a stiffer film
+  // raises the pressure there as a gauge reading 5 % high does.
+  nb::DiagnosisOptions o;
+  o.candidates = {"pressure_gain"};
+  o.discover = false;
+  const nb::CellParams params;
+  const nb::DiagnosisReport one = nb::diagnoseRuns(oneRun("load0p6N_high.csv", false, {}), params, o, "one run");
+  const nb::Confusion* tie = nullptr;
+  for (const auto& c : one.confusions)
+    if (c.a == "film_stiffness_scale" && c.b == "pressure_gain") tie = &c;
+  ASSERT_NE(tie, nullptr) << one.status << ", " << one.confusions.size() << " confusions";
+  EXPECT_GT(tie->correlation, 0.99);
+  ASSERT_TRUE(tie->proposed) << nb::gap::describeConfusion(*tie);
+  EXPECT_GT(tie->separation_chi2, 10.0 * tie->fit_separation_chi2);
+
+  // The run it proposes, synthesised with the same truth: the gauge's gain is named alone.
+  const nb::DiagnosisReport two = nb::diagnoseRuns(oneRun("load0p6N_high.csv", false, {nb::gap::addRunArgument(*tie)}),
+                                                   params, o, "with the proposed run");
+  EXPECT_EQ(two.status, "explained");
+  EXPECT_EQ(two.verdict_effects, std::vector<std::string>{"pressure_gain"});
+  EXPECT_NEAR(two.verdict_params.at("pressure_gain"), 0.05, 0.005);
+  EXPECT_FALSE(two.calibration.anyMoved());
+  EXPECT_TRUE(two.confusions.empty());
+}
+
+TEST(Identifiability, TheSmallProtocolNamesViscoelasticityAloneAndTheProposedRunAddsTheFriction) {
+  // Viscoelasticity and a 0.3 N friction on the small protocol: the viscoelasticity alone fits
+  // both run sets by the bar, its pair with the friction fits better; the report proposes the
+  // run that tells, and with it the pair is named.
+  auto dataset = [](const std::vector<std::string>& extra) {
+    nb::SynthOptions o;
+    o.protocol = "small";
+    o.seed = 7;
+    o.effects = {nb::parseEffectRequest("membrane_viscoelasticity"),
+                 nb::parseEffectRequest("plate_friction:friction_force_n=0.3")};
+    o.extra_runs = extra;
+    o.out_dir = tmpDir("visco_friction_" + std::to_string(extra.size())).string();
+    return nb::synthesizeDataset(o).runs;
+  };
+  nb::DiagnosisOptions o;
+  o.candidates = {"membrane_viscoelasticity", "plate_friction"};
+  o.discover = false;
+  const nb::CellParams params;
+  const nb::DiagnosisReport one = nb::diagnoseRuns(dataset({}), params, o, "small");
+  ASSERT_EQ(one.verdict_effects, std::vector<std::string>{"membrane_viscoelasticity"}) << one.status;
+  const nb::Confusion* more = nullptr;
+  for (const auto& c : one.confusions)
+    if (c.b == "membrane_viscoelasticity+plate_friction") more = &c;
+  ASSERT_NE(more, nullptr) << one.confusions.size() << " confusions";
+  ASSERT_TRUE(more->proposed) << nb::gap::describeConfusion(*more);
+
+  const nb::DiagnosisReport two = nb::diagnoseRuns(dataset({nb::gap::addRunArgument(*more)}), params, o, "and the run");
+  EXPECT_EQ(two.status, "explained");
+  ASSERT_EQ(two.verdict_effects, (std::vector<std::string>{"membrane_viscoelasticity", "plate_friction"}));
+  EXPECT_NEAR(two.verdict_params.at("friction_force_n"), 0.3, 0.03);
+  bool needed = false;
+  for (const auto& line : two.reasons)
+    needed = needed || line.find("the withheld runs need the pair") != std::string::npos;
+  EXPECT_TRUE(needed);
 }
 
 }  // namespace

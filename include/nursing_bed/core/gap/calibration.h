@@ -11,6 +11,7 @@
 #include <cmath>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "nursing_bed/core/gap/fit_model.h"
@@ -104,6 +105,9 @@ struct CalibrationSummary {
   double fit_nrmse = NAN, withheld_nrmse = NAN;  ///< calibrated model alone
   std::string file = "calibrated_airbag.yaml";
   std::vector<std::string> notes;  ///< what the runs cannot tell, in words
+  /// Channel distortions that fit the fit and withheld runs as well as the moved parameters do
+  /// (a pressure gain against the film stiffness on one load), each with its fitted values.
+  std::vector<std::pair<std::string, std::map<std::string, double>>> distortion_ties;
   std::map<std::string, double> movedValues() const;
   bool anyMoved() const { return !movedValues().empty(); }
 };

@@ -80,6 +80,11 @@ struct DiagnosisOptions {
   /// differences below 10 are not "very strong" evidence): the withheld runs, which no fit has
   /// seen, decide between them when one lowers their chi2 by min_withheld_gain more.
   double near_tie_bic = 10.0;
+  /// A pair is named over one of its singles that fits the fit runs within the noise when the
+  /// withheld runs, which no fit has seen, show what the single misses: it leaves their chi2
+  /// above the noise by more than 3 of its standard deviations (sqrt(2 n)), and the pair removes
+  /// at least this share of that excess (and min_withheld_gain).
+  double pair_withheld_share = 0.5;
   /// Name the explanations within near_tie_bic of the verdict's that no run here tells from it,
   /// and propose the gap synth run that would (identifiability.h).
   bool propose_runs = true;
@@ -201,6 +206,13 @@ struct DiagnosisReport {
   double withheld_before = 0.0, withheld_after = 0.0;
   double withheld_p_before = 0.0, withheld_p_after = 0.0, withheld_h_before = 0.0, withheld_h_after = 0.0;
   double withheld_calibrated = NAN;  ///< the calibrated model alone (no effects) on the withheld runs
+  /// The final model's (calibration and effects) whitened chi2/n on the withheld runs (NaN: none).
+  double withheld_chi2_after = NAN;
+  /// The withheld runs' gap above the noise floor, in noise floors: sqrt(chi2/n - 1) (0 within
+  /// the noise), before (nominal) or after. No model leaves less than the floor (sensor noise
+  /// and replay accuracy), so where the gap is a few floors deep the nrmse shrinks little while
+  /// this falls to 0.
+  double withheldGapInFloors(bool after) const;
   std::vector<RunSummary> runs;
   std::vector<RunTrace> traces;
   double elapsed_s = 0.0;

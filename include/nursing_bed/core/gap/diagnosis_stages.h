@@ -236,6 +236,11 @@ std::vector<ScoredCandidate> scoreCandidates(const std::vector<ModelFit>& fits, 
                                              const NoiseModel& noise, const CellParams& params,
                                              const DiagnosisOptions& options);
 
+/// Whitened chi2 per residual of the withheld runs under `calibration` and `effects` (NaN when
+/// nothing is withheld or the replay failed).
+double withheldChi2(const NoiseModel& noise, const std::map<std::string, double>& calibration,
+                    const std::vector<CellEffectPtr>& effects);
+
 /// Replays every run with `effects` (reusing `nominal` when there are none) and fills
 /// `report`'s traces, per-run residuals after, and the withheld runs' nrmse before and after.
 /// `params` is the nominal cell with `calibration` (the nominal replays are reused when both

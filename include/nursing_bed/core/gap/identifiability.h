@@ -46,6 +46,16 @@ std::vector<Confusion> findCalibrationConfusions(const PreparedRuns& prepared, c
                                                  const CalibrationSummary& summary, const DiagnosisOptions& options,
                                                  double noise_p_pa, const ExperimentGrid& grid = {});
 
+/// The channel distortions that fit the runs as well as the calibration's moves
+/// (CalibrationSummary::distortion_ties): the moves and each distortion on the nominal cell,
+/// with the run of `grid` that would tell them apart.
+std::vector<Confusion> findCalibrationDistortionConfusions(const PreparedRuns& prepared, const NoiseModel& noise,
+                                                           const CellParams& params,
+                                                           const std::vector<std::string>& calibrated,
+                                                           const CalibrationSummary& summary,
+                                                           const DiagnosisOptions& options, double noise_p_pa,
+                                                           const ExperimentGrid& grid = {});
+
 /// The confusion in words, with the proposed run as a gap synth argument.
 std::string describeConfusion(const Confusion& c);
 /// "load_n=0.6,flow=high,rise_scale=1" (gap synth --add-run).
