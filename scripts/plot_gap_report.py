@@ -7,6 +7,7 @@ Writes into DIR:
   traces.png             measured vs simulated (nominal model / model with the diagnosed effect)
   residual_by_phase.png  where the gap lives (localization shares) and RMS residual per phase
   hp_loops.png           height vs pressure loops per run
+  cause_<effect>.png     per named cause: measured, the nominal model, the model with that cause alone
 """
 import csv
 import glob
@@ -85,12 +86,17 @@ def load_trace(path):
 
     def num(s):  # empty field -> NaN
         return float(s) if s.strip() else np.nan
+    # Each named cause alone: p_with_<cause>_pa, h_with_<cause>_m.
+    causes = [c[len("p_with_"):-len("_pa")] for c in header
+              if c.startswith("p_with_") and c.endswith("_pa") and "h_with_%s_m" % c[7:-3] in header]
+    columns = COLUMNS + ["p_with_%s_pa" % c for c in causes] + ["h_with_%s_m" % c for c in causes]
     try:
-        data = {c: np.array([num(r[idx[c]]) for r in rows]) for c in COLUMNS}
+        data = {c: np.array([num(r[idx[c]]) for r in rows]) for c in columns}
         phases = np.array([r[idx["phase"]].strip() for r in rows], dtype=str)
     except (ValueError, IndexError) as e:
         fail("%s: bad data row: %s" % (path, e))
     meta.setdefault("run", os.path.basename(path))
+    meta["causes"] = causes
     return meta, data, phases
 
 
@@ -150,8 +156,9 @@ def shade_phases(ax, t, phases):
             start = i
 
 
-def plot_traces(out_dir, rep, runs):
-    """traces.png: pressure and height vs time, measured / nominal / after, per run."""
+def plot_trace_rows(out_dir, file_name, runs, curves, title):
+    """Pressure and height vs time, one row per run, phases shaded: `curves` are
+    (column pattern with %s for p/h and the unit suffix, plot kwargs) drawn in that order."""
     fig, axes = plt.subplots(len(runs), 2, figsize=(13, 2.6 * len(runs) + 1.0), squeeze=False)
     for row, (meta, d, ph) in enumerate(runs):
         t = d["t_s"]
@@ -159,12 +166,8 @@ def plot_traces(out_dir, rep, runs):
                 [("p", "pa", 1e-3, "kPa", "pressure"), ("h", "m", 1e3, "mm", "height")]):
             ax = axes[row, col]
             shade_phases(ax, t, ph)
-            ax.plot(t, d["%s_meas_%s" % (sig, sfx)] * scale, color="0.1", lw=0.7, zorder=3,
-                    label="measured")
-            ax.plot(t, d["%s_nominal_%s" % (sig, sfx)] * scale, "--", color="tab:red", lw=1.2,
-                    zorder=2, label="before: nominal model")
-            ax.plot(t, d["%s_after_%s" % (sig, sfx)] * scale, color="tab:blue", lw=1.8, alpha=0.8,
-                    zorder=1, label=after_label(rep))
+            for column, style in curves:
+                ax.plot(t, d[column % (sig, sfx)] * scale, **style)
             ax.set(ylabel="%s [%s]" % (name, unit), title="%s — %s" % (name, run_title(meta)))
             ax.grid(alpha=0.3)
             if row == len(runs) - 1:
@@ -173,13 +176,37 @@ def plot_traces(out_dir, rep, runs):
     shading = [Patch(color=PHASE_COLORS[p], alpha=0.25, label=p) for p in PHASES]
     fig.legend(handles=shading, loc="upper right", ncol=5, fontsize=8, title="phase shading",
                title_fontsize=8)
-    fig.suptitle(verdict_text(rep), x=0.02, ha="left", fontsize=12)
+    fig.suptitle(title, x=0.02, ha="left", fontsize=12)
     fig.tight_layout()
     fig.subplots_adjust(top=1 - 0.95 / fig.get_figheight())  # room for suptitle + shading legend
-    path = os.path.join(out_dir, "traces.png")
+    path = os.path.join(out_dir, file_name)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
+
+
+MEASURED = ("%s_meas_%s", dict(color="0.1", lw=0.7, zorder=3, label="measured"))
+
+
+def plot_traces(out_dir, rep, runs):
+    """traces.png: pressure and height vs time, measured / nominal / after, per run."""
+    return plot_trace_rows(out_dir, "traces.png", runs, [
+        MEASURED,
+        ("%s_nominal_%s", dict(ls="--", color="tab:red", lw=1.2, zorder=2,
+                               label="before: nominal model")),
+        ("%s_after_%s", dict(color="tab:blue", lw=1.8, alpha=0.8, zorder=1,
+                             label=after_label(rep)))],
+        verdict_text(rep))
+
+
+def plot_cause(out_dir, rep, runs, cause):
+    """cause_<cause>.png: measured / nominal / the model with that cause alone, per run."""
+    return plot_trace_rows(out_dir, "cause_%s.png" % cause, runs, [
+        MEASURED,
+        ("%s_nominal_%s", dict(ls="--", color="tab:red", lw=1.2, zorder=2, label="model")),
+        ("%%s_with_%s_%%s" % cause, dict(color="tab:green", lw=1.8, alpha=0.8, zorder=1,
+                                         label="model + " + cause))],
+        "data, model and model + %s" % cause)
 
 
 def rms(x):
@@ -277,6 +304,7 @@ def main():
     runs = traces[:MAX_RUNS]  # withheld first, then by name
     written = [plot_traces(out_dir, rep, runs), plot_residuals(out_dir, rep, traces),
                plot_loops(out_dir, rep, runs)]
+    written += [plot_cause(out_dir, rep, runs, c) for c in runs[0][0]["causes"]]
     print("wrote:")
     for p in written:
         print("  " + p)

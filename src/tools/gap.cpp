@@ -81,7 +81,7 @@ double parseNumber(const std::string& option, const std::string& text) {
 
 /// `gap synth`'s options as given; checked by synthOptions.
 struct SynthArgs {
-  std::string out_dir, seed = "1", noise_scale = "1", protocol = "standard";
+  std::string out_dir, seed = "1", noise_scale = "1", protocol = "standard", rig_airbag;
   std::vector<std::string> effects, distortions, airbag_params, extra_runs;
   bool no_flow_meter = false, no_height = false;
 };
@@ -90,6 +90,7 @@ constexpr const char* kSynthSynopsis =
     "usage: gap synth --out DIR [--effect NAME[:param=value,...]]... [--distort CHANNEL:KIND=VALUE]...\n"
     "                 [--seed N]\n"
     "                 [--noise-scale S] [--protocol standard|small] [--airbag-param NAME=VALUE]...\n"
+    "                 [--rig-airbag FILE]\n"
     "                 [--no-flow-meter] [--no-height] [--add-run load_n=N,flow=low|high[,rise_scale=K]]...\n"
     "Simulates the run-data protocol (paper-shaped inflow, 60 s hold with the inlet closed,\n"
     "10 s vent through the inlet) on the cell model with the given 'truth' effects and\n"
@@ -118,6 +119,11 @@ void defineSynth(CLI::App& sub, SynthArgs* a) {
                                 "calibrate --help) or a key of the file, e.g. film_stiffness_scale=1.15, "
                                 "structure/gusset_height_m=0.081 (repeatable; recorded in truth.json)"))
       ->type_name("NAME=VALUE");
+  sub.add_option("--rig-airbag", a->rig_airbag,
+                 "the rig runs on this parameter file (another structure, e.g. config/airbag_tpu_double_100_fe.yaml, "
+                 "the FE table) while the dataset names the model's own; --airbag-param applies on top (recorded in "
+                 "truth.json)")
+      ->type_name("FILE");
   sub.add_flag(
       "--no-flow-meter", a->no_flow_meter,
       "runs driven through the valves: valve_cmd and p_supply_gauge_pa, no mdot_in_kg_s (doc/formats/run_data.md)");
@@ -165,6 +171,7 @@ nb::SynthOptions synthOptions(const SynthArgs& a) {
     if (!kv) throw UsageError("--airbag-param: expected NAME=VALUE, got '" + v + "'");
     o.airbag_params[kv->first] = parseNumber("--airbag-param " + kv->first, kv->second);
   }
+  o.rig_airbag_file = a.rig_airbag;
   o.flow_meter = !a.no_flow_meter;
   o.height_sensor = !a.no_height;
   for (const std::string& v : a.extra_runs) {
@@ -183,8 +190,14 @@ nb::SynthOptions synthOptions(const SynthArgs& a) {
 
 int runSynth(const SynthArgs& args) {
   const nb::SynthOptions o = synthOptions(args);
+  nb::CellParams rig_base;
   try {
-    nb::rigAirbag(o.params, o.airbag_params);
+    rig_base = nb::rigBase(o);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--rig-airbag: ") + e.what());
+  }
+  try {
+    nb::rigAirbag(rig_base, o.airbag_params);
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--airbag-param: ") + e.what());
   }

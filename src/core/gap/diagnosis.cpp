@@ -1,6 +1,7 @@
 #include "nursing_bed/core/gap/diagnosis.h"
 
 #include "nursing_bed/core/gap/identifiability.h"
+#include "nursing_bed/core/gap/validation.h"
 
 #include <algorithm>
 #include <atomic>
@@ -434,6 +435,13 @@ void shrinkage(const PreparedRuns& prepared, const CellParams& nominal_params,
   std::vector<Replay> after(runs.size());
   parallelFor(static_cast<int>(runs.size()), options.threads,
               [&](int i) { after[i] = reuse ? nominal[i] : replayRun(runs[i], params, effects); });
+  // Each named cause alone (a single's is the final model itself).
+  const std::size_t causes = effects.size() == rep->verdict_effects.size() ? effects.size() : 0;
+  std::vector<std::vector<Replay>> alone(causes > 1 ? causes : 0, std::vector<Replay>(runs.size()));
+  parallelFor(static_cast<int>(alone.size() * runs.size()), options.threads, [&](int k) {
+    const std::size_t c = k / runs.size(), i = k % runs.size();
+    alone[c][i] = replayRun(runs[i], params, {effects[c]});
+  });
   std::vector<const Replay*> replays_before, replays_after;
   for (std::size_t i = 0; i < runs.size(); ++i) {
     rep->runs[i].after = runResidual(runs[i], after[i]);
@@ -453,6 +461,12 @@ void shrinkage(const PreparedRuns& prepared, const CellParams& nominal_params,
     t.p_after_pa = after[i].p_gauge_pa;
     t.h_after_m = after[i].h_m;
     t.phases = nominal[i].phases;
+    for (std::size_t c = 0; c < causes; ++c) {
+      const Replay& r = causes > 1 ? alone[c][i] : after[i];
+      t.causes.push_back(rep->verdict_effects[c]);
+      t.p_cause_pa.push_back(r.p_gauge_pa);
+      t.h_cause_m.push_back(r.h_m);
+    }
     rep->traces.push_back(std::move(t));
   }
   rep->withheld_p_before = rep->withheld_h_before = rep->withheld_p_after = rep->withheld_h_after = kNaN;
@@ -631,6 +645,7 @@ void startDiagnosis(std::vector<RunData> runs, const CellParams& params, const D
   rep->fit_samples = n;
   rep->nominal_chi2_per_sample = start->noise.chi2_nominal / n;
   rep->nominal_withheld_chi2_per_sample = start->noise.withheld_chi2_per_sample;
+  rep->validation = validationTable(prepared, start->noise, start->nominal);
   rep->nominal_fit_nrmse = nominalNrmse(prepared, start->nominal, prepared.fit);
   say("noise floor: pressure " + fmt(rep->noise_p_pa) + " Pa, height " + fmt(rep->noise_h_m * 1e3) +
       " mm; nominal model: chi2/n = " + fmt(rep->nominal_chi2_per_sample) + " on " + std::to_string(n) +

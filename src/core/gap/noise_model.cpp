@@ -230,15 +230,20 @@ FitData::Run prepareFitRun(const RunData& run, const std::vector<double>& measur
                                    : 1.0);
     gain_p.push_back(dp_dm[i]);
     gain_h.push_back(r.has_height ? dh_dm[i] : 0.0);
-    double var_p = white_p.back() + dp_dm[i] * dp_dm[i] * walk_var,
-           var_h = white_h.back() + gain_h.back() * gain_h.back() * walk_var;
+    double input_p = dp_dm[i] * dp_dm[i] * walk_var, input_h = gain_h.back() * gain_h.back() * walk_var;
     for (const ErrorMode& mode : modes) {
       if (mode.variance <= 0.0) continue;
-      var_p += mode.p[i] * mode.p[i] * mode.variance;
-      if (r.has_height) var_h += mode.h[i] * mode.h[i] * mode.variance;
+      input_p += mode.p[i] * mode.p[i] * mode.variance;
+      if (r.has_height) input_h += mode.h[i] * mode.h[i] * mode.variance;
     }
-    r.sigma_p_pa.push_back(std::sqrt(var_p));
-    r.sigma_h_m.push_back(std::sqrt(var_h));
+    r.sigma_p_pa.push_back(std::sqrt(white_p.back() + input_p));
+    r.sigma_h_m.push_back(std::sqrt(white_h.back() + input_h));
+    r.var_data_p.push_back(std::pow(noise.p_pa, 2));
+    r.var_num_p.push_back(white_p.back() - r.var_data_p.back());
+    r.var_input_p.push_back(input_p);
+    r.var_data_h.push_back(r.has_height ? std::pow(noise.h_m, 2) : 0.0);
+    r.var_num_h.push_back(r.has_height ? white_h.back() - r.var_data_h.back() : 0.0);
+    r.var_input_h.push_back(input_h);
   }
   r.correlation_cholesky = correlationCholesky(r, walk, white_p, white_h, gain_p, gain_h, modes);
   return r;

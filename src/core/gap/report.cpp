@@ -14,6 +14,7 @@
 #include "nursing_bed/core/gap/distortions.h"
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/identifiability.h"
+#include "nursing_bed/core/gap/validation.h"
 
 namespace nursing_bed {
 namespace {
@@ -78,6 +79,23 @@ std::string aboveNoiseText(const DiagnosisReport& r) {
   return "; above the noise floor (whitened chi2/n " + fixed(r.nominal_withheld_chi2_per_sample, 2) + " -> " +
          fixed(r.withheld_chi2_after, 2) + ") from " + fixed(before, 2) + " to " + fixed(after, 2) + " noise floors (" +
          fixed(shrinkPercent(before, after), 0) + " % smaller)";
+}
+
+/// The `validation` block of report.json: one object per ValidationRow.
+Json validationJson(const std::vector<ValidationRow>& rows) {
+  Json out = Json::array();
+  for (const ValidationRow& v : rows)
+    out.push_back({{"signal", v.signal},
+                   {"phase", v.phase},
+                   {"load_n", number(v.load_n)},
+                   {"samples", v.samples},
+                   {"e_mean", number(v.e_mean)},
+                   {"e_rms", number(v.e_rms)},
+                   {"u_data", number(v.u_data)},
+                   {"u_num", number(v.u_num)},
+                   {"u_input", number(v.u_input)},
+                   {"u_val", number(v.u_val)}});
+  return out;
 }
 
 /// The `calibration` block of report.json (doc/formats/gap_report.md).
@@ -172,6 +190,7 @@ std::string reportJson(const DiagnosisReport& r) {
   j["noise"] = {{"p_gauge_pa", number(r.noise_p_pa)}, {"h_m", number(r.noise_h_m)}};
   j["localization"] = localizationJson(r.localization);
   j["events"] = eventsJson(r.events);
+  j["validation"] = validationJson(r.validation);
   j["candidates"] = candidatesJson(r.candidates);
   if (r.calibration.done) j["calibration"] = calibrationJson(r.calibration);
   j["verdict"] = {{"effects", r.verdict_effects},
@@ -312,6 +331,30 @@ void eventsSection(std::ostream& m, const DiagnosisReport& r) {
   m << "\n";
 }
 
+/// report.md: the validation statement (ASME V&V 20) of the nominal model, pressure in kPa and
+/// height in mm.
+void validationSection(std::ostream& m, const DiagnosisReport& r) {
+  if (r.validation.empty()) return;
+  m << "### Validation statement\n\nIn the manner of ASME V&V 20: the comparison error E = S − D (simulated less "
+       "measured) of the nominal model, its mean and RMS over the samples the fits use, against the validation "
+       "uncertainty u_val = sqrt(u_D² + u_num² + u_input²): the data's (sensor noise), the replay's numerical "
+       "(its accuracy, the timing of valve pulses) and the inputs' (the flow meter's noise integrated, the start "
+       "height). Where E is within u_val the runs cannot show a model error there; beyond it, the model error is "
+       "about E.\n\n";
+  m << "| signal | phase | load [N] | samples | E mean | E RMS | u_D | u_num | u_input | u_val | E RMS / u_val "
+       "|\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const ValidationRow& v : r.validation) {
+    const bool p = v.signal == "pressure";
+    const double k = p ? 1e-3 : 1e3;  // kPa, mm
+    const int digits = p ? 3 : 2;
+    m << "| " << v.signal << (p ? " [kPa]" : " [mm]") << " | " << v.phase << " | " << fixed(v.load_n, 1) << " | "
+      << v.samples << " | " << fixed(k * v.e_mean, digits) << " | " << fixed(k * v.e_rms, digits) << " | "
+      << fixed(k * v.u_data, digits) << " | " << fixed(k * v.u_num, digits) << " | " << fixed(k * v.u_input, digits)
+      << " | " << fixed(k * v.u_val, digits) << " | " << gap::validationWords(v) << " |\n";
+  }
+  m << "\n";
+}
+
 /// report.md: answer 1: where the gap lies.
 void whereSection(std::ostream& m, const DiagnosisReport& r) {
   m << "## 1. Where the model and the data part\n\n";
@@ -327,6 +370,7 @@ void whereSection(std::ostream& m, const DiagnosisReport& r) {
   m << "\nPhases: *deploy* = bag unfolding (height rising at low pressure), *pressurize* = inflating near full "
        "height, *hold* = inlet closed, *vent* = gas leaving through the inlet (samples after the plate has landed "
        "are left out).\n\n";
+  validationSection(m, r);
   eventsSection(m, r);
 }
 
@@ -387,13 +431,18 @@ void runsSection(std::ostream& m, const DiagnosisReport& r) {
 }
 
 /// report.md: the plots written beside report.md.
-void figuresSection(std::ostream& m, const DiagnosisReport&) {
+void figuresSection(std::ostream& m, const DiagnosisReport& r) {
+  const std::vector<std::string> causes = r.traces.empty() ? std::vector<std::string>{} : r.traces[0].causes;
   m << "\n## Figures\n\n";
   m << "- `traces.png`: measured pressure and height against the nominal model (dashed) and the model with the "
        "named effect (solid), phases shaded.\n";
+  for (const std::string& c : causes)
+    m << "- `cause_" << c << ".png`: the data, the model and the model with " << c << " alone.\n";
   m << "- `residual_by_phase.png`: the localisation shares, and the RMS residual per phase before and after.\n";
   m << "- `hp_loops.png`: height against pressure — the loops that friction and viscoelasticity open.\n\n";
-  m << "![traces](traces.png)\n\n![residual by phase](residual_by_phase.png)\n\n![h(p) loops](hp_loops.png)\n";
+  m << "![traces](traces.png)\n\n";
+  for (const std::string& c : causes) m << "![" << c << "](cause_" << c << ".png)\n\n";
+  m << "![residual by phase](residual_by_phase.png)\n\n![h(p) loops](hp_loops.png)\n";
 }
 
 }  // namespace
@@ -435,12 +484,19 @@ void writeReportFiles(const std::string& dir, const DiagnosisReport& r) {
     for (const auto& run : r.runs)
       if (run.name == t.name)
         s << "# load_n: " << (std::isfinite(run.load_n) ? csvNumber(run.load_n) : std::string("null")) << "\n";
-    s << "t_s,mdot_in_kg_s,p_meas_pa,h_meas_m,p_nominal_pa,h_nominal_m,p_after_pa,h_after_m,phase\n";
+    s << "t_s,mdot_in_kg_s,p_meas_pa,h_meas_m,p_nominal_pa,h_nominal_m,p_after_pa,h_after_m";
+    for (const std::string& c : t.causes) s << ",p_with_" << c << "_pa,h_with_" << c << "_m";
+    s << ",phase\n";
     auto num = csvNumber;
-    for (std::size_t i = 0; i < t.t_s.size(); ++i)
+    for (std::size_t i = 0; i < t.t_s.size(); ++i) {
       s << num(t.t_s[i]) << ',' << num(t.mdot_in_kg_s[i]) << ',' << num(t.p_meas_pa[i]) << ',' << num(t.h_meas_m[i])
         << ',' << num(t.p_nominal_pa[i]) << ',' << num(t.h_nominal_m[i]) << ',' << num(t.p_after_pa[i]) << ','
-        << num(t.h_after_m[i]) << ',' << phaseName(t.phases[i]) << "\n";
+        << num(t.h_after_m[i]);
+      for (std::size_t c = 0; c < t.causes.size(); ++c)
+        s << ',' << num(i < t.p_cause_pa[c].size() ? t.p_cause_pa[c][i] : NAN) << ','
+          << num(i < t.h_cause_m[c].size() ? t.h_cause_m[c][i] : NAN);
+      s << ',' << phaseName(t.phases[i]) << "\n";
+    }
     // The whole run name, made a file name: a bag's runs are "bag/topic/state", and every
     // run of a bag ends in the same "state".
     std::string stem = t.name;

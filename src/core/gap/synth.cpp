@@ -53,7 +53,7 @@ std::string loadTag(double load_n) {
 
 // Gas mass to add to the flat cell (ambient, dead volume only) so that it rests at `height_m`
 // under `load_n` at ambient temperature.
-double massToReach(const CellParams& params, const PillowStructure& structure, double height_m, double load_n) {
+double massToReach(const CellParams& params, const CellStructure& structure, double height_m, double load_n) {
   const StructureEquilibrium eq = structure.equilibriumAtHeight(height_m, load_n);
   if (!eq.converged) {
     std::ostringstream msg;
@@ -139,7 +139,7 @@ SynthRunPlan synthRunPlan(const CellParams& params, double load_n, const std::st
   r.flow = flow;
   r.rise_scale = rise_scale;
   r.target_height_m = flow == "low" ? kLowTargetHeightM : kHighTargetHeightM;
-  r.inflow_mass_kg = massToReach(params, PillowStructure(params.structure), r.target_height_m, load_n);
+  r.inflow_mass_kg = massToReach(params, *makeCellStructure(params), r.target_height_m, load_n);
   r.name = "load" + loadTag(load_n) + "N_" + flow + (rise_scale == 1.0 ? "" : "_rise" + loadTag(rise_scale)) + ".csv";
   r.role = "fit";
   return r;
@@ -541,6 +541,7 @@ void writeTruthJson(const SynthOptions& o, const SynthResult& result, const Sens
   }
   j["distortions"] = distortions;
   j["airbag_params"] = numbers(o.airbag_params);
+  j["rig_airbag_file"] = o.rig_airbag_file.empty() ? Json() : Json(o.rig_airbag_file);
   j["flow_meter"] = o.flow_meter;
   j["height_sensor"] = o.height_sensor;
   j["runs"] = runsJson(p);
@@ -612,16 +613,28 @@ CellParams rigAirbag(const CellParams& model, const std::map<std::string, double
   return rig;
 }
 
+CellParams rigBase(const SynthOptions& o) {
+  if (o.rig_airbag_file.empty()) return o.params;
+  try {
+    return loadCellParamsYaml(o.rig_airbag_file);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("the rig's airbag file " + o.rig_airbag_file + ": " + e.what());
+  }
+}
+
 SynthResult synthesizeDataset(const SynthOptions& o) {
   if (o.out_dir.empty()) throw std::invalid_argument("gap synth: an output directory is required");
   if (!(o.noise_scale >= 0.0) || !std::isfinite(o.noise_scale))
     throw std::invalid_argument("gap synth: noise scale must be a finite number >= 0, got " +
                                 shortNumber(o.noise_scale));
   SynthResult result;
-  const CellParams rig = rigAirbag(o.params, o.airbag_params);
-  result.protocol = synthProtocol(o.protocol, rig);
+  // The protocol (its inflow masses) is planned on the model's file with the differences; a rig
+  // on its own file (rig_airbag_file) gets the same protocol, as a rig would.
+  const CellParams planned = rigAirbag(o.params, o.airbag_params);
+  const CellParams rig = o.rig_airbag_file.empty() ? planned : rigAirbag(rigBase(o), o.airbag_params);
+  result.protocol = synthProtocol(o.protocol, planned);
   for (const std::string& text : o.extra_runs) {
-    SynthRunPlan extra = parseRunPlan(text, rig);
+    SynthRunPlan extra = parseRunPlan(text, planned);
     for (const auto& r : result.protocol.runs)
       if (r.name == extra.name)
         throw std::invalid_argument("gap synth: run '" + text + "' is the protocol's " + r.name + " already");

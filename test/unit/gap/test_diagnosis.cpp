@@ -144,6 +144,13 @@ TEST_F(GapDiagnoseCli, CalibrationParametersAreCheckedBeforeAnythingIsWritten) {
     expectContains(r.output, {"--airbag-param", "film_stiffnes"});
     EXPECT_FALSE(fs::exists(out));
   }
+  {
+    SCOPED_TRACE("--rig-airbag of gap synth");
+    const ToolResult r = runGap({"synth", "--out", out.string(), "--rig-airbag", "/nonexistent/rig.yaml"});
+    EXPECT_EQ(r.code, 2) << r.output;
+    expectContains(r.output, {"--rig-airbag", "/nonexistent/rig.yaml"});
+    EXPECT_FALSE(fs::exists(out));
+  }
 }
 
 TEST_F(GapDiagnoseCli, CommandLineMistakesExitWith2AndSayWhat) {
@@ -375,9 +382,10 @@ d = json.loads(text)
 def keys(obj, expected, where):
     assert isinstance(obj, dict), where + ": not an object"
     assert set(obj) == set(expected), where + ": keys " + repr(sorted(obj)) + " != " + repr(sorted(expected))
-keys(d, ["format", "dataset", "runs", "noise", "localization", "events", "candidates", "verdict", "identifiability",
-         "shrinkage"], "top level")
+keys(d, ["format", "dataset", "runs", "noise", "localization", "events", "validation", "candidates", "verdict",
+         "identifiability", "shrinkage"], "top level")
 assert isinstance(d["events"], list)
+assert isinstance(d["validation"], list)
 assert d["format"] == "nursing_bed_gap_report/1", d["format"]
 assert d["dataset"] == 'rig "B" \\ 2024', repr(d["dataset"])
 keys(d["runs"], ["fit", "withheld"], "runs")
@@ -755,6 +763,31 @@ TEST(GapDiagnoseEndToEnd, PlantedLeakIsNamedWithItsSizeAndShrinksTheWithheldGap)
   EXPECT_LT(r.withheld_after, r.withheld_before);
   // Named rightly, the model leaves little above the noise floor.
   EXPECT_LT(r.withheldGapInFloors(true), 0.1 * r.withheldGapInFloors(false));
+  // The validation statement: the nominal model's pressure in the hold parts from the data by
+  // many validation uncertainties (the leak empties the cell there).
+  double hold = 0.0;
+  for (const auto& v : r.validation)
+    if (v.signal == "pressure" && v.phase == "hold") hold = std::max(hold, v.e_rms / v.u_val);
+  EXPECT_GT(hold, 5.0);
+  // The one cause's trace is the final model itself.
+  ASSERT_FALSE(r.traces.empty());
+  EXPECT_EQ(r.traces[0].causes, std::vector<std::string>{"leak"});
+  EXPECT_EQ(r.traces[0].p_cause_pa.at(0), r.traces[0].p_after_pa);
+  // Its columns in the traces, and its figure: data, model, model + leak.
+  const fs::path dir = tmpDir("leak_report", false);
+  nb::writeReportFiles(dir.string(), r);
+  bool columns = false;
+  for (const auto& f : fs::directory_iterator(dir / "traces"))
+    columns = columns || slurp(f.path()).find(",p_with_leak_pa,h_with_leak_m,phase") != std::string::npos;
+  EXPECT_TRUE(columns);
+  if (runCommand("/usr/bin/python3 -c 'import matplotlib'").code != 0) {
+    GTEST_SKIP() << "/usr/bin/python3 with matplotlib not available: the figures are not drawn";
+  }
+  const ToolResult plot =
+      runCommand("/usr/bin/python3 " + shellQuote(std::string(NURSING_BED_SOURCE_DIR) + "/scripts/plot_gap_report.py") +
+                 " " + shellQuote(dir.string()));
+  EXPECT_EQ(plot.code, 0) << plot.output;
+  EXPECT_TRUE(fs::exists(dir / "cause_leak.png")) << plot.output;
   std::cout << "             leak_area_m2 " << area << ", withheld nrmse " << r.withheld_before << " -> "
             << r.withheld_after << ", above the noise floor " << r.withheldGapInFloors(false) << " -> "
             << r.withheldGapInFloors(true) << " floors\n";
@@ -765,8 +798,16 @@ TEST(GapDiagnoseEndToEnd, CleanDatasetHasNoSignificantGap) {
   EXPECT_EQ(r.status, "none");
   EXPECT_TRUE(r.verdict_effects.empty());
   EXPECT_EQ(r.withheld_after, r.withheld_before);
-  // Clean runs: the nominal model within the noise floor on the withheld runs too.
+  // Clean runs: the nominal model within the noise floor on the withheld runs too, and its
+  // comparison error within about one validation uncertainty in every phase.
   EXPECT_LT(r.withheldGapInFloors(false), 0.3);
+  ASSERT_FALSE(r.validation.empty());
+  for (const auto& v : r.validation) {
+    EXPECT_GT(v.u_data, 0.0) << v.signal << " " << v.phase;
+    EXPECT_NEAR(v.u_val * v.u_val, v.u_data * v.u_data + v.u_num * v.u_num + v.u_input * v.u_input,
+                1e-9 * v.u_val * v.u_val);
+    EXPECT_LT(v.e_rms, 2.0 * v.u_val) << v.signal << " " << v.phase << " " << v.load_n << " N";
+  }
   EXPECT_EQ(r.withheldGapInFloors(true), r.withheldGapInFloors(false));
   std::cout << "             withheld nrmse " << r.withheld_before << ", above the noise floor "
             << r.withheldGapInFloors(false) << " floors\n";

@@ -2,6 +2,7 @@
 // explanations one load cannot tell apart, and the proposed run that tells them apart.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
@@ -196,6 +197,16 @@ TEST(Identifiability, TheSmallProtocolNamesViscoelasticityAloneAndTheProposedRun
   for (const auto& line : two.reasons)
     needed = needed || line.find("the withheld runs need the pair") != std::string::npos;
   EXPECT_TRUE(needed);
+  // Each cause alone in the traces, for its own figure: neither is the pair's model.
+  ASSERT_FALSE(two.traces.empty());
+  const nb::RunTrace& t = two.traces[0];
+  EXPECT_EQ(t.causes, two.verdict_effects);
+  ASSERT_EQ(t.p_cause_pa.size(), 2u);
+  double apart = 0.0;
+  for (std::size_t c = 0; c < 2; ++c)
+    for (std::size_t i = 0; i < t.t_s.size(); ++i)
+      apart = std::max(apart, std::fabs(t.h_cause_m[c][i] - t.h_after_m[i]));
+  EXPECT_GT(apart, 1e-4);
 }
 
 }  // namespace

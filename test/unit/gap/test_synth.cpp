@@ -256,4 +256,37 @@ TEST(GapSynth, EffectRequestsAreParsedAndBadOnesRefused) {
   EXPECT_THROW(nb::synthProtocol("long", nb::CellParams{}), std::invalid_argument);
 }
 
+TEST(GapSynth, TheRigRunsOnItsOwnFileWhileTheDatasetNamesTheModels) {
+  // The rig on the FE table (config/airbag_tpu_double_100_fe.yaml), the model on the pillow.
+  const std::string fe = std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe.yaml";
+  nb::SynthOptions o = smallOptions(tmpDir("rig_fe"));
+  o.noise_scale = 0.0;
+  o.rig_airbag_file = fe;
+  const nb::SynthResult rig = nb::synthesizeDataset(o);
+  nb::SynthOptions p = smallOptions(tmpDir("rig_pillow"));
+  p.noise_scale = 0.0;
+  const nb::SynthResult pillow = nb::synthesizeDataset(p);
+  ASSERT_EQ(rig.runs.size(), pillow.runs.size());
+  // The same protocol, another cell: the plate stands elsewhere at the end of the hold.
+  double largest = 0.0;
+  for (std::size_t k = 0; k < rig.runs.size(); ++k) {
+    const std::size_t i = rig.runs[k].size() * 3 / 4;
+    largest = std::max(largest, std::fabs(rig.runs[k].h_m[i] - pillow.runs[k].h_m[i]));
+  }
+  EXPECT_GT(largest, 0.003) << "the FE rig's heights match the pillow's";
+  EXPECT_NE(slurp(fs::path(o.out_dir) / "dataset.yaml").find("airbag: airbag_tpu_double_100.yaml"), std::string::npos);
+  EXPECT_NE(slurp(fs::path(o.out_dir) / "truth.json").find("airbag_tpu_double_100_fe.yaml"), std::string::npos);
+
+  // A file that is not there: refused naming it, nothing written.
+  nb::SynthOptions bad = smallOptions(tmpDir("rig_missing"));
+  bad.rig_airbag_file = "/nonexistent/rig.yaml";
+  try {
+    nb::synthesizeDataset(bad);
+    ADD_FAILURE() << "a missing rig file was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/rig.yaml"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(fs::path(bad.out_dir) / "dataset.yaml"));
+}
+
 }  // namespace

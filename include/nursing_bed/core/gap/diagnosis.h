@@ -155,6 +155,21 @@ struct RunTrace {
   std::string role;
   std::vector<double> t_s, mdot_in_kg_s, p_meas_pa, h_meas_m, p_nominal_pa, h_nominal_m, p_after_pa, h_after_m;
   std::vector<RunPhase> phases;
+  /// Each named cause alone on the final calibration (its figure: data, model, model + cause).
+  std::vector<std::string> causes;
+  std::vector<std::vector<double>> p_cause_pa, h_cause_m;
+};
+
+/// One line of the validation statement (ASME V&V 20; gap/validation.h): a signal ("pressure"
+/// [Pa] or "height" [m]) over one phase and load, on the samples the fits use (fit and withheld
+/// runs). Uncertainties are standard ones, RMS over those samples.
+struct ValidationRow {
+  std::string signal, phase;
+  double load_n = 0.0;
+  int samples = 0;
+  double e_mean = 0.0, e_rms = 0.0;  ///< E = simulated - measured
+  double u_data = 0.0, u_num = 0.0, u_input = 0.0;
+  double u_val = 0.0;  ///< sqrt(u_data^2 + u_num^2 + u_input^2)
 };
 
 /// Two explanations the runs cannot tell apart, and the run that would (identifiability.h).
@@ -182,6 +197,8 @@ struct DiagnosisReport {
   std::vector<GapShare> localization;
   /// Where in time the nominal model and each run part (re-anchored windows; localisation.h).
   std::vector<GapEvent> events;
+  /// The nominal model's comparison error and validation uncertainty per signal, phase and load.
+  std::vector<ValidationRow> validation;
   double nominal_chi2_per_sample = 0.0;  ///< fit runs, in noise-floor units
   double nominal_fit_nrmse = 0.0;
   double nominal_withheld_chi2_per_sample = NAN;  ///< whitened, withheld runs (NaN: none)

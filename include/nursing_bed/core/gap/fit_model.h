@@ -73,6 +73,10 @@ struct FitData {
     std::vector<std::size_t> index;  ///< samples used
     std::vector<double> sigma_p_pa;  ///< noise floor at those samples (its diagonal)
     std::vector<double> sigma_h_m;
+    /// The diagonal's parts, squared (ASME V&V 20's validation uncertainty, validation.h): the
+    /// data's (sensor noise), the replay's numerical (its accuracy, the timing spread) and the
+    /// inputs' (the flow meter's noise integrated, the start height, the timing's offsets).
+    std::vector<double> var_data_p, var_num_p, var_input_p, var_data_h, var_num_h, var_input_h;
     /// Cholesky factor of the correlation of the floor-scaled residuals [p0, h0, p1, h1, ...]:
     /// the integrated flow-meter noise is one random walk of the gas mass, shared by all
     /// samples after it, so those residuals are correlated; the fit whitens them with it.

@@ -115,6 +115,10 @@ struct SynthOptions {
   /// The rig's airbag differs from `params` by these (calibration names, calibration.h, or keys
   /// of the parameter table such as "structure/film_thickness_m"); recorded in truth.json.
   std::map<std::string, double> airbag_params;
+  /// The rig simulated on this parameter file (another structure, e.g. the FE table) while the
+  /// model keeps `params` and the protocol is planned on it; `airbag_params` apply to both.
+  /// Empty: the rig is `params`.
+  std::string rig_airbag_file;
   bool flow_meter = true;     ///< false: valve-driven runs without mdot_in_kg_s (SynthProtocol::valve_driven)
   bool height_sensor = true;  ///< false: h_m left out (pressure sensors only)
   /// Runs added to the protocol's (parseRunPlan(): "load_n=36,flow=high,rise_scale=3").
@@ -154,6 +158,10 @@ std::vector<CellEffectPtr> synthDistortions(const std::vector<std::string>& text
 /// drawn from `seed`, checked, in catalogue order: how a simulated cell is given a hidden
 /// effect (the airbag node's ~effects). Throws std::invalid_argument naming what is wrong.
 std::vector<CellEffectPtr> effectsFromText(const std::string& text, std::uint32_t seed);
+
+/// The rig's parameters before SynthOptions::airbag_params: the file `o.rig_airbag_file`
+/// names, else `o.params`. Throws std::invalid_argument naming a file that cannot be read.
+CellParams rigBase(const SynthOptions& o);
 
 /// The rig's airbag: `model` with `differences` (see SynthOptions::airbag_params) applied.
 /// Throws std::invalid_argument naming an unknown name or a result that fails validate().
