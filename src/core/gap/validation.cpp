@@ -15,26 +15,18 @@ struct Sums {
   double e = 0.0, e2 = 0.0, data = 0.0, num = 0.0, input = 0.0;
 };
 
-int phaseOrder(const std::string& phase) {
-  const char* order[] = {"deploy", "pressurize", "hold", "vent"};
-  for (int k = 0; k < 4; ++k)
-    if (phase == order[k]) return k;
-  return 4;
-}
-
 /// Adds the used samples of `run` (replayed as `replay`) to `rows`.
-void addRun(const FitData::Run& run, const Replay& replay,
-            std::map<std::tuple<int, int, double, std::string>, Sums>* rows) {
+void addRun(const FitData::Run& run, const Replay& replay, std::map<std::tuple<int, RunPhase, double>, Sums>* rows) {
   const RunData& data = *run.data;
   for (std::size_t j = 0; j < run.index.size(); ++j) {
     const std::size_t i = run.index[j];
-    const std::string phase = phaseName(replay.phases[i]);
+    const RunPhase phase = replay.phases[i];
     const double load = std::round(data.loadAt(i) * 10.0) / 10.0;
     for (int signal = 0; signal < 2; ++signal) {
       if (signal == 1 && !run.has_height) continue;
       const double e = signal == 0 ? replay.p_gauge_pa[i] - data.p_gauge_pa[i] : replay.h_m[i] - data.h_m[i];
       if (!std::isfinite(e)) continue;
-      Sums& s = (*rows)[{signal, phaseOrder(phase), load, phase}];
+      Sums& s = (*rows)[{signal, phase, load}];
       ++s.n;
       s.e += e;
       s.e2 += e * e;
@@ -49,7 +41,7 @@ void addRun(const FitData::Run& run, const Replay& replay,
 
 std::vector<ValidationRow> validationTable(const PreparedRuns& prepared, const NoiseModel& noise,
                                            const std::vector<Replay>& replays) {
-  std::map<std::tuple<int, int, double, std::string>, Sums> rows;
+  std::map<std::tuple<int, RunPhase, double>, Sums> rows;
   for (std::size_t j = 0; j < prepared.fit.size() && j < noise.fit.runs.size(); ++j)
     if (prepared.fit[j] < replays.size() && replays[prepared.fit[j]].ok)
       addRun(noise.fit.runs[j], replays[prepared.fit[j]], &rows);
@@ -61,7 +53,7 @@ std::vector<ValidationRow> validationTable(const PreparedRuns& prepared, const N
     if (s.n == 0) continue;
     ValidationRow r;
     r.signal = std::get<0>(key) == 0 ? "pressure" : "height";
-    r.phase = std::get<3>(key);
+    r.phase = phaseName(std::get<1>(key));
     r.load_n = std::get<2>(key);
     r.samples = s.n;
     r.e_mean = s.e / s.n;
