@@ -100,6 +100,7 @@ class Score:
         self.recording = False
         self.t0 = 0.0
         self.lock = threading.Lock()  # the subscribers' threads share the deques
+        self.trace, self.traced_at = None, {}  # --trace: (file, each cell's last traced stamp)
         self.subs = [rospy.Subscriber("/rig_emulator/truth", RigTruth, self.on_truth, queue_size=50),
                      rospy.Subscriber("/bed_manager/heights", BedHeights, self.on_heights, queue_size=50),
                      rospy.Subscriber("/bed_manager/state", BedState, self.on_state, queue_size=50)]
@@ -159,7 +160,14 @@ class Score:
             if cell >= len(h0) or t1 <= t0:
                 continue
             truth = h0[cell] + (t - t0) / (t1 - t0) * (h1[cell] - h0[cell])
-            if not math.isfinite(truth) or self.flagged(cell, t, flag_stamps):
+            if not math.isfinite(truth):
+                continue
+            flagged = self.flagged(cell, t, flag_stamps)
+            if self.trace and t - self.traced_at.get(cell, 0.0) >= 0.5:
+                self.traced_at[cell] = t
+                target = self.target_moves[cell][-1][1] if self.target_moves[cell] else math.nan
+                self.trace.write("%.3f,%d,%.5f,%.5f,%.5f,%d\n" % (t - self.t0, cell, truth, height, target, flagged))
+            if flagged:
                 continue
             error = truth - height
             self.sum_sq += error * error
@@ -339,6 +347,7 @@ def add_bed_arguments(parser):
     parser.add_argument("--startup-timeout", type=float, default=300.0)
     parser.add_argument("--port", type=int, default=15120, help="the small bed's Modbus TCP port (one free on this host)")
     parser.add_argument("--json", default="")
+    parser.add_argument("--trace", default="", help="CSV of each cell's truth, estimate, target and flag every 0.5 s")
 
 
 @contextlib.contextmanager
@@ -383,6 +392,9 @@ def main():
     if unknown:
         parser.error("--faults: unknown kind(s) %s; known: %s" % (", ".join(unknown), ", ".join(sorted(known))))
     with emulated_bed(args, launch_args, "soak", 20.0) as score:
+        if args.trace:
+            score.trace = open(args.trace, "w")
+            score.trace.write("t_s,cell,truth_m,estimate_m,target_m,flagged\n")
         result = run(args, score, args.rows * args.cols)
         result.update({"rows": args.rows, "cols": args.cols, "seed": args.seed, "launch_args": launch_args})
         if args.json:

@@ -30,6 +30,7 @@
 //                         manager streams them (0.10 m, then 0.03 / 0.12 m every 20 s, targets
 //                         rate-limited to 0.02 m/s and sent at 50 Hz), 100 s
 //   --rate M_S            --alternate: the streamed targets' rate limit (default 0.02 m/s)
+//   --high M              --alternate: the high target (default 0.12 m; 0.15: a turn's raised side)
 //   --load-stiffness N_M  the load grows by this per metre the plate stands above 0.1 m and
 //                         shrinks below it, never under the plate's own 0.6 N (a body lying on
 //                         the cell as on a spring; default 0: a dead load)
@@ -37,8 +38,8 @@
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
 //   --trace FILE          every period as CSV: the emulator's gas (mass, temperature, flows,
-//                         acting valves) beside the observer's and the pressure it read, and the
-//                         controller's predicted rest height
+//                         acting valves) beside the observer's and the pressure it read, the
+//                         controller's predicted rest height, the count's doubt and the height's sd
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -78,6 +79,7 @@ struct Options {
   double hold_s = 0.0;         ///< > 0: one fill to 91 mm, held until then [s]
   double land_s = 0.0;         ///< > 0: the rig carries load_guess_n until then [s]
   double rate_m_s = 0.02;      ///< --alternate: the streamed targets' rate limit [m/s]
+  double high_m = 0.12;        ///< --alternate: the high target [m]
   double stiffness_n_m = 0.0;  ///< the load grows by this per metre of plate above 0.1 m [N/m]
   std::string trace_path;
 };
@@ -97,6 +99,7 @@ double* numberOption(const std::string& a, Options* o) {
   if (a == "--hold") return &o->hold_s;
   if (a == "--land") return &o->land_s;
   if (a == "--rate") return &o->rate_m_s;
+  if (a == "--high") return &o->high_m;
   if (a == "--load-stiffness") return &o->stiffness_n_m;
   return nullptr;
 }
@@ -153,18 +156,20 @@ std::string writeMap(bool proportional) {
 void traceHeader(std::FILE* f) {
   std::fprintf(f,
                "t_s,true_h_m,true_p_pa,true_m_kg,true_t_k,true_in_kg_s,true_vent_kg_s,true_inlet,true_vent,"
-               "est_h_m,read_p_pa,est_m_kg,est_t_k,est_in_kg_s,est_vent_kg_s,est_inlet,est_vent,rest_h_m\n");
+               "est_h_m,read_p_pa,est_m_kg,est_t_k,est_in_kg_s,est_vent_kg_s,est_inlet,est_vent,rest_h_m,count_doubt_m,"
+               "height_sd_m\n");
 }
 
 void traceRow(std::FILE* f, double t, const nb::CellTruth& truth, const nb::AirbagCell& cell) {
   const nb::CellObserver& obs = *cell.observer();
   const nb::CellEstimate e = obs.estimate();
   const nb::CellVariables& v = obs.variables();
-  std::fprintf(f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f\n", t,
-               truth.height_m, truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
-               truth.vent_flow_kg_s, truth.inlet_opening, truth.vent_opening, e.height_m,
-               cell.measurement().gauge_pressure_pa, e.mass_kg, e.temperature_k, v.inflow_kg_s, v.vent_flow_kg_s,
-               obs.appliedInputs().valves.inlet, obs.appliedInputs().valves.vent, cell.controller().restingHeight());
+  std::fprintf(
+      f, "%.4f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.2f,%.8e,%.3f,%.6e,%.6e,%.3f,%.3f,%.6f,%.6f,%.6f\n", t,
+      truth.height_m, truth.gauge_pressure_pa, truth.gas_mass_kg, truth.temperature_k, truth.inflow_kg_s,
+      truth.vent_flow_kg_s, truth.inlet_opening, truth.vent_opening, e.height_m, cell.measurement().gauge_pressure_pa,
+      e.mass_kg, e.temperature_k, v.inflow_kg_s, v.vent_flow_kg_s, obs.appliedInputs().valves.inlet,
+      obs.appliedInputs().valves.vent, cell.controller().restingHeight(), e.count_doubt_m, e.height_sd_m);
 }
 
 struct Target {
@@ -232,7 +237,7 @@ int main(int argc, char** argv) {
   const std::vector<Target> plan =
       o.hold_s > 0.0 ? std::vector<Target>{{1, 0.091}}
       : o.alternate
-          ? std::vector<Target>{{1, 0.10}, {20, 0.03}, {40, 0.12}, {60, 0.03}, {80, 0.12}}
+          ? std::vector<Target>{{1, 0.10}, {20, 0.03}, {40, o.high_m}, {60, 0.03}, {80, o.high_m}}
           : std::vector<Target>{{1, 0.10}, {6, 0.02}, {11, 0.10}, {16, -1}, {21, 0.10}, {26, 0.05}, {31, 0.12}};
   const double end_s = o.hold_s > 0.0 ? o.hold_s : o.alternate ? 100.0 : 36.0;
   double wanted_m = 0.0, streamed_m = 0.0, next_stream_s = 0.0;  // --alternate: the bed manager's stream

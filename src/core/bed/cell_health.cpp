@@ -120,7 +120,7 @@ CellReport CellHealthWatcher::report(std::uint32_t id, double now_s) const {
             "hardware link lost, faults:" + faultNames(s.faults) + (s.unverified ? "; height unverified" : "")};
   if (s.faults != kFaultNone)
     return {Severity::kWarn, "faults:" + faultNames(s.faults) + (s.unverified ? "; height unverified" : "")};
-  if (s.unverified) return {Severity::kWarn, "height unverified (its gas is being checked)"};
+  if (s.unverified) return {Severity::kWarn, "height unverified (its gas unproven or its vent count doubtful)"};
   return {Severity::kOk, "ok"};
 }
 

@@ -33,6 +33,9 @@ const AirbagCellParams& validated(const AirbagCellParams& p) {
 
 namespace {
 
+/// Gas counted this long after a communication or sensor fault is doubtful in full [s].
+constexpr double kUnsureCountS = 0.5;
+
 CellHardwarePtr simulatedHardware(const AirbagCellParams& p, const std::vector<CellEffectPtr>& effects) {
   HardwareConfig c;
   c.control_period_s = p.control_period_s;
@@ -159,8 +162,10 @@ const CellModel& AirbagCell::model() const { return sim_ ? sim_->model() : obser
 double AirbagCell::load() const { return sim_ ? load_n_ : observer_->estimate().load_n; }
 
 double AirbagCell::heightSd() const {
-  if (gas_.findingGas() || heightUnverified()) return std::numeric_limits<double>::infinity();  // gas unproven
-  return use_estimate_ ? observer_->estimate().height_sd_m : params_.height_noise_m;
+  if (!use_estimate_) return params_.height_noise_m;
+  if (gas_.findingGas() || gas_.unproven()) return std::numeric_limits<double>::infinity();  // gas unproven
+  const CellEstimate e = observer_->estimate();
+  return std::hypot(e.height_sd_m, e.count_doubt_m);
 }
 
 AirbagMode AirbagCell::resumedMode() const {
@@ -283,7 +288,9 @@ void AirbagCell::stepReal(double now_s) {
     // Nothing is commanded while the link is down; the observer coasts with what the terminal
     // still drove (its outputs hold until its watchdog) where the driver knows it, else with
     // the last command over the period it acted, then with the valves shut.
+    const CellEstimate before = observer_->estimate();
     observer_->predict(linkDownInputs(readings), period);
+    doubtUnsureCount(before, false);
     valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, period);  // nothing sent: nothing in flight once the link is back
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
@@ -374,6 +381,7 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
   const CellEstimate before = observer_->estimate();
   const ObserverEvents events = observer_->step(in, z, dt_s);
+  doubtUnsureCount(before, events.reanchored);
   gas_.note(events);
   if (use_estimate_) {
     const CellEstimate e = observer_->estimate();
@@ -381,6 +389,15 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
     measurement_.height_m = e.height_m;
   }
   if (!sim_) monitorStep(events, before, dt_s > 0.0 ? dt_s : params_.control_period_s);
+}
+
+void AirbagCell::doubtUnsureCount(const CellEstimate& before, bool reanchored) {
+  // Over a lost or lossy link (and stale readings) the count follows a record of the valves
+  // that a dropped write or a tripped watchdog can leave wrong, while the checks after it only
+  // show that the cell kept its gas: what was counted meanwhile is the count's doubt.
+  if (faults_ & (kFaultCommunication | kFaultSensor)) unsure_count_until_s_ = time_s_ + kUnsureCountS;
+  if (time_s_ < unsure_count_until_s_ && !reanchored)
+    observer_->doubtCount(std::fabs(observer_->estimate().mass_kg - before.mass_kg));
 }
 
 double AirbagCell::countedStepPa(const ObserverEvents& events, const CellEstimate& before) const {
@@ -443,7 +460,7 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   const bool correcting =
       sample.counted_step_pa != 0.0 && std::fabs(sample.counted_step_pa) < monitor_.params().hold_correction_pa;
   gas_.noteHold(sample.valves_shut || correcting, p, observer_->estimate().height_m, dt_s);
-  if ((faults_ & kFaultInconsistent) && !gas_.unverified()) {
+  if ((faults_ & kFaultInconsistent) && !gas_.unproven()) {
     faults_ &= ~kFaultInconsistent;
     monitor_.clear();
   }

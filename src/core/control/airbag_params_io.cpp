@@ -89,6 +89,10 @@ ParamTable<GasVerifierParams> makeGasCheckFields() {
                    "a cell whose counted vent gas may be off by more than this height is re-anchored at its target "
                    "(vented until re-anchored, then filled); 0 = never [m]",
                    [](G& p) -> double& { return p.recount_doubt_m; }),
+      realField<G>("flag_doubt_m",
+                   "a cell whose counted vent gas may be off by more than this height reports its height unverified "
+                   "until found flat; 0 = never [m]",
+                   [](G& p) -> double& { return p.flag_doubt_m; }),
       realField<G>("recount_max_load_n",
                    "only a cell whose load estimate is below this is re-anchored for its count's doubt [N]",
                    [](G& p) -> double& { return p.recount_max_load_n; }),

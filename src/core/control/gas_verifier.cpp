@@ -18,6 +18,7 @@ Status GasVerifierParams::validate() const {
                reanchor_below_m);
   errors.addIf(!(recount_doubt_m >= 0.0 && std::isfinite(recount_doubt_m)), "recount_doubt_m must be >= 0, got ",
                recount_doubt_m);
+  errors.addIf(!(flag_doubt_m >= 0.0 && std::isfinite(flag_doubt_m)), "flag_doubt_m must be >= 0, got ", flag_doubt_m);
   errors.addIf(!(recount_max_load_n > 0.0 && std::isfinite(recount_max_load_n)),
                "recount_max_load_n must be finite and > 0, got ", recount_max_load_n);
   errors.addIf(!(verify_hold_s >= 0.0 && verify_hold_s <= 2.0), "verify_hold_s must lie in [0, 2] s, got ",
@@ -63,6 +64,7 @@ void GasVerifier::reset(bool verified) {
   gas_ = verified ? GasKnowledge::kKnown : GasKnowledge::kUnverified;
   found_flat_ = false;
   recounting_ = false;
+  doubtful_ = false;
   check_pending_ = false;
   check_vent_left_s_ = 0.0;
   check_until_s_ = -1.0;
@@ -142,6 +144,7 @@ void GasVerifier::noteCountDoubt(double doubt_m, double load_n) {
   // Near the bag's top a light plate's height moves 5-15 mm per 1 % of gas, and pressure alone
   // cannot tell a higher plate from a heavier load: a doubtful count is ended where the gas is
   // measured, on the flat cell.
+  doubtful_ = params_.flag_doubt_m > 0.0 && doubt_m > params_.flag_doubt_m;
   if (gas_ != GasKnowledge::kKnown || !(params_.recount_doubt_m > 0.0) || !(doubt_m > params_.recount_doubt_m) ||
       !(load_n < params_.recount_max_load_n))
     return;

@@ -387,6 +387,10 @@ void CellObserver::doubtVentCount(double vent_kg, double flow_gauge_pressure_pa)
   count_doubt_kg_ += params_.vent_count_doubt * std::min(1.0, ringing_pa / std::max(p, 1e-9)) * vent_kg;
 }
 
+void CellObserver::doubtCount(double gas_kg) {
+  if (gas_kg > 0.0 && std::isfinite(gas_kg)) count_doubt_kg_ += gas_kg;
+}
+
 void CellObserver::trackReadingNoise(double gauge_pressure_pa, double dt_s) {
   still_s_ = valvesShut() ? still_s_ + dt_s : 0.0;
   if (still_s_ > kStillSettleS) {

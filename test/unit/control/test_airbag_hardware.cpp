@@ -562,3 +562,29 @@ TEST(AirbagOnHardware, ACellRaisedOutOfTheLowBandBeforeItIsFoundFlatStopsVenting
   rig.runTo(40.0);
   EXPECT_NEAR(rig.plant->variables().height_m, 0.10, 0.003);
 }
+
+TEST(AirbagOnHardware, GasCountedOverALostLinkIsTheCountsDoubt) {
+  // A fill under way when the link goes: the terminal holds the inlet open until its watchdog
+  // (0.1 s) and the driver says so, so the count is right, but it rests on that record alone.
+  // The gas counted from the loss until 0.5 s after the link is back is the count's doubt.
+  CuttableCell rig(0.06, 15.6, 0.06);
+  rig.hw->hold_s = 0.1;
+  rig.hw->reports_held = true;
+  rig.runTo(2.0);
+  const double quiet_doubt_m = rig.cell->observer()->estimate().count_doubt_m;
+  ASSERT_EQ(rig.cell->requestHeight(0.10, rig.t), "");
+  rig.runTo(2.05);
+  rig.hw->cut = true;
+  rig.runTo(2.5);
+  rig.hw->cut = false;
+  rig.runTo(6.0);
+  const nb::CellEstimate e = rig.cell->observer()->estimate();
+  std::cout << "[airbag] count doubt after a lost link during a fill: " << 1e3 * e.count_doubt_m << " mm (held "
+            << 1e3 * quiet_doubt_m << " mm before), estimate " << 1e3 * e.height_m << " mm, truth "
+            << 1e3 * rig.plant->variables().height_m << " mm\n";
+  EXPECT_EQ(quiet_doubt_m, 0.0) << "a hold counts nothing";
+  EXPECT_GT(e.count_doubt_m, 0.002) << "the inlet's held 0.1 s and the check's vent";
+  EXPECT_TRUE(rig.cell->heightUnverified()) << "beyond flag_doubt_m: flagged";
+  EXPECT_FALSE(rig.cell->gasVerifier().unproven()) << "the link check passed: still controlled";
+  EXPECT_NEAR(rig.plant->variables().height_m, 0.10, 0.003);
+}

@@ -37,6 +37,7 @@ TEST(GasVerifierParams, RefusesBadValuesNamingThem) {
   expectRefused("resume_vent_s", &nb::GasVerifierParams::resume_vent_s, {-0.01, 0.5, std::nan("")});
   expectRefused("reanchor_below_m", &nb::GasVerifierParams::reanchor_below_m, {-0.01, std::nan("")});
   expectRefused("recount_doubt_m", &nb::GasVerifierParams::recount_doubt_m, {-0.01, std::nan("")});
+  expectRefused("flag_doubt_m", &nb::GasVerifierParams::flag_doubt_m, {-0.01, std::nan("")});
   expectRefused("recount_max_load_n", &nb::GasVerifierParams::recount_max_load_n, {0.0, -1.0, std::nan("")});
   expectRefused("verify_hold_s", &nb::GasVerifierParams::verify_hold_s, {-0.1, 5.0, std::nan("")});
   expectRefused("verify_tolerance_pa", &nb::GasVerifierParams::verify_tolerance_pa, {0.0, std::nan("")});
@@ -120,7 +121,8 @@ TEST(GasVerifier, ADoubtfulCountOnALightCellAnchorsItWhateverTargetsComeUntilFou
   gas.noteCountDoubt(0.005, 0.6);
   EXPECT_TRUE(gas.anchoringGas());
   EXPECT_TRUE(gas.recounting());
-  EXPECT_FALSE(gas.unverified()) << "its height is tracked meanwhile";
+  EXPECT_FALSE(gas.unproven()) << "its height is tracked meanwhile";
+  EXPECT_TRUE(gas.unverified()) << "and flagged while the doubt lasts";
   gas.heightRequested(0.13, 0.12);  // a plan's next target, above the low band
   EXPECT_TRUE(gas.anchoringGas()) << "a new target does not end it";
   nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
@@ -137,6 +139,25 @@ TEST(GasVerifier, ADoubtfulCountOnALightCellAnchorsItWhateverTargetsComeUntilFou
   nb::GasVerifier never(p);
   never.noteCountDoubt(1.0, 0.6);
   EXPECT_FALSE(never.anchoringGas());
+}
+
+TEST(GasVerifier, ADoubtfulCountIsFlaggedButControlledUntilTheDoubtEnds) {
+  nb::GasVerifierParams p;  // flag_doubt_m 3 mm
+  nb::GasVerifier gas(p);
+  gas.noteCountDoubt(0.0029, 40.0);
+  EXPECT_FALSE(gas.unverified()) << "a doubt within the flag's bound";
+  gas.noteCountDoubt(0.0035, 40.0);  // a loaded cell: not re-anchored, its count kept
+  EXPECT_TRUE(gas.doubtful());
+  EXPECT_TRUE(gas.unverified());
+  EXPECT_FALSE(gas.unproven());
+  EXPECT_FALSE(gas.gasUnknown()) << "still controlled: inflated and vented as its plan asks";
+  EXPECT_FALSE(gas.anchoringGas());
+  gas.noteCountDoubt(0.0, 40.0);  // found flat: the observer's doubt ends
+  EXPECT_FALSE(gas.unverified());
+  p.flag_doubt_m = 0.0;  // never
+  nb::GasVerifier never(p);
+  never.noteCountDoubt(1.0, 40.0);
+  EXPECT_FALSE(never.unverified());
 }
 
 TEST(GasVerifier, AfterALostLinkItVentsBrieflyThenHoldsForTheReanchorTest) {

@@ -155,8 +155,8 @@ class AirbagCell {
   /// The simulated load; on real hardware the observer's estimate.
   double load() const;
   HeightSource heightSource() const { return use_estimate_ ? HeightSource::kEstimated : HeightSource::kMeasured; }
-  /// Standard deviation of the reported height [m]: the observer's, or the sensor's noise;
-  /// infinite while the cell's gas is unknown (findingGas).
+  /// Standard deviation of the reported height [m]: the sensor's noise, or the observer's with
+  /// its count's doubt; infinite while the cell's gas is unproven.
   double heightSd() const;
   const AirbagCellParams& params() const { return params_; }
   const CellModel& model() const;
@@ -175,8 +175,9 @@ class AirbagCell {
   /// The checks of the observer's gas (with their parameters).
   const GasVerifier& gasVerifier() const { return gas_; }
   /// The reported height is an estimate whose gas is not proven (a lost link not yet checked,
-  /// an inconsistency, a reset over real hardware not yet found flat): the cell is never
-  /// inflated meanwhile, only held or vented to find its gas.
+  /// an inconsistency, a reset over real hardware not yet found flat: the cell is never
+  /// inflated meanwhile, only held or vented to find its gas) or whose vent count is doubtful
+  /// (GasVerifierParams::flag_doubt_m: controlled, flagged until found flat).
   bool heightUnverified() const { return observer_ && use_estimate_ && gas_.unverified(); }
   /// The readings against the observer (null when the height is measured).
   const ConsistencyMonitor* monitor() const { return observer_ ? &monitor_ : nullptr; }
@@ -196,6 +197,9 @@ class AirbagCell {
   void stepSimulated();
   /// Real hardware: read, observe, control and write once at `now_s`.
   void stepReal(double now_s);
+  /// The gas the observer counted since `before`, while the link or readings were unsure
+  /// (unsure_count_until_s_), goes to its count's doubt.
+  void doubtUnsureCount(const CellEstimate& before, bool reanchored);
   /// Turns readings into measurement_ (the observer's height where there is no sensor); the
   /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
@@ -253,6 +257,9 @@ class AirbagCell {
   GasVerifier gas_;                    ///< what the observer's gas is worth, and its checks
   ConsistencyMonitor monitor_;         ///< the readings against the observer's belief
   double recent_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< readings, filtered
+  /// Gas counted until then is doubtful in full: a communication or sensor fault was flagged
+  /// less than kUnsureCountS ago (a lossy link's writes and the terminal's watchdog) [s].
+  double unsure_count_until_s_ = -std::numeric_limits<double>::infinity();
 };
 
 }  // namespace nursing_bed

@@ -29,6 +29,10 @@ struct GasVerifierParams {
   /// count_doubt_m) is re-anchored the same way at its kept target: it vents until the
   /// re-anchor test finds it flat, its height tracked, then fills to the target; 0: never [m].
   double recount_doubt_m = 0.004;
+  /// A cell whose counted vent gas may be off by more than this height reports its height
+  /// unverified until the doubt ends (found flat): the doubt bounds the count's error, and one
+  /// too large to promise 6 mm is said, not hidden. The cell is controlled meanwhile; 0: never [m].
+  double flag_doubt_m = 0.003;
   /// Only a cell whose load estimate is below this is re-anchored for its count's doubt: one
   /// that carries little more than its plate (0.6 N), where a flat cell moves no load; one the
   /// body touches (a head's cradle, a bony prominence) keeps its count [N].
@@ -67,6 +71,8 @@ struct GasVerifierParams {
 /// re-anchored (lowered into the low band: venting, height tracked).
 enum class GasKnowledge : std::uint8_t { kKnown, kUnverified, kFinding, kAnchoring };
 
+// size: ~27 methods are one knowledge state's events and queries (link, fault, target, count's
+// doubt) and its two valve filters; the proof's hold is its own class (GasProof).
 class GasVerifier {
  public:
   /// Throws std::invalid_argument naming what is wrong in `params`.
@@ -102,8 +108,9 @@ class GasVerifier {
   /// A pressure setpoint is held from where the cell is: no re-anchoring on the way.
   void pressureRequested();
   /// The height `doubt_m` the observer's vent count may be off by, on a cell carrying `load_n`:
-  /// beyond recount_doubt_m, below recount_max_load_n, a known gas is re-anchored (kAnchoring
-  /// until found flat, whatever targets come meanwhile).
+  /// beyond flag_doubt_m the count is doubtful; beyond recount_doubt_m, below
+  /// recount_max_load_n, a known gas is re-anchored (kAnchoring until found flat, whatever
+  /// targets come meanwhile).
   void noteCountDoubt(double doubt_m, double load_n);
   /// Anchoring because of the count's doubt (not a target in the low band).
   bool recounting() const { return recounting_ && gas_ == GasKnowledge::kAnchoring; }
@@ -111,8 +118,13 @@ class GasVerifier {
   GasKnowledge knowledge() const { return gas_; }
   /// The gas (and the height from it) is not proven: lost link not yet checked, suspected, or
   /// reset over real hardware and not yet found flat, or found flat after an inconsistency and
-  /// not yet proved by a hold at height.
-  bool unverified() const { return gasUnknown() || proof_.pending(); }
+  /// not yet proved by a hold at height; or its count is doubtful.
+  bool unverified() const { return unproven() || doubtful_; }
+  /// The gas is not proven (as unverified(), without a doubtful count).
+  bool unproven() const { return gasUnknown() || proof_.pending(); }
+  /// The observer's count doubt (noteCountDoubt) is beyond flag_doubt_m: the height is reported
+  /// unverified, the cell still controlled.
+  bool doubtful() const { return doubtful_; }
   /// Unverified and not yet found flat (or the link check under way): the cell is then never
   /// inflated, only held or vented, and its height is no reference for the landed test.
   bool gasUnknown() const;
@@ -150,6 +162,7 @@ class GasVerifier {
   GasKnowledge gas_ = GasKnowledge::kKnown;
   bool found_flat_ = false;         ///< re-anchored since the search (or the anchoring) began
   bool recounting_ = false;         ///< the anchoring was started by the count's doubt
+  bool doubtful_ = false;           ///< the count's doubt is beyond flag_doubt_m
   bool check_pending_ = false;      ///< the link came back: the gas is to be checked
   double check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double check_until_s_ = -1.0;     ///< valves kept shut until then for the re-anchor test [s]
