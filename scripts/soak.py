@@ -391,11 +391,14 @@ def main():
     unknown = [k for k in args.faults if k not in known]
     if unknown:
         parser.error("--faults: unknown kind(s) %s; known: %s" % (", ".join(unknown), ", ".join(sorted(known))))
-    with emulated_bed(args, launch_args, "soak", 20.0) as score:
+    with emulated_bed(args, launch_args, "soak", 20.0) as score, \
+            open(args.trace or "/dev/null", "w") as trace:
         if args.trace:
-            score.trace = open(args.trace, "w")
-            score.trace.write("t_s,cell,truth_m,estimate_m,target_m,flagged\n")
+            score.trace = trace
+            trace.write("t_s,cell,truth_m,estimate_m,target_m,flagged\n")
         result = run(args, score, args.rows * args.cols)
+        with score.lock:
+            score.trace = None  # the truth's callbacks outlive the file
         result.update({"rows": args.rows, "cols": args.cols, "seed": args.seed, "launch_args": launch_args})
         if args.json:
             with open(args.json, "w") as f:

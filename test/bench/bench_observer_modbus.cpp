@@ -7,7 +7,7 @@
 // usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
 //          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
 //          [--effects] [--load-guess N] [--load-swing N] [--swing-time S] [--land S]
-//          [--hold S]
+//          [--hold S] [--alternate [--rate M_S] [--high M]] [--load-stiffness N_M]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 //   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's

@@ -163,7 +163,7 @@ double AirbagCell::load() const { return sim_ ? load_n_ : observer_->estimate().
 
 double AirbagCell::heightSd() const {
   if (!use_estimate_) return params_.height_noise_m;
-  if (gas_.findingGas() || gas_.unproven()) return std::numeric_limits<double>::infinity();  // gas unproven
+  if (gas_.unproven()) return std::numeric_limits<double>::infinity();  // finding its gas included
   const CellEstimate e = observer_->estimate();
   return std::hypot(e.height_sd_m, e.count_doubt_m);
 }

@@ -141,8 +141,8 @@ class CellObserver {
   void predict(const ObserverInputs& inputs, double dt_s = 0.0);
 
   CellEstimate estimate() const;
-  /// Adds `gas_kg` to the count's doubt in full: gas counted while the valves' record was
-  /// unsure (a link lost or just back), cleared as the rest of the doubt is.
+  /// Adds `gas_kg` to the count's doubt in full: gas counted while the valves' record or the
+  /// readings were unsure (a communication or sensor fault), cleared as the rest of the doubt is.
   void doubtCount(double gas_kg);
   const CellVariables& variables() const { return vars_; }
   double time() const { return time_; }
