@@ -358,7 +358,7 @@ void AirbagCell::onLink(const CellReadings& readings) {
     // on one reading below reanchor_pressure_pa instead, a light plate resting at 55-75 Pa
     // was taken for flat after a 50 ms bus timeout and filled to the bag's top at 30 kPa.
     mode_ = mode_before_link_loss_ == AirbagMode::kSafe ? resumedMode() : mode_before_link_loss_;
-    gas_.linkRestored();
+    gas_.linkRestored(time_s_);
   }
 }
 

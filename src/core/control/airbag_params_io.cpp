@@ -100,6 +100,9 @@ ParamTable<GasVerifierParams> makeGasCheckFields() {
                    "after a lost link: valves shut this long, then the pressure is compared with the one before the "
                    "loss [s]",
                    [](G& p) -> double& { return p.verify_hold_s; }),
+      realField<G>("link_steady_s",
+                   "after a lost link: the checks wait, valves shut, until the link has stayed up this long [s]",
+                   [](G& p) -> double& { return p.link_steady_s; }),
       realField<G>("verify_tolerance_pa",
                    "that comparison's least tolerance; a larger difference re-finds the gas by venting flat [Pa]",
                    [](G& p) -> double& { return p.verify_tolerance_pa; }),

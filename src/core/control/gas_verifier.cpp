@@ -23,6 +23,8 @@ Status GasVerifierParams::validate() const {
                "recount_max_load_n must be finite and > 0, got ", recount_max_load_n);
   errors.addIf(!(verify_hold_s >= 0.0 && verify_hold_s <= 2.0), "verify_hold_s must lie in [0, 2] s, got ",
                verify_hold_s);
+  errors.addIf(!(link_steady_s >= 0.0 && link_steady_s <= 10.0), "link_steady_s must lie in [0, 10] s, got ",
+               link_steady_s);
   errors.addIf(!(verify_tolerance_pa > 0.0 && std::isfinite(verify_tolerance_pa)),
                "verify_tolerance_pa must be finite and > 0, got ", verify_tolerance_pa);
   errors.addIf(!(verify_tolerance_rel >= 0.0 && verify_tolerance_rel < 1.0),
@@ -85,7 +87,8 @@ void GasVerifier::linkLost(double reference_pa) {
   check_until_s_ = -1.0;
 }
 
-void GasVerifier::linkRestored() {
+void GasVerifier::linkRestored(double now_s) {
+  link_up_since_s_ = now_s;
   check_pending_ = params_.resume_vent_s > 0.0 || (params_.verify_hold_s > 0.0 && std::isfinite(reference_pa_));
   if (!check_pending_) link_lost_ = false;
 }
@@ -163,6 +166,7 @@ ValveOpenings GasVerifier::linkCheckValves(double now_s, double period_s, double
   // re-anchor test takes it with the valves shut; a lifted cell keeps its load's pressure and
   // loses 1-3 mm, which the controller restores after the check.
   const CellObserverParams& op = observer->params();
+  if (check_pending_ && now_s - link_up_since_s_ < params_.link_steady_s) return ValveOpenings{};
   if (check_pending_) {
     check_pending_ = false;
     check_reanchored_ = false;

@@ -32,6 +32,10 @@ constexpr double kStillSettleS = 0.5;
 // 60 s holds of a right inventory were pulled down, one by 0.4 mm: 1 % of a light plate's gas
 // at a low hold, 3-4 mm at the top); at 4 none.
 constexpr double kBoundStandardErrors = 4.0;
+// A flat test found under an open vent waits for the count to hold less height than this [m],
+// at most this long [s] (countAllowsFlat).
+constexpr double kFlatCountM = 0.001;
+constexpr double kCountDrainWaitS = 5.0;
 constexpr double kNoisePriorReadings = 20.0;
 constexpr double kNoiseMemoryReadings = 24000.0;
 
@@ -109,6 +113,7 @@ void CellObserver::reset(double load_n) {
   still_s_ = 0.0;
   count_doubt_kg_ = 0.0;
   since_edge_s_ = 0.0;
+  flat_claimed_s_ = -1.0;
   reading_noise_.interrupt();
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
@@ -439,7 +444,23 @@ bool CellObserver::checkReanchor(const Readings& readings) {
   // found that low for reanchor_time_s is flat, and its gas is known again.
   double mean_pa = 0.0;
   if (!reanchor_.update(time_, applied_, readings.gauge_pressure_pa, &mean_pa)) return false;
+  if (!countAllowsFlat()) return false;
   anchorFlat(mean_pa);
+  return true;
+}
+
+bool CellObserver::countAllowsFlat() {
+  // A light plate venting reads flat a few mm up: its vent's flow takes a few Pa of the 20 that
+  // carry it. The count follows the vent at the pressure read, so the test waits until the count
+  // holds less than kFlatCountM; at most kCountDrainWaitS, as the count of a cell emptied
+  // behind its back (a flat cell read at ambient) drains nothing through the vent.
+  if (!(applied_.valves.vent > 0.0) || x_[CellModel::kHeight] <= kFlatCountM) {
+    flat_claimed_s_ = -1.0;
+    return true;
+  }
+  if (flat_claimed_s_ < 0.0) flat_claimed_s_ = time_;
+  if (time_ - flat_claimed_s_ < kCountDrainWaitS) return false;
+  flat_claimed_s_ = -1.0;
   return true;
 }
 

@@ -4,6 +4,13 @@
 #include <cmath>
 
 namespace nursing_bed {
+namespace {
+
+// A light plate rung by a vent edge: its pressure swings for a few of its 40-100 Hz periods
+// and the descent it starts (or stops) takes a few tens of ms to reach its steady pressure.
+constexpr double kVentEdgeSettleS = 0.1;
+
+}  // namespace
 
 ReanchorDetector::ReanchorDetector(double reanchor_time_s, double period_s, double flat_pressure_pa)
     : reanchor_time_s_(reanchor_time_s), period_s_(period_s), flat_pressure_pa_(flat_pressure_pa) {}
@@ -11,11 +18,18 @@ ReanchorDetector::ReanchorDetector(double reanchor_time_s, double period_s, doub
 void ReanchorDetector::reset() {
   flat_since_s_ = -1.0;
   sub_ambient_flat_until_s_ = -1.0;
+  venting_ = false;
+  settled_from_s_ = -1.0;
 }
 
 bool ReanchorDetector::update(double now_s, const ObserverInputs& applied, double gauge_pressure_pa, double* mean_pa) {
   const bool to_vacuum = applied.valves.vent > 0.0 && applied.vent_back_pressure_pa != 0.0;
-  if (applied.valves.inlet > 0.0 || to_vacuum || !std::isfinite(gauge_pressure_pa)) {
+  const bool venting = applied.valves.vent > 0.0;
+  if (venting != venting_) {
+    venting_ = venting;
+    settled_from_s_ = now_s + kVentEdgeSettleS;
+  }
+  if (applied.valves.inlet > 0.0 || to_vacuum || !std::isfinite(gauge_pressure_pa) || now_s < settled_from_s_) {
     flat_since_s_ = -1.0;
     return false;
   }

@@ -40,6 +40,7 @@ TEST(GasVerifierParams, RefusesBadValuesNamingThem) {
   expectRefused("flag_doubt_m", &nb::GasVerifierParams::flag_doubt_m, {-0.01, std::nan("")});
   expectRefused("recount_max_load_n", &nb::GasVerifierParams::recount_max_load_n, {0.0, -1.0, std::nan("")});
   expectRefused("verify_hold_s", &nb::GasVerifierParams::verify_hold_s, {-0.1, 5.0, std::nan("")});
+  expectRefused("link_steady_s", &nb::GasVerifierParams::link_steady_s, {-0.1, 20.0, std::nan("")});
   expectRefused("verify_tolerance_pa", &nb::GasVerifierParams::verify_tolerance_pa, {0.0, std::nan("")});
   expectRefused("verify_tolerance_rel", &nb::GasVerifierParams::verify_tolerance_rel, {-0.1, 1.0});
   expectRefused("prove_hold_s", &nb::GasVerifierParams::prove_hold_s, {-1.0, 60.0, std::nan("")});
@@ -166,8 +167,8 @@ TEST(GasVerifier, AfterALostLinkItVentsBrieflyThenHoldsForTheReanchorTest) {
   p.resume_vent_s = 0.025;
   nb::GasVerifier gas(p);
   EXPECT_EQ(gas.linkCheckValves(0.0, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet) << "no check pending";
-  gas.linkRestored();
-  const double openings[] = {1.0, 1.0, 0.5};  // 25 ms of full vent at 10 ms periods
+  gas.linkRestored(-gas.params().link_steady_s);  // back, and steady by t = 0
+  const double openings[] = {1.0, 1.0, 0.5};      // 25 ms of full vent at 10 ms periods
   double t = 0.0;
   for (const double opening : openings) {
     const nb::ValveOpenings v = gas.linkCheckValves(t, kPeriod, 500.0, &observer, kWanted);
@@ -186,10 +187,39 @@ TEST(GasVerifier, AfterALostLinkItVentsBrieflyThenHoldsForTheReanchorTest) {
   EXPECT_EQ(gas.linkCheckValves(until + 1e-9, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet);
 }
 
+TEST(GasVerifier, TheLinkChecksWaitUntilTheLinkHasStayedUp) {
+  // A link that drops replies comes and goes every few tenths of a second: its checks would
+  // vent for as long as the terminal's watchdog holds each written vent. The valves stay shut
+  // and the gas unverified until the link has stayed up link_steady_s.
+  nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
+  nb::GasVerifier gas(nb::GasVerifierParams{});
+  const double steady_s = gas.params().link_steady_s;
+  ASSERT_GT(steady_s, 0.2);
+  gas.linkLost(1500.0);
+  gas.linkRestored(0.0);
+  double t = 0.0;
+  for (; t < 0.2 - 1e-9; t += kPeriod) {
+    const nb::ValveOpenings v = gas.linkCheckValves(t, kPeriod, 1500.0, &observer, kWanted);
+    EXPECT_EQ(v.inlet + v.vent, 0.0) << "at " << t;
+  }
+  gas.linkLost(1500.0);  // down again, then back
+  gas.linkRestored(0.3);
+  for (t = 0.3; t < 0.3 + steady_s - 1e-9; t += kPeriod) {
+    EXPECT_TRUE(gas.unverified()) << "at " << t;
+    const nb::ValveOpenings v = gas.linkCheckValves(t, kPeriod, 1500.0, &observer, kWanted);
+    EXPECT_EQ(v.inlet + v.vent, 0.0) << "no vent before the link is steady, at " << t;
+  }
+  // Steady: the hold runs (valves shut), then the short vent.
+  bool vented = false;
+  for (int i = 0; i < 100 && !vented; ++i, t += kPeriod)
+    vented = gas.linkCheckValves(t, kPeriod, 1500.0, &observer, kWanted).vent > 0.0;
+  EXPECT_TRUE(vented) << "the checks run once the link is steady";
+}
+
 TEST(GasVerifier, ALinkCheckEndsAtTheReanchorAndAtAGroundedReading) {
   nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
   nb::GasVerifier gas(nb::GasVerifierParams{});
-  gas.linkRestored();
+  gas.linkRestored(-gas.params().link_steady_s);  // back, and steady by t = 0
   // A reading already below the flat pressure: no vent at all, straight to the test.
   const nb::ValveOpenings first = gas.linkCheckValves(0.0, kPeriod, 0.0, &observer, kWanted);
   EXPECT_EQ(first.vent, 0.0);
@@ -199,7 +229,7 @@ TEST(GasVerifier, ALinkCheckEndsAtTheReanchorAndAtAGroundedReading) {
   nb::GasVerifierParams off;
   off.resume_vent_s = 0.0;
   nb::GasVerifier none(off);
-  none.linkRestored();
+  none.linkRestored(-none.params().link_steady_s);
   EXPECT_EQ(none.linkCheckValves(0.0, kPeriod, 500.0, &observer, kWanted).inlet, kWanted.inlet);
 }
 
@@ -220,7 +250,7 @@ TEST(GasVerifier, ALostLinkLeavesTheGasUnverifiedUntilItsCheckEnds) {
   EXPECT_FALSE(gas.unverified());
   gas.linkLost(1500.0);
   EXPECT_TRUE(gas.unverified()) << "while the link is down";
-  gas.linkRestored();
+  gas.linkRestored(-gas.params().link_steady_s);  // back, and steady by t = 0
   runHold(&gas, &observer, 1480.0);
   EXPECT_FALSE(gas.holdMismatched());
   EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
@@ -238,7 +268,7 @@ TEST(GasVerifier, APressureThatMovedOverALostLinkSendsTheCellToBeFoundFlat) {
   nb::CellObserver observer(nb::CellParams{}, nb::CellObserverParams{});
   nb::GasVerifier gas(nb::GasVerifierParams{});
   gas.linkLost(1500.0);
-  gas.linkRestored();
+  gas.linkRestored(-gas.params().link_steady_s);  // back, and steady by t = 0
   runHold(&gas, &observer, 12.0);
   EXPECT_TRUE(gas.holdMismatched());
   EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kUnverified);

@@ -257,6 +257,40 @@ TEST(CellObserver, ReanchorsTheGasMassOnAVentedFlatCell) {
   EXPECT_LT(anchored.after_flat.rmsM(), 0.5 * drifting.after_flat.rmsM());
 }
 
+/// A plate alone at `height_m`, its vent open and its readings at `reading_pa` every 5 ms:
+/// the time until the observer re-anchors it (NaN: not within 10 s) and its count's height then.
+std::pair<double, double> ventedLightPlate(double height_m, double reading_pa) {
+  nb::CellObserverParams params;
+  params.period_s = 0.005;
+  nb::CellObserver observer(nb::CellParams{}, params);
+  observer.resetToHeight(height_m, 0.6);
+  nb::ObserverInputs vent;
+  vent.valves.vent = 1.0;
+  nb::Readings z;
+  z.gauge_pressure_pa = reading_pa;
+  for (double t = 0.0; t < 10.0; t += params.period_s) {
+    const double count_m = observer.estimate().height_m;
+    if (observer.step(vent, z).reanchored) return {t, count_m};
+  }
+  return {NAN, observer.estimate().height_m};
+}
+
+TEST(CellObserver, AVentedLightPlateIsFlatOnlyOnceItsCountSaysSo) {
+  // A light plate venting near flat reads below the flat pressure while mm up (its vent takes a
+  // few of the ~20 Pa that carry it): its count, which follows the vent at the pressure read,
+  // ends the test. A count that cannot drain (a cell read at ambient, emptied behind its back)
+  // is re-anchored after a bounded wait.
+  const auto [venting_s, venting_count_m] = ventedLightPlate(0.004, 8.0);
+  const auto [emptied_s, emptied_count_m] = ventedLightPlate(0.02, 0.0);
+  std::cout << "[observer] plate alone from 4 mm read at 8 Pa: re-anchored after " << venting_s << " s, count "
+            << 1e3 * venting_count_m << " mm; from 20 mm read at 0 Pa: after " << emptied_s << " s, count "
+            << 1e3 * emptied_count_m << " mm\n";
+  EXPECT_GT(venting_s, 1.0) << "not at the test's first 0.6 s";
+  EXPECT_LE(venting_count_m, 0.001);
+  EXPECT_GT(emptied_count_m, 0.01) << "a count read at ambient does not drain";
+  EXPECT_LT(emptied_s, 7.0) << "the wait is bounded";
+}
+
 TEST(CellObserver, DoesNotReanchorAFillFromFlat) {
   // A light plate (0.6 N, lifted at ~60 Pa) left flat and sealed long enough to re-anchor, then
   // filled: its pressure stays near the flat threshold for a while. Anchoring then (the inlet

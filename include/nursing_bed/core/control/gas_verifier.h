@@ -42,6 +42,11 @@ struct GasVerifierParams {
   /// at that pressure. Outside the tolerance the gas is found again by venting flat; 0: no
   /// comparison [s].
   double verify_hold_s = 0.2;
+  /// The checks after a lost link wait, both valves shut, until the link has stayed up this
+  /// long: over a link that drops replies a written vent lasts until the terminal's watchdog,
+  /// not as commanded, and a light plate rung by such vents reads flat while lifted; 0: at
+  /// once [s].
+  double link_steady_s = 1.0;
   /// The comparison's tolerance: the larger of this and verify_tolerance_rel of the pressure
   /// before the loss [Pa].
   double verify_tolerance_pa = 300.0;
@@ -88,9 +93,10 @@ class GasVerifier {
   /// The link is lost; `reference_pa` is the mean pressure before (NaN: unknown). The gas is
   /// unverified until the check after the link is back.
   void linkLost(double reference_pa);
-  /// The link is back: the gas is checked before the controller acts again (a hold compared
-  /// with the pressure before the loss, then resume_vent_s).
-  void linkRestored();
+  /// The link is back at `now_s`: the gas is checked before the controller acts again, once
+  /// the link has stayed up link_steady_s (a hold compared with the pressure before the loss,
+  /// then resume_vent_s).
+  void linkRestored(double now_s);
   /// Something showed the gas inventory wrong (a device or sensor fault): unverified until the
   /// cell is found flat again; it vents to flat when commanded.
   void suspect();
@@ -164,6 +170,7 @@ class GasVerifier {
   bool recounting_ = false;         ///< the anchoring was started by the count's doubt
   bool doubtful_ = false;           ///< the count's doubt is beyond flag_doubt_m
   bool check_pending_ = false;      ///< the link came back: the gas is to be checked
+  double link_up_since_s_ = 0.0;    ///< when the link came back [s]
   double check_vent_left_s_ = 0.0;  ///< full-vent time of the check still to command [s]
   double check_until_s_ = -1.0;     ///< valves kept shut until then for the re-anchor test [s]
   bool check_reanchored_ = false;   ///< re-anchored since the check's test began

@@ -188,6 +188,8 @@ class CellObserver {
   void keepPhysical();
   /// True when the cell was found flat and its gas re-anchored.
   bool checkReanchor(const Readings& readings);
+  /// Whether the count lets a flat test found under an open vent anchor the cell now.
+  bool countAllowsFlat();
   /// The flat cell's gas at `gauge_pressure_pa` (the mean read).
   void anchorFlat(double gauge_pressure_pa);
   void refresh(const CellInputs& in);
@@ -227,10 +229,11 @@ class CellObserver {
   double unstretched_top_m_ = 0.0;  ///< the structure's height limit with the film at rest
   WeightBound weight_bound_;        ///< the plate alone's rests and the quiet windows
   int weight_bounds_ = 0;
-  ReadingNoise reading_noise_;   ///< kept over resets: the sensor's, not the gas's
-  double still_s_ = 0.0;         ///< both valves shut this long, for the noise [s]
-  double count_doubt_kg_ = 0.0;  ///< gas the vent count may be off by since found flat [kg]
-  double since_edge_s_ = 0.0;    ///< since the valves' openings last changed [s]
+  ReadingNoise reading_noise_;    ///< kept over resets: the sensor's, not the gas's
+  double still_s_ = 0.0;          ///< both valves shut this long, for the noise [s]
+  double count_doubt_kg_ = 0.0;   ///< gas the vent count may be off by since found flat [kg]
+  double since_edge_s_ = 0.0;     ///< since the valves' openings last changed [s]
+  double flat_claimed_s_ = -1.0;  ///< when the flat test first held under this vent (-1: not yet) [s]
 };
 
 /// Height errors (true minus estimated) accumulated over a run: RMS and worst.

@@ -11,7 +11,9 @@ namespace nursing_bed {
  * reanchor_time_s with the inlet shut is a flat cell, vented or sealed. Not while the inlet
  * passes gas (a fill from flat starts below that pressure), nor while venting into a vacuum.
  * The pressure is averaged over a third of the re-anchor time: a lightly loaded plate's vent
- * holds a few tens of Pa, as large as the reading's noise and ADC step.
+ * holds a few tens of Pa, as large as the reading's noise and ADC step. A vent that opens or
+ * shuts rings a light plate, whose pressure dips to flat and below while it stands lifted: the
+ * test starts afresh once the plate has settled after each vent edge.
  */
 class ReanchorDetector {
  public:
@@ -35,6 +37,8 @@ class ReanchorDetector {
   double flat_since_s_ = -1.0;              ///< the test's start (-1: none under way)
   double mean_pa_ = 0.0;                    ///< the measured pressure averaged while it runs
   double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlatUntil
+  bool venting_ = false;                    ///< the vent acting at the last reading was open
+  double settled_from_s_ = -1.0;            ///< the plate has settled after the last vent edge from then
 };
 
 }  // namespace nursing_bed
