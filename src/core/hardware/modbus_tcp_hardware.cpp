@@ -72,6 +72,8 @@ ModbusTerminal::ModbusTerminal(const TerminalMap& map, double pwm_period_s)
   inputs_.assign(maxAddress(inputs) + 1, 0);
   coils_.assign(maxAddress(coils) + 1, 0);
   holding_.assign(maxAddress(holding) + 1, 0);
+  applied_coils_ = coils_;
+  applied_holding_ = holding_;
   input_runs_ = addressRuns(inputs, MODBUS_MAX_READ_REGISTERS);
   coil_runs_ = addressRuns(coils, MODBUS_MAX_WRITE_BITS);
   holding_runs_ = addressRuns(holding, MODBUS_MAX_WRITE_REGISTERS);
@@ -242,12 +244,15 @@ ModbusTerminal::Clock::time_point ModbusTerminal::midpoint(Clock::time_point sen
   return sent + (replied - sent) / 2;
 }
 
-void ModbusTerminal::requestHandled(Clock::time_point t, bool wrote) {
+void ModbusTerminal::requestHandled(Clock::time_point t) {
   // Any request the terminal handles restarts its watchdog (reads too: a cycle cut short after
   // its read kept the outputs on); past its trip, the outputs were shut from the trip on.
   const Clock::time_point trip = outputsHeldUntil();
-  if (t > trip) advanceDriven(trip, true);
-  if (wrote) advanceDriven(t, false);
+  if (t > trip) {
+    advanceDriven(trip, true);
+    std::fill(applied_coils_.begin(), applied_coils_.end(), 0);
+    std::fill(applied_holding_.begin(), applied_holding_.end(), 0);
+  }
   watchdog_fed_ = t;
 }
 
@@ -269,27 +274,30 @@ void ModbusTerminal::advanceDriven(Clock::time_point t, bool shut) {
       d.integral_s[k] += d.opening[k] * held_s;
       d.opening[k] = shut ? 0.0
                      : out[k]->kind == ValveOutput::kCoil
-                         ? (coils_[out[k]->address] ? 1.0 : 0.0)
-                         : static_cast<double>(holding_[out[k]->address]) / out[k]->full_scale;
+                         ? (applied_coils_[out[k]->address] ? 1.0 : 0.0)
+                         : static_cast<double>(applied_holding_[out[k]->address]) / out[k]->full_scale;
     }
     d.since = std::max(t, d.since);
   }
 }
 
 bool ModbusTerminal::readInputs() {
+  // Each answered request restarts the terminal's watchdog, also in a cycle cut short after it.
   std::vector<std::uint16_t> buffer(inputs_.size());
-  const Clock::time_point sent = Clock::now();
+  Clock::time_point replied = Clock::now();
   for (const AddressRun& run : input_runs_) {
+    const Clock::time_point sent = Clock::now();
     if (modbus_read_input_registers(ctx_, run.first, run.count, buffer.data() + run.first) != run.count)
       return requestFailed(errno, "reading input registers", run);
+    replied = Clock::now();
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++stats_.read_requests;
+    requestHandled(midpoint(sent, replied));
   }
-  const Clock::time_point replied = Clock::now();
   std::lock_guard<std::mutex> lock(mutex_);
-  stats_.read_requests += static_cast<long>(input_runs_.size());
   inputs_.swap(buffer);
   last_read_ = replied;
   have_read_ = true;
-  requestHandled(midpoint(sent, replied), false);
   return true;
 }
 
@@ -323,20 +331,32 @@ bool ModbusTerminal::writeOutputs() {
   // at the middle (at the reply every edge would be late by a loaded thread's wait).
   // One answered too late counts from the next write's: a terminal slow to answer is as slow
   // to act (timeouts come from its side; a client that woke late still finds the reply).
-  const Clock::time_point sent = Clock::now();
+  // Each run acts when answered, whatever becomes of the runs after it.
   for (const AddressRun& run : coil_runs_) {
+    const Clock::time_point sent = Clock::now();
     if (modbus_write_bits(ctx_, run.first, run.count, coils.data() + run.first) != run.count)
       return requestFailed(errno, "writing coils", run);
+    outputsApplied(run, coils, &applied_coils_, sent);
   }
   for (const AddressRun& run : holding_runs_) {
+    const Clock::time_point sent = Clock::now();
     if (modbus_write_registers(ctx_, run.first, run.count, holding.data() + run.first) != run.count)
       return requestFailed(errno, "writing holding registers", run);
+    outputsApplied(run, holding, &applied_holding_, sent);
   }
+  return true;
+}
+
+template <typename Word>
+void ModbusTerminal::outputsApplied(const AddressRun& run, const std::vector<Word>& written, std::vector<Word>* applied,
+                                    Clock::time_point sent) {
   const Clock::time_point replied = Clock::now();
   std::lock_guard<std::mutex> lock(mutex_);
-  requestHandled(midpoint(sent, replied), true);
-  stats_.write_requests += static_cast<long>(coil_runs_.size() + holding_runs_.size());
-  return true;
+  const Clock::time_point t = midpoint(sent, replied);
+  requestHandled(t);  // a watchdog trip before it shut every output
+  std::copy_n(written.begin() + run.first, run.count, applied->begin() + run.first);
+  advanceDriven(t, false);
+  ++stats_.write_requests;
 }
 
 bool ModbusTerminal::requestFailed(int error_number, const char* what, const AddressRun& run) {

@@ -537,6 +537,68 @@ TEST_F(ModbusLoopback, ABadFaultRequestIsRefusedNamingWhatIsWrongAndChangesNothi
   EXPECT_TRUE(allUp());
 }
 
+TEST(ModbusLossyLink, WriteRunsThatLandBeforeOneIsDroppedAreInTheDrivenRecord) {
+  // Inlets and vents in separate coil blocks (two write runs a cycle), inputs in two read runs.
+  // With a fifth of the requests dropped (the link stays up) a cycle often lands its inlet run
+  // and loses its vent run: the terminal then drives the new inlet while the cycle failed. The
+  // driven record must follow what landed, run by run (taken as the cycle's failure, it missed
+  // 18 % of the inlet's on-time).
+  const auto dir = nb::test::freshTestDir("rig", "lossy_runs");
+  const std::string map_path = nb::test::writeFile(dir / "map.yaml", R"(
+terminals:
+  - name: runs
+    host: 127.0.0.1
+    port: 15616
+    cycle_s: 0.005
+    supply_pressure: {input_register: 100, scale_pa: 1.0, offset_pa: -10000.0}
+    cell_block: {first_cell: 0, count: 2, valves: coil, inlet_start: 0, vent_start: 100,
+                 pressure_start: 0, pressure_scale_pa: 1.0, pressure_offset_pa: -10000}
+)");
+  const nb::RegisterMap map = nb::loadRegisterMap(map_path, 2);
+  nb::RigEmulatorOptions options;
+  options.cell.initial_height_m = 0.05;
+  options.cell.load_n = 15.6;
+  nb::RigEmulator emulator(map, options);
+  nb::HardwareConfig config;
+  config.cell_id = 0;
+  config.control_period_s = 0.02;
+  config.register_map_path = map_path;
+  config.bed_cells = 2;
+  nb::ModbusTcpCellHardware cell;
+  cell.configure(config);
+  ASSERT_TRUE(waitFor([&] { return cell.read(0.0).link == nb::LinkState::kOk; }, 3.0));
+  nb::RigTerminalServer& server = *emulator.servers().at(0);
+  const double on_before_s = server.coilOnSeconds(0);
+  double driven_s = 0.0;
+  auto last = std::chrono::steady_clock::now();
+  auto read = [&] {
+    const auto now = std::chrono::steady_clock::now();
+    const nb::CellReadings r = cell.read(0.0);
+    if (r.inlet_driven.present()) driven_s += r.inlet_driven.value * std::chrono::duration<double>(now - last).count();
+    last = now;
+  };
+  server.setReplyFaults(0.2, 0.0, 0.0, 11);
+  for (int i = 0; i < 150; ++i) {
+    cell.write({i % 3 == 0 ? 1.0 : 0.0, 0.0, false}, 0.0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(17));
+    read();
+  }
+  server.setReplyFaults(0.0, 0.0, 0.0, 11);
+  ASSERT_TRUE(waitFor([&] { return cell.read(0.0).link == nb::LinkState::kOk; }, 3.0));
+  cell.write({}, 0.0);
+  for (int i = 0; i < 20; ++i) {  // shut on both sides
+    std::this_thread::sleep_for(std::chrono::milliseconds(15));
+    read();
+  }
+  const double on_s = server.coilOnSeconds(0) - on_before_s;
+  std::printf(
+      "[          ] over half the requests dropped: inlet on %.4f s at the terminal, %.4f s in the driven "
+      "record\n",
+      on_s, driven_s);
+  EXPECT_GT(on_s, 0.1) << "the inlet pulsed";
+  EXPECT_NEAR(driven_s, on_s, std::max(0.01, 0.05 * on_s));
+}
+
 TEST(RigFaults, AStuckValveOrALeakChangesWhatTheValvesPass) {
   nb::CellFaults f;
   const nb::ValveOpenings cmd{0.3, 0.0, false};

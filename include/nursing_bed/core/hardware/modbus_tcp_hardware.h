@@ -101,9 +101,13 @@ class ModbusTerminal {
   /// The middle of a request's wait: when the terminal most likely handled it.
   static Clock::time_point midpoint(Clock::time_point sent, Clock::time_point replied);
   /// The terminal handled a request at t: its watchdog restarts there (past its trip, the
-  /// outputs were shut from the trip), and after a write (`wrote`) the outputs last written act.
-  /// Called with mutex_ held.
-  void requestHandled(Clock::time_point t, bool wrote);
+  /// outputs were shut from the trip). Called with mutex_ held.
+  void requestHandled(Clock::time_point t);
+  /// One write run, sent at `sent`, was answered now: its outputs act from the request's
+  /// middle on (the others keep what the terminal held). Takes mutex_.
+  template <typename Word>
+  void outputsApplied(const AddressRun& run, const std::vector<Word>& written, std::vector<Word>* applied,
+                      Clock::time_point sent);
   /// Every slot's record run to t, then the outputs last written (or shut) held.
   void advanceDriven(Clock::time_point t, bool shut);
   /// Hands the cell in `slot` the outputs' on-time since its previous read as a mean opening
@@ -126,13 +130,17 @@ class ModbusTerminal {
   _modbus* ctx_ = nullptr;
   std::vector<AddressRun> input_runs_, coil_runs_, holding_runs_;
   // Bus thread only:
-  Clock::time_point watchdog_fed_{};     // the terminal's last handled request (guarded by mutex_)
-  Clock::time_point last_exchange_;      // the last completed cycle, or the connection
-  bool flush_pending_ = false;           // a request failed: flush before the next one
-  mutable std::mutex mutex_;             // guards everything below
-  std::vector<std::uint16_t> inputs_;    // by address
-  std::vector<std::uint8_t> coils_;      // by address
-  std::vector<std::uint16_t> holding_;   // by address
+  Clock::time_point watchdog_fed_{};    // the terminal's last handled request (guarded by mutex_)
+  Clock::time_point last_exchange_;     // the last completed cycle, or the connection
+  bool flush_pending_ = false;          // a request failed: flush before the next one
+  mutable std::mutex mutex_;            // guards everything below
+  std::vector<std::uint16_t> inputs_;   // by address
+  std::vector<std::uint8_t> coils_;     // by address: the outputs to write
+  std::vector<std::uint16_t> holding_;  // by address
+  // By address, the outputs the terminal holds: a cycle's write runs land one by one, and one
+  // that failed after another succeeded left the terminal with part of the cycle's outputs.
+  std::vector<std::uint8_t> applied_coils_;
+  std::vector<std::uint16_t> applied_holding_;
   std::vector<ValveOpenings> commands_;  // by slot
   std::vector<PwmChannel> pwm_;          // 2 per slot: inlet, vent
   /// What the outputs drove, per slot: the openings written last, since when, and their
