@@ -443,6 +443,7 @@ bool CellObserver::checkReanchor(const Readings& readings) {
   // A plate cannot rest lifted below the plate alone's pressure: a cell with its inlet shut
   // found that low for reanchor_time_s is flat, and its gas is known again.
   double mean_pa = 0.0;
+  if (!(applied_.valves.vent > 0.0)) flat_claimed_s_ = -1.0;  // the count's wait is per vent
   if (!reanchor_.update(time_, applied_, readings.gauge_pressure_pa, &mean_pa)) return false;
   if (!countAllowsFlat()) return false;
   anchorFlat(mean_pa);
@@ -454,14 +455,9 @@ bool CellObserver::countAllowsFlat() {
   // carry it. The count follows the vent at the pressure read, so the test waits until the count
   // holds less than kFlatCountM; at most kCountDrainWaitS, as the count of a cell emptied
   // behind its back (a flat cell read at ambient) drains nothing through the vent.
-  if (!(applied_.valves.vent > 0.0) || x_[CellModel::kHeight] <= kFlatCountM) {
-    flat_claimed_s_ = -1.0;
-    return true;
-  }
+  if (!(applied_.valves.vent > 0.0) || x_[CellModel::kHeight] <= kFlatCountM) return true;
   if (flat_claimed_s_ < 0.0) flat_claimed_s_ = time_;
-  if (time_ - flat_claimed_s_ < kCountDrainWaitS) return false;
-  flat_claimed_s_ = -1.0;
-  return true;
+  return time_ - flat_claimed_s_ >= kCountDrainWaitS;
 }
 
 bool CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s) {
