@@ -1,25 +1,29 @@
-// The end-of-cycle residual, its trend through the runs, and the whole-breath rule that names a
-// slow drift above the model-form floor (include/nursing_bed/core/gap/cycle_drift.h).
+// The cycles' gas balance and the whole-breath rule that names a slow drift above the model-form
+// floor (include/nursing_bed/core/gap/cycle_drift.h).
 #include "nursing_bed/core/gap/cycle_drift.h"
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 
 #include "nursing_bed/core/gap/calibration.h"
 #include "nursing_bed/core/gap/localisation.h"
 #include "nursing_bed/core/gap/replay.h"
+#include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/gas.h"
 
 namespace nursing_bed {
 namespace gap {
 namespace {
 
-constexpr double kWindowS = 0.2;      // the end of a cycle: the flow nearest rest
-constexpr double kDriftZ = 3.0;       // the baseline's drift on the fit runs stands out
-constexpr double kHeldZ = 2.0;        // ... and is there on the withheld runs
-constexpr double kLeftOver = 0.25;    // the rescaled model leaves under this share of it
-constexpr double kPeriodSlack = 0.1;  // a run's last cycle counts when this close to the median
-constexpr int kTried = 4;             // candidates rescaled at most (the rest rank lower still)
+constexpr double kMinCycleS = 0.2;       // a start this close to the one before is the same edge
+constexpr double kDriftZ = 3.0;          // the calibrated cell's balance on the fit runs stands out
+constexpr double kHeldZ = 1.645;         // ... and the withheld runs confirm its sign (one-sided 5 %)
+constexpr double kLeftOver = 0.25;       // the rescaled model leaves under this share of it
+constexpr double kPeriodSlack = 0.1;     // a cycle counts when this close to the median
+constexpr double kContentStepPa = 10.0;  // central-difference step of the content's slope
+constexpr int kTried = 4;                // candidates rescaled at most (the rest rank lower still)
 
 /// cycleStarts() less any start within `min_cycle_s` of the one before (a run cut on a cycle
 /// edge starts a sample before it: that sample is not a cycle of its own).
@@ -30,44 +34,93 @@ std::vector<double> distinctStarts(const RunData& run, double min_cycle_s) {
   return kept;
 }
 
-/// Mean residual over [to - window_s, to) (NaN without a sample there).
-double windowMean(const RunData& run, const std::vector<double>& model, double to, double window_s) {
-  double sum = 0.0;
-  int n = 0;
-  for (std::size_t i = 0; i < run.size(); ++i)
-    if (run.t_s[i] >= to - window_s && run.t_s[i] < to && std::isfinite(run.p_gauge_pa[i]) && std::isfinite(model[i])) {
-      sum += run.p_gauge_pa[i] - model[i];
-      ++n;
-    }
-  return n > 0 ? sum / n : NAN;
+/// Sample index of each whole cycle's two ends: the foot of each distinct start's setpoint rise
+/// (the last sample before the setpoint climbs to it), the run's last sample closing its last
+/// cycle; a cycle counts when it is `period` long within kPeriodSlack (NaN: the run's own).
+std::vector<std::pair<std::size_t, std::size_t>> wholeCycles(const RunData& run, double period_s) {
+  std::vector<std::pair<std::size_t, std::size_t>> cycles;
+  if (run.size() < 2) return cycles;
+  const double period = std::isfinite(period_s) ? period_s : medianCyclePeriod({&run}, kMinCycleS);
+  if (!std::isfinite(period)) return cycles;
+  const std::vector<double>& sp = run.p_setpoint_gauge_pa;
+  std::vector<std::size_t> ends;
+  for (double s : distinctStarts(run, kMinCycleS)) {
+    std::size_t i = static_cast<std::size_t>(std::lower_bound(run.t_s.begin(), run.t_s.end(), s) - run.t_s.begin());
+    if (sp.size() == run.size())
+      while (i > 0 && sp[i - 1] < sp[i]) --i;
+    if (ends.empty() || i > ends.back()) ends.push_back(i);
+  }
+  if (ends.back() + 1 < run.size()) ends.push_back(run.size() - 1);
+  for (std::size_t k = 1; k < ends.size(); ++k) {
+    const double length = run.t_s[ends[k]] - run.t_s[ends[k - 1]];
+    if (std::fabs(length - period) <= kPeriodSlack * period) cycles.emplace_back(ends[k - 1], ends[k]);
+  }
+  return cycles;
 }
 
-/// Each run's end-of-cycle residuals under `params` with `effects` (an empty list where a replay
-/// fails or a run is not cyclic).
-std::vector<std::vector<CyclePoint>> residualsOf(const std::vector<const RunData*>& runs, const CellParams& params,
-                                                 const std::vector<CellEffectPtr>& effects, double period,
-                                                 int threads) {
-  std::vector<std::vector<CyclePoint>> out(runs.size());
+/// The metered gas [kg] over samples a..b (NaN with a missing flow sample).
+double meteredGas(const RunData& run, std::size_t a, std::size_t b) {
+  double gas = 0.0;
+  for (std::size_t i = a + 1; i <= b; ++i)
+    gas += 0.5 * (run.mdot_in_kg_s[i] + run.mdot_in_kg_s[i - 1]) * (run.t_s[i] - run.t_s[i - 1]);
+  return gas;
+}
+
+/// Each run's content rates under `params` with `effects`, from its replay (an empty list where
+/// a replay fails or a run is not cyclic).
+std::vector<std::vector<CycleRate>> replayedContentRates(const std::vector<const RunData*>& runs,
+                                                         const CellParams& params,
+                                                         const std::vector<CellEffectPtr>& effects,
+                                                         const CellContent& content, double period, int threads) {
+  std::vector<std::vector<CycleRate>> out(runs.size());
   parallelFor(static_cast<int>(runs.size()), threads, [&](int i) {
     const Replay r = replayRun(*runs[i], params, effects);
-    if (r.ok) out[i] = endOfCycleResiduals(*runs[i], r.p_gauge_pa, kWindowS, period);
+    if (r.ok) out[i] = contentRates(*runs[i], r.p_gauge_pa, content, period);
   });
   return out;
 }
 
-/// The pressure sensor's noise over one end-of-cycle window (the scatter's floor).
-double windowNoise(const PreparedRuns& prepared, const std::vector<std::size_t>& indices) {
-  std::vector<double> noise;
+/// Each run's measured balance.
+std::vector<std::vector<CycleRate>> measuredBalances(const std::vector<const RunData*>& runs,
+                                                     const CellContent& content, double period) {
+  std::vector<std::vector<CycleRate>> out;
+  for (const RunData* r : runs) out.push_back(cycleBalances(*r, content, period));
+  return out;
+}
+
+/// `balance` plus what a model adds to it: the change of content of its replay less the
+/// calibrated model's, cycle by cycle (a cycle missing from either is left out).
+std::vector<std::vector<CycleRate>> shifted(const std::vector<std::vector<CycleRate>>& balance,
+                                            const std::vector<std::vector<CycleRate>>& model,
+                                            const std::vector<std::vector<CycleRate>>& calibrated) {
+  std::vector<std::vector<CycleRate>> out(balance.size());
+  for (std::size_t r = 0; r < balance.size(); ++r)
+    for (const CycleRate& b : balance[r]) {
+      auto at = [&](const std::vector<CycleRate>& v) {
+        return std::find_if(v.begin(), v.end(), [&](const CycleRate& c) { return std::fabs(c.t_s - b.t_s) < 1e-9; });
+      };
+      const auto m = at(model[r]), c = at(calibrated[r]);
+      if (m == model[r].end() || c == calibrated[r].end()) continue;
+      out[r].push_back({b.t_s, b.duration_s, b.rate_kg_s + m->rate_kg_s - c->rate_kg_s});
+    }
+  return out;
+}
+
+/// The balance's floor: one pressure sample's noise at each end of a cycle, in content, over the
+/// cycle (identical cycles do not make a balance significant).
+double balanceFloor(const PreparedRuns& prepared, const std::vector<std::size_t>& indices, const CellContent& content,
+                    double period) {
+  std::vector<double> floors;
   for (std::size_t i : indices) {
     const RunData& r = prepared.runs[i];
-    const double dt = r.size() > 1 ? (r.t_s.back() - r.t_s.front()) / static_cast<double>(r.size() - 1) : kWindowS;
-    noise.push_back(prepared.noises[i].p_pa / std::sqrt(std::max(1.0, kWindowS / dt)));
+    const double slope = r.size() > 0 ? content.slopeKgPa(r.p_gauge_pa.front()) : NAN;
+    if (std::isfinite(slope)) floors.push_back(std::sqrt(2.0) * prepared.noises[i].p_pa * slope / period);
   }
-  return noise.empty() ? 0.0 : median(noise);
+  return floors.empty() ? 0.0 : median(floors);
 }
 
 /// The one effect parameter of a single candidate away from its off value; empty when none or
-/// more than one (a one-parameter drift only: its trend is linear in that parameter's move).
+/// more than one (a one-parameter drift only: its balance is linear in that parameter's move).
 std::string driftParameter(const ModelSpec& model, const std::map<std::string, double>& values) {
   std::string name;
   for (const FitAxis& a : model.axes) {
@@ -78,26 +131,50 @@ std::string driftParameter(const ModelSpec& model, const std::map<std::string, d
   return name;
 }
 
-std::string driftInWords(const CycleDrift& d) { return fmt(d.slope_pa_s, 3) + " ± " + fmt(d.se_pa_s, 2) + " Pa/s"; }
+/// A balance in mg/s (1 mL/s of air at 1.2 kg/m^3 is 1.2 mg/s).
+std::string balanceInWords(const BalanceMean& b) {
+  return fmt(b.mean_kg_s * 1e6, 3) + " ± " + fmt(b.se_kg_s * 1e6, 2) + " mg/s over " + std::to_string(b.points) +
+         " cycle(s)";
+}
+
+/// What the rule measures once: the runs by role, their measured balances and the calibrated
+/// model's replayed content rates, and the floors and scatter their means are judged with.
+struct BalanceSets {
+  BalanceSets(const CellContent& c, double period) : content(c), period_s(period) {}
+  CellContent content;
+  double period_s;
+  std::vector<const RunData*> fit_runs, held_runs;
+  std::vector<std::vector<CycleRate>> fit_balance, held_balance, fit_calibrated, held_calibrated;
+  double fit_floor = 0.0, held_floor = 0.0, fit_scatter = NAN;
+
+  BalanceMean fitMean(const std::vector<std::vector<CycleRate>>& b) const { return meanBalance(b, fit_floor); }
+  BalanceMean heldMean(const std::vector<std::vector<CycleRate>>& b) const {
+    return meanBalance(b, held_floor, fit_scatter);
+  }
+};
 
 /// What tryCandidate() found.
 enum class DriftTry { kNotMoved, kRejected, kNamed };
 
-/// The scored candidate `c` with its drift parameter rescaled to cancel the baseline's trend,
-/// judged on the fit and withheld runs; fills `naming` when it is named.
-DriftTry tryCandidate(const PreparedRuns& prepared, const CellParams& params, const ScoredCandidate& scored,
+/// The scored candidate with its drift parameter rescaled to cancel the calibrated cell's
+/// balance on the fit runs, judged on the fit and withheld runs; fills `naming` when named.
+DriftTry tryCandidate(const BalanceSets& sets, const CellParams& params, const ScoredCandidate& scored,
                       const DiagnosisOptions& options, const std::string& parameter, DriftNaming* naming) {
   const CandidateFit& c = scored.first;
   const ModelSpec& model = scored.second;
   const CellParams cell = applyCalibration(c.calibration, params);
-  const auto fit_runs = prepared.select(prepared.fit), held_runs = prepared.select(prepared.withheld);
-  const double floor_fit = windowNoise(prepared, prepared.fit), floor_held = windowNoise(prepared, prepared.withheld);
-  const CycleDrift as_fitted = fitCycleDrift(
-      residualsOf(fit_runs, cell, buildEffects(model, c.params), naming->period_s, options.threads), floor_fit);
-  const double b0 = naming->fit_before.slope_pa_s, moved = b0 - as_fitted.slope_pa_s;
+  auto balanceWith = [&](const std::map<std::string, double>& values, bool fit) {
+    const auto& runs = fit ? sets.fit_runs : sets.held_runs;
+    return shifted(
+        fit ? sets.fit_balance : sets.held_balance,
+        replayedContentRates(runs, cell, buildEffects(model, values), sets.content, sets.period_s, options.threads),
+        fit ? sets.fit_calibrated : sets.held_calibrated);
+  };
+  const BalanceMean as_fitted = sets.fitMean(balanceWith(c.params, true));
+  const double b0 = naming->fit_before.mean_kg_s, moved = b0 - as_fitted.mean_kg_s;
   const std::string name = joinNames(c.effects);
   if (!as_fitted.ok() || !(moved * b0 > 0.0)) {
-    naming->reasons.push_back("whole breaths: " + name + " does not move the end-of-cycle drift towards zero");
+    naming->reasons.push_back("whole breaths: " + name + " does not move the cycles' balance towards zero");
     return DriftTry::kNotMoved;
   }
   const FitAxis& axis = *std::find_if(model.axes.begin(), model.axes.end(),
@@ -110,23 +187,20 @@ DriftTry tryCandidate(const PreparedRuns& prepared, const CellParams& params, co
                               ", outside its admissible range");
     return DriftTry::kRejected;
   }
-  const auto effects = buildEffects(model, values);
-  const CycleDrift after =
-      fitCycleDrift(residualsOf(fit_runs, cell, effects, naming->period_s, options.threads), floor_fit);
-  const CycleDrift held_after =
-      fitCycleDrift(residualsOf(held_runs, cell, effects, naming->period_s, options.threads), floor_held);
+  const BalanceMean after = sets.fitMean(balanceWith(values, true));
+  const BalanceMean held_after = sets.heldMean(balanceWith(values, false));
   const bool plausible = plausibleValues(model, values, options.plausible_slack);
-  const bool fit_ok = after.ok() && std::fabs(after.slope_pa_s) <= 2.0 * after.se_pa_s &&
-                      std::fabs(after.slope_pa_s) <= kLeftOver * std::fabs(b0);
-  const CycleDrift& hb = naming->held_before;
-  const bool held_ok = hb.significant(kHeldZ) && held_after.ok() &&
-                       std::fabs(held_after.slope_pa_s) <= (1.0 - options.floor_removed) * std::fabs(hb.slope_pa_s);
+  const bool fit_ok = after.ok() && std::fabs(after.mean_kg_s) <= 2.0 * after.se_kg_s &&
+                      std::fabs(after.mean_kg_s) <= kLeftOver * std::fabs(b0);
+  const BalanceMean& hb = naming->held_before;
+  const bool held_ok = hb.ok() && hb.mean_kg_s * b0 > 0.0 && hb.significant(kHeldZ) && held_after.ok() &&
+                       std::fabs(held_after.mean_kg_s) <= (1.0 - options.floor_removed) * std::fabs(hb.mean_kg_s);
   naming->reasons.push_back("whole breaths: " + name + " with " + parameter + " " + fmt(values[parameter], 4) +
-                            " (fitted " + fmt(c.params.at(parameter), 4) + ") leaves " + driftInWords(after) +
-                            " on the fit runs, " + driftInWords(held_after) + " on the withheld runs" +
+                            " (fitted " + fmt(c.params.at(parameter), 4) + ") leaves " + balanceInWords(after) +
+                            " on the fit runs, " + balanceInWords(held_after) + " on the withheld runs" +
                             (!plausible          ? ": implausible"
                              : fit_ok && held_ok ? ": named"
-                                                 : ": does not cancel the drift"));
+                                                 : ": does not cancel the balance"));
   if (!plausible || !fit_ok || !held_ok) return DriftTry::kRejected;
   naming->params = values;
   naming->fit_after = after;
@@ -134,7 +208,39 @@ DriftTry tryCandidate(const PreparedRuns& prepared, const CellParams& params, co
   return DriftTry::kNamed;
 }
 
+/// The measured balances and the calibrated model's replays of `prepared`'s runs.
+BalanceSets measureSets(const PreparedRuns& prepared, const CellParams& calibrated, double period, int threads) {
+  BalanceSets sets(CellContent(calibrated, prepared.runs.front().loadAt(0)), period);
+  sets.fit_runs = prepared.select(prepared.fit);
+  sets.held_runs = prepared.select(prepared.withheld);
+  sets.fit_balance = measuredBalances(sets.fit_runs, sets.content, period);
+  sets.held_balance = measuredBalances(sets.held_runs, sets.content, period);
+  sets.fit_calibrated = replayedContentRates(sets.fit_runs, calibrated, {}, sets.content, period, threads);
+  sets.held_calibrated = replayedContentRates(sets.held_runs, calibrated, {}, sets.content, period, threads);
+  sets.fit_floor = balanceFloor(prepared, prepared.fit, sets.content, period);
+  sets.held_floor = balanceFloor(prepared, prepared.withheld, sets.content, period);
+  sets.fit_scatter = cycleScatter(sets.fit_balance);
+  return sets;
+}
+
 }  // namespace
+
+CellContent::CellContent(const CellParams& params, double load_n)
+    : params_(params), structure_(makeCellStructure(params)), load_n_(load_n) {}
+
+double CellContent::massKg(double gauge_pressure_pa) const {
+  if (!std::isfinite(gauge_pressure_pa)) return NAN;
+  const StructureEquilibrium eq = structure_->equilibriumAtPressure(gauge_pressure_pa, load_n_);
+  if (!eq.converged) return NAN;
+  const double p = params_.ambient_pressure_pa + gauge_pressure_pa, t = params_.ambient_temperature_k;
+  return massFromState(params_.gas, p, t, eq.eval.volume_m3) +
+         massFromState(params_.gas, p, t, params_.airway.volume_m3);
+}
+
+double CellContent::slopeKgPa(double gauge_pressure_pa) const {
+  return (massKg(gauge_pressure_pa + kContentStepPa) - massKg(gauge_pressure_pa - kContentStepPa)) /
+         (2.0 * kContentStepPa);
+}
 
 double medianCyclePeriod(const std::vector<const RunData*>& runs, double min_cycle_s) {
   std::vector<double> periods;
@@ -145,56 +251,57 @@ double medianCyclePeriod(const std::vector<const RunData*>& runs, double min_cyc
   return periods.empty() ? NAN : median(periods);
 }
 
-std::vector<CyclePoint> endOfCycleResiduals(const RunData& run, const std::vector<double>& modelled_p_pa,
-                                            double window_s, double period_s) {
-  if (modelled_p_pa.size() != run.size())
-    throw std::invalid_argument("end-of-cycle residuals: " + std::to_string(modelled_p_pa.size()) +
-                                " modelled pressures for a run of " + std::to_string(run.size()) + " samples");
-  if (!(window_s > 0.0)) throw std::invalid_argument("end-of-cycle residuals: window_s must be positive");
-  std::vector<CyclePoint> out;
-  if (run.size() == 0) return out;
-  const std::vector<double> starts = distinctStarts(run, window_s);
-  const double period = std::isfinite(period_s) ? period_s : medianCyclePeriod({&run}, window_s);
-  std::vector<double> ends(starts.begin() + 1, starts.end());
-  // The run's last sample closes its last cycle (a run cut at cycle boundaries): include it in
-  // that cycle's window.
-  const double last = run.t_s.back() - starts.back();
-  if (std::isfinite(period) && std::fabs(last - period) <= kPeriodSlack * period)
-    ends.push_back(std::nextafter(run.t_s.back(), INFINITY));
-  const double t0 = run.t_s.front();
-  for (double to : ends) {
-    const double r = windowMean(run, modelled_p_pa, to, window_s);
-    if (std::isfinite(r)) out.push_back({std::min(to, run.t_s.back()) - t0, r});
+std::vector<CycleRate> contentRates(const RunData& run, const std::vector<double>& p_pa, const CellContent& content,
+                                    double period_s) {
+  if (p_pa.size() != run.size())
+    throw std::invalid_argument("content rates: " + std::to_string(p_pa.size()) + " pressures for a run of " +
+                                std::to_string(run.size()) + " samples");
+  std::vector<CycleRate> out;
+  for (const auto& [a, b] : wholeCycles(run, period_s)) {
+    const double duration = run.t_s[b] - run.t_s[a];
+    const double change = content.massKg(p_pa[b]) - content.massKg(p_pa[a]);
+    if (std::isfinite(change)) out.push_back({run.t_s[b] - run.t_s.front(), duration, change / duration});
   }
   return out;
 }
 
-CycleDrift fitCycleDrift(const std::vector<std::vector<CyclePoint>>& runs, double floor_pa) {
-  CycleDrift d;
-  double st = 0.0, sr = 0.0;
+std::vector<CycleRate> cycleBalances(const RunData& run, const CellContent& content, double period_s) {
+  std::vector<CycleRate> out;
+  for (const CycleRate& c : contentRates(run, run.p_gauge_pa, content, period_s)) {
+    const auto b = static_cast<std::size_t>(
+        std::lower_bound(run.t_s.begin(), run.t_s.end(), run.t_s.front() + c.t_s - 1e-9) - run.t_s.begin());
+    const auto a = static_cast<std::size_t>(
+        std::lower_bound(run.t_s.begin(), run.t_s.end(), run.t_s[b] - c.duration_s - 1e-9) - run.t_s.begin());
+    const double metered = meteredGas(run, a, b);
+    if (std::isfinite(metered)) out.push_back({c.t_s, c.duration_s, metered / c.duration_s - c.rate_kg_s});
+  }
+  return out;
+}
+
+double cycleScatter(const std::vector<std::vector<CycleRate>>& runs) {
+  std::vector<double> x;
   for (const auto& run : runs)
-    for (const CyclePoint& p : run) {
-      st += p.t_s;
-      sr += p.residual_pa;
-      ++d.points;
+    for (const CycleRate& c : run) x.push_back(c.rate_kg_s);
+  if (x.size() < 2) return NAN;
+  const double m = std::accumulate(x.begin(), x.end(), 0.0) / static_cast<double>(x.size());
+  double ss = 0.0;
+  for (double v : x) ss += (v - m) * (v - m);
+  return std::sqrt(ss / static_cast<double>(x.size() - 1));
+}
+
+BalanceMean meanBalance(const std::vector<std::vector<CycleRate>>& runs, double floor_kg_s, double scatter_kg_s) {
+  BalanceMean m;
+  double sum = 0.0;
+  for (const auto& run : runs)
+    for (const CycleRate& c : run) {
+      sum += c.rate_kg_s;
+      ++m.points;
     }
-  if (d.points < 3) return d;
-  const double tm = st / d.points, rm = sr / d.points;
-  double stt = 0.0, str = 0.0;
-  for (const auto& run : runs)
-    for (const CyclePoint& p : run) {
-      stt += (p.t_s - tm) * (p.t_s - tm);
-      str += (p.t_s - tm) * (p.residual_pa - rm);
-    }
-  if (!(stt > 0.0)) return d;
-  d.slope_pa_s = str / stt;
-  d.intercept_pa = rm - d.slope_pa_s * tm;
-  double rss = 0.0;
-  for (const auto& run : runs)
-    for (const CyclePoint& p : run) rss += std::pow(p.residual_pa - d.intercept_pa - d.slope_pa_s * p.t_s, 2);
-  const double scatter = std::max(std::sqrt(rss / (d.points - 2)), floor_pa);
-  d.se_pa_s = scatter / std::sqrt(stt);
-  return d;
+  if (m.points == 0) return m;
+  m.mean_kg_s = sum / m.points;
+  const double own = cycleScatter(runs), scatter = m.points >= 2 ? own : scatter_kg_s;
+  if (std::isfinite(scatter)) m.se_kg_s = std::max(scatter, floor_kg_s) / std::sqrt(static_cast<double>(m.points));
+  return m;
 }
 
 DriftNaming nameDriftAboveFloor(const PreparedRuns& prepared, const CellParams& params,
@@ -203,24 +310,20 @@ DriftNaming nameDriftAboveFloor(const PreparedRuns& prepared, const CellParams& 
   DriftNaming naming;
   std::vector<const RunData*> all;
   for (const RunData& r : prepared.runs) all.push_back(&r);
-  naming.period_s = medianCyclePeriod(all, kWindowS);
+  naming.period_s = medianCyclePeriod(all, kMinCycleS);
   if (!std::isfinite(naming.period_s)) return naming;  // not cyclic: nothing to say
-  const CellParams cell = applyCalibration(baseline, params);
-  naming.fit_before =
-      fitCycleDrift(residualsOf(prepared.select(prepared.fit), cell, {}, naming.period_s, options.threads),
-                    windowNoise(prepared, prepared.fit));
-  if (!naming.fit_before.ok()) {  // a trend needs 3 points at 2 times or more on the fit runs
+  const BalanceSets sets = measureSets(prepared, applyCalibration(baseline, params), naming.period_s, options.threads);
+  naming.fit_before = sets.fitMean(sets.fit_balance);
+  naming.held_before = sets.heldMean(sets.held_balance);
+  if (naming.fit_before.points < 2) {  // a mean with its scatter needs 2 cycles on the fit runs
     naming.reasons.push_back("whole breaths: " + std::to_string(naming.fit_before.points) +
-                             " end-of-cycle residual(s) on the fit runs; a trend needs at least 3, at two times or "
-                             "more since a run's start: not measured");
+                             " whole cycle(s) on the fit runs; a balance with its scatter needs at least 2: not "
+                             "measured");
     return naming;
   }
-  naming.held_before =
-      fitCycleDrift(residualsOf(prepared.select(prepared.withheld), cell, {}, naming.period_s, options.threads),
-                    windowNoise(prepared, prepared.withheld));
-  naming.reasons.push_back("whole breaths: the calibrated model's residual over the last " + fmt(kWindowS) +
-                           " s of each cycle drifts by " + driftInWords(naming.fit_before) + " on the fit runs, " +
-                           driftInWords(naming.held_before) + " on the withheld runs");
+  naming.reasons.push_back("whole breaths: the calibrated cell's gas balance (metered less held) is " +
+                           balanceInWords(naming.fit_before) + " on the fit runs, " +
+                           balanceInWords(naming.held_before) + " on the withheld runs");
   if (!naming.fit_before.significant(kDriftZ)) return naming;
   int tried = 0;
   for (std::size_t i = 0; i < scored.size() && tried < kTried; ++i) {
@@ -228,14 +331,14 @@ DriftNaming nameDriftAboveFloor(const PreparedRuns& prepared, const CellParams& 
     if (!c.ok || c.effects.size() != 1 || !(c.bic_delta < 0.0)) continue;
     const std::string parameter = driftParameter(scored[i].second, c.params);
     if (parameter.empty()) continue;
-    const DriftTry outcome = tryCandidate(prepared, params, scored[i], options, parameter, &naming);
+    const DriftTry outcome = tryCandidate(sets, params, scored[i], options, parameter, &naming);
     if (outcome == DriftTry::kNamed) {
       naming.winner = static_cast<int>(i);
       return naming;
     }
     if (outcome == DriftTry::kRejected) ++tried;
   }
-  naming.reasons.push_back("whole breaths: no single candidate cancels the end-of-cycle drift");
+  naming.reasons.push_back("whole breaths: no single candidate cancels the cycles' balance");
   return naming;
 }
 

@@ -900,7 +900,9 @@ DiagnosisReport diagnoseRuns(std::vector<RunData> runs, const CellParams& params
     // A joint refit may have moved every parameter back to nominal (w.joint false): its summary
     // still replaces the calibration-only one the winner was not fitted with.
     if (joint.count(joinNames(w.effects))) rep.calibration = joint.at(joinNames(w.effects));
-    rep.verdict_distortions = describeDistortions(noise, scored[verdict.winner].second, w);
+    CandidateFit named = w;  // the whole-breath rule's rescaled parameter, where it named it
+    named.params = rep.verdict_params;
+    rep.verdict_distortions = describeDistortions(noise, scored[verdict.winner].second, named);
     for (const auto& d : rep.verdict_distortions) rep.reasons.push_back("channel distortion named: " + d);
   }
   for (const auto& note : rep.calibration.notes)

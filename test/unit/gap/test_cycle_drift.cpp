@@ -1,4 +1,4 @@
-// The whole-breath statistic: end-of-cycle residuals and their trend through the runs.
+// The whole-breath statistic: each whole cycle's gas balance and its mean through the runs.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -43,101 +43,114 @@ nb::RunData breaths(double t0) {
   return run;
 }
 
+/// The lung's content slope at rest (isothermal): d(p V)/dp / (R T) with V = V0 + C p, at 500 Pa.
+double contentSlope(const nb::CellParams& lung) {
+  const double p = lung.ambient_pressure_pa + 500.0, c = lung.bellows.compliance_m3_pa;
+  return (lung.bellows.dead_volume_m3 + c * 500.0 + p * c) /
+         (lung.gas.gas_constant_j_kg_k * lung.ambient_temperature_k);
+}
+
 }  // namespace
 
-TEST(CycleDrift, EndOfCycleResidualsAreTheLastWindowOfEachCycle) {
+TEST(CycleDrift, WholeCyclesRunFromTheFootOfOneRiseToTheNext) {
+  const nb::CellParams lung = lungParams();
+  const nb::gap::CellContent content(lung, 0.0);
   const nb::RunData run = breaths(10.0);
-  std::vector<double> model(run.size());
-  // Measured less modelled: 10 Pa + 2 Pa/s since the run's start, plus a ringing in the first
-  // second of every cycle that the end-of-cycle windows must not see.
+  // Pressure 500 Pa + 2 Pa/s since the run's start, plus a ringing in the first second of each
+  // breath that the cycles' ends (the last sample before each rise) must not see.
+  std::vector<double> p(run.size());
   for (std::size_t i = 0; i < run.size(); ++i) {
     const double t = run.t_s[i] - 10.0, ring = std::fmod(t, 3.0) < 1.0 ? 300.0 * std::sin(40.0 * t) : 0.0;
-    model[i] = run.p_gauge_pa[i] - (10.0 + 2.0 * t + ring);
+    p[i] = 500.0 + 2.0 * t + ring;
   }
-  const std::vector<nb::gap::CyclePoint> points = nb::gap::endOfCycleResiduals(run, model, 0.2);
-  ASSERT_EQ(points.size(), 2u);  // the second breath's start and the run's end
-  EXPECT_NEAR(points[0].t_s, 3.0, 1e-9);
-  EXPECT_NEAR(points[1].t_s, 5.99, 1e-9);
-  EXPECT_NEAR(points[0].residual_pa, 10.0 + 2.0 * 2.895, 0.02);  // the mean of t over 2.80-2.99 s
-  EXPECT_NEAR(points[1].residual_pa, 10.0 + 2.0 * 5.89, 0.02);   // over 5.79-5.99 s
+  const std::vector<nb::gap::CycleRate> rates = nb::gap::contentRates(run, p, content);
+  ASSERT_EQ(rates.size(), 2u);  // 10.00-12.99 s (the second rise's foot) and 12.99-15.99 s
+  EXPECT_NEAR(rates[0].t_s, 2.99, 1e-9);
+  EXPECT_NEAR(rates[0].duration_s, 2.99, 1e-9);
+  EXPECT_NEAR(rates[1].t_s, 5.99, 1e-9);
+  EXPECT_NEAR(rates[1].duration_s, 3.0, 1e-9);
+  // The content climbs with the pressure: 2 Pa/s times the slope.
+  const double slope = content.slopeKgPa(500.0);
+  EXPECT_NEAR(slope, contentSlope(lung), 0.02 * contentSlope(lung));
+  for (const auto& r : rates) EXPECT_NEAR(r.rate_kg_s, 2.0 * slope, 0.01 * 2.0 * slope);
   // A run cut a sample before the edge: that sample is not a cycle of its own.
   nb::RunData cut = run;
   cut.p_setpoint_gauge_pa[0] = 500.0;
-  const std::vector<nb::gap::CyclePoint> same = nb::gap::endOfCycleResiduals(cut, model, 0.2);
-  ASSERT_EQ(same.size(), 2u);
-  EXPECT_NEAR(same[0].t_s, 3.0, 1e-9);
-  EXPECT_NEAR(same[1].t_s, 5.99, 1e-9);
+  EXPECT_EQ(nb::gap::contentRates(cut, p, content).size(), 2u);
 }
 
-TEST(CycleDrift, ARunOfOneCycleEndsItWhenItIsAsLongAsTheOthersCycles) {
+TEST(CycleDrift, ARunOfOneCycleCountsItWhenItIsAsLongAsTheOthersCycles) {
+  const nb::gap::CellContent content(lungParams(), 0.0);
   nb::RunData one = breaths(0.0);
-  one.t_s.resize(300);  // the first breath alone: 0-2.99 s
-  one.mdot_in_kg_s.resize(300);
-  one.p_gauge_pa.resize(300);
-  one.h_m.resize(300);
-  one.p_setpoint_gauge_pa.resize(300);
-  const std::vector<double> model(one.size(), 480.0);
-  EXPECT_TRUE(nb::gap::endOfCycleResiduals(one, model, 0.2).empty());  // no cycle length of its own
-  const std::vector<nb::gap::CyclePoint> points = nb::gap::endOfCycleResiduals(one, model, 0.2, 3.0);
-  ASSERT_EQ(points.size(), 1u);
-  EXPECT_NEAR(points[0].t_s, 2.99, 1e-9);
-  EXPECT_NEAR(points[0].residual_pa, 20.0, 1e-9);
-  EXPECT_TRUE(nb::gap::endOfCycleResiduals(one, model, 0.2, 4.0).empty());  // a cycle cut short
+  one.t_s.resize(301);  // the first breath and the next one's first sample: 0-3.00 s
+  one.mdot_in_kg_s.resize(301);
+  one.p_gauge_pa.resize(301);
+  one.h_m.resize(301);
+  one.p_setpoint_gauge_pa.resize(301);
+  one.p_setpoint_gauge_pa.back() = 500.0;                     // the foot of the next rise
+  EXPECT_TRUE(nb::gap::cycleBalances(one, content).empty());  // no cycle length of its own
+  const std::vector<nb::gap::CycleRate> balance = nb::gap::cycleBalances(one, content, 3.0);
+  ASSERT_EQ(balance.size(), 1u);
+  EXPECT_NEAR(balance[0].duration_s, 3.0, 1e-9);
+  EXPECT_NEAR(balance[0].rate_kg_s, 0.0, 1e-12);                   // as much in as out, the pressure unchanged
+  EXPECT_TRUE(nb::gap::cycleBalances(one, content, 4.0).empty());  // a cycle cut short
   const nb::RunData two = breaths(0.0);
   EXPECT_NEAR(nb::gap::medianCyclePeriod({&one, &two}, 0.2), 3.0, 1e-9);
   EXPECT_TRUE(std::isnan(nb::gap::medianCyclePeriod({&one}, 0.2)));
 }
 
-TEST(CycleDrift, ARunThatIsNotCyclicHasNoPointAndBadInputIsRefused) {
+TEST(CycleDrift, ARunThatIsNotCyclicHasNoCycleAndBadInputIsRefused) {
+  const nb::gap::CellContent content(lungParams(), 0.0);
   nb::RunData flat = breaths(0.0);
   flat.p_setpoint_gauge_pa.assign(flat.size(), 500.0);
-  EXPECT_TRUE(nb::gap::endOfCycleResiduals(flat, flat.p_gauge_pa, 0.2).empty());
+  EXPECT_TRUE(nb::gap::cycleBalances(flat, content).empty());
   const nb::RunData run = breaths(0.0);
-  EXPECT_THROW(nb::gap::endOfCycleResiduals(run, std::vector<double>(run.size() - 1, 0.0), 0.2), std::invalid_argument);
-  EXPECT_THROW(nb::gap::endOfCycleResiduals(run, run.p_gauge_pa, 0.0), std::invalid_argument);
+  EXPECT_THROW(nb::gap::contentRates(run, std::vector<double>(run.size() - 1, 0.0), content), std::invalid_argument);
+  nb::RunData holed = breaths(0.0);
+  holed.mdot_in_kg_s[100] = NAN;  // a missing flow sample: its cycle is left out
+  EXPECT_EQ(nb::gap::cycleBalances(holed, content).size(), 1u);
 }
 
-TEST(CycleDrift, TheTrendThroughTheRunsHasOneInterceptAndAStandardError) {
-  using nb::gap::CyclePoint;
-  // Three runs, points on 4 + 1.5 t give or take 0.3 Pa.
-  const std::vector<std::vector<CyclePoint>> runs = {
-      {{3.0, 8.8}, {6.0, 12.7}}, {{3.0, 8.2}, {6.0, 13.3}}, {{3.0, 8.5}, {6.0, 13.0}}};
-  const nb::gap::CycleDrift d = nb::gap::fitCycleDrift(runs, 0.0);
-  ASSERT_TRUE(d.ok());
-  EXPECT_EQ(d.points, 6);
-  EXPECT_NEAR(d.slope_pa_s, 1.5, 1e-9);
-  EXPECT_NEAR(d.intercept_pa, 4.0, 1e-9);
-  // Four residuals of 0.3 Pa: rss 0.36 over 4 degrees of freedom; the times' spread about their
-  // mean 6 * 1.5^2.
-  EXPECT_NEAR(d.se_pa_s, std::sqrt(0.36 / 4.0) / std::sqrt(13.5), 1e-9);
-  EXPECT_TRUE(d.significant(3.0));
-  // The scatter's floor: exactly collinear points do not make a tiny slope significant.
-  const nb::gap::CycleDrift flat = nb::gap::fitCycleDrift({{{3.0, 1.0}, {6.0, 1.01}}, {{3.0, 1.0}, {6.0, 1.01}}}, 1.0);
-  EXPECT_NEAR(flat.se_pa_s, 1.0 / std::sqrt(9.0), 1e-9);
-  EXPECT_FALSE(flat.significant(3.0));
-  EXPECT_FALSE(nb::gap::fitCycleDrift({{{3.0, 1.0}, {6.0, 2.0}}}, 0.0).ok());  // two points: no scatter
+TEST(CycleDrift, TheMeanBalanceHasAStandardErrorFromTheCyclesScatter) {
+  using nb::gap::CycleRate;
+  const std::vector<std::vector<CycleRate>> runs = {{{3.0, 3.0, 1.0}, {6.0, 3.0, 3.0}}, {{3.0, 3.0, 2.0}}};
+  const nb::gap::BalanceMean m = nb::gap::meanBalance(runs, 0.0);
+  ASSERT_TRUE(m.ok());
+  EXPECT_EQ(m.points, 3);
+  EXPECT_NEAR(m.mean_kg_s, 2.0, 1e-12);
+  EXPECT_NEAR(m.se_kg_s, 1.0 / std::sqrt(3.0), 1e-12);  // standard deviation 1 over 3 cycles
+  EXPECT_NEAR(nb::gap::cycleScatter(runs), 1.0, 1e-12);
+  EXPECT_TRUE(m.significant(3.0));
+  EXPECT_FALSE(m.significant(3.5));
+  // The floor: identical cycles do not make a small balance significant.
+  const nb::gap::BalanceMean same = nb::gap::meanBalance({{{3.0, 3.0, 0.1}, {6.0, 3.0, 0.1}}}, 1.0);
+  EXPECT_NEAR(same.se_kg_s, 1.0 / std::sqrt(2.0), 1e-12);
+  EXPECT_FALSE(same.significant(3.0));
+  // One cycle: judged with another set's scatter, or not at all.
+  EXPECT_FALSE(nb::gap::meanBalance({{{3.0, 3.0, 5.0}}}, 0.0).ok());
+  const nb::gap::BalanceMean one = nb::gap::meanBalance({{{3.0, 3.0, 5.0}}}, 0.0, 1.0);
+  ASSERT_TRUE(one.ok());
+  EXPECT_NEAR(one.se_kg_s, 1.0, 1e-12);
+  EXPECT_FALSE(nb::gap::meanBalance({}, 0.0).ok());
 }
 
-TEST(CycleDrift, AMetersOffsetIsItsTrendTimesTheCompliance) {
-  // The lung's pressure from the true flow; the model fed the metered flow, 5 mL/s too high.
-  // The end-of-cycle residual falls by offset / C per second (C the lung's compliance at its
-  // port: the spring's and the bellows gas'), the same in every run.
+TEST(CycleDrift, AMetersOffsetIsTheCyclesBalance) {
+  // The lung's pressure from the true flow; the metered flow 5 mL/s too high. Every whole
+  // breath takes in 5 mL/s more than the lung's content rises by: the balance is the offset.
   const nb::CellParams lung = lungParams();
+  const nb::gap::CellContent content(lung, 0.0);
   const double offset_m3_s = 5e-6;
-  std::vector<std::vector<nb::gap::CyclePoint>> runs;
+  std::vector<std::vector<nb::gap::CycleRate>> runs;
   for (double t0 : {0.0, 6.0, 12.0}) {
     nb::RunData run = breaths(t0);
     const nb::Replay truth = nb::replayRun(run, lung, {});
     ASSERT_TRUE(truth.ok) << truth.message;
     run.p_gauge_pa = truth.p_gauge_pa;
     for (double& m : run.mdot_in_kg_s) m += kAirDensity * offset_m3_s;
-    const nb::Replay metered = nb::replayRun(run, lung, {});
-    ASSERT_TRUE(metered.ok) << metered.message;
-    runs.push_back(nb::gap::endOfCycleResiduals(run, metered.p_gauge_pa, 0.2));
+    runs.push_back(nb::gap::cycleBalances(run, content));
+    EXPECT_EQ(runs.back().size(), 2u);
   }
-  const nb::gap::CycleDrift d = nb::gap::fitCycleDrift(runs, 0.0);
-  ASSERT_TRUE(d.ok());
-  const double c_port = lung.bellows.compliance_m3_pa +
-                        lung.bellows.dead_volume_m3 / (lung.gas.heat_capacity_ratio * lung.ambient_pressure_pa);
-  EXPECT_NEAR(-d.slope_pa_s * c_port, offset_m3_s, 0.05 * offset_m3_s);
+  const nb::gap::BalanceMean m = nb::gap::meanBalance(runs, 0.0);
+  ASSERT_TRUE(m.ok());
+  EXPECT_NEAR(m.mean_kg_s, kAirDensity * offset_m3_s, 0.05 * kAirDensity * offset_m3_s);
 }

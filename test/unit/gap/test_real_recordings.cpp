@@ -275,12 +275,12 @@ TEST(RespiraWorksLungs, MeterOffsetIsOnTheUncorrectedChannelOnly) {
   }
 }
 
-TEST(RespiraWorksLungs, WholeBreathDriftOfTheCalibratedModelIsTheMetersOffset) {
-  // The calibrated model's residual at the end of each breath falls by offset / C per second:
-  // its trend through every run times the compliance at the port is the meter's offset, within
-  // 3 mL/s of the model-free value on the uncorrected channel. On the corrected one the
-  // ventilator's breath-by-breath correction steps the metered volume from breath to breath:
-  // the trend is under 2 mL/s or does not stand out of its scatter.
+TEST(RespiraWorksLungs, WholeBreathBalanceOfTheCalibratedCellIsTheMetersOffset) {
+  // Every whole breath takes in the meter's offset times its length more than the calibrated
+  // lung's content rises by: the mean balance through every run is the offset, within 3 mL/s of
+  // the model-free value on the uncorrected channel. On the corrected one the ventilator's
+  // breath-by-breath correction steps the metered volume from breath to breath: the balance is
+  // under 2 mL/s or does not stand out of its scatter.
   auto offsets = [](const std::string& mapping, const std::string& file) {
     const nb::ImportMapping m = nb::loadImportMapping(kSource + "/config/import/" + mapping + ".yaml");
     const nb::ImportedLog log = nb::importLog(m, kSource + "/test/data/respiraworks/" + file);
@@ -293,35 +293,31 @@ TEST(RespiraWorksLungs, WholeBreathDriftOfTheCalibratedModelIsTheMetersOffset) {
     std::vector<const nb::RunData*> all;
     for (const auto& r : log.runs) all.push_back(&r);
     const double period = gs::medianCyclePeriod(all, 0.2);
-    std::vector<std::vector<gs::CyclePoint>> points;
-    for (const auto& r : log.runs) {
-      const nb::Replay replay = nb::replayRun(r, cal, {});
-      EXPECT_TRUE(replay.ok) << file << ": " << replay.message;
-      points.push_back(gs::endOfCycleResiduals(r, replay.p_gauge_pa, 0.2, period));
-    }
-    const gs::CycleDrift d = gs::fitCycleDrift(points, 0.0);
-    EXPECT_TRUE(d.ok()) << file;
+    const gs::CellContent content(cal, log.runs.at(0).loadAt(0));
+    std::vector<std::vector<gs::CycleRate>> balances;
+    for (const auto& r : log.runs) balances.push_back(gs::cycleBalances(r, content, period));
+    const gs::BalanceMean b = gs::meanBalance(balances, 0.0);
+    EXPECT_TRUE(b.ok()) << file;
     const double c = std::stod(log.runs.at(0).meta.at("lung_compliance_m3_pa"));
-    return std::make_tuple(-d.slope_pa_s * portCompliance(cal) * 1e6,
+    return std::make_tuple(b.mean_kg_s / m.density_kg_m3 * 1e6,
                            modelFreeInflowBias(log.runs, c, m.density_kg_m3) * 1e6,  // mL/s
-                           d.significant(3.0));
+                           b.significant(3.0));
   };
   int standing_out = 0;
   for (const char* f : {"covent_pc_1.dat", "covent_pc_3.dat", "covent_pc_5.dat", "covent_pc_7.dat"}) {
     const auto [drift, model_free, significant] =
         offsets("respiraworks_venturi", std::string("2020-07-01-Control-Tests-AIR/") + f);
-    std::printf("uncorrected %s: whole breaths %+.2f%s, model-free %+.2f mL/s\n", f, drift,
+    std::printf("uncorrected %s: balance %+.2f%s, model-free %+.2f mL/s\n", f, drift,
                 significant ? "" : " (within its scatter)", model_free);
     EXPECT_NEAR(drift, model_free, 3.0) << f;
     standing_out += significant ? 1 : 0;
   }
-  // At the largest compliance a small offset moves the pressure too slowly
-  // to stand out of the scatter of its runs' end-of-cycle residuals.
+  // Over every breath of a recording the balance stands out of the breaths' scatter.
   EXPECT_GE(standing_out, 3);
   for (int i = 1; i <= 8; ++i) {
     const std::string f = "covent_pc_" + std::to_string(i) + ".dat";
     const auto [drift, model_free, significant] = offsets("respiraworks_net_flow", "2020-06-21-RunForRecord2-AIR/" + f);
-    std::printf("corrected %s: whole breaths %+.2f%s, model-free %+.2f mL/s\n", f.c_str(), drift,
+    std::printf("corrected %s: balance %+.2f%s, model-free %+.2f mL/s\n", f.c_str(), drift,
                 significant ? "" : " (within its scatter)", model_free);
     EXPECT_TRUE(std::fabs(drift) < 2.0 || !significant) << f;
   }
@@ -343,9 +339,9 @@ TEST(RespiraWorksLungs, ObstructionTracesNormalBreathsOnTheUncorrectedChannel) {
   const double model_free = modelFreeInflowBias(log.runs, c, m.density_kg_m3) * 1e6;  // mL/s
   EXPECT_GT(model_free, 3.0);
   EXPECT_LT(model_free, 24.0);
-  // Through gap diagnose: the runs are taken; a named cause, if any, is the meter's offset
-  // within 3 mL/s of the model-free value. Three normal breaths give the fit run two
-  // end-of-cycle residuals: too few for the whole-breath trend, and the report says so.
+  // Through gap diagnose: the runs are taken and the whole-breath rule names the meter's offset
+  // within 3 mL/s of the model-free value, from three normal breaths (two on the fit run, one
+  // withheld).
   const nb::CellParams nominal =
       nb::loadCellParamsYaml(nb::resolveAirbagParamsFile(log.runs.at(0).airbag, kSource + "/config"));
   nb::DiagnosisOptions o;
@@ -354,12 +350,52 @@ TEST(RespiraWorksLungs, ObstructionTracesNormalBreathsOnTheUncorrectedChannel) {
   std::printf("obstruction, uncorrected: model-free %+.2f mL/s, verdict %s", model_free, rep.status.c_str());
   for (const auto& e : rep.verdict_effects) std::printf(" %s", e.c_str());
   std::printf("\n");
-  EXPECT_NE(rep.status, "unexplained");
-  if (!rep.verdict_effects.empty()) {
-    ASSERT_EQ(rep.verdict_effects, (std::vector<std::string>{"inflow_bias"}));
-    EXPECT_NEAR(rep.verdict_params.at("offset_kg_s") / m.density_kg_m3 * 1e6, model_free, 3.0);
+  EXPECT_EQ(rep.status, "explained");
+  ASSERT_EQ(rep.verdict_effects, (std::vector<std::string>{"inflow_bias"}));
+  EXPECT_NEAR(rep.verdict_params.at("offset_kg_s") / m.density_kg_m3 * 1e6, model_free, 3.0);
+}
+
+TEST(RespiraWorksLungs, DiagnosisNamesTheMetersOffsetOnlyOnTheUncorrectedChannel) {
+  // gap diagnose of each recording on its own. Uncorrected: where anything is named it is the
+  // meter's offset within 3 mL/s of the model-free value, in at least 3 of the 4 recordings
+  // (test 1's 3.3 mL/s at 50 mL/cmH2O stays within its breaths' scatter on the fit runs).
+  // Corrected: no inflow bias above 2 mL/s, no friction, no sensor lag.
+  auto diagnose = [](const std::string& mapping, const std::string& file, double* model_free) {
+    const nb::ImportMapping m = nb::loadImportMapping(kSource + "/config/import/" + mapping + ".yaml");
+    const nb::ImportedLog log = nb::importLog(m, kSource + "/test/data/respiraworks/" + file);
+    const double c = std::stod(log.runs.at(0).meta.at("lung_compliance_m3_pa"));
+    *model_free = modelFreeInflowBias(log.runs, c, m.density_kg_m3) * 1e6;  // mL/s
+    const nb::CellParams nominal =
+        nb::loadCellParamsYaml(nb::resolveAirbagParamsFile(log.runs.at(0).airbag, kSource + "/config"));
+    nb::DiagnosisOptions o;
+    o.threads = 1;
+    nb::DiagnosisReport rep = nb::diagnoseRuns(log.runs, nominal, o, file);
+    if (rep.verdict_params.count("offset_kg_s")) rep.verdict_params["offset_kg_s"] *= 1e6 / m.density_kg_m3;
+    return rep;
+  };
+  int named = 0;
+  for (const char* f : {"covent_pc_1.dat", "covent_pc_3.dat", "covent_pc_5.dat", "covent_pc_7.dat"}) {
+    double model_free = NAN;
+    const nb::DiagnosisReport rep =
+        diagnose("respiraworks_venturi", std::string("2020-07-01-Control-Tests-AIR/") + f, &model_free);
+    std::printf("uncorrected %s: %s, model-free %+.2f mL/s\n", f, rep.status.c_str(), model_free);
+    EXPECT_NE(rep.status, "unexplained") << f;
+    if (rep.verdict_effects.empty()) continue;
+    ASSERT_EQ(rep.verdict_effects, (std::vector<std::string>{"inflow_bias"})) << f;
+    EXPECT_NEAR(rep.verdict_params.at("offset_kg_s"), model_free, 3.0) << f;
+    ++named;
   }
-  bool said = false;
-  for (const auto& reason : rep.reasons) said |= reason.find("whole breaths: ") == 0;
-  EXPECT_TRUE(said);
+  EXPECT_GE(named, 3);
+  for (const char* f : {"covent_pc_4.dat", "covent_pc_7.dat"}) {
+    double model_free = NAN;
+    const nb::DiagnosisReport rep =
+        diagnose("respiraworks_net_flow", std::string("2020-06-21-RunForRecord2-AIR/") + f, &model_free);
+    std::printf("corrected %s: %s\n", f, rep.status.c_str());
+    for (const std::string& e : rep.verdict_effects) {
+      EXPECT_TRUE(e != "friction" && e != "pressure_sensor_lag") << f << ": " << e;
+      if (e == "inflow_bias") {
+        EXPECT_LT(std::fabs(rep.verdict_params.at("offset_kg_s")), 2.0) << f;
+      }
+    }
+  }
 }
