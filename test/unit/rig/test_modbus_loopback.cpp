@@ -582,11 +582,15 @@ terminals:
   const double on_before_s = server.coilOnSeconds(0);
   double driven_s = 0.0;
   auto last = std::chrono::steady_clock::now();
+  // Every read goes through here: a read hands out the on-time since the one before, as a mean
+  // over that span.
+  nb::LinkState link = nb::LinkState::kDown;
   auto read = [&] {
     const auto now = std::chrono::steady_clock::now();
     const nb::CellReadings r = cell.read(0.0);
     if (r.inlet_driven.present()) driven_s += r.inlet_driven.value * std::chrono::duration<double>(now - last).count();
     last = now;
+    link = r.link;
   };
   server.setReplyFaults(0.2, 0.0, 0.0, 11);
   for (int i = 0; i < 150; ++i) {
@@ -595,7 +599,12 @@ terminals:
     read();
   }
   server.setReplyFaults(0.0, 0.0, 0.0, 11);
-  ASSERT_TRUE(waitFor([&] { return cell.read(0.0).link == nb::LinkState::kOk; }, 3.0));
+  ASSERT_TRUE(waitFor(
+      [&] {
+        read();
+        return link == nb::LinkState::kOk;
+      },
+      3.0));
   cell.write({}, 0.0);
   for (int i = 0; i < 20; ++i) {  // shut on both sides
     std::this_thread::sleep_for(std::chrono::milliseconds(15));
@@ -603,7 +612,7 @@ terminals:
   }
   const double on_s = server.coilOnSeconds(0) - on_before_s;
   std::printf(
-      "[          ] over half the requests dropped: inlet on %.4f s at the terminal, %.4f s in the driven "
+      "[          ] a fifth of the requests dropped: inlet on %.4f s at the terminal, %.4f s in the driven "
       "record\n",
       on_s, driven_s);
   EXPECT_GT(on_s, 0.1) << "the inlet pulsed";
