@@ -364,6 +364,7 @@ void AirbagCell::onLink(const CellReadings& readings) {
 
 void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   measurement_ = readingsOf(readings);
+  notePressureSample(readings.gauge_pressure_pa);
   if (!observer_ || (sim_ && !use_estimate_)) return;
   ObserverInputs in;
   // What the driver applied where it says (PWM pulses), else what was commanded.
@@ -377,6 +378,7 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   // The height sensor is left out where the estimate stands for it, the simulated plant's
   // inflow (its flows are the observer's own model) and any hardware's without a flow meter.
   Readings z = measurement_;
+  z.gauge_pressure_pa = fresh_pressure_pa_;
   if (use_estimate_) z.height_m = std::numeric_limits<double>::quiet_NaN();
   if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
   const CellEstimate before = observer_->estimate();
@@ -389,6 +391,18 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
     measurement_.height_m = e.height_m;
   }
   if (!sim_) monitorStep(events, before, dt_s > 0.0 ? dt_s : params_.control_period_s);
+}
+
+void AirbagCell::notePressureSample(const StampedReading& pressure) {
+  // A driver with no new sample (replies dropped, a slow bus) repeats its last one with that
+  // one's stamp. Taken again, one noisy reading of a light plate's 20 Pa repeated for 0.2 s
+  // read as a flat cell and re-anchored a plate lifted 20-30 mm. A stamp that did not advance
+  // beyond clock jitter is the same sample.
+  constexpr double kSameSampleS = 1e-3;
+  const bool repeated = std::isfinite(pressure.stamp_s) && std::isfinite(last_pressure_stamp_s_) &&
+                        std::fabs(pressure.stamp_s - last_pressure_stamp_s_) < kSameSampleS;
+  fresh_pressure_pa_ = repeated ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
+  if (pressure.present()) last_pressure_stamp_s_ = pressure.stamp_s;
 }
 
 void AirbagCell::doubtUnsureCount(const CellEstimate& before, bool reanchored) {
@@ -428,7 +442,7 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   const double height_before_m = before.height_m;
   // The pressure before a lost link, for the check after it (over a few periods: one
   // reading's noise is not the cell's pressure).
-  const double p = measurement_.gauge_pressure_pa;
+  const double p = fresh_pressure_pa_;
   if (std::isfinite(p))
     recent_pressure_pa_ =
         std::isfinite(recent_pressure_pa_) ? recent_pressure_pa_ + 0.2 * (p - recent_pressure_pa_) : p;

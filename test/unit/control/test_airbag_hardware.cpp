@@ -589,3 +589,65 @@ TEST(AirbagOnHardware, GasCountedOverALostLinkIsTheCountsDoubt) {
   EXPECT_FALSE(rig.cell->gasVerifier().unproven()) << "the link check passed: still controlled";
   EXPECT_NEAR(rig.plant->variables().height_m, 0.10, 0.003);
 }
+
+namespace {
+
+/// A driver that can repeat its last pressure sample, stamp and all, as a terminal's driver
+/// does while its read requests go unanswered (holdSample()).
+class RepeatingHardware : public PressureOnlyHardware {
+ public:
+  using PressureOnlyHardware::PressureOnlyHardware;
+  nb::CellReadings read(double now_s) override {
+    nb::CellReadings r = PressureOnlyHardware::read(now_s);
+    if (holding_) r.gauge_pressure_pa = last_;
+    else last_ = r.gauge_pressure_pa;
+    return r;
+  }
+  /// From now on the last sample is repeated, reading `value_pa` (a quantised noisy one).
+  void holdSample(double value_pa) {
+    holding_ = true;
+    last_.value = value_pa;
+  }
+  void release() { holding_ = false; }
+  std::string describe() const override { return "repeating"; }
+
+ private:
+  bool holding_ = false;
+  nb::StampedReading last_;
+};
+
+}  // namespace
+
+TEST(AirbagOnHardware, ARepeatedSampleIsOneReadingNotAFlatCell) {
+  // The plate alone held at 25 mm rests at about 23 Pa. Over a lossy link the driver repeats
+  // its last sample until a new one comes; one that read 0 Pa (a 12 Pa register step and the
+  // sensor's noise), taken again every period for 0.25 s, read as a flat cell: the observer
+  // re-anchored the lifted plate at 0 and the next fill overshot to the bag's top.
+  nb::AirbagCellParams p;
+  p.control_period_s = 0.01;
+  const nb::AirbagObserverSetup observer;
+  auto plant = rigWithoutHeightSensor(p, 0.025, 0.6, observer.params.valve_dead_time_s);
+  auto hw = std::make_shared<RepeatingHardware>(plant);
+  nb::AirbagCell cell(p, hw, observer);
+  cell.resetToHeight(0.025, 0.6);
+  ASSERT_EQ(cell.requestHeight(0.025, 0.0), "");
+  double t = 0.0;
+  auto runTo = [&](double end_s, double* worst_m) {
+    for (; t < end_s - 1e-9; t += 0.01) {
+      cell.advanceTo(t);
+      if (worst_m) *worst_m = std::max(*worst_m, std::fabs(cell.measurement().height_m - plant->variables().height_m));
+    }
+  };
+  runTo(3.0, nullptr);
+  const int anchors_before = cell.observer()->estimate().reanchors;
+  hw->holdSample(0.0);
+  runTo(3.25, nullptr);
+  hw->release();
+  double worst_m = 0.0;
+  runTo(6.0, &worst_m);
+  std::cout << "[airbag] light plate at 25 mm after a 0 Pa sample repeated 0.25 s: worst estimate error "
+            << 1e3 * worst_m << " mm, true height " << 1e3 * plant->variables().height_m << " mm\n";
+  EXPECT_EQ(cell.observer()->estimate().reanchors, anchors_before) << "not found flat";
+  EXPECT_LT(worst_m, 0.003);
+  EXPECT_NEAR(plant->variables().height_m, 0.025, 0.003);
+}

@@ -200,6 +200,8 @@ class AirbagCell {
   /// The gas the observer counted since `before`, while the link or readings were unsure
   /// (unsure_count_until_s_), goes to its count's doubt.
   void doubtUnsureCount(const CellEstimate& before, bool reanchored);
+  /// Sets fresh_pressure_pa_: the reading, or NaN where its stamp says the driver repeated it.
+  void notePressureSample(const StampedReading& pressure);
   /// Turns readings into measurement_ (the observer's height where there is no sensor); the
   /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
@@ -257,6 +259,10 @@ class AirbagCell {
   GasVerifier gas_;                    ///< what the observer's gas is worth, and its checks
   ConsistencyMonitor monitor_;         ///< the readings against the observer's belief
   double recent_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< readings, filtered
+  /// The pressure reading as information: NaN where the driver repeated its last sample (no
+  /// new one came over a lossy link), which the observer and the tests must count once.
+  double fresh_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
+  double last_pressure_stamp_s_ = std::numeric_limits<double>::quiet_NaN();  ///< fresh_pressure_pa_'s stamp [s]
   /// Gas counted until then is doubtful in full: a communication or sensor fault was flagged
   /// less than kUnsureCountS ago (a lossy link's writes and the terminal's watchdog) [s].
   double unsure_count_until_s_ = -std::numeric_limits<double>::infinity();
