@@ -592,37 +592,56 @@ TEST(AirbagOnHardware, GasCountedOverALostLinkIsTheCountsDoubt) {
 
 namespace {
 
-/// A driver that can repeat its last pressure sample, stamp and all, as a terminal's driver
-/// does while its read requests go unanswered (holdSample()).
+/// A driver over a link that loses most of its replies (holdSamples()): down for a period,
+/// then a new sample only every `each_s`, each repeated with its own stamp until the next.
 class RepeatingHardware : public PressureOnlyHardware {
  public:
   using PressureOnlyHardware::PressureOnlyHardware;
   nb::CellReadings read(double now_s) override {
     nb::CellReadings r = PressureOnlyHardware::read(now_s);
-    if (holding_) r.gauge_pressure_pa = last_;
-    else last_ = r.gauge_pressure_pa;
+    if (values_.empty()) return r;
+    if (!flapped_) {  // one period down
+      flapped_ = true;
+      r = nb::CellReadings{};
+      r.link = nb::LinkState::kDown;
+      r.link_error = "no reply";
+      return r;
+    }
+    if (!(now_s < sample_.stamp_s + each_s_)) {  // the next sample comes
+      if (next_ == values_.size()) {
+        values_.clear();
+        return r;
+      }
+      sample_ = {values_[next_++], now_s};
+    }
+    r.gauge_pressure_pa = sample_;
     return r;
   }
-  /// From now on the last sample is repeated, reading `value_pa` (a quantised noisy one).
-  void holdSample(double value_pa) {
-    holding_ = true;
-    last_.value = value_pa;
+  /// Serves `values_pa` (quantised noisy readings) in turn, each for `each_s`, then the plant's.
+  void holdSamples(std::vector<double> values_pa, double each_s) {
+    values_ = std::move(values_pa);
+    each_s_ = each_s;
+    next_ = 0;
+    flapped_ = false;
+    sample_ = {};
   }
-  void release() { holding_ = false; }
   std::string describe() const override { return "repeating"; }
 
  private:
-  bool holding_ = false;
-  nb::StampedReading last_;
+  std::vector<double> values_;
+  double each_s_ = 0.0;
+  std::size_t next_ = 0;
+  bool flapped_ = false;
+  nb::StampedReading sample_;
 };
 
 }  // namespace
 
 TEST(AirbagOnHardware, ARepeatedSampleIsOneReadingNotAFlatCell) {
   // The plate alone held at 25 mm rests at about 23 Pa. Over a lossy link the driver repeats
-  // its last sample until a new one comes; one that read 0 Pa (a 12 Pa register step and the
-  // sensor's noise), taken again every period for 0.25 s, read as a flat cell: the observer
-  // re-anchored the lifted plate at 0 and the next fill overshot to the bag's top.
+  // its last sample until a new one comes: three low ones (0, 12, 0 Pa: a 12 Pa register step
+  // and the sensor's noise), each taken again every period for 0.2 s, read as a flat cell: the
+  // observer re-anchored the lifted plate at 0 and the next fill overshot.
   nb::AirbagCellParams p;
   p.control_period_s = 0.01;
   const nb::AirbagObserverSetup observer;
@@ -640,13 +659,11 @@ TEST(AirbagOnHardware, ARepeatedSampleIsOneReadingNotAFlatCell) {
   };
   runTo(3.0, nullptr);
   const int anchors_before = cell.observer()->estimate().reanchors;
-  hw->holdSample(0.0);
-  runTo(3.25, nullptr);
-  hw->release();
+  hw->holdSamples({0.0, 12.0, 0.0}, 0.2);
   double worst_m = 0.0;
   runTo(6.0, &worst_m);
-  std::cout << "[airbag] light plate at 25 mm after a 0 Pa sample repeated 0.25 s: worst estimate error "
-            << 1e3 * worst_m << " mm, true height " << 1e3 * plant->variables().height_m << " mm\n";
+  std::cout << "[airbag] light plate at 25 mm after low samples repeated 0.6 s: worst estimate error " << 1e3 * worst_m
+            << " mm, true height " << 1e3 * plant->variables().height_m << " mm\n";
   EXPECT_EQ(cell.observer()->estimate().reanchors, anchors_before) << "not found flat";
   EXPECT_LT(worst_m, 0.003);
   EXPECT_NEAR(plant->variables().height_m, 0.025, 0.003);
