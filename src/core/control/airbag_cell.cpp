@@ -394,17 +394,18 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
 }
 
 void AirbagCell::notePressureSample(const StampedReading& pressure) {
-  // Over an unsure link (a communication fault now or within kUnsureCountS) the driver repeats
-  // its last sample, with that sample's stamp, until a new one comes. Taken again every
-  // period, one noisy reading of a light plate's 20 Pa repeated for 0.2 s read as a flat cell
-  // and re-anchored a plate lifted 20-35 mm. A stamp within clock jitter of the last one is the
-  // same sample. On a steady link a period that comes early may find its sample again: that is
-  // one sample more, not a run of them, and taken as none it would restart the observer's tests.
+  // A driver whose read requests go unanswered repeats its last sample, with that sample's
+  // stamp, until a new one comes. Taken again every period, one noisy reading of a light
+  // plate's 20 Pa repeated for 0.2 s read as a flat cell and re-anchored a plate lifted 20-35 mm.
+  // A stamp within clock jitter of the last one is the same sample; it counts once where it is
+  // older than a period (the bus missed its cycles) or the link is unsure (a communication
+  // fault now or within kUnsureCountS). On a steady link a period that comes early may find its
+  // sample again: one sample more, where taken as none it would restart the observer's tests.
   constexpr double kSameSampleS = 1e-3;
   const bool repeated = std::isfinite(pressure.stamp_s) && std::isfinite(last_pressure_stamp_s_) &&
                         std::fabs(pressure.stamp_s - last_pressure_stamp_s_) < kSameSampleS;
-  const bool unsure = time_s_ < unsure_count_until_s_;
-  fresh_pressure_pa_ = repeated && unsure ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
+  const bool missed = time_s_ - pressure.stamp_s > params_.control_period_s || time_s_ < unsure_count_until_s_;
+  fresh_pressure_pa_ = repeated && missed ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
   if (pressure.present()) last_pressure_stamp_s_ = pressure.stamp_s;
 }
 
