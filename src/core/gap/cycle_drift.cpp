@@ -267,13 +267,11 @@ std::vector<CycleRate> contentRates(const RunData& run, const std::vector<double
 
 std::vector<CycleRate> cycleBalances(const RunData& run, const CellContent& content, double period_s) {
   std::vector<CycleRate> out;
-  for (const CycleRate& c : contentRates(run, run.p_gauge_pa, content, period_s)) {
-    const auto b = static_cast<std::size_t>(
-        std::lower_bound(run.t_s.begin(), run.t_s.end(), run.t_s.front() + c.t_s - 1e-9) - run.t_s.begin());
-    const auto a = static_cast<std::size_t>(
-        std::lower_bound(run.t_s.begin(), run.t_s.end(), run.t_s[b] - c.duration_s - 1e-9) - run.t_s.begin());
-    const double metered = meteredGas(run, a, b);
-    if (std::isfinite(metered)) out.push_back({c.t_s, c.duration_s, metered / c.duration_s - c.rate_kg_s});
+  for (const auto& [a, b] : wholeCycles(run, period_s)) {
+    const double duration = run.t_s[b] - run.t_s[a];
+    const double held = content.massKg(run.p_gauge_pa[b]) - content.massKg(run.p_gauge_pa[a]);
+    const double balance = meteredGas(run, a, b) - held;
+    if (std::isfinite(balance)) out.push_back({run.t_s[b] - run.t_s.front(), duration, balance / duration});
   }
   return out;
 }

@@ -200,8 +200,8 @@ class AirbagCell {
   /// The gas the observer counted since `before`, while the link or readings were unsure
   /// (unsure_count_until_s_), goes to its count's doubt.
   void doubtUnsureCount(const CellEstimate& before, bool reanchored);
-  /// Sets fresh_pressure_pa_: the reading, or NaN where over an unsure link its stamp says the
-  /// driver repeated it.
+  /// Sets fresh_pressure_pa_: the reading, or NaN where its stamp says the driver repeated it
+  /// after missing its bus cycles (older than a period, or over an unsure link).
   void notePressureSample(const StampedReading& pressure);
   /// Turns readings into measurement_ (the observer's height where there is no sensor); the
   /// observer's events go to the gas check.
@@ -260,8 +260,8 @@ class AirbagCell {
   GasVerifier gas_;                    ///< what the observer's gas is worth, and its checks
   ConsistencyMonitor monitor_;         ///< the readings against the observer's belief
   double recent_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();  ///< readings, filtered
-  /// The pressure reading as information: NaN where, over an unsure link, the driver repeated
-  /// its last sample (no new one came), which the observer and the tests must count once.
+  /// The pressure reading as information: NaN where the driver repeated its last sample because
+  /// no new one came (notePressureSample), which the observer and the tests must count once.
   double fresh_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   double last_pressure_stamp_s_ = std::numeric_limits<double>::quiet_NaN();  ///< fresh_pressure_pa_'s stamp [s]
   /// Gas counted until then is doubtful in full: a communication or sensor fault was flagged
