@@ -13,6 +13,7 @@
 #include "bed_fixture.h"
 #include "nursing_bed/RigTruth.h"
 #include "nursing_bed/SetPressure.h"
+#include "rosgraph_msgs/Log.h"
 
 namespace nursing_bed {
 namespace test {
@@ -23,7 +24,7 @@ std::string executable(const std::string& name) {
   return "$(catkin_find --first-only --libexec nursing_bed " + name + ")";
 }
 
-class RealBedFixture : public BedFixture {
+class RealBedFixture : public PlanFixture {
  protected:
   void SetUp() override {
     truth_sub_ = nh_.subscribe<nursing_bed::RigTruth>("/rig_emulator/truth", 2,
@@ -31,7 +32,10 @@ class RealBedFixture : public BedFixture {
                                                         for (std::size_t id = 0; id < m->height_m.size(); ++id)
                                                           truth_m_[id] = m->height_m[id];
                                                       });
-    BedFixture::SetUp();
+    rosout_sub_ = nh_.subscribe<rosgraph_msgs::Log>("/rosout", 200, [this](const rosgraph_msgs::Log::ConstPtr& m) {
+      if (m->level >= rosgraph_msgs::Log::WARN) errors_.push_back(m->name + ": " + m->msg);
+    });
+    PlanFixture::SetUp();
     ASSERT_TRUE(waitFor([this] { return static_cast<int>(truth_m_.size()) == rows_ * cols_; }, 30.0))
         << "no emulator truth";
   }
@@ -58,7 +62,12 @@ class RealBedFixture : public BedFixture {
   std::string truthText() {
     std::ostringstream s;
     for (const auto& [id, h] : truth_m_)
-      s << "cell " << id << ": truth " << h << " m, estimate " << states_[id].height_m << " m; ";
+      s << "cell " << id << ": truth " << h << " m, estimate " << states_[id].height_m << " m, setpoint "
+        << states_[id].height_setpoint_m << " m, faults " << states_[id].faults << "; ";
+    s << "bed plan '" << bed_.plan << "' (" << bed_.parameters << "), dead " << bed_.dead_cells.size() << ", faulty "
+      << bed_.faulty_cells.size() << ", unverified " << bed_.unverified_cells.size();
+    for (const std::string& a : bed_.alarms) s << "; alarm: " << a;
+    for (const std::string& e : errors_) s << "; logged: " << e;
     return s.str();
   }
 
@@ -90,6 +99,8 @@ class RealBedFixture : public BedFixture {
 
   std::map<std::uint32_t, double> truth_m_;
   ros::Subscriber truth_sub_;
+  ros::Subscriber rosout_sub_;
+  std::vector<std::string> errors_;  ///< warnings and errors logged by the nodes (/rosout)
   pid_t restarted_pid_ = -1;
 };
 

@@ -382,7 +382,11 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   if (use_estimate_) z.height_m = std::numeric_limits<double>::quiet_NaN();
   if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
   const CellEstimate before = observer_->estimate();
-  const ObserverEvents events = observer_->step(in, z, dt_s);
+  // A repeated sample is no new evidence, nor the gap of a lost link: the tests pause.
+  const bool coasting = repeated_sample_ && !std::isfinite(z.height_m);
+  ObserverEvents events;
+  if (coasting) observer_->coast(in, dt_s);
+  else events = observer_->step(in, z, dt_s);
   doubtUnsureCount(before, events.reanchored);
   gas_.note(events);
   if (use_estimate_) {
@@ -390,7 +394,15 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
     gas_.noteCountDoubt(e.count_doubt_m, e.load_n);
     measurement_.height_m = e.height_m;
   }
-  if (!sim_) monitorStep(events, before, dt_s > 0.0 ? dt_s : params_.control_period_s);
+  const double period_s = dt_s > 0.0 ? dt_s : params_.control_period_s;
+  if (sim_) return;
+  if (coasting) {
+    unmonitored_s_ += period_s;
+    return;
+  }
+  // As the flat test: a sample stands for at most a few periods.
+  monitorStep(events, before, std::min(period_s + unmonitored_s_, kSampleCreditPeriods * params_.control_period_s));
+  unmonitored_s_ = 0.0;
 }
 
 void AirbagCell::notePressureSample(const StampedReading& pressure) {
@@ -405,7 +417,8 @@ void AirbagCell::notePressureSample(const StampedReading& pressure) {
   const bool repeated = std::isfinite(pressure.stamp_s) && std::isfinite(last_pressure_stamp_s_) &&
                         std::fabs(pressure.stamp_s - last_pressure_stamp_s_) < kSameSampleS;
   const bool missed = time_s_ - pressure.stamp_s > params_.control_period_s || time_s_ < unsure_count_until_s_;
-  fresh_pressure_pa_ = repeated && missed ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
+  repeated_sample_ = repeated && missed && pressure.present();
+  fresh_pressure_pa_ = repeated_sample_ ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
   if (pressure.present()) last_pressure_stamp_s_ = pressure.stamp_s;
 }
 
@@ -459,8 +472,9 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   sample.inlet_opening = applied.valves.inlet;
   sample.vent_opening = applied.valves.vent;
   // A re-anchor proves the gas (the cell found flat) whatever it corrected; a weight bound
-  // only pulls the estimate to a bound, so a large one shows the inventory wrong.
-  if (events.weight_bounded && !events.reanchored)
+  // only pulls the estimate to a bound, so a large one shows the inventory wrong, unless the
+  // gas is already being found (a restarted terminal's empty cell under the link check).
+  if (events.weight_bounded && !events.reanchored && !gas_.gasUnknown())
     sample.correction_m = observer_->estimate().height_m - height_before_m;
   sample.counted_step_pa = countedStepPa(events, before);
   sample.load_n = observer_->estimate().load_n;

@@ -415,6 +415,11 @@ void CellObserver::takeInputs(const ObserverInputs& inputs, double dt) {
 }
 
 void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
+  coast(inputs, dt_s);
+  reanchor_.interrupt();
+}
+
+void CellObserver::coast(const ObserverInputs& inputs, double dt_s) {
   const double dt = dt_s > 0.0 ? dt_s : params_.period_s;
   takeInputs(inputs, dt);
   reading_noise_.interrupt();
@@ -430,7 +435,6 @@ void CellObserver::predict(const ObserverInputs& inputs, double dt_s) {
   time_ += dt;
   last_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   refresh(in);
-  reanchor_.interrupt();
   pulse_.interrupt();
 }
 

@@ -16,7 +16,8 @@ ReanchorDetector::ReanchorDetector(double reanchor_time_s, double period_s, doub
     : reanchor_time_s_(reanchor_time_s), period_s_(period_s), flat_pressure_pa_(flat_pressure_pa) {}
 
 void ReanchorDetector::reset() {
-  flat_since_s_ = -1.0;
+  flat_for_s_ = -1.0;
+  last_sample_s_ = -1.0;
   sub_ambient_flat_until_s_ = -1.0;
   venting_ = false;
   settled_from_s_ = -1.0;
@@ -29,14 +30,18 @@ bool ReanchorDetector::update(double now_s, const ObserverInputs& applied, doubl
     venting_ = venting;
     settled_from_s_ = now_s + kVentEdgeSettleS;
   }
+  const double since_s = last_sample_s_ < 0.0 ? period_s_ : now_s - last_sample_s_;
+  last_sample_s_ = now_s;
   if (applied.valves.inlet > 0.0 || to_vacuum || !std::isfinite(gauge_pressure_pa) || now_s < settled_from_s_) {
-    flat_since_s_ = -1.0;
+    flat_for_s_ = -1.0;
     return false;
   }
-  const double dt = period_s_;
-  if (flat_since_s_ < 0.0) {
-    flat_since_s_ = now_s;
+  const double dt = std::clamp(since_s, period_s_, kSampleCreditPeriods * period_s_);
+  if (flat_for_s_ < 0.0) {
+    flat_for_s_ = 0.0;
     mean_pa_ = gauge_pressure_pa;
+  } else {
+    flat_for_s_ += dt;
   }
   const double tau = std::max(reanchor_time_s_ / 3.0, dt);
   mean_pa_ += (gauge_pressure_pa - mean_pa_) * std::min(1.0, dt / tau);
@@ -45,9 +50,9 @@ bool ReanchorDetector::update(double now_s, const ObserverInputs& applied, doubl
   // Taken always, light cells resting lifted near ambient would be re-anchored flat.
   const bool low =
       now_s < sub_ambient_flat_until_s_ ? mean_pa_ < flat_pressure_pa_ : std::fabs(mean_pa_) < flat_pressure_pa_;
-  if (now_s - flat_since_s_ + 1e-9 >= reanchor_time_s_ && low) {
+  if (flat_for_s_ + 1e-9 >= reanchor_time_s_ && low) {
     *mean_pa = mean_pa_;
-    flat_since_s_ = now_s;
+    flat_for_s_ = 0.0;
     return true;
   }
   return false;

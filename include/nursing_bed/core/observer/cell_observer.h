@@ -137,8 +137,12 @@ class CellObserver {
   /// jitter).
   /// Returns what the step found (a re-anchor, a weight bound).
   ObserverEvents step(const ObserverInputs& inputs, const Readings& readings, double dt_s = 0.0);
-  /// A period without readings (a lost link): the gas integrated, the plate held.
+  /// A period without readings (a lost link): the gas integrated, the plate held; the flat
+  /// test starts again.
   void predict(const ObserverInputs& inputs, double dt_s = 0.0);
+  /// A period without a new sample (the bus slower than the step, a reply missed): as
+  /// predict(), the flat test paused rather than restarted.
+  void coast(const ObserverInputs& inputs, double dt_s = 0.0);
 
   CellEstimate estimate() const;
   /// Adds `gas_kg` to the count's doubt in full: gas counted while the valves' record or the

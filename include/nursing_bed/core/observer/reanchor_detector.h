@@ -13,7 +13,10 @@ namespace nursing_bed {
  * The pressure is averaged over a third of the re-anchor time: a lightly loaded plate's vent
  * holds a few tens of Pa, as large as the reading's noise and ADC step. A vent that opens or
  * shuts rings a light plate, whose pressure dips to flat and below while it stands lifted: the
- * test starts afresh once the plate has settled after each vent edge.
+ * test starts afresh once the plate has settled after each vent edge. A bus slower than the
+ * observer's step leaves periods without a new sample: they pause the test, and each sample
+ * counts for the time since the last one up to kSampleCreditPeriods periods (one sample
+ * repeated by a lossy link is one reading, not a flat cell).
  */
 class ReanchorDetector {
  public:
@@ -23,8 +26,9 @@ class ReanchorDetector {
   double flatPressure() const { return flat_pressure_pa_; }
   /// Forgets the test under way and any expectFlat.
   void reset();
-  /// A period without a reading: the test starts again.
-  void interrupt() { flat_since_s_ = -1.0; }
+  /// A period without a reading (the link lost, a sensor fault): the test starts again. A
+  /// period without a new sample is not passed to update() at all.
+  void interrupt() { flat_for_s_ = -1.0; }
   /// Until `until_s` a mean below ambient counts as flat too (the cell has vented and keeps
   /// its valves shut to be tested).
   void expectFlatUntil(double until_s) { sub_ambient_flat_until_s_ = until_s; }
@@ -34,7 +38,11 @@ class ReanchorDetector {
 
  private:
   double reanchor_time_s_, period_s_, flat_pressure_pa_;
-  double flat_since_s_ = -1.0;              ///< the test's start (-1: none under way)
+  /// Most periods one sample stands for: a bus at a third of the step's rate still feeds the
+  /// test at its pace; a longer silence counts as this many.
+  static constexpr double kSampleCreditPeriods = 3.0;
+  double flat_for_s_ = -1.0;                ///< time the test has run on samples (-1: none under way) [s]
+  double last_sample_s_ = -1.0;             ///< the last sample's time [s]
   double mean_pa_ = 0.0;                    ///< the measured pressure averaged while it runs
   double sub_ambient_flat_until_s_ = -1.0;  ///< see expectFlatUntil
   bool venting_ = false;                    ///< the vent acting at the last reading was open
