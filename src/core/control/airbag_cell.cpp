@@ -383,7 +383,8 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   if (!capabilities_.inflow || sim_) z.inflow_kg_s = std::numeric_limits<double>::quiet_NaN();
   const CellEstimate before = observer_->estimate();
   // A repeated sample is no new evidence, nor the gap of a lost link: the tests pause.
-  const bool coasting = repeated_sample_ && !std::isfinite(z.height_m);
+  const bool repeated = std::isnan(fresh_pressure_pa_) && !std::isnan(measurement_.gauge_pressure_pa);
+  const bool coasting = repeated && !std::isfinite(z.height_m);
   ObserverEvents events;
   if (coasting) observer_->coast(in, dt_s);
   else events = observer_->step(in, z, dt_s);
@@ -401,7 +402,8 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
     return;
   }
   // As the flat test: a sample stands for at most a few periods.
-  monitorStep(events, before, std::min(period_s + unmonitored_s_, kSampleCreditPeriods * params_.control_period_s));
+  monitorStep(events, before,
+              std::min(period_s + unmonitored_s_, ReanchorDetector::kSampleCreditPeriods * params_.control_period_s));
   unmonitored_s_ = 0.0;
 }
 
@@ -417,8 +419,7 @@ void AirbagCell::notePressureSample(const StampedReading& pressure) {
   const bool repeated = std::isfinite(pressure.stamp_s) && std::isfinite(last_pressure_stamp_s_) &&
                         std::fabs(pressure.stamp_s - last_pressure_stamp_s_) < kSameSampleS;
   const bool missed = time_s_ - pressure.stamp_s > params_.control_period_s || time_s_ < unsure_count_until_s_;
-  repeated_sample_ = repeated && missed && pressure.present();
-  fresh_pressure_pa_ = repeated_sample_ ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
+  fresh_pressure_pa_ = repeated && missed ? std::numeric_limits<double>::quiet_NaN() : pressure.value;
   if (pressure.present()) last_pressure_stamp_s_ = pressure.stamp_s;
 }
 

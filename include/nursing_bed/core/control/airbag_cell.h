@@ -264,11 +264,7 @@ class AirbagCell {
   /// no new one came (notePressureSample), which the observer and the tests must count once.
   double fresh_pressure_pa_ = std::numeric_limits<double>::quiet_NaN();
   double last_pressure_stamp_s_ = std::numeric_limits<double>::quiet_NaN();  ///< fresh_pressure_pa_'s stamp [s]
-  /// Most control periods one pressure sample stands for in the consistency monitor (as in the
-  /// observer's flat test, ReanchorDetector).
-  static constexpr double kSampleCreditPeriods = 3.0;
-  bool repeated_sample_ = false;  ///< this period's sample is the last one again (fresh_pressure_pa_ NaN)
-  double unmonitored_s_ = 0.0;    ///< periods of repeated samples since the monitor's last update [s]
+  double unmonitored_s_ = 0.0;  ///< periods of repeated samples since the monitor's last update [s]
   /// Gas counted until then is doubtful in full: a communication or sensor fault was flagged
   /// less than kUnsureCountS ago (a lossy link's writes and the terminal's watchdog) [s].
   double unsure_count_until_s_ = -std::numeric_limits<double>::infinity();

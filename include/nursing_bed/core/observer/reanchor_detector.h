@@ -20,6 +20,11 @@ namespace nursing_bed {
  */
 class ReanchorDetector {
  public:
+  /// Most periods one sample stands for (here and in the cell's consistency monitor): a bus at
+  /// a third of the step's rate still feeds the tests at their pace; a longer silence counts
+  /// as this many.
+  static constexpr double kSampleCreditPeriods = 3.0;
+
   /// `flat_pressure_pa`: |mean gauge pressure| under which the cell is flat; `period_s`: the
   /// observer's step.
   ReanchorDetector(double reanchor_time_s, double period_s, double flat_pressure_pa);
@@ -38,9 +43,6 @@ class ReanchorDetector {
 
  private:
   double reanchor_time_s_, period_s_, flat_pressure_pa_;
-  /// Most periods one sample stands for: a bus at a third of the step's rate still feeds the
-  /// test at its pace; a longer silence counts as this many.
-  static constexpr double kSampleCreditPeriods = 3.0;
   double flat_for_s_ = -1.0;                ///< time the test has run on samples (-1: none under way) [s]
   double last_sample_s_ = -1.0;             ///< the last sample's time [s]
   double mean_pa_ = 0.0;                    ///< the measured pressure averaged while it runs
