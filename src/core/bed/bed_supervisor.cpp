@@ -196,8 +196,12 @@ void BedSupervisor::endUnknownCpr() {
 }
 
 double BedSupervisor::safeLevel() const {
+  // The healthy cells' targets, not their heights: a rig restarted empty leaves every cell near
+  // flat while the plan the patient lay on still stands, and the bed refills to it.
   const PlanConfig& plans = params_.plans;
-  const double level = health_.healthyMeanHeight().value_or(plans.nominal_height_m);
+  std::vector<double> held(health_.cells().size(), CellSnapshot::kNone);
+  for (const BedCell& c : health_.cells()) held[c.id] = commander_.sentHeight(c.id);
+  const double level = health_.healthyMeanHeight(held).value_or(plans.nominal_height_m);
   return std::clamp(level, plans.min_height_m, plans.max_height_m);
 }
 

@@ -96,11 +96,12 @@ std::vector<double> CellHealthWatcher::heights() const {
   return h;
 }
 
-std::optional<double> CellHealthWatcher::healthyMeanHeight() const {
+std::optional<double> CellHealthWatcher::healthyMeanHeight(const std::vector<double>& held_m) const {
   double sum = 0.0;
   int n = 0;
   for (const BedCell& c : cells_) {
-    const double h = states_[c.id].height_m;
+    const double held = c.id < held_m.size() ? held_m[c.id] : CellSnapshot::kNone;
+    const double h = std::isfinite(held) ? held : states_[c.id].height_m;
     if (dead_[c.id] || faulty_[c.id] || !reported(c.id) || !std::isfinite(h)) continue;
     sum += h;
     ++n;

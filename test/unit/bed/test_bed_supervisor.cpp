@@ -189,6 +189,23 @@ TEST(BedSupervisor, ACellReportingASensorOrModelFaultIsFaultyAndTheBedLevels) {
   }
 }
 
+TEST(BedSupervisor, AfterTheRigRestartedEmptyTheBedLevelsAtTheTargetsNotAtFlat) {
+  // Every cell held at 0.08 m, then the rig restarts empty: the cells report flat while they
+  // refill, and one of them fails meanwhile. The bed levels at what the cells were sent.
+  Bed bed;
+  bed.heights.assign(bed.heights.size(), 0.08);
+  ASSERT_TRUE(bed.posture("flat", {"height_m"}, {"0.08"}).ok);
+  bed.run(3.0);
+  bed.heights.assign(bed.heights.size(), 0.002);
+  bed.run(0.3);
+  bed.faults[4] = nb::kFaultInconsistent;
+  const nb::BedStatus status = bed.run(0.1);
+  EXPECT_EQ(status.faulty_cells, std::vector<std::uint32_t>{4});
+  EXPECT_EQ(status.plan, nb::PlanKind::kSafeLevel);
+  EXPECT_EQ(status.parameters, "height_m=0.08");  // not the flat cells' 0.002 m, clamped to min_height
+  EXPECT_TRUE(bed.logged(nb::BedEvent::Kind::kCellFailed, "levelling the bed at 0.080 m"));
+}
+
 TEST(BedSupervisor, OtherFaultsAreReportedButDoNotLevelTheBed) {
   Bed bed;
   ASSERT_TRUE(bed.posture("flat").ok);

@@ -75,8 +75,10 @@ class CellHealthWatcher {
   std::vector<std::uint32_t> unverifiedCells() const;
   /// The reported heights by cell id (NaN where none arrived) [m].
   std::vector<double> heights() const;
-  /// Mean reported height of the cells neither dead nor faulty; nullopt when there is none [m].
-  std::optional<double> healthyMeanHeight() const;
+  /// Mean over the cells neither dead nor faulty of the height each is held at: `held_m[id]`
+  /// where finite (the target it was sent), else its reported height; nullopt when there is
+  /// none [m].
+  std::optional<double> healthyMeanHeight(const std::vector<double>& held_m = {}) const;
   /// The cell's condition at `now_s` for diagnostics.
   CellReport report(std::uint32_t id, double now_s) const;
   /// The longest wait between two states of one cell since resetLargestGap() [s].
