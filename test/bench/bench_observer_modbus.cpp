@@ -7,7 +7,7 @@
 // usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
 //          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
 //          [--effects] [--load-guess N] [--load-swing N] [--swing-time S] [--land S]
-//          [--hold S] [--alternate [--rate M_S] [--high M]] [--load-stiffness N_M]
+//          [--hold S] [--alternate [--rate M_S] [--high M]] [--load-stiffness N_M] [--supply PA]
 //   --proportional        holding-register valves instead of on/off coils (PWM)
 //   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
 //   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
@@ -34,6 +34,8 @@
 //   --load-stiffness N_M  the load grows by this per metre the plate stands above 0.1 m and
 //                         shrinks below it, never under the plate's own 0.6 N (a body lying on
 //                         the cell as on a spring; default 0: a dead load)
+//   --supply PA           the supply's gauge pressure, rig and cell (default the cell's 20 kPa;
+//                         real_bed.launch: 30 kPa)
 //   --period S            the cell's control period (default 0.005 s, as the bed's nodes)
 //   --seed N              the emulator's noise seed (default the emulator's): one seed is one
 //                         noise sequence, so runs differ only by their timing
@@ -81,6 +83,7 @@ struct Options {
   double rate_m_s = 0.02;      ///< --alternate: the streamed targets' rate limit [m/s]
   double high_m = 0.12;        ///< --alternate: the high target [m]
   double stiffness_n_m = 0.0;  ///< the load grows by this per metre of plate above 0.1 m [N/m]
+  double supply_pa = -1.0;     ///< < 0: the cell's default supply pressure [Pa]
   std::string trace_path;
 };
 
@@ -101,6 +104,7 @@ double* numberOption(const std::string& a, Options* o) {
   if (a == "--rate") return &o->rate_m_s;
   if (a == "--high") return &o->high_m;
   if (a == "--load-stiffness") return &o->stiffness_n_m;
+  if (a == "--supply") return &o->supply_pa;
   return nullptr;
 }
 
@@ -124,6 +128,7 @@ bool parse(int argc, char** argv, Options* o) {
                            : a == "--hold" || a == "--land"                            ? 3600.0
                            : a == "--swing-time"                                       ? 10.0
                            : a == "--load-stiffness"                                   ? 1e4
+                           : a == "--supply"                                           ? 1e5
                                                                                        : 1.0;
       // a period of 0 never ticks, a sway of correlation time 0 is no sway
       const double lower_exclusive = a == "--period" || a == "--swing-time" ? 0.0 : -1.0;
@@ -201,6 +206,7 @@ int main(int argc, char** argv) {
   nb::RigEmulatorOptions rig;
   const double guess_n = o.load_guess_n >= 0.0 ? o.load_guess_n : o.load_n;
   rig.cell.load_n = o.land_s > 0.0 ? guess_n : o.load_n;
+  if (o.supply_pa >= 0.0) rig.cell.cell.supply_pressure_pa = o.supply_pa;
   rig.cell.pressure_noise_pa = o.noise_pa;
   rig.rig.adc_step_pa = o.adc_pa;
   rig.rig.valve_dead_time_s = o.rig_dead_time_s;
@@ -220,6 +226,7 @@ int main(int argc, char** argv) {
   hardware->configure(config);
   nb::AirbagCellParams params;
   params.control_period_s = config.control_period_s;
+  if (o.supply_pa >= 0.0) params.cell.supply_pressure_pa = o.supply_pa;
   nb::AirbagObserverSetup observer;
   observer.model = params.cell;
   observer.params.valve_dead_time_s = o.dead_time_s;
