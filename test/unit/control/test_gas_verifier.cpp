@@ -131,11 +131,15 @@ TEST(GasVerifier, ADoubtfulCountOnALightCellAnchorsItWhateverTargetsComeUntilFou
   EXPECT_EQ(gas.findingValves(kPeriod, &observer, kWanted, &found).vent, 1.0);
   gas.noteCountDoubt(0.02, 0.6);
   EXPECT_TRUE(gas.recounting()) << "one anchoring at a time";
+  gas.noteCountDoubt(0.0, 0.6);  // the estimate's doubt in mm shrinks as it falls to flat
+  EXPECT_FALSE(gas.doubtful());
+  EXPECT_TRUE(gas.unverified()) << "flagged until the cell is found flat";
   gas.note(reanchored());
   gas.findingValves(kPeriod, &observer, kWanted, &found);
   EXPECT_TRUE(found);
   EXPECT_EQ(gas.knowledge(), nb::GasKnowledge::kKnown);
   EXPECT_FALSE(gas.recounting());
+  EXPECT_FALSE(gas.unverified());
   p.recount_doubt_m = 0.0;  // never
   nb::GasVerifier never(p);
   never.noteCountDoubt(1.0, 0.6);

@@ -124,8 +124,11 @@ class GasVerifier {
   GasKnowledge knowledge() const { return gas_; }
   /// The gas (and the height from it) is not proven: lost link not yet checked, suspected, or
   /// reset over real hardware and not yet found flat, or found flat after an inconsistency and
-  /// not yet proved by a hold at height; or its count is doubtful.
-  bool unverified() const { return unproven() || doubtful_; }
+  /// not yet proved by a hold at height; or its count is doubtful, or being recounted (venting
+  /// to be found flat: the doubt in millimetres shrinks with the estimate on the way down,
+  /// while the gas it doubts is still uncounted, and a vent that passes nothing leaves the
+  /// estimate falling to flat under a lifted plate).
+  bool unverified() const { return unproven() || doubtful_ || recounting(); }
   /// The gas is not proven (as unverified(), without a doubtful count).
   bool unproven() const { return gasUnknown() || proof_.pending(); }
   /// The observer's count doubt (noteCountDoubt) is beyond flag_doubt_m: the height is reported
