@@ -199,9 +199,7 @@ double BedSupervisor::safeLevel() const {
   // The healthy cells' targets, not their heights: a rig restarted empty leaves every cell near
   // flat while the plan the patient lay on still stands, and the bed refills to it.
   const PlanConfig& plans = params_.plans;
-  std::vector<double> held(health_.cells().size(), CellSnapshot::kNone);
-  for (const BedCell& c : health_.cells()) held[c.id] = commander_.sentHeight(c.id);
-  const double level = health_.healthyMeanHeight(held).value_or(plans.nominal_height_m);
+  const double level = health_.healthyMeanHeight(commander_.sentHeights()).value_or(plans.nominal_height_m);
   return std::clamp(level, plans.min_height_m, plans.max_height_m);
 }
 

@@ -35,6 +35,8 @@ class CellCommander {
   void resendAll();
   /// The last setpoint sent to the cell (NaN: none, or vented since) [m].
   double sentHeight(std::uint32_t id) const { return sent_height_m_.at(id); }
+  /// The last setpoint sent to each cell, by cell id (NaN: none, or vented since) [m].
+  const std::vector<double>& sentHeights() const { return sent_height_m_; }
 
  private:
   std::vector<double> limit(const std::vector<double>& wanted, const std::vector<double>& measured_m, double dt_s);

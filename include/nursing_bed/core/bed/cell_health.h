@@ -78,7 +78,7 @@ class CellHealthWatcher {
   /// Mean over the cells neither dead nor faulty of the height each is held at: `held_m[id]`
   /// where finite (the target it was sent), else its reported height; nullopt when there is
   /// none [m].
-  std::optional<double> healthyMeanHeight(const std::vector<double>& held_m = {}) const;
+  std::optional<double> healthyMeanHeight(const std::vector<double>& held_m) const;
   /// The cell's condition at `now_s` for diagnostics.
   CellReport report(std::uint32_t id, double now_s) const;
   /// The longest wait between two states of one cell since resetLargestGap() [s].
