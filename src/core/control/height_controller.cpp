@@ -39,6 +39,7 @@ HeightController::HeightController(const HeightControllerParams& params,
       load_(params.load_filter_time_s, characteristic_ ? characteristic_->params().plate_mass_kg : 0.0,
             characteristic_ ? characteristic_->params().plate_damping_n_s_m : 0.0) {
   if (characteristic_) supply_pressure_pa_ = characteristic_->params().supply_pressure_pa;
+  if (characteristic_) shape_ = characteristic_->restShape();
   const std::string error = params_.validate();
   if (!error.empty()) throw std::invalid_argument("height controller parameters: " + error);
   if (!characteristic_) throw std::invalid_argument("height controller: no characteristic");
@@ -78,15 +79,16 @@ void HeightController::clearTarget() {
   holding_ = false;
 }
 
-double HeightController::targetPressure() const { return characteristic_->pressureAt(target_m_, load_.load()); }
+double HeightController::targetPressure() const {
+  return characteristic_->pressureAt(target_m_, load_.load(), branch_);
+}
 
 bool HeightController::targetOutOfReach() const {
   const double p = targetPressure();
-  return !(p <= params_.max_pressure_pa) || target_m_ > characteristic_->maxHeight(load_.load());
+  return !(p <= params_.max_pressure_pa) || target_m_ > characteristic_->maxHeight(load_.load(), branch_);
 }
 
-double HeightController::fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3,
-                                          double invariant) const {
+double HeightController::fullFlowInvariantRate(int direction, double gauge_pressure_pa, double volume_m3) const {
   const CellParams& cell = characteristic_->params();
   const double p_abs = cell.ambient_pressure_pa + gauge_pressure_pa;
   const double flow =
@@ -97,22 +99,39 @@ double HeightController::fullFlowRestRate(int direction, double gauge_pressure_p
           : -orificeFlow(cell.gas, cell.vent_area_m2, p_abs, cell.ambient_temperature_k, cell.ambient_pressure_pa,
                          cell.ambient_temperature_k, cell.orifice_linear_band_pa)
                  .mass_flow_kg_s;
-  const double k_rate = characteristic_->invariantRate(volume_m3, flow, cell.supply_temperature_k);
+  return std::fabs(characteristic_->invariantRate(volume_m3, flow, cell.supply_temperature_k));
+}
+
+double HeightController::fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3,
+                                          double invariant) const {
   const double dk = 1e-3 * invariant;
-  const double dh_dk = (characteristic_->restingHeight(invariant + dk, load_.load()) -
-                        characteristic_->restingHeight(invariant - dk, load_.load())) /
+  const double dh_dk = (characteristic_->restingHeight(invariant + dk, load_.load(), branch_) -
+                        characteristic_->restingHeight(invariant - dk, load_.load(), branch_)) /
                        (2.0 * dk);
-  return std::fabs(dh_dk * k_rate);
+  return std::fabs(dh_dk) * fullFlowInvariantRate(direction, gauge_pressure_pa, volume_m3);
+}
+
+HeightController::MoveGauge HeightController::moveGauge(int direction, const Period& s) const {
+  const double load = load_.load(), aim = target_m_ + integral_m_;
+  const double aim_k = characteristic_->restInvariant(aim, load, branch_);
+  const double rest_k = characteristic_->restInvariant(resting_height_m_ + in_flight_shift_m_, load, branch_);
+  // The tail decides near the target: the valve's rate there (an unchoked inlet slows as the
+  // cell's pressure rises).
+  double p = characteristic_->pressureAt(aim, load, branch_), v = characteristic_->volumeAt(aim, load, branch_);
+  if (!std::isfinite(p) || !std::isfinite(v)) p = s.gauge_pressure_pa, v = s.volume_m3;
+  return {direction * (aim_k - rest_k), fullFlowInvariantRate(direction, p, v)};
 }
 
 double HeightController::halfPeriod() const {
   HalfPeriodCache& c = half_period_;
-  if (c.half_period_s < 0.0 || c.target_m != target_m_ || std::fabs(load_.load() - c.load_n) > 0.05 * c.load_n) {
+  if (c.half_period_s < 0.0 || c.target_m != target_m_ || c.branch != branch_ ||
+      std::fabs(load_.load() - c.load_n) > 0.05 * c.load_n) {
     const double mass = std::max(characteristic_->params().plate_mass_kg, load_.load() / kGravity);
-    const double k = characteristic_->plateStiffness(target_m_, load_.load());
+    const double k = characteristic_->plateStiffness(target_m_, load_.load(), branch_);
     c.half_period_s = k > 0.0 ? kPi * std::sqrt(mass / k) : 0.05;
     c.target_m = target_m_;
     c.load_n = load_.load();
+    c.branch = branch_;
   }
   return c.half_period_s;
 }
@@ -154,13 +173,14 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
   s.lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
 
   // Shaped full-flow move.
-  if (!move_.active() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest)
-    move_.start(s.predicted_error_m);
+  if (!move_.active() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest) {
+    const int direction = s.predicted_error_m > 0.0 ? 1 : -1;
+    move_.start(direction, moveGauge(direction, s).remaining);
+  }
   if (move_.active()) {
     const int direction = move_.direction();
-    const double half_period = halfPeriod();
-    const double rate = fullFlowRestRate(direction, gauge_pressure_pa, s.volume_m3, s.invariant);
-    if (const auto opening = move_.step(dt_s, direction * s.predicted_error_m, half_period, rate))
+    const MoveGauge gauge = moveGauge(direction, s);
+    if (const auto opening = move_.step(dt_s, gauge.remaining, halfPeriod(), gauge.rate))
       return command(s, direction, *opening);
   }
   return fineCorrection(s);
@@ -176,9 +196,9 @@ void HeightController::predictRest(Period* s) {
   // Load estimate: the plate's force balance on the structure's force at (h, p), outside moves
   // (a move plans with the load it started with) and with the plate off the bed (on the bed the
   // pressure says nothing about the load).
-  // One solve of the film relaxed at the measured pressure gives both.
-  const CellCharacteristic::RelaxedCell relaxed =
-      characteristic_->relaxedAt(height_m, gauge_pressure_pa, &stretch_guess_);
+  // One solve of the film relaxed at the measured pressure gives both, and the fold's side.
+  const CellCharacteristic::RelaxedCell relaxed = characteristic_->relaxedAt(height_m, gauge_pressure_pa, &shape_);
+  branch_ = relaxed.branch;
   const bool weighable = height_m > 0.005 && gauge_pressure_pa > 0.0;
   load_.update(dt_s, height_m, weighable ? relaxed.load_n : 0.0, weighable && !move_.active());
 
@@ -187,7 +207,7 @@ void HeightController::predictRest(Period* s) {
   // plate swings).
   s->volume_m3 = relaxed.volume_m3;
   s->invariant = characteristic_->invariant(gauge_pressure_pa, s->volume_m3);
-  resting_height_m_ = characteristic_->restingHeight(s->invariant, load_.load());
+  resting_height_m_ = characteristic_->restingHeight(s->invariant, load_.load(), branch_);
   in_flight_shift_m_ = in_flight_.empty() ? 0.0 : inFlightRestShift(gauge_pressure_pa, s->volume_m3, s->invariant);
 }
 

@@ -107,11 +107,14 @@ StructureEquilibrium CellStructure::equilibriumAtPressure(double gauge_pressure_
   return out;
 }
 
-StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double load_n) const {
+StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double load_n, int branch) const {
   StructureEquilibrium out;
   out.height_m = height_m;
   std::array<double, kMaxShapeDofs> q = restShape();
+  // Each trial pressure starts on the branch, so the force is one function of the pressure
+  // whatever the trials before it (the film's coordinates still carry over as a warm start).
   auto excess_force = [&](double p) {
+    enterBranch(branch, q.data());
     q = relaxedShape(height_m, p, q.data());
     const StructureEval e = evaluate(height_m, q.data());
     return p * e.effective_area_m2 + e.plate_force_n - load_n;
@@ -145,6 +148,7 @@ StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double 
     }
   }
   out.gauge_pressure_pa = p_new;
+  enterBranch(branch, q.data());
   out.shape = relaxedShape(height_m, out.gauge_pressure_pa, q.data());
   out.eval = evaluate(height_m, out.shape.data());
   out.converged = withinLimits(height_m, out.shape.data());

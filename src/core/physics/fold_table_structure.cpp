@@ -140,6 +140,37 @@ StructureEval FoldTableStructure::evaluate(double height_m, const double* shape)
   return e;
 }
 
+std::array<double, kMaxShapeDofs> FoldTableStructure::relaxedShape(double height_m, double gauge_pressure_pa,
+                                                                   const double* initial_shape) const {
+  std::array<double, kMaxShapeDofs> q = initial_shape ? std::array<double, kMaxShapeDofs>{} : restShape();
+  if (initial_shape) std::copy(initial_shape, initial_shape + shapeDofs(), q.begin());
+  // Both tables balance their film at q0 = p whatever the fold: solve it on one of them.
+  q[0] = folded_.relaxedShape(height_m, gauge_pressure_pa, q.data())[0];
+  // The fold follows its own flow from s to the first state where it stops: g(0) >= 0 and
+  // g(1) <= 0, so a root lies between s and the end the flow heads for.
+  auto rate = [&](double s) { return foldRate(s, q[0] * kShapeUnitPa, height_m); };
+  double s = std::clamp(q[1], 0.0, 1.0);
+  const double g0 = rate(s);
+  if (g0 == 0.0) return q;
+  const double direction = g0 > 0.0 ? 1.0 : -1.0;
+  double from = s, to = s;
+  for (int i = 0; i < 40; ++i) {  // steps of 1/40: two roots closer than that are a snap setting in
+    to = std::clamp(from + direction / 40.0, 0.0, 1.0);
+    if (to == from || direction * rate(to) <= 0.0) break;
+    from = to;
+  }
+  for (int i = 0; i < 50 && std::fabs(to - from) > 1e-12; ++i) {  // the root between them
+    const double mid = 0.5 * (from + to);
+    (direction * rate(mid) > 0.0 ? from : to) = mid;
+  }
+  q[1] = 0.5 * (from + to);
+  return q;
+}
+
+void FoldTableStructure::enterBranch(int branch, double* shape) const { shape[1] = branch == 0 ? 0.0 : 1.0; }
+
+int FoldTableStructure::branchOf(const double* shape) const { return shape[1] >= 0.5 ? 1 : 0; }
+
 double FoldTableStructure::heightLimit(const double* shape) const {
   return std::min(folded_.heightLimit(shape), open_.heightLimit(shape));
 }

@@ -12,7 +12,7 @@ namespace nb = nursing_bed;
 TEST(ShapedMove, ALargeMoveLeadsHalfOpenRunsFullFlowAndEndsWithATail) {
   nb::ShapedMove move;
   EXPECT_FALSE(move.active());
-  move.start(-0.05);
+  move.start(-1, 0.05);
   EXPECT_EQ(move.direction(), -1);
   EXPECT_EQ(move.phase(), nb::MovePhase::kLead);
   // The rest height moves 0.1 m/s at full flow; the lead lasts whole periods past T/2.
@@ -38,9 +38,27 @@ TEST(ShapedMove, ALargeMoveLeadsHalfOpenRunsFullFlowAndEndsWithATail) {
   EXPECT_NEAR(remaining, 0.0, 0.002) << "the tail lands the rest height on the target";
 }
 
+// A lead cut by its time is not a small move, even where T/2 is a whole number of periods
+// (the lead's measured duration then rounds either side of T/2).
+TEST(ShapedMove, ALeadEndingAtExactlyHalfAPeriodIsFollowedByFullFlow) {
+  nb::ShapedMove move;
+  move.start(1, 0.05);
+  const double dt = 0.005, half_period = 0.05, rate = 0.1;
+  double remaining = 0.05;
+  bool full = false;
+  for (int i = 0; i < 1000 && move.active(); ++i) {
+    const auto opening = move.step(dt, remaining, half_period, rate);
+    if (!opening) break;
+    full = full || (move.phase() == nb::MovePhase::kFullFlow && *opening == 1.0);
+    remaining -= *opening * rate * dt;
+  }
+  EXPECT_TRUE(full);
+  EXPECT_NEAR(remaining, 0.0, 0.002);
+}
+
 TEST(ShapedMove, ASmallMoveIsTwoHalfOpenPulsesAPauseApart) {
   nb::ShapedMove move;
-  move.start(0.004);
+  move.start(1, 0.004);
   const double dt = 0.005, half_period = 0.05, rate = 0.1;
   double remaining = 0.004;
   std::vector<double> openings;

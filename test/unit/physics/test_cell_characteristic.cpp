@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 
 #include "nursing_bed/core/physics/cell_characteristic.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 
 namespace nb = nursing_bed;
 
@@ -60,19 +62,51 @@ TEST(CellCharacteristic, RestingHeightStaysWithinTheTable) {
 
 TEST(CellCharacteristic, RelaxedCellIsTheLoadAndVolumeOfOneSolve) {
   const nb::CellCharacteristic& c = characteristic();
-  double stretch = 0.0;  // no warm start yet
+  nb::CellCharacteristic::Shape shape = c.restShape();
   for (double h : {0.0, 0.03, 0.08, 0.13}) {
     for (double p : {500.0, 3000.0, 9000.0}) {
       const nb::CellCharacteristic::RelaxedCell r = c.relaxedAt(h, p);
       EXPECT_EQ(r.load_n, c.loadAt(h, p)) << h << " " << p;
       EXPECT_EQ(r.volume_m3, c.relaxedVolume(h, p)) << h << " " << p;
-      // A warm start from the previous state's stretch finds the same film.
-      const nb::CellCharacteristic::RelaxedCell warm = c.relaxedAt(h, p, &stretch);
+      // A warm start from the previous state's shape finds the same film.
+      const nb::CellCharacteristic::RelaxedCell warm = c.relaxedAt(h, p, &shape);
       EXPECT_NEAR(warm.volume_m3, r.volume_m3, 1e-9 * r.volume_m3) << h << " " << p;
       EXPECT_NEAR(warm.load_n, r.load_n, 1e-6 * r.load_n + 1e-9) << h << " " << p;
-      EXPECT_GT(stretch, 0.0);
+      EXPECT_GT(shape[0], 0.0);
+      EXPECT_EQ(warm.branch, 0);
     }
   }
+}
+
+// The shipped FE cell's fold (doc/cell_geometry.md): under 10.6 N at 4.87 kPa the FE bag rests
+// at 84.4 mm on the way up (fold shut) and at 100.5 mm on the way down (still open). The
+// characteristic has both branches, and a film carried between calls stays on its side.
+TEST(CellCharacteristic, AFoldedCellHasARisingAndAFallingBranchAndKeepsItsSide) {
+  const auto c = nb::CellCharacteristic::shared(
+      nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml"));
+  ASSERT_EQ(c->branches(), 2);
+  EXPECT_EQ(characteristic().branches(), 1);  // the pillow has no fold
+  const double load = 10.6, p = 1e3 * (1.0 + 29.0 * 2 / 15);
+  // Each branch rests within 3 mm of the FE's height (the branch's p(h) brackets the pressure).
+  EXPECT_LT(c->pressureAt(0.0814, load, 0), p);
+  EXPECT_GT(c->pressureAt(0.0874, load, 0), p);
+  EXPECT_LT(c->pressureAt(0.0975, load, 1), p);
+  EXPECT_GT(c->pressureAt(0.1035, load, 1), p);
+
+  // Up to 20 kPa at 120 mm (the fold opens), then back to 4.87 kPa at 100.5 mm: still open.
+  nb::CellCharacteristic::Shape shape = c->restShape();
+  EXPECT_EQ(c->relaxedAt(0.0844, p, &shape).branch, 0);
+  EXPECT_EQ(c->relaxedAt(0.12, 20e3, &shape).branch, 1);
+  const nb::CellCharacteristic::RelaxedCell open = c->relaxedAt(0.1005, p, &shape);
+  EXPECT_EQ(open.branch, 1);
+  EXPECT_NEAR(open.load_n, load, 1.0);
+  EXPECT_EQ(c->relaxedAt(0.1005, p).branch, 0);  // from the rest shape: shut
+  // Closed there, the open cell rests where it is; the rising branch would put it elsewhere.
+  const double k = c->invariant(p, open.volume_m3);
+  EXPECT_NEAR(c->restingHeight(k, load, 1), 0.1005, 2e-3);
+  EXPECT_GT(std::fabs(c->restingHeight(k, load, 0) - 0.1005), 3e-3);
+  // Far below the fold's band it shuts again.
+  EXPECT_EQ(c->relaxedAt(0.03, 500.0, &shape).branch, 0);
 }
 
 }  // namespace

@@ -138,8 +138,19 @@ class HeightController {
   double predictedError() const { return target_m_ + integral_m_ - resting_height_m_ - in_flight_shift_m_; }
   /// Holding: whether an error has left hold_band_m (the measured one only counts at rest).
   bool leavesHold(double predicted_error_m, double error_m, bool resting) const;
+  /// Rate at which the gas's invariant K changes with the valve of `direction` fully open
+  /// [Pa m^(3 gamma)/s], magnitude.
+  double fullFlowInvariantRate(int direction, double gauge_pressure_pa, double volume_m3) const;
   /// Rate at which h_rest moves with the valve of `direction` fully open [m/s].
   double fullFlowRestRate(int direction, double gauge_pressure_pa, double volume_m3, double invariant) const;
+  /// A move's distance still to go and its full-flow rate, both in the invariant K: a choked
+  /// valve changes K at a nearly steady rate, where the rest height's rate follows the cell's
+  /// stiffness along the way (an FE cell's p(h) steepens several-fold within one move).
+  struct MoveGauge {
+    double remaining = 0.0;  ///< K of the aimed rest - K of the predicted one, in the move's direction
+    double rate = 0.0;       ///< |dK/dt| at full flow
+  };
+  MoveGauge moveGauge(int direction, const Period& s) const;
 
   HeightControllerParams params_;
   std::shared_ptr<const CellCharacteristic> characteristic_;
@@ -153,12 +164,16 @@ class HeightController {
   bool holding_ = false;            ///< on target: valves shut until an error leaves hold_band_m
   CommandsInFlight in_flight_;      ///< commands of the last dead time, not yet acting
   double in_flight_shift_m_ = 0.0;  ///< rest height they still add (this period's)
-  double stretch_guess_ = 1.0;
+  /// The film's relaxed shape, carried between periods: a bistable fold keeps its side
+  /// (the branch the rest is predicted on) until the pressure leaves its hysteresis band.
+  CellCharacteristic::Shape shape_{};
+  int branch_ = 0;
   ShapedMove move_;  ///< the shaped full-flow move under way, if any
   double supply_pressure_pa_ = 0.0;
-  /// Half period cached for (target, load) because it costs a few solves.
+  /// Half period cached for (target, load, branch) because it costs a few solves.
   struct HalfPeriodCache {
     double half_period_s = -1.0, target_m = -1.0, load_n = -1.0;
+    int branch = -1;
   };
   mutable HalfPeriodCache half_period_;
 };

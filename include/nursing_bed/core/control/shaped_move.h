@@ -23,8 +23,9 @@ enum class MovePhase : std::uint8_t { kNone = 0, kLead = 1, kFullFlow = 2, kTail
  */
 class ShapedMove {
  public:
-  /// Starts a move towards `predicted_error_m` (its sign gives the direction).
-  void start(double predicted_error_m);
+  /// Starts a move in `direction` (+1 fill, -1 vent) with `remaining` still to go (in the unit
+  /// step() is given it and the rate in).
+  void start(int direction, double remaining);
   /// Ends the move (done, or no target).
   void stop();
   bool active() const { return direction_ != 0; }
@@ -33,26 +34,27 @@ class ShapedMove {
   MovePhase phase() const { return phase_; }
 
   /// One period of `dt_s`: the opening of the move's valve over it, or nothing once the move is
-  /// done (it has then stopped). `remaining_m`: the rest height still to go in the move's
-  /// direction; `half_period_s`: the loaded plate's; `rest_rate_m_s`: the rest height's rate
-  /// with the valve fully open.
-  std::optional<double> step(double dt_s, double remaining_m, double half_period_s, double rest_rate_m_s);
+  /// done (it has then stopped). `remaining`: what is still to go in the move's direction (a
+  /// rest height, or the gas's invariant: any measure of the gas); `half_period_s`: the loaded
+  /// plate's; `rate`: the rate of that measure with the valve fully open (same unit per second).
+  std::optional<double> step(double dt_s, double remaining, double half_period_s, double rate);
 
  private:
   /// Half-open lead: T/2, or until half the move is done; nothing when it has ended.
-  std::optional<double> lead(double dt_s, double remaining_m, double half_period_s);
+  std::optional<double> lead(double dt_s, double remaining, double half_period_s);
   /// Full flow until the tail can finish the move; a small move pauses instead.
-  std::optional<double> fullFlow(double dt_s, double remaining_m, double half_period_s, double rest_rate_m_s);
+  std::optional<double> fullFlow(double dt_s, double remaining, double half_period_s, double rate);
   /// Tail: the remaining gas spread over what is left of it (half flow when the prediction is
   /// exact; re-aimed every period so that the rest height lands on the target).
-  std::optional<double> tail(double dt_s, double remaining_m, double half_period_s, double rest_rate_m_s);
+  std::optional<double> tail(double dt_s, double remaining, double half_period_s, double rate);
 
   int direction_ = 0;
   MovePhase phase_ = MovePhase::kNone;
-  double time_s_ = 0.0;               ///< since the move started [s]
-  double lead_duration_s_ = 0.0;      ///< how long the lead lasted [s]
-  double tail_start_s_ = 0.0;         ///< when the tail began [s]
-  double initial_remaining_m_ = 0.0;  ///< the rest height to go at the start [m]
+  double time_s_ = 0.0;             ///< since the move started [s]
+  double lead_duration_s_ = 0.0;    ///< how long the lead lasted [s]
+  bool small_ = false;              ///< the lead ended halfway through the move, before T/2
+  double tail_start_s_ = 0.0;       ///< when the tail began [s]
+  double initial_remaining_ = 0.0;  ///< what was to go at the start (step()'s unit)
 };
 
 }  // namespace nursing_bed

@@ -3,10 +3,12 @@
 // through the pressure) made load-aware, and what the height controller predicts with.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <vector>
 
 #include "nursing_bed/core/physics/cell_model.h"
+#include "nursing_bed/core/physics/cell_structure.h"
 
 namespace nursing_bed {
 
@@ -22,50 +24,71 @@ class CellCharacteristic {
   /// process for its lifetime (thread-safe).
   static std::shared_ptr<const CellCharacteristic> shared(const CellParams& params);
 
+  /// A film shape (CellStructure's coordinates), carried between calls as a warm start.
+  using Shape = std::array<double, kMaxShapeDofs>;
+
+  /// The structure's quasi-static branches (two for a bistable fold, else one) and the one a
+  /// relaxed shape lies on; every query below takes the branch it is asked about (0: rising).
+  int branches() const { return static_cast<int>(tables_.size()); }
+  int branchOf(const Shape& shape) const { return structure_->branchOf(shape.data()); }
+  /// The flat, unstretched cell's shape (a warm start for relaxedAt).
+  Shape restShape() const { return structure_->restShape(); }
+
   /// Equilibrium gauge pressure [Pa] that holds `load_n` at `height_m`; NaN out of reach.
-  double pressureAt(double height_m, double load_n) const;
+  double pressureAt(double height_m, double load_n, int branch = 0) const;
   /// Gas volume [m^3] at that equilibrium; NaN out of reach.
-  double volumeAt(double height_m, double load_n) const;
+  double volumeAt(double height_m, double load_n, int branch = 0) const;
   /// Load [N] that gauge pressure p carries at rest at height h (inverse in the load).
   double loadAt(double height_m, double gauge_pressure_pa) const;
   /// The cell at plate height h and gauge pressure p with the film relaxed to p: its gas volume
-  /// (relaxedVolume) and the load p carries there at rest (loadAt), from one solve of the film.
+  /// (relaxedVolume), the load p carries there at rest (loadAt) and the branch the film is on,
+  /// from one solve of the film.
   struct RelaxedCell {
     double volume_m3;
     double load_n;
+    int branch;
   };
-  /// `stretch` carries the film stretch between calls as a warm start (may be null).
-  RelaxedCell relaxedAt(double height_m, double gauge_pressure_pa, double* stretch = nullptr) const;
+  /// `shape` carries the film's shape between calls as a warm start (may be null: the rest
+  /// shape). Carried, it also keeps a bistable fold on the side it was on (hysteresis).
+  RelaxedCell relaxedAt(double height_m, double gauge_pressure_pa, Shape* shape = nullptr) const;
   /// Height [m] where the cell comes to rest if the valves close now: the gas keeps its
-  /// adiabatic invariant K = p_abs V^gamma while the plate settles under `load_n`.
-  double restingHeight(double adiabatic_invariant, double load_n) const;
+  /// adiabatic invariant K = p_abs V^gamma while the plate settles under `load_n` on `branch`.
+  double restingHeight(double adiabatic_invariant, double load_n, int branch = 0) const;
+  /// The invariant of the rest at `height_m` (clamped to the branch's reach) under `load_n`:
+  /// restingHeight's inverse, non-decreasing in the height.
+  double restInvariant(double height_m, double load_n, int branch = 0) const;
   /// Gas volume at plate height h and gauge pressure p with the film relaxed to that pressure
-  /// (the film is fast: this is the cell's volume while the plate moves) [m^3]. `stretch`
-  /// carries the film stretch between calls as a warm start (may be null).
-  double relaxedVolume(double height_m, double gauge_pressure_pa, double* stretch = nullptr) const;
+  /// (the film is fast: this is the cell's volume while the plate moves) [m^3].
+  double relaxedVolume(double height_m, double gauge_pressure_pa, Shape* shape = nullptr) const;
   /// Small-oscillation stiffness of the plate on the closed cell around its rest at
-  /// `height_m` under `load_n` (adiabatic gas spring and shrinking effective area) [N/m].
-  double plateStiffness(double height_m, double load_n) const;
+  /// `height_m` under `load_n` (adiabatic gas spring and shrinking effective area) [N/m]; NaN
+  /// where the rests do not rise as the load lightens (out of reach, a snap's unstable side).
+  double plateStiffness(double height_m, double load_n, int branch = 0) const;
   /// Rate of change of the adiabatic invariant [Pa m^(3 gamma)/s] when mass flows in at
   /// `mass_flow_kg_s` (negative: out) at temperature `temperature_k` into volume V.
   double invariantRate(double volume_m3, double mass_flow_kg_s, double temperature_k) const;
   /// Adiabatic invariant p_abs V^gamma of a state.
   double invariant(double gauge_pressure_pa, double volume_m3) const;
-  /// Largest height the table reaches for this load (film limits, table range) [m].
-  double maxHeight(double load_n) const;
+  /// Largest height the table reaches for this load on `branch` (film limits, table range) [m].
+  double maxHeight(double load_n, int branch = 0) const;
 
   double heightStep() const { return height_step_m_; }
   const CellParams& params() const { return params_; }
 
  private:
-  // Row-major over loads: value(load_index, height_index).
-  double at(const std::vector<double>& table, double height_m, double load_n) const;
+  // One branch's equilibria, row-major over loads: value(load_index, height_index).
+  struct Table {
+    std::vector<double> pressure_pa, volume_m3, invariant;
+    std::vector<int> reachable;  // per load: number of heights with an equilibrium
+  };
+  Table tabulate(int branch) const;
+  const Table& table(int branch) const;
+  double at(const std::vector<double>& values, double height_m, double load_n) const;
   CellParams params_;
   std::shared_ptr<const CellStructure> structure_;  // the cell's own (pillow or FE table)
   double height_step_m_, load_step_n_;
   int heights_, loads_;
-  std::vector<double> pressure_pa_, volume_m3_, invariant_;
-  std::vector<int> reachable_;  // per load: number of heights with an equilibrium
+  std::vector<Table> tables_;  // per branch
 };
 
 }  // namespace nursing_bed

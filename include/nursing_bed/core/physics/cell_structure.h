@@ -82,17 +82,27 @@ class CellStructure {
   /// Short description for logs and reports.
   virtual std::string describe() const = 0;
 
-  /// Film shape that balances gauge pressure p at fixed plate height h (dW/dq = p dV/dq).
-  std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
-                                                 const double* initial_shape = nullptr) const;
+  /// Number of quasi-static branches: a structure with a bistable fold has two (0 rising: the
+  /// fold stays shut while it can, 1 falling: it stays open while it can); a plain film one.
+  virtual int branchCount() const { return 1; }
+  /// Puts `shape` on the branch's side of its bistable coordinates (the film's are kept).
+  virtual void enterBranch(int /*branch*/, double* /*shape*/) const {}
+  /// The branch a relaxed `shape` lies on.
+  virtual int branchOf(const double* /*shape*/) const { return 0; }
+
+  /// Film shape that balances gauge pressure p at fixed plate height h (dW/dq = p dV/dq),
+  /// reached from `initial_shape` (the rest shape if null). A damped Newton solve; a structure
+  /// whose coordinates have a closed-form or bistable balance may solve it itself.
+  virtual std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
+                                                         const double* initial_shape = nullptr) const;
   /// Height and shape at which pressure p and the structure's own plate force carry the load
   /// (plate at rest): the cell's
   /// h(p, load) characteristic (the paper's section 5 relation, from our model). Not converged
   /// when the film would have to leave its limits.
   StructureEquilibrium equilibriumAtPressure(double gauge_pressure_pa, double load_n) const;
   /// Pressure and shape that hold the plate at height h under the load (with the structure's
-  /// own plate force).
-  StructureEquilibrium equilibriumAtHeight(double height_m, double load_n) const;
+  /// own plate force), on `branch` (each trial pressure's shape entered on it, see enterBranch).
+  StructureEquilibrium equilibriumAtHeight(double height_m, double load_n, int branch = 0) const;
 };
 
 }  // namespace nursing_bed

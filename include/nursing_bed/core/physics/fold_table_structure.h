@@ -53,6 +53,15 @@ class FoldTableStructure : public CellStructure {
   double heightLimit(const double* shape) const override;
   bool withinLimits(double height_m, const double* shape) const override;
   std::string describe() const override;
+  /// The film's pressure as TabulatedStructure's; the fold at the stable state its flow
+  /// ds/dt = foldRate reaches from the initial s (so the side it was on between the snap
+  /// pressures), found by a bracketed search rather than a Newton step across the cubic.
+  std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
+                                                 const double* initial_shape = nullptr) const override;
+  /// Branch 0 enters the fold shut (s = 0), branch 1 open (s = 1); branchOf reads s >= 1/2 as open.
+  int branchCount() const override { return 2; }
+  void enterBranch(int branch, double* shape) const override;
+  int branchOf(const double* shape) const override;
 
   /// The fold's rate ds/dt at fold state s, film pressure p and plate height h [1/s].
   double foldRate(double s, double gauge_pressure_pa, double height_m) const;
