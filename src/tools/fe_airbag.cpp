@@ -281,12 +281,12 @@ void transient(const Args& a) {
   if (!r.ok) throw std::runtime_error(r.message);
 }
 
-// Every height where the table's plate force p A_eff(h, p) equals the load (the FE bag snaps
+// Every height where the table's plate force (plateForce: p A_eff + the film's own) equals the load (the FE bag snaps
 // between branches: F(h) is not monotone there, and an h(p) continuation follows one of them).
 std::vector<double> tableRoots(const nb::TabulatedStructure& cell, double p, double load) {
   std::vector<double> roots;
   const double q = p / 1e4;  // shape coordinate: the relaxed pressure in 10 kPa
-  auto excess = [&](double h) { return p * cell.evaluate(h, &q).effective_area_m2 - load; };
+  auto excess = [&](double h) { return cell.evaluate(h, &q).plateForce(p) - load; };
   const double h_max = cell.heightLimit(&q);
   double h0 = 0.0, f0 = excess(0.0);
   for (int i = 1; i <= 2000; ++i) {

@@ -318,16 +318,18 @@ void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s
     return;
   }
   const double area = vars_.structure.effective_area_m2;
-  const double raw = gauge_pressure_pa * area - model_.params().plate_damping_n_s_m * x_[CellModel::kVelocity];
+  const double raw =
+      vars_.structure.plateForce(gauge_pressure_pa) - model_.params().plate_damping_n_s_m * x_[CellModel::kVelocity];
   const double w = std::min(1.0, dt_s / params_.load_filter_time_s);
   load_n_ += (raw - load_n_) * w;
   load_n_ = std::max(load_n_, model_.params().plate_mass_kg * kGravity);
   // The filtered reading's noise, and the area's error through the height's.
   const double h = x_[CellModel::kHeight];
   const double dh = 1e-3;
-  const double area_up = model_.structure().evaluate(h + dh, &x_[CellModel::kShape]).effective_area_m2;
+  const double force_up = model_.structure().evaluate(h + dh, &x_[CellModel::kShape]).plateForce(gauge_pressure_pa);
   const double noise = std::pow(pressureNoise() * area, 2) * w / 2.0;
-  const double from_height = std::pow(gauge_pressure_pa * (area_up - area) / dh * height_sd_m_, 2);
+  const double from_height =
+      std::pow((force_up - vars_.structure.plateForce(gauge_pressure_pa)) / dh * height_sd_m_, 2);
   load_var_n2_ = std::min(cap, (1.0 - w) * load_var_n2_ + w * from_height + noise);
 }
 

@@ -111,7 +111,7 @@ CellCharacteristic::RelaxedCell CellCharacteristic::relaxedAt(double height_m, d
   const Shape q = structure_->relaxedShape(h, gauge_pressure_pa, shape ? shape->data() : nullptr);
   if (shape) *shape = q;
   const StructureEval e = structure_->evaluate(h, q.data());
-  return {e.volume_m3, std::clamp(gauge_pressure_pa * e.effective_area_m2, 0.0, (loads_ - 1) * load_step_n_),
+  return {e.volume_m3, std::clamp(e.plateForce(gauge_pressure_pa), 0.0, (loads_ - 1) * load_step_n_),
           structure_->branchOf(q.data())};
 }
 

@@ -128,7 +128,7 @@ StructureEquilibrium CellStructure::equilibriumAtHeight(double height_m, double 
     if (p_hi > 1e7 || !withinLimits(height_m, q.data())) return out;
   }
   // Illinois regula falsi on the bracket: superlinear, and never leaves the bracket.
-  double f_lo = evaluate(height_m, q.data()).plate_force_n - load_n, f_hi = excess_force(p_hi);
+  double f_lo = excess_force(p_lo), f_hi = excess_force(p_hi);
   int side = 0;
   double p_new = p_hi;
   for (int iter = 0; iter < 100 && p_hi - p_lo > 1e-10 * p_hi; ++iter) {

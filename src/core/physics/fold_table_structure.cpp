@@ -108,8 +108,8 @@ double FoldTableStructure::foldRate(double s, double gauge_pressure_pa, double h
   const double q = gauge_pressure_pa / kShapeUnitPa;
   const double p = std::clamp(gauge_pressure_pa, data_.folded.pressures_pa.front(), data_.folded.pressures_pa.back());
   // The load each branch would carry here: the snap pressures are the FE's per load.
-  const double load_folded = p * folded_.evaluate(height_m, &q).effective_area_m2;
-  const double load_open = p * open_.evaluate(height_m, &q).effective_area_m2;
+  const double load_folded = folded_.evaluate(height_m, &q).plateForce(p);
+  const double load_open = open_.evaluate(height_m, &q).plateForce(p);
   const double w = data_.snap_width_pa;
   const double a_open = logistic((gauge_pressure_pa - interpolate(data_.snap_loads_n, data_.open_pa, load_folded)) / w);
   const double a_close = logistic((interpolate(data_.snap_loads_n, data_.close_pa, load_open) - gauge_pressure_pa) / w);
@@ -128,15 +128,20 @@ StructureEval FoldTableStructure::evaluate(double height_m, const double* shape)
   e.dvolume_dshape[0] = mix(f.dvolume_dshape[0], o.dvolume_dshape[0]);
   e.elastic_force[0] = mix(f.elastic_force[0], o.elastic_force[0]);
   e.shape_damping[0] = mix(f.shape_damping[0], o.shape_damping[0]);
+  e.plate_force_n = mix(f.plate_force_n, o.plate_force_n);
   e.contact_area_m2 = mix(f.contact_area_m2, o.contact_area_m2);
   e.surface_area_m2 = mix(f.surface_area_m2, o.surface_area_m2);
-  // The fold moves at foldRate whatever the gas pressure's mismatch with q0: its residual
-  // depends on s, q0 and h only, so the film balance (relaxedShape) solves it beside q0. The
-  // coordinate is taken unclamped there: past 0 or 1 the cubic pulls it back (a flat drive would
-  // leave the Newton solve without a slope). dV/ds is not reported: the volume itself blends
-  // the tables (the pressure follows it), but the snap's volume change does no p dV work.
+  // The fold moves at foldRate: its residual dW/ds - p dV/ds depends on s, q0 and h only (the
+  // film's q0 standing for p, which it follows within the film's relaxation time), so the film
+  // balance (relaxedShape) solves it beside q0. The coordinate is taken unclamped there: past 0
+  // or 1 the cubic pulls it back (a flat drive would leave the Newton solve without a slope).
+  // dV/ds is the tables' difference: the snap's volume change is p dV work of the gas (its
+  // energy follows the volume), taken up by the fold's own balance.
+  const double dvds = shape[1] >= 0.0 && shape[1] <= 1.0 ? o.volume_m3 - f.volume_m3 : 0.0;  // V holds past the ends
+  e.dvolume_dshape[1] = dvds;
   e.shape_damping[1] = kFoldDampingJs;
-  e.elastic_force[1] = -kFoldDampingJs * foldRate(shape[1], shape[0] * kShapeUnitPa, height_m);
+  e.elastic_force[1] =
+      -kFoldDampingJs * foldRate(shape[1], shape[0] * kShapeUnitPa, height_m) + shape[0] * kShapeUnitPa * dvds;
   return e;
 }
 

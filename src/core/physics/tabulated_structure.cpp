@@ -113,11 +113,19 @@ std::array<double, kMaxShapeDofs> TabulatedStructure::restShape() const {
 }
 
 StructureEval TabulatedStructure::evaluate(double height_m, const double* shape) const {
-  if (height_m < 0.0) return fold_.below(height_m, evaluate(0.0, shape));
+  if (height_m < 0.0) {
+    // Pressed into the film stack the gas lifts the plate over the folds' area (FlatFold, which
+    // is energy-consistent by itself; its area is the lowest row's force per pressure, so the
+    // force is continuous at flat) and the films' own force is the bed contact's.
+    StructureEval flat = evaluate(0.0, shape);
+    flat.plate_force_n = 0.0;
+    return fold_.below(height_m, flat);
+  }
   StructureEval e;
   const double q = std::clamp(shape[0] * kShapeUnitPa, table_.pressures_pa.front(), table_.pressures_pa.back());
   const double h0 = table_.heights_m.front();
-  e.effective_area_m2 = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
+  // The FE bag's plate force per pressure (its force scales with the pressure the film holds).
+  const double force_area = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
   // Volume: the table, extended below its lowest height along the lowest row's area.
   e.volume_m3 = interpolate(table_.volume_m3, height_m, q);
   // Below the lowest height V follows the lowest rows' dV/dh down to the dead volume (fitting,
@@ -126,11 +134,22 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   // A plate pressed into the bed (h < 0: the contact spring) squeezes the bed, not the flat bag:
   // the volume stays the flat one there, as the pillow model's does. Extended on, a cell reset
   // flat under 20 N started at 206 kPa (reset again every period).
+  const auto [i, a] = locate(table_.heights_m, height_m);
+  (void)a;
+  const double h_lo = table_.heights_m[i], h_hi = table_.heights_m[i + 1];
+  double dvdh = (interpolate(table_.volume_m3, h_hi, q) - interpolate(table_.volume_m3, h_lo, q)) / (h_hi - h_lo);
+  if (height_m > table_.heights_m.back()) dvdh = 0.0;  // the table's volume is held there
   if (height_m < h0) {
-    const double h1 = table_.heights_m[1];
-    const double dvdh = (interpolate(table_.volume_m3, h1, q) - e.volume_m3) / (h1 - h0);
-    e.volume_m3 = std::max(dead_volume_m3_, e.volume_m3 - (h0 - std::max(height_m, 0.0)) * std::max(dvdh, 0.0));
+    const double extended = e.volume_m3 - (h0 - std::max(height_m, 0.0)) * std::max(dvdh, 0.0);
+    dvdh = extended > dead_volume_m3_ ? std::max(dvdh, 0.0) : 0.0;
+    e.volume_m3 = std::max(dead_volume_m3_, extended);
   }
+  // The gas works through its own volume: A_eff = dV/dh of the volume the cell has, so its
+  // energy follows p dV exactly (paper eq. 14). The FE bag's plate force is not p dV/dh (its
+  // film's tension pushes or pulls the plate too): the rest is the film's own force on the
+  // plate, scaled by the film's pressure as the FE force is, so plate and FE still agree.
+  e.effective_area_m2 = dvdh;
+  e.plate_force_n = shape[0] * kShapeUnitPa * (force_area - dvdh);
   // dV/dq from the bracketing pressure columns (floored: q must keep relaxing to p).
   const auto [j, b] = locate(table_.pressures_pa, q);
   (void)b;
@@ -143,7 +162,7 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   e.elastic_force[0] = shape[0] * kShapeUnitPa * e.dvolume_dshape[0];  // balance at q = p
   // dq/dt = (p - q) dV/dq / damping: q follows p with the film's relaxation time.
   e.shape_damping[0] = relaxation_time_s_ * e.dvolume_dshape[0] * kShapeUnitPa;
-  e.contact_area_m2 = e.effective_area_m2;
+  e.contact_area_m2 = force_area;
   e.surface_area_m2 = 4.0 * e.volume_m3 / std::max(height_m, h0);  // rough: for heat exchange only
   return e;
 }

@@ -8,8 +8,8 @@ namespace nursing_bed {
 /**
  * Estimates the load W a cell carries from the plate's force balance
  *   m a = F(h, p) - W - c v,   m = max(m_plate, W / g),
- * with F(h, p) = p A_eff the structure's own plate force (the characteristic's loadAt) and the
- * velocity from successive heights. Both sides pass through the same filter (two first-order
+ * with F(h, p) the structure's plate force, p A_eff and the film's own (the characteristic's
+ * loadAt), and the velocity from successive heights. Both sides pass through the same filter (two first-order
  * stages of tau/2): the filtered acceleration is then the derivative of the filtered velocity,
  * (v_1 - v_2) / (tau/2), so no second difference of a noisy height is taken, and for a
  * constant W the filtered balance holds exactly while the plate swings:

@@ -27,8 +27,12 @@ struct StructureEval {
   double surface_area_m2 = 0.0;                        ///< wetted inner film area (heat exchange)
   double film_stretch = 1.0;                           ///< representative film stretch [-]
   double film_tension_n_m = 0.0;                       ///< film tension per unit current length [N/m]
-  /// The structure's own force on the plate besides the gas's, + upward (a bellows' spring) [N]
+  /// The structure's own force on the plate besides the gas's, + upward (a bellows' spring, an
+  /// FE bag's film tension) [N]
   double plate_force_n = 0.0;
+
+  /// Everything the structure puts on the plate at gauge pressure p: p A_eff + plate_force_n [N].
+  double plateForce(double gauge_pressure_pa) const { return gauge_pressure_pa * effective_area_m2 + plate_force_n; }
 };
 
 /**

@@ -36,8 +36,9 @@ struct FoldTableData {
  * open_pa(F) (both states stay), opens above open_pa and closes below close_pa: ds/dt = g / fold_time_s
  * with g = a_open (1 - s) - a_close s + 4 s (1 - s)(s - 1/2), a_* logistic in the pressure's
  * distance past the threshold. Hysteresis of a folding membrane, as the FE bag shows it.
- * Approximation: the snap's own volume change (dV/ds) does no p dV work on the gas; the volume
- * and so the pressure follow the blended tables.
+ * The snap's volume change dV/ds = V_open - V_folded is p dV work of the gas (its energy follows
+ * the blended volume), balanced in the fold's own equation by q0 dV/ds, so the fold still moves
+ * at the rate above.
  */
 class FoldTableStructure : public CellStructure {
  public:

@@ -24,15 +24,18 @@ struct StructureTableData {
 };
 
 /**
- * One shape coordinate q: the gauge pressure the film is relaxed to, in units of 10 kPa. evaluate(h, q) gives
- * V(h, q) and A_eff = F(h, q) / q by bilinear interpolation (the plate force of the FE bag
- * held at h, so the cell's quasi-static h(p, load) is the FE's: F(h, p) = load). The film
- * balance dW/dq = q dV/dq makes q relax to the gas gauge pressure in film_relaxation_time_s.
- * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row is
- * used for A_eff and V follows the lowest rows' dV/dh down to the dead volume; below h = 0 the
- * plate presses the folded cell (FlatFold, over the lowest row's area); above the
- * highest height, or with the film relaxed to a pressure above the highest tabulated one (the
- * force is extrapolated there), the cell is outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
+ * One shape coordinate q: the gauge pressure the film is relaxed to, in units of 10 kPa.
+ * evaluate(h, q) gives V(h, q) by bilinear interpolation, A_eff = dV/dh of that volume (the gas
+ * works through its own volume, paper eq. 14) and the film's own plate force
+ * q (F(h, q) / q - A_eff), so that at p = q the plate carries the FE bag's force F(h, p) and the
+ * cell's quasi-static h(p, load) is the FE's. The film balance dW/dq = q dV/dq makes q relax to
+ * the gas gauge pressure in film_relaxation_time_s.
+ * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row's
+ * force per pressure is used and V follows the lowest rows' dV/dh down to the dead volume; below
+ * h = 0 the plate presses the folded cell (FlatFold, over the lowest row's area, the film's own
+ * force then the bed contact's); above the highest height, or with the film relaxed to a
+ * pressure above the highest tabulated one (the force is extrapolated there), the cell is
+ * outside its limits (withinLimits false): no equilibrium is taken from beyond the FE.
  */
 class TabulatedStructure : public CellStructure {
  public:
