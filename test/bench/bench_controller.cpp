@@ -4,27 +4,29 @@
 // usage: bench_controller [--params CELL.yaml]   (default: the built-in cell)
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <exception>
 #include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
+#include "tool_cli.h"
 
 namespace nb = nursing_bed;
 
 int main(int argc, char** argv) {
+  CLI::App app{
+      "usage: bench_controller [--params CELL.yaml]\n\nHeight steps of one cell against the flow-limited minimum time.",
+      "bench_controller"};
+  nb::tools::configureApp(app);
+  std::string params_path;
+  app.add_option("--params", params_path, "the cell's parameter file (default the built-in cell)")
+      ->check(CLI::ExistingFile);
+  if (const int parsed = nb::tools::parseCommandLine(app, argc, argv); parsed != nb::tools::kRun) return parsed;
   nb::AirbagCellParams params;
-  if (argc == 3 && std::strcmp(argv[1], "--params") == 0) {
-    try {
-      params.cell = nb::loadCellParamsYaml(argv[2]);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "bench_controller: %s\n", e.what());
-      return 2;
-    }
-  } else if (argc != 1) {
-    std::fprintf(stderr, "usage: bench_controller [--params CELL.yaml]\n");
-    return 2;
+  try {
+    if (!params_path.empty()) params.cell = nb::loadCellParamsYaml(params_path);
+  } catch (const std::exception& e) {
+    return nb::tools::reportMistake(app, app.get_name(), e.what());
   }
   const double moves[][2] = {{0.02, 0.10}, {0.0, 0.08}, {0.05, 0.13}, {0.10, 0.11}, {0.13, 0.05}, {0.10, 0.02}};
   std::printf("load [N]  from -> to [mm]   T_min [s]  settle +-1 mm [s]  ratio  overshoot [mm]  final error [mm]\n");

@@ -10,25 +10,20 @@
 // load the RMS and worst height error (truth minus estimate) and the final estimates; the last
 // line is over every load.
 //
-// usage: bench_observer_loads [--cycle-s S] [--loads a,b,c] [--group 0..2] [--trace S]
-//          [--no-pwm] [--duty-only] [--no-read-delay] [--no-noise]
-//          [--observer-dead-time S] [--rig-dead-time S] [--no-weight-bound]
-//   --duty-only   the terminal does not report its pulses (the observer takes the duty)
-//   --no-weight-bound  the observer without the plate's weight bound (weight_bound_window_s 0)
-//   --trace S     print truth and estimate every S seconds
-// The sensor noise and ADC step (10 Pa, 12.2 Pa) can be changed with NOISE=.. ADC=.. in the
-// environment.
+// usage: bench_observer_loads [options]   (--help lists them)
+// The sensor noise and ADC step (10 Pa, 12.2 Pa) are --noise and --adc.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
+#include "tool_cli.h"
 
 namespace nb = nursing_bed;
 
@@ -38,54 +33,62 @@ struct Options {
   double cycle_s = 200.0;  ///< one alternating cycle (three groups) [s]
   int group = 0;           ///< the cell's group (0..2): which third of the cycle it is low
   bool pwm = true;
-  bool read_delay = true;               ///< readings one bus cycle old
-  bool sensor_noise = true;             ///< pressure noise (10 Pa) and ADC step (12.2 Pa)
-  bool report_driven = true;            ///< the terminal reports the pulses it drove
-  bool weight_bound = true;             ///< the observer's weight bound (weight_bound_window_s)
-  double observer_dead_time_s = 0.015;  ///< the observer's valve_dead_time_s (config/observer.yaml)
-  double rig_dead_time_s = 0.01;        ///< the rig's valve dead time (the emulator's default)
-  double trace_s = 0.0;                 ///< > 0: print truth and estimate at this interval [s]
+  bool read_delay = true;                 ///< readings one bus cycle old
+  bool sensor_noise = true;               ///< pressure noise (10 Pa) and ADC step (12.2 Pa)
+  bool report_driven = true;              ///< the terminal reports the pulses it drove
+  bool weight_bound = true;               ///< the observer's weight bound (weight_bound_window_s)
+  double observer_dead_time_s = 0.015;    ///< the observer's valve_dead_time_s (config/observer.yaml)
+  double rig_dead_time_s = 0.01;          ///< the rig's valve dead time (the emulator's default)
+  double trace_s = 0.0;                   ///< > 0: print truth and estimate at this interval [s]
+  double noise_pa = 10.0, adc_pa = 12.2;  ///< the terminal's pressure noise sd and ADC step [Pa]
   std::vector<double> loads{0.6, 2.0, 5.0, 10.6, 15.6, 20.6, 26.0, 31.0, 37.0};
+  nb::CellParams cell;  ///< the cell's parameters (--params; default the built-in cell)
 };
 
-double envNumber(const char* name, double fallback) {
-  const char* v = std::getenv(name);
-  return v ? std::atof(v) : fallback;
-}
-
-bool parse(int argc, char** argv, Options* o) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--no-pwm") {
-      o->pwm = false;
-    } else if (a == "--duty-only") {
-      o->report_driven = false;
-    } else if (a == "--no-weight-bound") {
-      o->weight_bound = false;
-    } else if (a == "--no-noise") {
-      o->sensor_noise = false;
-    } else if (a == "--no-read-delay") {
-      o->read_delay = false;
-    } else if (a == "--observer-dead-time" && i + 1 < argc) {
-      o->observer_dead_time_s = std::atof(argv[++i]);
-    } else if (a == "--rig-dead-time" && i + 1 < argc) {
-      o->rig_dead_time_s = std::atof(argv[++i]);
-    } else if (a == "--cycle-s" && i + 1 < argc) {
-      o->cycle_s = std::atof(argv[++i]);
-    } else if (a == "--trace" && i + 1 < argc) {
-      o->trace_s = std::atof(argv[++i]);
-    } else if (a == "--group" && i + 1 < argc) {
-      o->group = std::atoi(argv[++i]);
-    } else if (a == "--loads" && i + 1 < argc) {
-      o->loads.clear();
-      std::stringstream ss(argv[++i]);
-      for (std::string item; std::getline(ss, item, ',');) o->loads.push_back(std::atof(item.c_str()));
-    } else {
-      std::fprintf(stderr, "bench_observer_loads: unknown argument '%s'\n", a.c_str());
-      return false;
-    }
+/// kRun when the bench should run, else its exit code (help printed, or a mistake named).
+int parse(int argc, char** argv, Options* o) {
+  CLI::App app{
+      "usage: bench_observer_loads [options]\n\n"
+      "Height from pressure across the patient's loads, offline: one cell per load ramped to 0.10 m,\n"
+      "held, then three alternating 1-in-3 cycles; prints per load the RMS and worst height error.",
+      "bench_observer_loads"};
+  nb::tools::configureApp(app);
+  bool no_pwm = false, duty_only = false, no_weight_bound = false, no_noise = false, no_read_delay = false;
+  std::string params_path;
+  app.add_flag("--no-pwm", no_pwm, "valve openings as they are, not pulse-width modulated per bus cycle");
+  app.add_flag("--duty-only", duty_only, "the terminal does not report its pulses (the observer takes the duty)");
+  app.add_flag("--no-weight-bound", no_weight_bound, "the observer without the plate's weight bound");
+  app.add_flag("--no-noise", no_noise, "no pressure noise and no ADC step");
+  app.add_flag("--no-read-delay", no_read_delay, "readings of this period, not a bus cycle old");
+  app.add_option("--observer-dead-time", o->observer_dead_time_s, "the observer's valve_dead_time_s [s]")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--rig-dead-time", o->rig_dead_time_s, "the rig's valve dead time [s]")->check(CLI::Range(0.0, 1.0));
+  app.add_option("--cycle-s", o->cycle_s, "one alternating cycle (three groups) [s]")
+      ->check(nb::tools::positiveNumber() & CLI::Range(0.0, 1e4));
+  app.add_option("--trace", o->trace_s, "print truth and estimate every S seconds")->check(CLI::Range(0.0, 1e4));
+  app.add_option("--group", o->group, "the cell's group: which third of the cycle it is low")->check(CLI::Range(0, 2));
+  app.add_option("--loads", o->loads, "the loads, one run each [N]")
+      ->delimiter(',')
+      ->check(CLI::Range(0.0, 100.0))
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  app.add_option("--noise", o->noise_pa, "the terminal's pressure noise sd [Pa]")->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--adc", o->adc_pa, "the terminal's ADC step [Pa]")->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--params", params_path, "the cell's parameter file (default the built-in cell)")
+      ->check(CLI::ExistingFile);
+  const int parsed = nb::tools::parseCommandLine(app, argc, argv);
+  if (parsed != nb::tools::kRun) return parsed;
+  o->pwm = !no_pwm;
+  o->report_driven = !duty_only;
+  o->weight_bound = !no_weight_bound;
+  o->sensor_noise = !no_noise;
+  o->read_delay = !no_read_delay;
+  if (params_path.empty()) return nb::tools::kRun;
+  try {
+    o->cell = nb::loadCellParamsYaml(params_path);
+  } catch (const std::exception& e) {
+    return nb::tools::reportMistake(app, app.get_name(), e.what());
   }
-  return o->cycle_s > 0.0 && !o->loads.empty() && o->group >= 0 && o->group < 3;
+  return nb::tools::kRun;
 }
 
 /// The terminal between the control side and the cell: valves on/off per bus cycle with the
@@ -170,17 +173,24 @@ struct Result {
   double worst_at_s = 0.0;
 };
 
+/// A structure's second shape coordinate (a fold table's fold state), NaN where it has none.
+template <typename State>
+double foldState(const State& x, const nb::CellStructure& structure) {
+  return structure.shapeDofs() > 1 ? x[nb::CellModel::kShape + 1] : NAN;
+}
+
 Result runOne(double load_n, const Options& o) {
   nb::AirbagCellParams p;
+  p.cell = o.cell;
   nb::RigImperfections rig;
   rig.height_sensor = false;
-  rig.adc_step_pa = o.sensor_noise ? envNumber("ADC", 12.2) : 0.0;
+  rig.adc_step_pa = o.sensor_noise ? o.adc_pa : 0.0;
   rig.valve_dead_time_s = o.rig_dead_time_s;
   auto plant = std::make_shared<nb::SimulatedCellHardware>(rig);
   nb::HardwareConfig c;
   c.control_period_s = p.control_period_s;
   c.cell = p.cell;
-  c.pressure_noise_pa = o.sensor_noise ? envNumber("NOISE", 10.0) : 0.0;
+  c.pressure_noise_pa = o.sensor_noise ? o.noise_pa : 0.0;
   c.load_n = load_n;
   plant->configure(c);
   auto hw = std::make_shared<TerminalLikeHardware>(plant, o.pwm, o.read_delay, o.report_driven);
@@ -216,11 +226,14 @@ Result runOne(double load_n, const Options& o) {
       const nb::CellEstimate e = cell.observer()->estimate();
       std::printf(
           "t %7.2f tgt %5.1f | h %6.1f est %6.1f sd %5.1f | p %7.0f est %7.0f | m %.4e est %.4e | T %5.1f est %5.1f | "
-          "W %5.1f est %5.1f ctl %5.1f | in %.2f vent %.2f | cum in %.4e est %.4e | vent %.4e est %.4e p %.1f\n",
+          "W %5.1f est %5.1f ctl %5.1f | in %.2f vent %.2f | cum in %.4e est %.4e | vent %.4e est %.4e p %.1f | "
+          "fold %.2f est %.2f\n",
           t, 1e3 * target, 1e3 * tv.height_m, 1e3 * e.height_m, 1e3 * e.height_sd_m, tv.gauge_pressure_pa,
           e.gauge_pressure_pa, plant->model().state()[nb::CellModel::kMass], e.mass_kg, tv.temperature_k,
           e.temperature_k, plant->load(), e.load_n, cell.loadEstimate(), cell.valves().inlet, cell.valves().vent,
-          hw->true_inflow_kg, obs_inflow_kg, true_vent_kg, obs_vent_kg, cell.observer()->variables().gauge_pressure_pa);
+          hw->true_inflow_kg, obs_inflow_kg, true_vent_kg, obs_vent_kg, cell.observer()->variables().gauge_pressure_pa,
+          foldState(plant->model().state(), plant->model().structure()),
+          foldState(cell.observer()->state(), plant->model().structure()));
     }
     if (t < 30.0) continue;  // the bench's settling time
     const double e = plant->variables().height_m - cell.measurement().height_m;
@@ -237,13 +250,7 @@ Result runOne(double load_n, const Options& o) {
 
 int main(int argc, char** argv) {
   Options o;
-  if (!parse(argc, argv, &o)) {
-    std::fprintf(stderr,
-                 "usage: bench_observer_loads [--cycle-s S] [--loads a,b,c] [--group 0..2] [--trace S] [--no-pwm] "
-                 "[--duty-only] [--no-read-delay] [--no-noise] [--observer-dead-time S] [--rig-dead-time S] "
-                 "[--no-weight-bound]\n");
-    return 2;
-  }
+  if (const int parsed = parse(argc, argv, &o); parsed != nb::tools::kRun) return parsed;
   nb::ObserverErrorStats total;
   std::printf("load_N  rms_mm  worst_mm  worst_at_s  final_truth_mm  final_est_mm  load_est_N\n");
   for (double load : o.loads) {

@@ -4,50 +4,14 @@
 // 15.6 N (--load). Prints the emulator's truth against the estimate every 0.5 s and the RMS and worst
 // height error after the first second.
 //
-// usage: bench_observer_modbus [--proportional] [--dead-time S] [--load N] [--trace FILE]
-//          [--noise PA] [--adc PA] [--rig-dead-time S] [--rig-period S] [--seed N] [--period S]
-//          [--effects] [--load-guess N] [--load-swing N] [--swing-time S] [--land S]
-//          [--hold S] [--alternate [--rate M_S] [--high M]] [--load-stiffness N_M] [--supply PA]
-//   --proportional        holding-register valves instead of on/off coils (PWM)
-//   --dead-time S         the observer's valve_dead_time_s (default 0.015); the emulator's is 0.01
-//   --load N              the plate's load (default 15.6 N; 0.6 N: the plate alone, the bed's
-//                         lightest cells)
-//   --noise PA, --adc PA  the emulator's pressure noise sd and ADC step (default 10, 12.2 Pa)
-//   --rig-dead-time S     the emulator's valve dead time (default 0.01 s)
-//   --rig-period S        the emulator's simulation step (default 0.005 s)
-//   --effects             a leak (1e-8 m2) and heat exchange (8 W/(m2 K)) in the emulator's cell,
-//                         and the observer given them (the hidden-effects check of doc/real_bed.md on one cell)
-//   --load-guess N        the cell's load guess at reset (default the true load; the bed's
-//                         nodes start from load_n, 10.6 N)
-//   --load-swing N        the load moves as a patient's share does: a random sway of this sd
-//                         about --load (Ornstein-Uhlenbeck, fixed seed; default 0: a dead load)
-//   --swing-time S        the sway's correlation time (default 0.1 s)
-//   --land S              the rig's cell carries the --load-guess load until S s, then --load (a
-//                         patient laid on a bed that filled under the guess)
-//   --hold S              instead of the programme: fill to 91 mm at 1 s and hold until S s
-//                         (the hidden-effects hold under a heavy part of the patient)
-//   --alternate           instead of the programme: the alternating plan's moves as the bed
-//                         manager streams them (0.10 m, then 0.03 / 0.12 m every 20 s, targets
-//                         rate-limited to 0.02 m/s and sent at 50 Hz), 100 s
-//   --rate M_S            --alternate: the streamed targets' rate limit (default 0.02 m/s)
-//   --high M              --alternate: the high target (default 0.12 m; 0.15: a turn's raised side)
-//   --load-stiffness N_M  the load grows by this per metre the plate stands above 0.1 m and
-//                         shrinks below it, never under the plate's own 0.6 N (a body lying on
-//                         the cell as on a spring; default 0: a dead load)
-//   --supply PA           the supply's gauge pressure, rig and cell (default the cell's 20 kPa;
-//                         real_bed.launch: 30 kPa)
-//   --period S            the cell's control period (default 0.005 s, as the bed's nodes)
-//   --seed N              the emulator's noise seed (default the emulator's): one seed is one
-//                         noise sequence, so runs differ only by their timing
-//   --trace FILE          every period as CSV: the emulator's gas (mass, temperature, flows,
-//                         acting valves) beside the observer's and the pressure it read, the
-//                         controller's predicted rest height, the count's doubt and the height's sd
+// usage: bench_observer_modbus [options]   (--help lists them: the programme, the plan's
+//          moves, the load's sway and landing, the valves, the emulator's noise and timing,
+//          the cell's parameter file, the trace)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <fstream>
 #include <random>
 #include <string>
@@ -57,7 +21,9 @@
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
 #include "nursing_bed/core/physics/basic_effects.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/rig/rig_emulator.h"
+#include "tool_cli.h"
 
 namespace nb = nursing_bed;
 using Clock = std::chrono::steady_clock;
@@ -85,65 +51,60 @@ struct Options {
   double stiffness_n_m = 0.0;  ///< the load grows by this per metre of plate above 0.1 m [N/m]
   double supply_pa = -1.0;     ///< < 0: the cell's default supply pressure [Pa]
   std::string trace_path;
+  std::string params_path;  ///< the cell's parameter file; empty: the built-in cell
 };
 
-double* numberOption(const std::string& a, Options* o) {
-  if (a == "--dead-time") return &o->dead_time_s;
-  if (a == "--load") return &o->load_n;
-  if (a == "--noise") return &o->noise_pa;
-  if (a == "--adc") return &o->adc_pa;
-  if (a == "--rig-dead-time") return &o->rig_dead_time_s;
-  if (a == "--rig-period") return &o->rig_period_s;
-  if (a == "--seed") return &o->seed;
-  if (a == "--period") return &o->period_s;
-  if (a == "--load-guess") return &o->load_guess_n;
-  if (a == "--load-swing") return &o->load_swing_n;
-  if (a == "--swing-time") return &o->swing_time_s;
-  if (a == "--hold") return &o->hold_s;
-  if (a == "--land") return &o->land_s;
-  if (a == "--rate") return &o->rate_m_s;
-  if (a == "--high") return &o->high_m;
-  if (a == "--load-stiffness") return &o->stiffness_n_m;
-  if (a == "--supply") return &o->supply_pa;
-  return nullptr;
-}
-
-bool parse(int argc, char** argv, Options* o) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--proportional") {
-      o->proportional = true;
-    } else if (a == "--effects") {
-      o->effects = true;
-    } else if (a == "--alternate") {
-      o->alternate = true;
-    } else if (a == "--trace" && i + 1 < argc) {
-      o->trace_path = argv[++i];
-    } else if (double* value = numberOption(a, o); value && i + 1 < argc) {
-      char* end = nullptr;
-      const double v = std::strtod(argv[++i], &end);
-      const double upper = a == "--load" || a == "--load-guess" || a == "--load-swing" ? 100.0
-                           : a == "--noise" || a == "--adc"                            ? 1000.0
-                           : a == "--seed"                                             ? 1e9
-                           : a == "--hold" || a == "--land"                            ? 3600.0
-                           : a == "--swing-time"                                       ? 10.0
-                           : a == "--load-stiffness"                                   ? 1e4
-                           : a == "--supply"                                           ? 1e5
-                                                                                       : 1.0;
-      // a period of 0 never ticks, a sway of correlation time 0 is no sway
-      const double lower_exclusive = a == "--period" || a == "--swing-time" ? 0.0 : -1.0;
-      if (*end != '\0' || !(v >= 0.0 && v > lower_exclusive && v <= upper)) {
-        std::fprintf(stderr, "bench_observer_modbus: %s wants a number in [0, %g], got '%s'\n", a.c_str(), upper,
-                     argv[i]);
-        return false;
-      }
-      *value = v;
-    } else {
-      std::fprintf(stderr, "bench_observer_modbus: unknown argument '%s'\n", a.c_str());
-      return false;
-    }
-  }
-  return true;
+/// kRun when the bench should run, else its exit code (help printed, or a mistake named).
+int parse(int argc, char** argv, Options* o) {
+  CLI::App app{
+      "usage: bench_observer_modbus [options]\n\n"
+      "One cell without a height sensor, its valves on a terminal of the rig emulator (127.0.0.1), run\n"
+      "by AirbagCell in real time through a programme of fills, holds, a vent to flat and refills;\n"
+      "prints the emulator's truth against the estimate every 0.5 s and the RMS and worst height\n"
+      "error after the first second.",
+      "bench_observer_modbus"};
+  nb::tools::configureApp(app);
+  const auto range = [](double lo, double hi) { return CLI::Range(lo, hi); };
+  app.add_flag("--proportional", o->proportional, "holding-register valves instead of on/off coils (PWM)");
+  app.add_flag("--effects", o->effects,
+               "a leak (1e-8 m2) and heat exchange (8 W/(m2 K)) in the emulator's cell, and the observer given them");
+  app.add_flag("--alternate", o->alternate,
+               "instead of the programme: the alternating plan's moves as the bed manager streams them (0.10 m, "
+               "then 0.03 / --high every 20 s, rate-limited, sent at 50 Hz), 100 s");
+  app.add_option("--dead-time", o->dead_time_s, "the observer's valve_dead_time_s [s]")->check(range(0.0, 1.0));
+  app.add_option("--load", o->load_n, "the plate's load [N] (0.6: the plate alone)")->check(range(0.0, 100.0));
+  app.add_option("--noise", o->noise_pa, "the emulator's pressure noise sd [Pa]")->check(range(0.0, 1000.0));
+  app.add_option("--adc", o->adc_pa, "the emulator's ADC step [Pa]")->check(range(0.0, 1000.0));
+  app.add_option("--rig-dead-time", o->rig_dead_time_s, "the emulator's valve dead time [s]")->check(range(0.0, 1.0));
+  app.add_option("--rig-period", o->rig_period_s, "the emulator's simulation step [s]")
+      ->check(nb::tools::positiveNumber() & range(0.0, 1.0));
+  app.add_option("--seed", o->seed, "the emulator's noise seed (default the emulator's)")->check(range(0.0, 1e9));
+  app.add_option("--period", o->period_s, "the cell's control period [s]")
+      ->check(nb::tools::positiveNumber() & range(0.0, 1.0));
+  app.add_option("--load-guess", o->load_guess_n, "the cell's load guess at reset [N] (default the true load)")
+      ->check(range(0.0, 100.0));
+  app.add_option("--load-swing", o->load_swing_n, "sd of a random sway of the load about --load [N]")
+      ->check(range(0.0, 100.0));
+  app.add_option("--swing-time", o->swing_time_s, "the sway's correlation time [s]")
+      ->check(nb::tools::positiveNumber() & range(0.0, 10.0));
+  app.add_option("--land", o->land_s, "the rig's cell carries --load-guess until then, then --load [s]")
+      ->check(range(0.0, 3600.0));
+  app.add_option("--hold", o->hold_s, "instead of the programme: fill to 91 mm at 1 s and hold until then [s]")
+      ->check(range(0.0, 3600.0));
+  app.add_option("--rate", o->rate_m_s, "--alternate: the streamed targets' rate limit [m/s]")->check(range(0.0, 1.0));
+  app.add_option("--high", o->high_m, "--alternate: the high target [m] (0.15: a turn's raised side)")
+      ->check(range(0.0, 1.0));
+  app.add_option("--load-stiffness", o->stiffness_n_m,
+                 "the load grows by this per metre the plate stands above 0.1 m, never under 0.6 N [N/m]")
+      ->check(range(0.0, 1e4));
+  app.add_option("--supply", o->supply_pa, "the supply's gauge pressure, rig and cell [Pa] (real_bed.launch: 30000)")
+      ->check(range(0.0, 1e5));
+  app.add_option("--params", o->params_path, "the cell's parameter file, rig and cell (default the built-in cell)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--trace", o->trace_path,
+                 "every period as CSV: the emulator's gas beside the observer's, the pressure read, the "
+                 "controller's predicted rest height, the count's doubt and the height's sd");
+  return nb::tools::parseCommandLine(app, argc, argv);
 }
 
 std::string writeMap(bool proportional) {
@@ -197,24 +158,40 @@ class LoadSway {
   std::normal_distribution<double> normal_{0.0, 1.0};
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Options o;
-  if (!parse(argc, argv, &o)) return 2;
-  const std::string map_path = writeMap(o.proportional);
+/// The emulator's cell: the bench's cell parameters, load (the guess until the patient lands),
+/// noise, ADC, timing and hidden effects.
+nb::RigEmulatorOptions rigOptions(const Options& o, const nb::CellParams& cell, double guess_n,
+                                  const std::vector<nb::CellEffectPtr>& effects) {
   nb::RigEmulatorOptions rig;
-  const double guess_n = o.load_guess_n >= 0.0 ? o.load_guess_n : o.load_n;
+  rig.cell.cell = cell;
   rig.cell.load_n = o.land_s > 0.0 ? guess_n : o.load_n;
-  if (o.supply_pa >= 0.0) rig.cell.cell.supply_pressure_pa = o.supply_pa;
   rig.cell.pressure_noise_pa = o.noise_pa;
   rig.rig.adc_step_pa = o.adc_pa;
   rig.rig.valve_dead_time_s = o.rig_dead_time_s;
   rig.period_s = o.rig_period_s;
-  std::vector<nb::CellEffectPtr> effects;
-  if (o.effects) effects = {std::make_shared<nb::LeakEffect>(1e-8), std::make_shared<nb::HeatTransferEffect>(8.0)};
   rig.cell.effects = effects;
   if (o.seed >= 0.0) rig.cell.noise_seed = static_cast<unsigned>(o.seed);
+  return rig;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  if (const int parsed = parse(argc, argv, &o); parsed != nb::tools::kRun) return parsed;
+  nb::AirbagCellParams params;
+  try {
+    if (!o.params_path.empty()) params.cell = nb::loadCellParamsYaml(o.params_path);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_observer_modbus: %s\n", e.what());
+    return nb::tools::kExitBadArguments;
+  }
+  if (o.supply_pa >= 0.0) params.cell.supply_pressure_pa = o.supply_pa;
+  const std::string map_path = writeMap(o.proportional);
+  const double guess_n = o.load_guess_n >= 0.0 ? o.load_guess_n : o.load_n;
+  std::vector<nb::CellEffectPtr> effects;
+  if (o.effects) effects = {std::make_shared<nb::LeakEffect>(1e-8), std::make_shared<nb::HeatTransferEffect>(8.0)};
+  const nb::RigEmulatorOptions rig = rigOptions(o, params.cell, guess_n, effects);
   nb::RigEmulator emulator(nb::loadRegisterMap(map_path, 1), rig);
 
   nb::HardwareConfig config;
@@ -224,9 +201,7 @@ int main(int argc, char** argv) {
   config.bed_cells = 1;
   auto hardware = std::make_shared<nb::ModbusTcpCellHardware>();
   hardware->configure(config);
-  nb::AirbagCellParams params;
   params.control_period_s = config.control_period_s;
-  if (o.supply_pa >= 0.0) params.cell.supply_pressure_pa = o.supply_pa;
   nb::AirbagObserverSetup observer;
   observer.model = params.cell;
   observer.params.valve_dead_time_s = o.dead_time_s;
