@@ -1,6 +1,7 @@
 // The cell's quasi-static characteristic, tabulated once: equilibrium gauge pressure and gas
-// volume for every (plate height, load). It is the paper's section-5 idea (set the height
-// through the pressure) made load-aware, and what the height controller predicts with.
+// volume for every (plate height, load), per branch of a bistable structure. It is the paper's
+// section-5 idea (set the height through the pressure) made load-aware, and what the height
+// controller predicts with.
 #pragma once
 
 #include <array>
@@ -15,8 +16,9 @@ namespace nursing_bed {
 class CellCharacteristic {
  public:
   /// Tabulates the structure `params` select (makeCellStructure: the pillow model or an FE
-  /// table; the controller must predict with the structure the cell has) on a grid of heights 0..height_max and loads
-  /// 0..load_max. Costly (~0.1-1 s); use shared() to build it once per parameter set.
+  /// table; the controller must predict with the structure the cell has) on a grid of heights
+  /// 0..height_max and loads 0..load_max, each branch. Costly (0.1-4 s); use shared() to build it
+  /// once per parameter set.
   CellCharacteristic(const CellParams& params, double height_max_m = 0.20, double height_step_m = 0.001,
                      double load_max_n = 60.0, double load_step_n = 1.0);
 
