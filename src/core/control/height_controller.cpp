@@ -173,13 +173,11 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
   s.lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
 
   // Shaped full-flow move.
-  if (!move_.active() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest) {
-    const int direction = s.predicted_error_m > 0.0 ? 1 : -1;
-    move_.start(direction, moveGauge(direction, s).remaining);
-  }
-  if (move_.active()) {
-    const int direction = move_.direction();
+  const bool starts = !move_.active() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest;
+  if (starts || move_.active()) {
+    const int direction = starts ? (s.predicted_error_m > 0.0 ? 1 : -1) : move_.direction();
     const MoveGauge gauge = moveGauge(direction, s);
+    if (starts) move_.start(direction, gauge.remaining);
     if (const auto opening = move_.step(dt_s, gauge.remaining, halfPeriod(), gauge.rate))
       return command(s, direction, *opening);
   }

@@ -35,7 +35,6 @@ std::optional<double> ShapedMove::lead(double dt_s, double remaining, double hal
   if (in_time && remaining > 0.5 * initial_remaining_) return 0.5;
   lead_duration_s_ = time_s_ - dt_s;
   small_ = in_time;  // half the move done before T/2
-
   phase_ = MovePhase::kFullFlow;
   return std::nullopt;
 }

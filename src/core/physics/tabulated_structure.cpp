@@ -126,19 +126,16 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
   const double h0 = table_.heights_m.front();
   // The FE bag's plate force per pressure (its force scales with the pressure the film holds).
   const double force_area = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
-  // Volume: the table, extended below its lowest height along the lowest row's area.
-  e.volume_m3 = interpolate(table_.volume_m3, height_m, q);
-  // Below the lowest height V follows the lowest rows' dV/dh down to the dead volume (fitting,
-  // tube, folds). Not A_eff: near flat the plate force is the film stack's contact (F/q reached
-  // 2.7x the face area at 3 mm, 1 kPa), which emptied the flat cell to nothing (67 K gas).
-  // A plate pressed into the bed (h < 0: the contact spring) squeezes the bed, not the flat bag:
-  // the volume stays the flat one there, as the pillow model's does. Extended on, a cell reset
-  // flat under 20 N started at 206 kPa (reset again every period).
+  // Volume: the table (bilinear), with its slope from the same two rows.
   const auto [i, a] = locate(table_.heights_m, height_m);
-  (void)a;
   const double h_lo = table_.heights_m[i], h_hi = table_.heights_m[i + 1];
-  double dvdh = (interpolate(table_.volume_m3, h_hi, q) - interpolate(table_.volume_m3, h_lo, q)) / (h_hi - h_lo);
+  const double v_lo = interpolate(table_.volume_m3, h_lo, q), v_hi = interpolate(table_.volume_m3, h_hi, q);
+  e.volume_m3 = (1 - a) * v_lo + a * v_hi;
+  double dvdh = (v_hi - v_lo) / (h_hi - h_lo);
   if (height_m > table_.heights_m.back()) dvdh = 0.0;  // the table's volume is held there
+  // Below the lowest height V follows the lowest rows' dV/dh down to the dead volume (fitting,
+  // tube, folds). Not F/q: near flat the plate force is the film stack's contact (F/q reached
+  // 2.7x the face area at 3 mm, 1 kPa), which would empty the flat cell to nothing.
   if (height_m < h0) {
     const double extended = e.volume_m3 - (h0 - std::max(height_m, 0.0)) * std::max(dvdh, 0.0);
     dvdh = extended > dead_volume_m3_ ? std::max(dvdh, 0.0) : 0.0;

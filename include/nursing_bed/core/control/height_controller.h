@@ -170,7 +170,8 @@ class HeightController {
   int branch_ = 0;
   ShapedMove move_;  ///< the shaped full-flow move under way, if any
   double supply_pressure_pa_ = 0.0;
-  /// Half period cached for (target, load, branch) because it costs a few solves.
+  /// Half period kept for the target and branch while the load estimate stays within 5 % (the
+  /// shaper's timing does not follow the estimate's wander within a move).
   struct HalfPeriodCache {
     double half_period_s = -1.0, target_m = -1.0, load_n = -1.0;
     int branch = -1;
