@@ -218,15 +218,14 @@ double CellObserver::flowPressure(double old_pressure_pa, double new_pressure_pa
   return flow_pressure_pa_;
 }
 
-void CellObserver::isentropicWork(double old_pressure_pa, double new_pressure_pa) {
+void CellObserver::isentropicWork(double old_pressure_pa, double new_pressure_pa, double v0_m3) {
   // dU = -p dV with V = (gamma - 1) U / p at both ends and p the mean (trapezoid):
   // U1 (1 + pm (gamma - 1) / p1) = U0' + pm V0, U0' the energy after the flows.
   const double pa = model_.params().ambient_pressure_pa;
   const double p0 = pa + old_pressure_pa, p1 = pa + new_pressure_pa, pm = 0.5 * (p0 + p1);
-  const double v0 = vars_.structure.volume_m3;
   const double u_flow = x_[CellModel::kEnergy];
   const double denominator = 1.0 + pm * (gamma_ - 1.0) / p1;
-  x_[CellModel::kEnergy] = (u_flow + pm * v0) / denominator;
+  x_[CellModel::kEnergy] = (u_flow + pm * v0_m3) / denominator;
   // dU1/dU0 through V0 = (gamma - 1) U0 / p0.
   const double a = (1.0 + pm * (gamma_ - 1.0) / p0) / denominator;
   p_.row(1) *= a;
@@ -266,18 +265,26 @@ bool CellObserver::invertVolume(double gauge_pressure_pa, double dt_s) {
   bool lifted = target > v_flat;
   double h = 0.0;
   if (lifted) {
-    // Secant iterations from the last height, kept within [0, top].
+    // Secant iterations from the last height, kept within the bracket the heights tried so far
+    // give (flat below the gas, the top above): a step that leaves it, or a slope that is not
+    // positive (the flat cell's volume hardly grows near its dead volume), bisects instead.
+    double lo = 0.0, hi = top;
+    auto tried = [&](double h_tried, double f) { f < 0.0 ? lo = std::max(lo, h_tried) : hi = std::min(hi, h_tried); };
     double h0 = std::clamp(h_old, 1e-4, top), f0 = volume_at(h0) - target;
+    tried(h0, f0);
     double h1 = std::clamp(h0 - f0 / std::max(volume_slope_m2_, 1e-5), 0.0, top);
     double f1 = volume_at(h1) - target;
-    for (int it = 0; it < 12 && std::fabs(f1) > 1e-10; ++it) {
+    tried(h1, f1);
+    for (int it = 0; it < 40 && std::fabs(f1) > 1e-10 && hi - lo > 1e-9; ++it) {
       const double slope = (f1 - f0) / (h1 - h0);
-      if (!(std::fabs(h1 - h0) > 1e-12) || !(slope > 0.0)) break;
-      volume_slope_m2_ = slope;
+      double next = slope > 0.0 && std::fabs(h1 - h0) > 1e-12 ? h1 - f1 / slope : 0.5 * (lo + hi);
+      if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+      if (slope > 0.0) volume_slope_m2_ = slope;
       h0 = h1;
       f0 = f1;
-      h1 = std::clamp(h1 - f1 / slope, 0.0, top);
+      h1 = next;
       f1 = volume_at(h1) - target;
+      tried(h1, f1);
     }
     h = h1;
     lifted = h > 0.0;
@@ -346,21 +353,18 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   const double p_old = std::isfinite(last_pressure_pa_) ? last_pressure_pa_ : vars_.gauge_pressure_pa;
   CellInputs in = modelInputs(applied_, flowPressure(p_old, p_new, dt));
   if (std::isfinite(readings.inflow_kg_s)) in.prescribed_inflow_kg_s = readings.inflow_kg_s;
+  // The gas's own volume at the last reading: the structure's where the height was inverted, and
+  // where a flat plate's measurement was skipped the gas's, not the flat film's at that pressure.
+  const double v_start = (gamma_ - 1.0) * x_[CellModel::kEnergy] / (model_.params().ambient_pressure_pa + p_old);
   propagateCovariance(dt);
   const double pulse = pulse_.factor(model_, time_, x_, vars_.pressure_pa, in, p_old, dt);
   integrateFlows(in, dt, pulse);
   doubtVentCount(pulse * std::fabs(vars_.vent_flow_kg_s) * dt, in.flow_gauge_pressure_pa);
-  isentropicWork(p_old, p_new);
+  isentropicWork(p_old, p_new, v_start);
   keepPhysical();
   bool lifted = invertVolume(p_new, dt);
   const double pa = model_.params().ambient_pressure_pa;
-  if (!lifted) {
-    // The plate is on the bed: the flat cell's volume and the pressure give the energy.
-    const double v_flat = model_.structure().evaluate(0.0, &x_[CellModel::kShape]).volume_m3;
-    const double u = (pa + p_new) * v_flat / (gamma_ - 1.0);
-    measureEnergy(u, std::pow(pressureNoise() * v_flat / (gamma_ - 1.0), 2));
-    count_doubt_kg_ = 0.0;  // the flat cell's gas is measured
-  }
+  if (!lifted) measureFlat(p_new);
   if (std::isfinite(readings.height_m)) {
     count_doubt_kg_ = 0.0;  // the height is measured
     const double v = model_.structure().evaluate(readings.height_m, &x_[CellModel::kShape]).volume_m3;
@@ -382,6 +386,20 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   updateLoad(p_new, lifted, dt);
   events.reanchored = checkReanchor(readings);
   return events;
+}
+
+void CellObserver::measureFlat(double gauge_pressure_pa) {
+  // The plate is on the bed: the flat cell's volume and the pressure give the energy. Only while
+  // it rests there: a reading whose gas would lift the load (at 3 sds) is a landing's impact or
+  // a lift-off under way, the plate pressed into the film stack or the film off its rest, and
+  // the flat cell's volume at that pressure is not the gas's (an FE table's flat bag holds over
+  // 100 mL with its film at 3 kPa, 5 mL at rest).
+  const StructureEval flat = model_.structure().evaluate(0.0, &x_[CellModel::kShape]);
+  if (flat.plateForce(gauge_pressure_pa) > load_n_ + 3.0 * std::sqrt(std::max(0.0, load_var_n2_))) return;
+  const double pa = model_.params().ambient_pressure_pa;
+  const double u = (pa + gauge_pressure_pa) * flat.volume_m3 / (gamma_ - 1.0);
+  measureEnergy(u, std::pow(pressureNoise() * flat.volume_m3 / (gamma_ - 1.0), 2));
+  count_doubt_kg_ = 0.0;  // the flat cell's gas is measured
 }
 
 void CellObserver::doubtVentCount(double vent_kg, double flow_gauge_pressure_pa) {

@@ -178,8 +178,9 @@ class CellObserver {
   /// The cell pressure the flows of the period see: the readings' mean; away from ambient
   /// smoothed within the noise (see noiseBias for near ambient).
   double flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s);
-  /// The energy after the volume change at the new pressure, along the isentrope (trapezoid).
-  void isentropicWork(double old_pressure_pa, double new_pressure_pa);
+  /// The energy after the volume change at the new pressure, along the isentrope (trapezoid),
+  /// from the gas's volume `v0_m3` at the old one.
+  void isentropicWork(double old_pressure_pa, double new_pressure_pa, double v0_m3);
   /// The bag's top at the pressure: the structure's height limit with the film relaxed to it.
   double topHeight(double gauge_pressure_pa) const;
   /// Height and film from the volume at the pressure read; returns false when the plate is down.
@@ -202,6 +203,8 @@ class CellObserver {
   bool boundByPlateWeight(double gauge_pressure_pa, bool lifted, double dt_s);
   /// Scalar measurement of U: the plate at rest at `height_m` (sd `sd_m`) under the pressure.
   void measureSettledHeight(double height_m, double sd_m, double gauge_pressure_pa);
+  /// Measurement of U on the flat cell at the reading, while its plate rests there.
+  void measureFlat(double gauge_pressure_pa);
   /// Adds the period's vent gas `vent_kg` counted at the flows' pressure to the count's doubt.
   void doubtVentCount(double vent_kg, double flow_gauge_pressure_pa);
   /// Feeds the readings taken while the gas is still (both valves shut a settling time) to
