@@ -122,46 +122,72 @@ StructureEval TabulatedStructure::evaluate(double height_m, const double* shape)
     return fold_.below(height_m, flat);
   }
   StructureEval e;
-  const double q = std::clamp(shape[0] * kShapeUnitPa, table_.pressures_pa.front(), table_.pressures_pa.back());
-  const double h0 = table_.heights_m.front();
+  const double q_raw = shape[0] * kShapeUnitPa;
+  const double q = std::clamp(q_raw, table_.pressures_pa.front(), table_.pressures_pa.back());
   // The FE bag's plate force per pressure (its force scales with the pressure the film holds).
   const double force_area = std::max(interpolate(table_.plate_force_n, height_m, q) / q, 0.0);
-  // Volume: the table (bilinear), with its slope from the same two rows.
-  const auto [i, a] = locate(table_.heights_m, height_m);
-  const double h_lo = table_.heights_m[i], h_hi = table_.heights_m[i + 1];
-  const double v_lo = interpolate(table_.volume_m3, h_lo, q), v_hi = interpolate(table_.volume_m3, h_hi, q);
-  e.volume_m3 = (1 - a) * v_lo + a * v_hi;
-  double dvdh = (v_hi - v_lo) / (h_hi - h_lo);
-  if (height_m > table_.heights_m.back()) dvdh = 0.0;  // the table's volume is held there
-  // Below the lowest height V follows the lowest rows' dV/dh down to the dead volume (fitting,
-  // tube, folds). Not F/q: near flat the plate force is the film stack's contact (F/q reached
-  // 2.7x the face area at 3 mm, 1 kPa), which would empty the flat cell to nothing.
-  if (height_m < h0) {
-    const double extended = e.volume_m3 - (h0 - std::max(height_m, 0.0)) * std::max(dvdh, 0.0);
-    dvdh = extended > dead_volume_m3_ ? std::max(dvdh, 0.0) : 0.0;
-    e.volume_m3 = std::max(dead_volume_m3_, extended);
-  }
+  const VolumeAt v = volumeAt(height_m, q_raw);
+  e.volume_m3 = v.volume_m3;
+  const double dvdh = v.dvdh_m2;
   // The gas works through its own volume: A_eff = dV/dh of the volume the cell has, so its
   // energy follows p dV exactly (paper eq. 14). The FE bag's plate force is not p dV/dh (its
   // film's tension pushes or pulls the plate too): the rest is the film's own force on the
   // plate, scaled by the film's pressure as the FE force is, so plate and FE still agree.
   e.effective_area_m2 = dvdh;
   e.plate_force_n = shape[0] * kShapeUnitPa * (force_area - dvdh);
-  // dV/dq from the bracketing pressure columns (floored: q must keep relaxing to p).
-  const auto [j, b] = locate(table_.pressures_pa, q);
-  (void)b;
-  const double dp = table_.pressures_pa[j + 1] - table_.pressures_pa[j];
-  const double dvdq = (interpolate(table_.volume_m3, height_m, table_.pressures_pa[j + 1]) -
-                       interpolate(table_.volume_m3, height_m, table_.pressures_pa[j])) /
-                      dp;
+  const double dvdq = v.dvdq_m3_pa;
   const double dvdp = std::max(dvdq, 1e-3 * e.volume_m3 / table_.pressures_pa.back());
   e.dvolume_dshape[0] = dvdp * kShapeUnitPa;
   e.elastic_force[0] = shape[0] * kShapeUnitPa * e.dvolume_dshape[0];  // balance at q = p
   // dq/dt = (p - q) dV/dq / damping: q follows p with the film's relaxation time.
   e.shape_damping[0] = relaxation_time_s_ * e.dvolume_dshape[0] * kShapeUnitPa;
   e.contact_area_m2 = force_area;
-  e.surface_area_m2 = 4.0 * e.volume_m3 / std::max(height_m, h0);  // rough: for heat exchange only
+  // Rough: for heat exchange only.
+  e.surface_area_m2 = 4.0 * e.volume_m3 / std::max(height_m, table_.heights_m.front());
   return e;
+}
+
+TabulatedStructure::VolumeAt TabulatedStructure::volumeAt(double height_m, double q_pa) const {
+  // Each row's volume is linear in the film's pressure between the columns and, below the lowest,
+  // along the first two (the film goes slack towards q = 0), so V and dV/dq are continuous there.
+  const std::vector<double>& ps = table_.pressures_pa;
+  const double q = std::clamp(q_pa, 0.0, ps.back());
+  std::size_t j = std::upper_bound(ps.begin(), ps.end(), q) - ps.begin();
+  j = std::min(std::max<std::size_t>(j, 1), ps.size() - 1) - 1;
+  const double dp = ps[j + 1] - ps[j];
+  const bool held = q_pa >= ps.back() || q_pa <= 0.0;  // clamped: the volume holds
+  auto row = [&](std::size_t r, double* slope) {
+    const double v0 = table_.volume_m3[r][j], v1 = table_.volume_m3[r][j + 1];
+    *slope = held ? 0.0 : (v1 - v0) / dp;
+    return v0 + (q - ps[j]) * (v1 - v0) / dp;
+  };
+  // The table (bilinear), with its slope from the same two rows.
+  const auto [i, a] = locate(table_.heights_m, height_m);
+  const double h_lo = table_.heights_m[i], h_hi = table_.heights_m[i + 1];
+  double s_lo = 0.0, s_hi = 0.0;
+  const double v_lo = row(i, &s_lo), v_hi = row(i + 1, &s_hi);
+  VolumeAt v;
+  double volume = (1 - a) * v_lo + a * v_hi;
+  v.dvdh_m2 = (v_hi - v_lo) / (h_hi - h_lo);
+  v.dvdq_m3_pa = (1 - a) * s_lo + a * s_hi;
+  if (height_m > table_.heights_m.back()) v.dvdh_m2 = 0.0;  // the table's volume is held there
+  // Below the lowest height V follows the lowest rows' dV/dh down to the dead volume (fitting,
+  // tube, folds). Not F/q: near flat the plate force is the film stack's contact (F/q reached
+  // 2.7x the face area at 3 mm, 1 kPa), which would empty the flat cell to nothing.
+  if (height_m < h_lo && v.dvdh_m2 > 0.0) {
+    const double below = h_lo - std::max(height_m, 0.0);
+    volume -= below * v.dvdh_m2;
+    v.dvdq_m3_pa -= below * (s_hi - s_lo) / (h_hi - h_lo);
+  }
+  v.dvdh_m2 = std::max(v.dvdh_m2, 0.0);
+  // Joined to the dead volume by a softplus over 2 % of it: a kink in V makes A_eff jump, and a
+  // plate bouncing across it integrates p dV one-sidedly.
+  const double width = 0.02 * dead_volume_m3_, x = (volume - dead_volume_m3_) / width;
+  const double share = 1.0 / (1.0 + std::exp(-std::clamp(x, -50.0, 50.0)));
+  v.volume_m3 = dead_volume_m3_ + width * (x > 30.0 ? x : std::log1p(std::exp(x)));
+  v.dvdh_m2 *= share;
+  v.dvdq_m3_pa *= share;
+  return v;
 }
 
 double TabulatedStructure::heightLimit(const double* /*shape*/) const { return table_.heights_m.back(); }

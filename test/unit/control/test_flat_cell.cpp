@@ -8,8 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 
 namespace nb = nursing_bed;
 
@@ -49,7 +51,7 @@ struct Extremes {
 /// One default cell (simulated plant with its sensors) stepped a control period at a time.
 class Rig {
  public:
-  Rig() : cell_(nb::AirbagCellParams{}) {}
+  explicit Rig(const nb::AirbagCellParams& params = {}) : cell_(params) {}
   nb::AirbagCell& cell() { return cell_; }
   const nb::CellVariables& vars() const { return cell_.variables(); }
   Extremes& extremes() { return extremes_; }
@@ -88,11 +90,23 @@ double rateLimitedTime(const nb::AirbagCell& cell, double distance_m) {
   return distance_m / cell.params().safety.max_height_rate_m_s;
 }
 
-class CprCycles : public ::testing::TestWithParam<double> {};
+/// The cells the flat-cell tests run on: the default one and the FE fold-table cell.
+nb::AirbagCellParams cellParams(const std::string& file) {
+  nb::AirbagCellParams params;
+  if (!file.empty()) params.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/" + file);
+  return params;
+}
+
+struct CprCase {
+  const char* cell_file;  // a file in config/; "" = the default cell
+  double load_n;
+};
+
+class CprCycles : public ::testing::TestWithParam<CprCase> {};
 
 TEST_P(CprCycles, LiftOffTheFoldedCellEveryTimeWithTheGasNearRoomTemperature) {
-  const double load = GetParam();
-  Rig rig;
+  const double load = GetParam().load_n;
+  Rig rig(cellParams(GetParam().cell_file));
   rig.cell().reset(load);
   rig.cell().requestHeight(kTargetM, 0.0);
   ASSERT_LT(rig.runUntilAt(kTargetM, 30.0), 30.0) << "the first inflation at " << load << " N";
@@ -110,14 +124,25 @@ TEST_P(CprCycles, LiftOffTheFoldedCellEveryTimeWithTheGasNearRoomTemperature) {
                                  << " s";
   }
   const Extremes& e = rig.extremes();
-  std::printf("CPR cycles at %5.1f N: gas %.1f-%.1f K, worst return %.2f s (rate limit %.1f s), plate %.2f-%.1f mm\n",
-              load, e.t_min_k, e.t_max_k, worst_return_s, allowed_s, e.h_min_m * 1e3, e.h_max_m * 1e3);
+  std::printf(
+      "%s CPR cycles at %5.1f N: gas %.1f-%.1f K, worst return %.2f s (rate limit %.1f s), plate %.2f-%.1f mm\n",
+      GetParam().cell_file, load, e.t_min_k, e.t_max_k, worst_return_s, allowed_s, e.h_min_m * 1e3, e.h_max_m * 1e3);
   EXPECT_GE(e.t_min_k, 250.0);
   EXPECT_LE(e.t_max_k, 330.0);
   EXPECT_GT(e.mass_min_kg, 0.0);
 }
 
-INSTANTIATE_TEST_SUITE_P(FlatCell, CprCycles, ::testing::Values(0.6, 5.0, 10.6, 20.6, 40.0));
+constexpr const char* kFoldTable = "airbag_tpu_double_100_fe3d.yaml";
+
+INSTANTIATE_TEST_SUITE_P(FlatCell, CprCycles,
+                         ::testing::Values(CprCase{"", 0.6}, CprCase{"", 5.0}, CprCase{"", 10.6}, CprCase{"", 20.6},
+                                           CprCase{"", 40.0}, CprCase{kFoldTable, 0.6}, CprCase{kFoldTable, 5.0},
+                                           CprCase{kFoldTable, 10.6}, CprCase{kFoldTable, 20.6},
+                                           CprCase{kFoldTable, 40.0}),
+                         [](const ::testing::TestParamInfo<CprCase>& info) {
+                           const std::string cell = info.param.cell_file[0] ? "FoldTable" : "Default";
+                           return cell + std::to_string(static_cast<int>(std::lround(info.param.load_n * 10))) + "dN";
+                         });
 
 struct LoadStep {
   double load_n;

@@ -238,4 +238,32 @@ TEST(FoldTableStructure, TheGasWorksThroughItsOwnVolume) {
   EXPECT_LT(hottest, 310.0);
 }
 
+TEST(FoldTableStructure, BelowTheTablesLowestRowAndPressureTheSlopesAreTheVolumes) {
+  // The gas's work follows A_eff dh + dV/dq dq (paper eq. 14): both must be the slopes of the
+  // volume the cell has, down to the dead volume and at film pressures below the table's
+  // lowest (a lift-off from flat passes there), or the flat cell's first gas heats or cools.
+  const CellParams params =
+      loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml");
+  CellModel cell(params);
+  const CellStructure& structure = cell.structure();
+  for (double h : {0.0002, 0.0005, 0.002, 0.0113}) {
+    for (double q0 : {0.02, 0.05, 0.2, 0.6}) {
+      for (double s : {0.0, 1.0}) {
+        const double q[2] = {q0, s};
+        const StructureEval e = structure.evaluate(h, q);
+        const double dh = 1e-6;
+        const double slope =
+            (structure.evaluate(h + dh, q).volume_m3 - structure.evaluate(h - dh, q).volume_m3) / (2.0 * dh);
+        EXPECT_NEAR(e.effective_area_m2, slope, 2e-3 * std::fabs(slope) + 1e-7) << h << " " << q0 << " " << s;
+        const double qq[2] = {q0 + 1e-5, s};
+        const double dvdq = (structure.evaluate(h, qq).volume_m3 - e.volume_m3) / 1e-5;
+        const double floor = 1e-3 * e.volume_m3 / 3.0;  // dV/dq is floored at 1e-3 V per 30 kPa
+        EXPECT_NEAR(e.dvolume_dshape[0], std::max(dvdq, floor), 2e-3 * std::fabs(dvdq) + 1e-9)
+            << h << " " << q0 << " " << s;
+        EXPECT_GE(e.volume_m3, params.structure.dead_volume_m3 * (1.0 - 1e-12));
+      }
+    }
+  }
+}
+
 }  // namespace nursing_bed

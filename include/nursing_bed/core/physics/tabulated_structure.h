@@ -61,6 +61,14 @@ class TabulatedStructure : public CellStructure {
  private:
   /// Bilinear value of grid g at (h, p), h and p clamped to the table.
   double interpolate(const std::vector<std::vector<double>>& g, double h, double p) const;
+  /// The cell's gas volume at plate height h >= 0 with the film at pressure q, extended below
+  /// the lowest row and the lowest pressure and joined to the dead volume, and its slopes.
+  struct VolumeAt {
+    double volume_m3 = 0.0;
+    double dvdh_m2 = 0.0;
+    double dvdq_m3_pa = 0.0;
+  };
+  VolumeAt volumeAt(double height_m, double q_pa) const;
 
   StructureTableData table_;
   double relaxation_time_s_;
