@@ -30,8 +30,10 @@ struct StructureTableData {
  * q (F(h, q) / q - A_eff), so that at p = q the plate carries the FE bag's force F(h, p) and the
  * cell's quasi-static h(p, load) is the FE's. The film balance dW/dq = q dV/dq makes q relax to
  * the gas gauge pressure in film_relaxation_time_s.
- * Below the lowest tabulated pressure q is clamped; below the lowest height the lowest row's
- * force per pressure is used and V follows the lowest rows' dV/dh down to the dead volume; below
+ * Below the lowest tabulated pressure the force per pressure is the lowest column's and each
+ * row's volume follows its first two columns towards q = 0 (the film going slack); below the
+ * lowest height the lowest row's force per pressure is used and V follows the lowest rows' dV/dh
+ * down to the dead volume, joined to it smoothly, with dV/dq the slope of that volume; below
  * h = 0 the plate presses the folded cell (FlatFold, over the lowest row's area, the film's own
  * force then the bed contact's); above the highest height, or with the film relaxed to a
  * pressure above the highest tabulated one (the force is extrapolated there), the cell is
