@@ -180,7 +180,8 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
     if (direction == direction_) {
       counted_pa_ += sample.counted_step_pa;
       after_s_ = 0.0;
-      return why;
+      open_s_ += dt_s;
+      return judgeOpenInlet(sample.noise_sd_pa, params);
     }
     after_s_ += dt_s;
     // Judged once the window after the counted flow has passed, or when the other valve opens.
@@ -197,6 +198,7 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
     counted_pa_ = sample.counted_step_pa;
     best_pa_ = direction * (recent_pa - baseline_pa_);
     after_s_ = 0.0;
+    open_s_ = 0.0;
   } else if (direction == 0) {
     pre_[pre_next_] = p;
     pre_next_ = (pre_next_ + 1) % kPre;
@@ -229,9 +231,27 @@ std::string ValveResponseCheck::judge(double noise_sd_pa, const ConsistencyMonit
   const bool run = params.response_silent_sum_pa > 0.0 && silent_[v] >= params.response_silent_pulses &&
                    silent_pa_[v] >= params.response_silent_sum_pa;
   if (!run && counted_pa < params.response_single_pa) return "";
+  return stuckShut(silent_pa_[v], silent_[v], needed_pa);
+}
+
+std::string ValveResponseCheck::judgeOpenInlet(double noise_sd_pa, const ConsistencyMonitorParams& params) const {
+  // An inlet held open (a move's full flow) would be judged at the move's end, seconds after it
+  // was found silent: it is judged once it is worth a single silent pulse and the response
+  // window has passed. A working inlet has moved the pressure by then (its gas lifts the plate
+  // and the load on it). Vents keep the end's judgement: a body's part can settle with the plate.
+  const double needed_pa = params.response_sds * noise_sd_pa;
+  if (direction_ <= 0 || params.response_min_pa <= 0.0 || !slow_enough_ || open_s_ < params.response_window_s ||
+      counted_pa_ < std::max(params.response_single_pa, params.response_min_pa) || best_pa_ >= needed_pa ||
+      best_pa_ <= -needed_pa) {
+    return "";
+  }
+  return stuckShut(counted_pa_, 1, needed_pa) + " (still counted open)";
+}
+
+std::string ValveResponseCheck::stuckShut(double worth_pa, int pulses, double needed_pa) const {
   std::ostringstream why;
-  why << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << silent_pa_[v]
-      << " Pa at fixed volume over " << silent_[v] << " pulse(s), none moving the pressure " << needed_pa
+  why << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << worth_pa
+      << " Pa at fixed volume over " << pulses << " pulse(s), none moving the pressure " << needed_pa
       << " Pa its way: a valve that does not open";
   return why.str();
 }

@@ -221,6 +221,28 @@ TEST(ConsistencyMonitor, AValvePulseThatMovesNoPressureIsFlaggedOneThatDoesIsNot
   for (int i = 0; i < 50; ++i) EXPECT_FALSE(monitor.update(i < 10 ? s : sample(sensor.read(900.0), true), kPeriod));
 }
 
+TEST(ConsistencyMonitor, AnInletHeldOpenThatMovesNoPressureIsFlaggedBeforeItsMoveEnds) {
+  // A move's full flow: the inlet open 2 s, each period counted worth 100 Pa at fixed volume.
+  // Stuck shut, it is flagged once worth 3 kPa and open 0.1 s, not at the move's end.
+  auto flagged_at = [](double response_pa, int direction) {
+    nb::ConsistencyMonitor monitor;
+    Sensor sensor(13);
+    runHolds(&monitor, &sensor, 0.5, 2000.0, 100.0);
+    for (int i = 0; i < 400; ++i) {
+      nb::ConsistencySample s = sample(sensor.read(2000.0 + direction * std::min(i * 20.0, response_pa)), false);
+      s.counted_step_pa = direction * 100.0;
+      s.plate_period_s = 0.05;
+      if (monitor.update(s, kPeriod)) return i * kPeriod;
+    }
+    return -1.0;
+  };
+  const double stuck = flagged_at(0.0, 1);
+  EXPECT_GT(stuck, 0.1);
+  EXPECT_LT(stuck, 0.2);
+  EXPECT_LT(flagged_at(300.0, 1), 0.0) << "a working inlet raising the pressure";
+  EXPECT_LT(flagged_at(0.0, -1), 0.0) << "a vent is judged at its pulse's end";
+}
+
 namespace {
 /// The silent-pulse rows on, as a rig with rigid loads runs them.
 nb::ConsistencyMonitorParams rowsOn() {

@@ -121,7 +121,8 @@ struct ConsistencySample {
 /// stuck shut passes nothing, so the readings stay within their noise where a working one
 /// moves them by hundreds of pascals (even a light plate, which takes the gas up at once,
 /// moves its pressure along the structure). Judged per pulse of one direction, and summed over
-/// one valve's silent pulses in a row.
+/// one valve's silent pulses in a row; an inlet held open (a move's full flow) is judged while
+/// still open, once it is worth a single silent pulse.
 class ValveResponseCheck {
  public:
   /// One period; returns a non-empty reason when a judged pulse had no response.
@@ -139,6 +140,7 @@ class ValveResponseCheck {
   double counted_pa_ = 0.0;   ///< the pulse's fixed-volume change so far
   double best_pa_ = 0.0;      ///< largest move of the recent mean in its direction
   double after_s_ = 0.0;      ///< time since its counted flow ended
+  double open_s_ = 0.0;       ///< time its valve has been counted open
   bool slow_enough_ = false;  ///< its plate swings slowly enough to show the gas
   /// The counted change of the judged pulses in a row without a response, summed per valve:
   /// [0] inlet, [1] vent [Pa].
@@ -147,6 +149,11 @@ class ValveResponseCheck {
   /// The verdict on the pulse that just ended; non-empty when its valve's run of silent pulses
   /// shows the valve stuck shut.
   std::string judge(double noise_sd_pa, const ConsistencyMonitorParams& params);
+  /// The verdict on an inlet pulse still under way: non-empty when it is worth a single silent
+  /// pulse, has been open the response window and has not moved the readings.
+  std::string judgeOpenInlet(double noise_sd_pa, const ConsistencyMonitorParams& params) const;
+  /// The reason given for a valve stuck shut.
+  std::string stuckShut(double worth_pa, int pulses, double needed_pa) const;
 };
 
 /// One job: failure to reach target. Each valve's counted opening time is summed over its
