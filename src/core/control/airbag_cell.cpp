@@ -445,12 +445,13 @@ double AirbagCell::countedStepPa(const ObserverEvents& events, const CellEstimat
 }
 
 double AirbagCell::platePeriod() const {
-  // Load p A: A = F / p; the gas spring k = gamma p_abs A^2 / V; the moving mass M = F / g.
+  // The gas spring k = gamma p_abs A^2 / V with A the structure's dV/dh at the estimate (a
+  // light plate's F / p would take a few pascals' noise for its area); the moving mass M = F / g.
   constexpr double kGravity = 9.81;
   const CellEstimate e = observer_->estimate();
   const double p = measurement_.gauge_pressure_pa;
-  if (!(e.load_n > 0.0 && p > 0.0 && e.volume_m3 > 0.0)) return 0.0;
-  const double area_m2 = e.load_n / p;
+  const double area_m2 = observer_->variables().structure.effective_area_m2;
+  if (!(e.load_n > 0.0 && std::isfinite(p) && area_m2 > 0.0 && e.volume_m3 > 0.0)) return 0.0;
   const double stiffness_n_m =
       params_.cell.gas.heat_capacity_ratio * (p + params_.cell.ambient_pressure_pa) * area_m2 * area_m2 / e.volume_m3;
   return 2.0 * M_PI * std::sqrt(e.load_n / kGravity / stiffness_n_m);
