@@ -108,7 +108,8 @@ struct ConsistencySample {
   double counted_step_pa = 0.0;
   double load_n = 0.0;  ///< the observer's load estimate [N]
   /// Period of the plate (with its load) on its gas spring, 2 pi sqrt(M / k) with
-  /// k = gamma p A^2 / V, at the observer's estimate; 0: unknown (plate on the bed) [s].
+  /// k = gamma p_abs A^2 / V, A the structure's dV/dh, at the observer's estimate; 0: unknown
+  /// (plate on the bed) [s].
   double plate_period_s = 0.0;
   double inlet_opening = 0.0, vent_opening = 0.0;  ///< the valves acting over the period (0..1) [-]
   double height_m = 0.0;                           ///< the observer's height estimate [m]
