@@ -207,16 +207,20 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
   return why;
 }
 
-std::string ValveResponseCheck::judge(double noise_sd_pa, const ConsistencyMonitorParams& params) {
-  const double needed_pa = params.response_sds * noise_sd_pa;
-  const double counted_pa = std::fabs(counted_pa_);
+bool ValveResponseCheck::judgeable(double needed_pa, const ConsistencyMonitorParams& params) const {
   // A vent can take the pressure down to ambient at most: a plate that rests at a few
   // reading sds (a light one) has no room to show its vent working.
   const bool room = (direction_ > 0 || baseline_pa_ >= 2.0 * needed_pa) && slow_enough_;
   // A valve that does not open leaves the readings where they were; readings that stayed
   // against the pulse by more than that all along (a load shifting meanwhile) do not judge it.
   const bool still = best_pa_ > -needed_pa;
-  if (params.response_min_pa <= 0.0 || counted_pa < params.response_min_pa || !room || !still) return "";
+  return params.response_min_pa > 0.0 && std::fabs(counted_pa_) >= params.response_min_pa && room && still;
+}
+
+std::string ValveResponseCheck::judge(double noise_sd_pa, const ConsistencyMonitorParams& params) {
+  const double needed_pa = params.response_sds * noise_sd_pa;
+  const double counted_pa = std::fabs(counted_pa_);
+  if (!judgeable(needed_pa, params)) return "";
   const int v = direction_ > 0 ? 0 : 1;
   if (best_pa_ >= needed_pa) {
     silent_[v] = 0;
@@ -240,9 +244,8 @@ std::string ValveResponseCheck::judgeOpenInlet(double noise_sd_pa, const Consist
   // window has passed. A working inlet has moved the pressure by then (its gas lifts the plate
   // and the load on it). Vents keep the end's judgement: a body's part can settle with the plate.
   const double needed_pa = params.response_sds * noise_sd_pa;
-  if (direction_ <= 0 || params.response_min_pa <= 0.0 || !slow_enough_ || open_s_ < params.response_window_s ||
-      counted_pa_ < std::max(params.response_single_pa, params.response_min_pa) || best_pa_ >= needed_pa ||
-      best_pa_ <= -needed_pa) {
+  if (direction_ <= 0 || open_s_ < params.response_window_s || counted_pa_ < params.response_single_pa ||
+      !judgeable(needed_pa, params) || best_pa_ >= needed_pa) {
     return "";
   }
   return stuckShut(counted_pa_, 1, needed_pa) + " (still counted open)";

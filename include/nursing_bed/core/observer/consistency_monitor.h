@@ -147,6 +147,9 @@ class ValveResponseCheck {
   /// [0] inlet, [1] vent [Pa].
   std::array<double, 2> silent_pa_{};
   std::array<int, 2> silent_{};  ///< how many they were
+  /// Whether the pulse so far can show its valve working: worth response_min_pa, on a plate
+  /// slow enough, a vent with room above ambient, and readings not held against it.
+  bool judgeable(double needed_pa, const ConsistencyMonitorParams& params) const;
   /// The verdict on the pulse that just ended; non-empty when its valve's run of silent pulses
   /// shows the valve stuck shut.
   std::string judge(double noise_sd_pa, const ConsistencyMonitorParams& params);
