@@ -168,6 +168,12 @@ double AirbagCell::heightSd() const {
   return std::hypot(e.height_sd_m, e.count_doubt_m);
 }
 
+double AirbagCell::readingNoise() const {
+  // An estimate's error is correlated, its speed the observer's model's own: no landing on it.
+  if (use_estimate_) return std::numeric_limits<double>::infinity();
+  return sim_ || !observer_ ? params_.height_noise_m : observer_->params().height_noise_m;
+}
+
 AirbagMode AirbagCell::resumedMode() const {
   if (pressure_.active()) return AirbagMode::kPressure;
   return controller_.hasTarget() ? AirbagMode::kHeight : AirbagMode::kIdle;
@@ -505,6 +511,7 @@ void AirbagCell::controlStep() {
   // The sensors were read at the end of the previous period (advanceTo), i.e. now.
   const double p = measurement_.gauge_pressure_pa, h = measurement_.height_m;
   if (!checkSensorsAndWatchdog(now, p, h)) return;
+  controller_.setHeightNoise(readingNoise());
   const ValveOpenings wanted = controller_.update(params_.control_period_s, p, h);
   valves_ = modeValves(wanted, p);
   if (mode_ == AirbagMode::kHeight || mode_ == AirbagMode::kPressure) valves_ = gasCheckValves(now, p, valves_);

@@ -68,6 +68,7 @@ std::string HeightController::checkSetpoint(double height_m) const {
 }
 
 void HeightController::setTarget(double height_m) {
+  landing_.stop();  // a new aim: a new move if it is far
   has_target_ = true;
   target_m_ = height_m;
   integral_m_ = 0.0;
@@ -157,6 +158,7 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
   predictRest(&s);
   if (!has_target_) {
     move_.stop();
+    landing_.stop();
     return ValveOpenings{};
   }
 
@@ -164,7 +166,7 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
   s.error_m = target_m_ - height_m;
   if (holding_ && !leavesHold(predictedError(), s.error_m, s.resting)) return ValveOpenings{};
   holding_ = false;
-  if (s.resting && !move_.active() && std::fabs(s.error_m) > params_.height_tolerance_m * 0.5) {
+  if (s.resting && !moving() && std::fabs(s.error_m) > params_.height_tolerance_m * 0.5) {
     integral_m_ += params_.integral_rate_per_s * s.error_m * dt_s;
     integral_m_ = std::clamp(integral_m_, -params_.integral_limit_m, params_.integral_limit_m);
   }
@@ -172,14 +174,21 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
   s.predicted_error_m = predictedError();
   s.lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
 
-  // Shaped full-flow move.
-  const bool starts = !move_.active() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest;
+  if (landing_.active()) {
+    if (const auto cmd = land(s)) return *cmd;
+  }
+  // Shaped full-flow move; its tail under feedback where the loop is fast enough.
+  const bool starts = !moving() && std::fabs(s.predicted_error_m) > params_.move_threshold_m && !s.lowest;
   if (starts || move_.active()) {
     const int direction = starts ? (s.predicted_error_m > 0.0 ? 1 : -1) : move_.direction();
     const MoveGauge gauge = moveGauge(direction, s);
     if (starts) move_.start(direction, gauge.remaining);
-    if (const auto opening = move_.step(dt_s, gauge.remaining, halfPeriod(), gauge.rate))
-      return command(s, direction, *opening);
+    if (const auto opening = move_.step(dt_s, gauge.remaining, halfPeriod(), gauge.rate)) {
+      if (move_.phase() != MovePhase::kTail || !(landingRate(dt_s) > 0.0)) return command(s, direction, *opening);
+      move_.stop();
+      landing_.start();
+      if (const auto cmd = land(s)) return *cmd;
+    }
   }
   return fineCorrection(s);
 }
@@ -199,6 +208,7 @@ void HeightController::predictRest(Period* s) {
   branch_ = relaxed.branch;
   const bool weighable = height_m > 0.005 && gauge_pressure_pa > 0.0;
   load_.update(dt_s, height_m, weighable ? relaxed.load_n : 0.0, weighable && !move_.active());
+  s->plate = tracker_.update(dt_s, height_m, plateAcceleration(relaxed.load_n, tracker_.state().velocity_m_s));
 
   // Where the plate rests if the valves shut now (adiabatic invariant of the present gas; the
   // volume uses the film relaxed at the measured pressure, so the invariant holds while the
@@ -217,6 +227,53 @@ ValveOpenings HeightController::command(const Period& s, int direction, double o
     cmd.vent = s.lowest ? 1.0 : opening;  // lowest setpoint: empty as fast as the vent allows
   }
   return cmd;
+}
+
+double HeightController::landingRate(double dt_s) const {
+  // A critically damped loop of rate r with a delay d keeps its margin while r d <= 1/4.
+  constexpr double kDelayRadians = 0.25;
+  // The tracked speed's noise times 2 r m is force the landing asks of the gas: at most a
+  // quarter of the load.
+  constexpr double kForceNoiseShare = 0.25;
+  const double own = kPi / halfPeriod();
+  double loop = kDelayRadians / (dt_s + in_flight_.deadTime());
+  const double speed_sd = tracker_.speedSd(height_noise_m_, dt_s);
+  if (speed_sd > 0.0) {
+    const PlateMechanics m = mechanics();
+    loop = std::min(loop, kForceNoiseShare * m.load_n / (2.0 * m.mass_kg * speed_sd));
+  }
+  return loop >= own ? std::min(2.0 * own, loop) : 0.0;
+}
+
+PlateMechanics HeightController::mechanics() const {
+  const CellParams& cell = characteristic_->params();
+  const double load = load_.load();
+  return {load, std::max(cell.plate_mass_kg, load / kGravity), cell.plate_damping_n_s_m};
+}
+
+double HeightController::plateAcceleration(double structure_force_n, double velocity_m_s) const {
+  const PlateMechanics m = mechanics();
+  return (structure_force_n - m.load_n - m.damping_n_s_m * velocity_m_s) / m.mass_kg;
+}
+
+std::optional<ValveOpenings> HeightController::land(const Period& s) {
+  const double rate = landingRate(s.dt_s);  // the load estimate moves it: it may drop out
+  const auto force =
+      rate > 0.0 ? landing_.force(s.dt_s, s.plate, target_m_ + integral_m_, mechanics(), rate) : std::nullopt;
+  if (!force) {
+    landing_.stop();
+    return std::nullopt;
+  }
+  const double p = characteristic_->pressureAt(s.height_m, *force, branch_);
+  const double v = characteristic_->volumeAt(s.height_m, *force, branch_);
+  if (!std::isfinite(p) || !std::isfinite(v)) {
+    landing_.stop();
+    return std::nullopt;
+  }
+  const double dk = characteristic_->invariant(p, v) - s.invariant;
+  const int direction = dk > 0.0 ? 1 : -1;
+  const double full = fullFlowInvariantRate(direction, s.gauge_pressure_pa, s.volume_m3);
+  return command(s, direction, full > 0.0 ? std::clamp(std::fabs(dk) / (full * s.dt_s), 0.0, 1.0) : 0.0);
 }
 
 ValveOpenings HeightController::fineCorrection(const Period& s) {

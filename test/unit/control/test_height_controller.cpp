@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,47 @@ TEST(HeightController, OnTheFoldTableCellAStepIsOneMove) {
   EXPECT_NEAR(cell.variables().height_m, 0.10, 1e-3);
 }
 
+// The same step as the default cell's target (#41: <= 1.5 x T_min, <= 2 mm). The plate is soft
+// near the fold (T/2 = 0.13 s at the target, 23 ms at 20 mm): the open-loop tail, timed on the
+// target's period, left a 4.5 mm swing; the landing aims the force at every period.
+TEST(HeightController, OnTheFoldTableCellTheStepLandsNearTheFlowLimit) {
+  nb::AirbagCellParams params;
+  params.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml");
+  nb::AirbagCell cell{params};
+  const double t_min = nb::flowLimitedMinimumTime(params.cell, 15.6, 0.02, 0.10);
+  const StepResult r = step(cell, 15.6, 0.02, 0.10);
+  EXPECT_LE(r.settle_s, 1.5 * t_min) << "t_min " << t_min;
+  EXPECT_LE(r.overshoot_m, 0.002);
+  EXPECT_NEAR(r.final_m, 0.10, 1e-3);
+}
+
+// Height readings with 0.5 mm of noise: the landing's speed is tracked on the force balance
+// (PlateTracker), so the noise does not reach the valves as chatter or a swing.
+TEST(HeightController, ALandingOnNoisyHeightReadingsStaysNearTheFlowLimit) {
+  for (std::uint32_t seed : {1u, 2u, 3u}) {
+    nb::AirbagCellParams params;
+    params.height_noise_m = 5e-4;
+    params.pressure_noise_pa = 20.0;
+    params.noise_seed = seed;
+    nb::AirbagCell cell{params};
+    const double t_min = nb::flowLimitedMinimumTime(params.cell, 15.6, 0.02, 0.10);
+    cell.resetToHeight(0.02, 15.6);
+    ASSERT_EQ(cell.requestHeight(0.10, 0.0), "");
+    double settle = 0.0, overshoot = 0.0, opening_s = 0.0;
+    for (double t = 0.005; t <= 3.0 + 1e-9; t += 0.005) {
+      cell.advanceTo(t);
+      const double h = cell.variables().height_m;
+      if (std::fabs(h - 0.10) > 1.5e-3) settle = t;  // the noise's 3 sd
+      overshoot = std::max(overshoot, h - 0.10);
+      if (t > 1.0) opening_s += 0.005 * (cell.valves().inlet + cell.valves().vent);
+    }
+    SCOPED_TRACE(testing::Message() << "seed " << seed);
+    EXPECT_LE(settle, 1.5 * t_min) << "t_min " << t_min;
+    EXPECT_LE(overshoot, 0.002);
+    EXPECT_LT(opening_s, 0.5) << "valve seconds spent on the readings' noise after the move";
+  }
+}
+
 TEST(HeightController, StepResponsesFromSeveralLoadsAndStartHeights) {
   nb::AirbagCell cell{nb::AirbagCellParams{}};
   const double moves[][2] = {{0.0, 0.08}, {0.02, 0.10}, {0.05, 0.13}, {0.13, 0.05}, {0.10, 0.11}, {0.10, 0.09}};
@@ -120,9 +162,26 @@ TEST(HeightController, AMoveRunsItsPhasesInOrderAndEndsOnTarget) {
     const nb::MovePhase phase = cell.controller().movePhase();
     if (phases.empty() || phases.back() != phase) phases.push_back(phase);
   }
-  EXPECT_EQ(phases, (std::vector<nb::MovePhase>{nb::MovePhase::kLead, nb::MovePhase::kFullFlow, nb::MovePhase::kTail,
+  // The loop (5 ms, no dead time) is faster than this plate: the tail is the feedback landing.
+  EXPECT_EQ(phases, (std::vector<nb::MovePhase>{nb::MovePhase::kLead, nb::MovePhase::kFullFlow, nb::MovePhase::kLanding,
                                                 nb::MovePhase::kNone}));
   EXPECT_NEAR(cell.variables().height_m, 0.10, 1e-3);
+}
+
+// The landing's poles: twice the plate's own frequency, within a quarter radian of the loop's
+// delay; none where the valves act so late that the loop is slower than the plate.
+TEST(HeightController, TheLandingIsAsFastAsTheLoopAllowsAndOnlyWhereItOutrunsThePlate) {
+  nb::AirbagCell cell{nb::AirbagCellParams{}};
+  nb::HeightController controller(nb::HeightControllerParams{}, nb::CellCharacteristic::shared(cell.params().cell));
+  controller.setTarget(0.10);
+  controller.setLoadEstimate(15.6);
+  const double own = M_PI / controller.halfPeriod(), dt = 0.005;
+  ASSERT_LT(own, 0.25 / dt);
+  EXPECT_DOUBLE_EQ(controller.landingRate(dt), std::min(2.0 * own, 0.25 / dt));
+  controller.setDeadTime(0.01);
+  EXPECT_DOUBLE_EQ(controller.landingRate(dt), own <= 0.25 / 0.015 ? std::min(2.0 * own, 0.25 / 0.015) : 0.0);
+  controller.setDeadTime(0.05);
+  EXPECT_EQ(controller.landingRate(dt), 0.0) << "a loop 55 ms late lands with the open-loop tail";
 }
 
 TEST(HeightController, NewParametersAreTakenOnlyWhenValid) {

@@ -228,6 +228,9 @@ class AirbagCell {
   void enterMode(AirbagMode mode);
   /// The mode a cleared fault returns to: pressure, height or idle by the setpoint held.
   AirbagMode resumedMode() const;
+  /// The height readings' noise the controller's landing allows for [m]: the simulated
+  /// sensor's, a fitted sensor's (the observer's setting), infinite for an estimate.
+  double readingNoise() const;
   /// After the hardware reported a device reset (the simulated plant's failed solve, reset flat
   /// at rest by the hardware): controller target cleared, valves shut, mode SAFE, flag
   /// kFaultModel (cleared by the next height request, which starts from the fresh state).

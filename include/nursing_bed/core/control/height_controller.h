@@ -4,10 +4,13 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "nursing_bed/core/control/commands_in_flight.h"
+#include "nursing_bed/core/control/plate_landing.h"
 #include "nursing_bed/core/control/plate_load_estimator.h"
+#include "nursing_bed/core/control/plate_tracker.h"
 #include "nursing_bed/core/control/shaped_move.h"
 #include "nursing_bed/core/physics/cell_characteristic.h"
 #include "nursing_bed/core/physics/valve_openings.h"
@@ -45,6 +48,11 @@ struct HeightControllerParams {
  *    to the target, half open for the last T/2 (re-aimed every period on the prediction).
  *    A move too small for that is two half-open pulses T/2 apart. The ringing excited by
  *    the first half-step is cancelled by the second.
+ *  - Landing: where the loop outruns the plate (landingRate), the tail is feedback instead
+ *    (PlateLanding): the force of a critically damped approach, as the gas that exerts it at
+ *    the present height, with the plate's speed tracked on its force balance (PlateTracker).
+ *    A cell whose stiffness changes several-fold within the move lands without the swing a
+ *    shaper timed on one period leaves.
  *  - Near the target the opening is proportional to h* - h_rest (full at approach_band_m)
  *    plus (h - h_rest) / damping_band_m: gas in while the plate swings above its rest
  *    height, out while below, makes the pressure lag the swing by a quarter period and so
@@ -63,8 +71,9 @@ struct HeightControllerParams {
  * a resting error is integrated into the target the predictor aims at. The load is estimated
  * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
  */
-/// Size: ~27 methods and 16 members are one valve law's state (target, integral, load, hold,
-/// rest prediction); the move and the commands in flight are their own classes.
+/// Size: ~32 methods and 19 members are one valve law's state (target, integral, load, hold,
+/// rest prediction); the move, its landing, the plate's tracked speed and the commands in
+/// flight are their own classes.
 class HeightController {
  public:
   HeightController(const HeightControllerParams& params, std::shared_ptr<const CellCharacteristic> characteristic);
@@ -90,6 +99,9 @@ class HeightController {
   /// The valves written for the next `dt_s` (what the cell sent after its modes and safety,
   /// not what update() wanted): kept for the last dead time as the gas in flight.
   void noteWritten(const ValveOpenings& cmd, double dt_s);
+  /// The height readings' noise, independent from period to period (sd) [m]; default 0. It
+  /// bounds how fast a landing may act on the speed the readings give (landingRate).
+  void setHeightNoise(double sd_m) { height_noise_m_ = sd_m; }
   /// Pressure of the supply behind the inlet valve, gauge [Pa] (default: the cell's setting).
   void setSupplyPressure(double pressure_pa) { supply_pressure_pa_ = pressure_pa; }
   /// Seeds the load estimate (e.g. from a load cell or the nominal load) [N].
@@ -111,13 +123,19 @@ class HeightController {
   /// integral_limit_m.
   std::string setParams(const HeightControllerParams& params);
   /// The phase of the shaped move under way (kNone outside moves).
-  MovePhase movePhase() const { return move_.phase(); }
+  MovePhase movePhase() const { return landing_.active() ? MovePhase::kLanding : move_.phase(); }
+  /// The poles of a landing at the target [1/s]: twice the plate's own frequency there, within
+  /// what the loop's delay (one period of `dt_s` and the valves' dead time) keeps stable and
+  /// what the readings' noise lets the speed's feedback ask of the gas; 0 where that is slower
+  /// than the plate itself (the open-loop tail then ends the move).
+  double landingRate(double dt_s) const;
 
  private:
   /// One period's readings and what follows from them, passed between update()'s parts.
   struct Period {
     double dt_s = 0.0, gauge_pressure_pa = 0.0, height_m = 0.0;
     bool resting = false;            ///< the plate's speed is under settled_speed_m_s
+    PlateState plate;                ///< the plate's height and speed, tracked (PlateTracker)
     double volume_m3 = 0.0;          ///< gas volume, film relaxed to the pressure
     double invariant = 0.0;          ///< K = p V^gamma of the present gas
     double error_m = 0.0;            ///< target - measured height
@@ -130,6 +148,15 @@ class HeightController {
   /// The valve of `direction` (+1 inlet, -1 vent) at `opening`, within max_pressure_pa; the
   /// lowest setpoint vents fully.
   ValveOpenings command(const Period& s, int direction, double opening) const;
+  /// The plate's load, mass and damping as the controller knows them.
+  PlateMechanics mechanics() const;
+  /// The plate's acceleration [m/s^2] under the structure's force at the readings.
+  double plateAcceleration(double structure_force_n, double velocity_m_s) const;
+  /// A move or its landing under way: the load estimate and the integral wait.
+  bool moving() const { return move_.active() || landing_.active(); }
+  /// The landing's valve: the gas that exerts its force at the present height, within one
+  /// period; nothing once it has landed (or cannot: the height is out of the load's reach).
+  std::optional<ValveOpenings> land(const Period& s);
   /// Outside moves: the proportional approach with active damping, or the hold on target.
   ValveOpenings fineCorrection(const Period& s);
   /// The change of the rest height the commands in flight will still make [m].
@@ -168,8 +195,11 @@ class HeightController {
   /// (the branch the rest is predicted on) until the pressure leaves its hysteresis band.
   CellCharacteristic::Shape shape_{};
   int branch_ = 0;
-  ShapedMove move_;  ///< the shaped full-flow move under way, if any
+  ShapedMove move_;       ///< the shaped full-flow move under way, if any
+  PlateLanding landing_;  ///< the move's tail under feedback, if under way
+  PlateTracker tracker_;  ///< the plate's speed for the landing
   double supply_pressure_pa_ = 0.0;
+  double height_noise_m_ = 0.0;  ///< sd of the height readings' noise [m]
   /// Half period kept for the target and branch while the load estimate stays within 5 % (the
   /// shaper's timing does not follow the estimate's wander within a move).
   struct HalfPeriodCache {

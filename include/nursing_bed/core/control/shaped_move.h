@@ -9,8 +9,8 @@
 namespace nursing_bed {
 
 /// Where a shaped move is: none, the half-open lead, full flow (or a small move's pause), the
-/// half-open tail.
-enum class MovePhase : std::uint8_t { kNone = 0, kLead = 1, kFullFlow = 2, kTail = 3 };
+/// half-open tail, or the tail under feedback (PlateLanding, where the loop is fast enough).
+enum class MovePhase : std::uint8_t { kNone = 0, kLead = 1, kFullFlow = 2, kTail = 3, kLanding = 4 };
 
 /**
  * The ideal flow-limited command is a full-flow pulse that ends when the plate's rest height
