@@ -184,6 +184,12 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
     const MoveGauge gauge = moveGauge(direction, s);
     if (starts) move_.start(direction, gauge.remaining);
     if (const auto opening = move_.step(dt_s, gauge.remaining, halfPeriod(), gauge.rate)) {
+      if (move_.phase() == MovePhase::kFullFlow && landingTakesOver(s, direction)) {
+        move_.stop();
+        landing_.start();
+        if (const auto cmd = land(s)) return *cmd;
+        return fineCorrection(s);
+      }
       if (move_.phase() != MovePhase::kTail || !(landingRate(dt_s) > 0.0)) return command(s, direction, *opening);
       move_.stop();
       landing_.start();
@@ -256,24 +262,36 @@ double HeightController::plateAcceleration(double structure_force_n, double velo
   return (structure_force_n - m.load_n - m.damping_n_s_m * velocity_m_s) / m.mass_kg;
 }
 
-std::optional<ValveOpenings> HeightController::land(const Period& s) {
-  const double rate = landingRate(s.dt_s);  // the load estimate moves it: it may drop out
-  const auto force =
-      rate > 0.0 ? landing_.force(s.dt_s, s.plate, target_m_ + integral_m_, mechanics(), rate) : std::nullopt;
-  if (!force) {
-    landing_.stop();
-    return std::nullopt;
-  }
+std::optional<double> HeightController::landingGas(const Period& s, PlateLanding* landing, double rate) const {
+  const auto force = landing->force(s.dt_s, s.plate, target_m_ + integral_m_, mechanics(), rate);
+  if (!force) return std::nullopt;
   const double p = characteristic_->pressureAt(s.height_m, *force, branch_);
   const double v = characteristic_->volumeAt(s.height_m, *force, branch_);
-  if (!std::isfinite(p) || !std::isfinite(v)) {
+  if (!std::isfinite(p) || !std::isfinite(v)) return std::nullopt;
+  return characteristic_->invariant(p, v) - s.invariant;
+}
+
+bool HeightController::landingTakesOver(const Period& s, int direction) const {
+  // On the bed the structure's force says nothing of the plate's; before the plate is under
+  // way the landing would only wait for it.
+  const double rate = landingRate(s.dt_s);
+  if (!(rate > 0.0) || s.height_m <= 0.005 || direction * s.plate.velocity_m_s <= 0.0) return false;
+  PlateLanding probe;
+  probe.start();
+  const auto gas = landingGas(s, &probe, rate);
+  return gas && direction * *gas < fullFlowInvariantRate(direction, s.gauge_pressure_pa, s.volume_m3) * s.dt_s;
+}
+
+std::optional<ValveOpenings> HeightController::land(const Period& s) {
+  const double rate = landingRate(s.dt_s);  // the load estimate moves it: it may drop out
+  const auto gas = rate > 0.0 ? landingGas(s, &landing_, rate) : std::nullopt;
+  if (!gas) {
     landing_.stop();
     return std::nullopt;
   }
-  const double dk = characteristic_->invariant(p, v) - s.invariant;
-  const int direction = dk > 0.0 ? 1 : -1;
+  const int direction = *gas > 0.0 ? 1 : -1;
   const double full = fullFlowInvariantRate(direction, s.gauge_pressure_pa, s.volume_m3);
-  return command(s, direction, full > 0.0 ? std::clamp(std::fabs(dk) / (full * s.dt_s), 0.0, 1.0) : 0.0);
+  return command(s, direction, full > 0.0 ? std::clamp(std::fabs(*gas) / (full * s.dt_s), 0.0, 1.0) : 0.0);
 }
 
 ValveOpenings HeightController::fineCorrection(const Period& s) {

@@ -162,9 +162,13 @@ TEST(HeightController, AMoveRunsItsPhasesInOrderAndEndsOnTarget) {
     const nb::MovePhase phase = cell.controller().movePhase();
     if (phases.empty() || phases.back() != phase) phases.push_back(phase);
   }
-  // The loop (5 ms, no dead time) is faster than this plate: the tail is the feedback landing.
-  EXPECT_EQ(phases, (std::vector<nb::MovePhase>{nb::MovePhase::kLead, nb::MovePhase::kFullFlow, nb::MovePhase::kLanding,
-                                                nb::MovePhase::kNone}));
+  // The loop (5 ms, no dead time) is faster than this plate: the move ends in the feedback
+  // landing, which takes over full flow as soon as it asks for less (here right after the lead).
+  ASSERT_GE(phases.size(), 3u);
+  EXPECT_EQ(phases.front(), nb::MovePhase::kLead);
+  EXPECT_EQ(phases[phases.size() - 2], nb::MovePhase::kLanding);
+  EXPECT_EQ(phases.back(), nb::MovePhase::kNone);
+  for (std::size_t i = 1; i + 1 < phases.size(); ++i) EXPECT_GT(phases[i], phases[i - 1]) << "phase " << i;
   EXPECT_NEAR(cell.variables().height_m, 0.10, 1e-3);
 }
 

@@ -154,8 +154,14 @@ class HeightController {
   double plateAcceleration(double structure_force_n, double velocity_m_s) const;
   /// A move or its landing under way: the load estimate and the integral wait.
   bool moving() const { return move_.active() || landing_.active(); }
-  /// The landing's valve: the gas that exerts its force at the present height, within one
-  /// period; nothing once it has landed (or cannot: the height is out of the load's reach).
+  /// The change of the gas's invariant K that makes it exert `landing`'s force at the present
+  /// height; nothing once it has landed or where the height is out of the load's reach.
+  std::optional<double> landingGas(const Period& s, PlateLanding* landing, double rate) const;
+  /// Full flow hands the move to the landing once the landing asks for less than full flow:
+  /// the gas in the cell already carries the plate to the aim (a fold that opens on the way
+  /// up runs the plate ahead of the gas's predicted rest).
+  bool landingTakesOver(const Period& s, int direction) const;
+  /// The landing's valve: its gas within one period; nothing once it has landed (or cannot).
   std::optional<ValveOpenings> land(const Period& s);
   /// Outside moves: the proportional approach with active damping, or the hold on target.
   ValveOpenings fineCorrection(const Period& s);
