@@ -69,6 +69,7 @@ Status CellObserverParams::validate() const {
   positive("reanchor_pressure_pa", reanchor_pressure_pa);
   non_negative("reanchor_time_s", reanchor_time_s);
   non_negative("weight_bound_window_s", weight_bound_window_s);
+  non_negative("weight_bound_lift_window_s", weight_bound_lift_window_s);
   errors.addIf(!(vent_count_doubt >= 0.0 && vent_count_doubt <= 1.0), "vent_count_doubt must be in [0, 1], got ",
                vent_count_doubt);
   return errors.status();
@@ -82,7 +83,7 @@ CellObserver::CellObserver(const CellParams& model, const CellObserverParams& pa
       delay_(params.valve_dead_time_s),
       pulse_(kCurvedFlowBands * model.orifice_linear_band_pa),
       reanchor_(params.reanchor_time_s, params.period_s, 0.0),
-      weight_bound_(params.weight_bound_window_s),
+      weight_bound_(params.weight_bound_window_s, params.weight_bound_lift_window_s),
       reading_noise_(params.pressure_noise_pa, kNoisePriorReadings, kNoiseMemoryReadings) {
   for (const auto& e : effects) model_.addEffect(e);
   unstretched_top_m_ = model_.structure().heightLimit(model_.structure().restShape().data());
@@ -491,8 +492,13 @@ bool CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, dou
   // near the bag's top 1 % of gas moves a light plate 10 mm (a descent to 0.03 m under the
   // plate alone counts its ~30 Pa vent within 1-2 % for the readings' noise); where it has
   // drifted above the bound, the energy is measured at the bound.
+  // Lifted (the inlet open, the vent shut, the plate not falling by the count) the plate needs
+  // its weight and more: the same bound, within a tenth of a second of a fill that moves no gas.
+  const bool lifting = applied_.valves.inlet > 0.0 && applied_.valves.vent == 0.0 && x_[CellModel::kVelocity] >= 0.0;
   double mean = 0.0, se = 0.0;
-  if (!weight_bound_.quietMean(gauge_pressure_pa, lifted, valvesShut(), dt_s, reading_noise_, &mean, &se)) return false;
+  const bool quiet = weight_bound_.quietMean(gauge_pressure_pa, lifted, valvesShut(), dt_s, reading_noise_, &mean, &se);
+  if (!quiet && !weight_bound_.liftingMean(gauge_pressure_pa, lifted, lifting, dt_s, reading_noise_, &mean, &se))
+    return false;
   // The bound at a pressure kBoundStandardErrors above the mean (the readings' noise must not
   // move a plate that is where the inventory says), and the estimate moved only as far as that.
   const double bound = weight_bound_.plateAloneHeight(mean + kBoundStandardErrors * se);

@@ -24,6 +24,10 @@ ParamTable<P> makeFields() {
                "valves shut this long (settling), then readings averaged as long: the plate alone's rest height at "
                "that mean bounds the height; 0 = off [s]",
                p.weight_bound_window_s),
+      NB_FIELD("weight_bound_lift_window_s",
+               "the same while the plate is lifted (inlet open, vent shut, not falling): after this long, readings "
+               "averaged as long again; 0 = off [s]",
+               p.weight_bound_lift_window_s),
       NB_FIELD("vent_count_doubt",
                "share of the vent gas counted while the plate may ring that the count may be off, in [0, 1] [-]",
                p.vent_count_doubt),

@@ -49,27 +49,26 @@ double WeightBound::plateAloneHeight(double gauge_pressure_pa) const {
 }
 
 void WeightBound::reset() {
-  quiet_s_ = quiet_sum_pa_ = 0.0;
-  quiet_count_ = 0;
+  quiet_.reset();
+  lifting_.reset();
 }
 
-bool WeightBound::quietMean(double gauge_pressure_pa, bool lifted, bool valves_shut, double dt_s,
-                            const ReadingNoise& noise, double* mean_pa, double* se_pa) {
-  // With both valves shut the plate first settles for one window, then the readings are
-  // averaged for as long as the valves stay shut; true at the end of each window.
-  const double window = window_s_;
-  if (window <= 0.0 || !valves_shut || !lifted) {
+bool WeightBound::Window::mean(double gauge_pressure_pa, bool holds, double dt_s, const ReadingNoise& noise,
+                               double* mean_pa, double* se_pa) {
+  // While the condition holds the plate first settles for one window, then the readings are
+  // averaged for as long as it keeps holding; true at the end of each window.
+  if (length_s <= 0.0 || !holds) {
     reset();
     return false;
   }
-  quiet_s_ += dt_s;
-  if (quiet_s_ <= window) return false;
-  quiet_sum_pa_ += gauge_pressure_pa;
-  ++quiet_count_;
-  const double since_settled = quiet_s_ - window;
-  if (std::floor(since_settled / window) == std::floor((since_settled - dt_s) / window)) return false;
-  *mean_pa = quiet_sum_pa_ / static_cast<double>(quiet_count_);
-  *se_pa = noise.meanSd(static_cast<double>(quiet_count_));
+  held_s += dt_s;
+  if (held_s <= length_s) return false;
+  sum_pa += gauge_pressure_pa;
+  ++count;
+  const double since_settled = held_s - length_s;
+  if (std::floor(since_settled / length_s) == std::floor((since_settled - dt_s) / length_s)) return false;
+  *mean_pa = sum_pa / static_cast<double>(count);
+  *se_pa = noise.meanSd(static_cast<double>(count));
   return true;
 }
 

@@ -163,6 +163,39 @@ TEST(CellFaults, AValveStuckShutIsFlaggedOnlyWhenItIsCommanded) {
   EXPECT_NE(c.cell->monitor()->reason().find("inlet"), std::string::npos) << c.cell->monitor()->reason();
 }
 
+// Under the plate alone a working inlet hardly moves the pressure (the plate follows the gas),
+// so the pulse test does not judge it; but a lifted plate needs at least its own weight, and the
+// pressure of one whose fill never arrives stays that of its old height (ADC steps of 12.2 Pa
+// against the plate alone's ~1.3 Pa per mm). Without the bound while lifted the estimate rose
+// to the 120 mm target and was caught 4.8 s later, 92 mm off.
+TEST(CellFaults, AFillUnderThePlateAloneThroughAnInletStuckShutIsCaughtWhileLifting) {
+  FaultyCell c(0.03, 0.6);
+  ASSERT_EQ(c.cell->requestHeight(0.03, 0.0), "");
+  EXPECT_LT(c.runTo(6.0), 0.0) << "flagged before the fault";
+  c.hw->stuck_inlet = 0;
+  ASSERT_EQ(c.cell->requestHeight(0.12, c.t), "");
+  const double start = c.t;
+  double worst = 0.0;
+  const double flagged = c.runTo(start + 2.0, &worst);
+  ASSERT_GE(flagged, 0.0) << "not flagged within 2 s";
+  std::printf("[faults] inlet stuck shut, plate alone 30 -> 120 mm: flagged after %.2f s, %.1f mm off unflagged\n",
+              flagged - start, 1e3 * worst);
+  EXPECT_LT(flagged - start, 0.5);
+  EXPECT_LT(worst, 0.045);
+}
+
+// The same fills with a working inlet, up and down: the bound while lifting leaves them alone.
+TEST(CellFaults, HealthyFillsUnderThePlateAloneAreNotFlaggedByTheBoundWhileLifting) {
+  FaultyCell c(0.03, 0.6);
+  for (double to_m : {0.12, 0.08, 0.11, 0.06, 0.10}) {
+    ASSERT_EQ(c.cell->requestHeight(to_m, c.t), "");
+    double worst = 0.0;
+    EXPECT_LT(c.runTo(c.t + 6.0, &worst), 0.0) << "to " << to_m;
+    EXPECT_LT(worst, 0.004) << "to " << to_m;
+    EXPECT_NEAR(c.plant->variables().height_m, to_m, 0.002) << "to " << to_m;
+  }
+}
+
 TEST(CellFaults, AHealthyCellMovedAroundUnderThreeLoadsIsNeverFlagged) {
   const double targets[] = {0.06, 0.10, 0.045, 0.08, 0.03, 0.07, 0.12, 0.05};
   for (const double load_n : {0.6, 15.6, 36.0}) {

@@ -42,6 +42,10 @@ struct CellObserverParams {
   /// Both valves shut this long (the plate settled, then its mean pressure over as long again)
   /// bounds the height from above by where the plate alone rests at that pressure; 0: off [s].
   double weight_bound_window_s = 0.5;
+  /// The same bound while the plate is lifted (inlet open, vent shut, the plate not falling:
+  /// it needs at least its weight then too): after this long, readings averaged as long
+  /// again; 0: off [s].
+  double weight_bound_lift_window_s = 0.05;
   /// Share of the vent gas counted while the plate may ring (within 30 ms of a valve edge; the
   /// gauge pressure within the flows' curved bands, 300 Pa by default; beyond, this share times
   /// that pressure over the cell's) that the count may be off: flows at readings 5 ms apart
