@@ -497,8 +497,9 @@ bool CellObserver::boundByPlateWeight(double gauge_pressure_pa, bool lifted, dou
   const bool lifting = applied_.valves.inlet > 0.0 && applied_.valves.vent == 0.0 && x_[CellModel::kVelocity] >= 0.0;
   double mean = 0.0, se = 0.0;
   const bool quiet = weight_bound_.quietMean(gauge_pressure_pa, lifted, valvesShut(), dt_s, reading_noise_, &mean, &se);
-  if (!quiet && !weight_bound_.liftingMean(gauge_pressure_pa, lifted, lifting, dt_s, reading_noise_, &mean, &se))
-    return false;
+  if (!quiet && !(weight_bound_.liftingMean(gauge_pressure_pa, lifted, lifting, dt_s, reading_noise_, &mean, &se) &&
+                  mean >= weight_bound_.lowestLiftedPressure()))
+    return false;  // below every lifted rest nothing is being lifted: not this bound's case (the landed test's)
   // The bound at a pressure kBoundStandardErrors above the mean (the readings' noise must not
   // move a plate that is where the inventory says), and the estimate moved only as far as that.
   const double bound = weight_bound_.plateAloneHeight(mean + kBoundStandardErrors * se);
