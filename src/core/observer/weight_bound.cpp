@@ -69,6 +69,7 @@ bool WeightBound::Window::mean(double gauge_pressure_pa, bool holds, double dt_s
   if (std::floor(since_settled / length_s) == std::floor((since_settled - dt_s) / length_s)) return false;
   *mean_pa = sum_pa / static_cast<double>(count);
   *se_pa = noise.meanSd(static_cast<double>(count));
+  if (!cumulative) sum_pa = 0.0, count = 0;
   return true;
 }
 

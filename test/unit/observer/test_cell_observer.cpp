@@ -470,6 +470,41 @@ TEST(CellObserver, ThePlatesWeightBoundsALightPlatesHeight) {
   EXPECT_LE(on.worst_below_truth_m, 0.0015) << "the bound is taken conservatively: never much below the plate";
 }
 
+// While the plate is lifted (inlet open) the bound holds too, but only where the pressure could
+// lift the plate at all: a reading below every lifted rest of the plate alone (a start-up's
+// transient read -1208 Pa with the inlet open) is no lift to bound; the flat and landed tests
+// judge it.
+TEST(CellObserver, TheBoundWhileLiftedLeavesAPressureThatLiftsNothingAlone) {
+  const nb::CellParams cell;
+  nb::CellModel plant(cell);
+  plant.reset(0.6);
+  nb::CellModel::StateVector x = plant.state();
+  x[nb::CellModel::kRegulator] = cell.supply_pressure_pa;
+  plant.setState(0.0, x);
+  nb::CellObserverParams op;
+  nb::CellObserver observer(cell, op);
+  observer.reset(0.6);
+  const double dt = op.period_s;
+  nb::CellInputs in;
+  in.load_n = 0.6;
+  in.inlet_opening = 1.0;
+  for (double t = 0.0; t < 0.6; t += dt) {  // a healthy fill of the plate alone
+    plant.advance(dt, in);
+    nb::Readings z;
+    z.gauge_pressure_pa = adc(plant.variables().gauge_pressure_pa, 12.2);
+    observer.step({{1.0, 0.0}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+  }
+  ASSERT_GT(observer.estimate().height_m, 0.03);
+  const int bounds = observer.estimate().weight_bounds;
+  EXPECT_EQ(bounds, 0) << "a healthy fill is not bounded";
+  for (double t = 0.0; t < 0.3; t += dt) {
+    nb::Readings z;
+    z.gauge_pressure_pa = -1208.0;
+    observer.step({{1.0, 0.0}, 0.0, std::numeric_limits<double>::quiet_NaN()}, z);
+  }
+  EXPECT_EQ(observer.estimate().weight_bounds, bounds);
+}
+
 TEST(CellObserver, ThePlatesWeightBoundLeavesARightEstimateAndAHeavyPlateAlone) {
   // An inventory that is right is not moved by the bound (10 s of readings tested every
   // window), and a heavy plate's pressure is far above the plate alone's, whatever its gas.

@@ -16,7 +16,8 @@ class WeightBound {
  public:
   /// `window_s`: both valves shut this long (the plate settled), then the readings averaged
   /// over as long again; `lift_window_s` the same while the plate is lifted; 0: off.
-  explicit WeightBound(double window_s = 0.0, double lift_window_s = 0.0) : quiet_{window_s}, lifting_{lift_window_s} {}
+  explicit WeightBound(double window_s = 0.0, double lift_window_s = 0.0)
+      : quiet_{window_s, true}, lifting_{lift_window_s, false} {}
   /// Tabulates the plate alone's rests (weight `plate_weight_n`) at heights up to 0.95 `top_m`.
   void tabulate(const CellStructure& structure, double plate_weight_n, double top_m);
   /// Below the least of the plate alone's rest pressures the plate cannot be lifted [Pa].
@@ -34,7 +35,8 @@ class WeightBound {
                  double* mean_pa, double* se_pa) {
     return quiet_.mean(gauge_pressure_pa, lifted && valves_shut, dt_s, noise, mean_pa, se_pa);
   }
-  /// The same while the plate is being lifted (inlet open, vent shut, not falling).
+  /// The same while the plate is being lifted (inlet open, vent shut, not falling), each mean
+  /// over its own window only (the pressure follows the rising plate).
   bool liftingMean(double gauge_pressure_pa, bool lifted, bool lifting, double dt_s, const ReadingNoise& noise,
                    double* mean_pa, double* se_pa) {
     return lifting_.mean(gauge_pressure_pa, lifted && lifting, dt_s, noise, mean_pa, se_pa);
@@ -42,11 +44,13 @@ class WeightBound {
 
  private:
   /// Readings averaged while a condition holds, after it has held one window (the plate's
-  /// response to the valves' last change has passed); a mean at the end of each window.
+  /// response to the valves' last change has passed); a mean at the end of each window, of
+  /// every reading since the first (`cumulative`: a settled plate) or of that window's.
   struct Window {
     double length_s = 0.0;  ///< 0: off
-    double held_s = 0.0;    ///< the condition has held this long [s]
-    double sum_pa = 0.0;    ///< readings summed since the first window
+    bool cumulative = true;
+    double held_s = 0.0;  ///< the condition has held this long [s]
+    double sum_pa = 0.0;  ///< readings summed since the first window
     long count = 0;
     bool mean(double gauge_pressure_pa, bool holds, double dt_s, const ReadingNoise& noise, double* mean_pa,
               double* se_pa);
