@@ -71,7 +71,7 @@ struct HeightControllerParams {
  * a resting error is integrated into the target the predictor aims at. The load is estimated
  * from the plate's force balance on the characteristic (PlateLoadEstimator) outside moves.
  */
-/// Size: ~32 methods and 19 members are one valve law's state (target, integral, load, hold,
+/// Size: ~37 methods and 20 members are one valve law's state (target, integral, load, hold,
 /// rest prediction); the move, its landing, the plate's tracked speed and the commands in
 /// flight are their own classes.
 class HeightController {
