@@ -184,13 +184,10 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
     const MoveGauge gauge = moveGauge(direction, s);
     if (starts) move_.start(direction, gauge.remaining);
     if (const auto opening = move_.step(dt_s, gauge.remaining, halfPeriod(), gauge.rate)) {
-      if (move_.phase() == MovePhase::kFullFlow && landingTakesOver(s, direction)) {
-        move_.stop();
-        landing_.start();
-        if (const auto cmd = land(s)) return *cmd;
-        return fineCorrection(s);
-      }
-      if (move_.phase() != MovePhase::kTail || !(landingRate(dt_s) > 0.0)) return command(s, direction, *opening);
+      const bool hand_over = move_.phase() == MovePhase::kFullFlow ? landingTakesOver(s, direction)
+                             : move_.phase() == MovePhase::kTail   ? landingRate(dt_s) > 0.0
+                                                                   : false;
+      if (!hand_over) return command(s, direction, *opening);
       move_.stop();
       landing_.start();
       if (const auto cmd = land(s)) return *cmd;
@@ -262,11 +259,9 @@ double HeightController::plateAcceleration(double structure_force_n, double velo
   return (structure_force_n - m.load_n - m.damping_n_s_m * velocity_m_s) / m.mass_kg;
 }
 
-std::optional<double> HeightController::landingGas(const Period& s, PlateLanding* landing, double rate) const {
-  const auto force = landing->force(s.dt_s, s.plate, target_m_ + integral_m_, mechanics(), rate);
-  if (!force) return std::nullopt;
-  const double p = characteristic_->pressureAt(s.height_m, *force, branch_);
-  const double v = characteristic_->volumeAt(s.height_m, *force, branch_);
+std::optional<double> HeightController::landingGas(const Period& s, double force_n) const {
+  const double p = characteristic_->pressureAt(s.height_m, force_n, branch_);
+  const double v = characteristic_->volumeAt(s.height_m, force_n, branch_);
   if (!std::isfinite(p) || !std::isfinite(v)) return std::nullopt;
   return characteristic_->invariant(p, v) - s.invariant;
 }
@@ -276,15 +271,15 @@ bool HeightController::landingTakesOver(const Period& s, int direction) const {
   // way the landing would only wait for it.
   const double rate = landingRate(s.dt_s);
   if (!(rate > 0.0) || s.height_m <= 0.005 || direction * s.plate.velocity_m_s <= 0.0) return false;
-  PlateLanding probe;
-  probe.start();
-  const auto gas = landingGas(s, &probe, rate);
+  const auto gas = landingGas(s, PlateLanding::approachForce(s.plate, target_m_ + integral_m_, mechanics(), rate));
   return gas && direction * *gas < fullFlowInvariantRate(direction, s.gauge_pressure_pa, s.volume_m3) * s.dt_s;
 }
 
 std::optional<ValveOpenings> HeightController::land(const Period& s) {
   const double rate = landingRate(s.dt_s);  // the load estimate moves it: it may drop out
-  const auto gas = rate > 0.0 ? landingGas(s, &landing_, rate) : std::nullopt;
+  const auto force =
+      rate > 0.0 ? landing_.force(s.dt_s, s.plate, target_m_ + integral_m_, mechanics(), rate) : std::nullopt;
+  const auto gas = force ? landingGas(s, *force) : std::nullopt;
   if (!gas) {
     landing_.stop();
     return std::nullopt;

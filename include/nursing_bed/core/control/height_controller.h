@@ -154,9 +154,9 @@ class HeightController {
   double plateAcceleration(double structure_force_n, double velocity_m_s) const;
   /// A move or its landing under way: the load estimate and the integral wait.
   bool moving() const { return move_.active() || landing_.active(); }
-  /// The change of the gas's invariant K that makes it exert `landing`'s force at the present
-  /// height; nothing once it has landed or where the height is out of the load's reach.
-  std::optional<double> landingGas(const Period& s, PlateLanding* landing, double rate) const;
+  /// The change of the gas's invariant K that makes it exert `force_n` on the plate at the
+  /// present height; nothing where the height is out of that load's reach.
+  std::optional<double> landingGas(const Period& s, double force_n) const;
   /// Full flow hands the move to the landing once the landing asks for less than full flow:
   /// the gas in the cell already carries the plate to the aim (a fold that opens on the way
   /// up runs the plate ahead of the gas's predicted rest).

@@ -40,6 +40,9 @@ class PlateLanding {
   /// of the load: the gas cannot pull.
   std::optional<double> force(double dt_s, const PlateState& plate, double aim_m, const PlateMechanics& mechanics,
                               double rate_per_s);
+  /// That force alone, without the landing's bookkeeping (what a landing begun now would ask).
+  static double approachForce(const PlateState& plate, double aim_m, const PlateMechanics& mechanics,
+                              double rate_per_s);
 
   double landed_m = 0.0005;        ///< height error that counts as landed [m]
   double landed_speed_m_s = 0.01;  ///< plate speed under which it counts as landed [m/s]
