@@ -42,7 +42,7 @@ std::vector<CalibrationParamDef> makeCatalog() {
        "gas volume of the flat cell (inlet fitting, tube stub, folds) or of a bellows at zero travel", deadVolume,
        setDeadVolume, 0.3, 3.5, false, true, false, ""},
       {"plate_mass_kg", "kg", "mass of the loading plate alone (inertia of a lightly loaded plate)",
-       NB_CAL_ACCESS(plate_mass_kg), 0.7, 1.4, false, false, false, "pillow"},
+       NB_CAL_ACCESS(plate_mass_kg), 0.7, 1.4, false, false, false, "plate"},
       // A test lung's setting is nominal to about 10 %; the prior spans a factor 2 either way.
       {"compliance_m3_pa", "m^3/Pa", "bellows compliance C = A^2 / k: volume per gauge pressure of its spring",
        NB_CAL_ACCESS(bellows.compliance_m3_pa), 0.5, 2.0, false, true, false, "bellows"},
@@ -133,7 +133,8 @@ bool runHasNoHeight(const RunData& run) { return allNaN(run.h_m); }
 bool calibrationParamApplies(const CalibrationParamDef& d, const CellParams& nominal) {
   if (d.structure.empty()) return true;
   if (d.structure == "airway") return nominal.airway.active();
-  return (d.structure == "bellows") == isBellows(nominal);
+  if (d.structure == "plate") return !isBellows(nominal);
+  return d.structure == nominal.structure_type;
 }
 
 std::vector<std::string> defaultCalibrationParams(const std::vector<RunData>& runs, const CellParams& nominal) {

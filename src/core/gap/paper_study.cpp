@@ -4,12 +4,13 @@
 #include <functional>
 #include <iomanip>
 #include <limits>
+#include <memory>
 #include <sstream>
 
 #include "nursing_bed/core/gap/effects.h"
 #include "nursing_bed/core/gap/replay.h"
+#include "nursing_bed/core/physics/cell_model.h"
 #include "nursing_bed/core/physics/paper_experiment.h"
-#include "nursing_bed/core/physics/pillow_structure.h"
 
 namespace nursing_bed {
 namespace {
@@ -43,10 +44,10 @@ double rms(const std::vector<double>& a, const std::vector<double>& b) {
 
 /// Static rising curve under an extra load (what guide friction does while the plate rises).
 std::vector<double> staticHeights(const CellParams& params, double load_n, const std::vector<double>& grid) {
-  const PillowStructure structure(params.structure);
+  const std::shared_ptr<const CellStructure> structure = makeCellStructure(params);
   std::vector<double> h;
   for (double p : grid) {
-    const StructureEquilibrium eq = structure.equilibriumAtPressure(p, load_n);
+    const StructureEquilibrium eq = structure->equilibriumAtPressure(p, load_n);
     h.push_back(eq.converged ? eq.height_m : std::numeric_limits<double>::quiet_NaN());
   }
   return h;
@@ -104,6 +105,7 @@ void heightBands(PaperCurveStudy* s) {
 void candidatesAtMidRange(const CellParams& params, const RunData& run, PaperCurveStudy* s) {
   for (const auto& name : candidateEffectNames()) {
     const EffectSpec& spec = effectSpec(name);
+    if (!spec.structure.empty() && spec.structure != params.structure_type) continue;  // assumes another structure
     std::map<std::string, double> values;
     for (const auto& p : spec.params)
       values[p.name] = p.log_scale ? std::sqrt(p.lo * p.hi) : 0.5 * p.hi;  // mid of the range (of |x|)
@@ -120,8 +122,8 @@ void candidatesAtMidRange(const CellParams& params, const RunData& run, PaperCur
 /// paper-shaped inflow carrying the gas that rests at eq. 24's top (92 mm), nominal and with a
 /// supply line whose restriction is fitted (pressure read upstream of it while the gas flows).
 void dynamicCheck(const CellParams& params, PaperCurveStudy* s) {
-  const PillowStructure structure(params.structure);
-  const StructureEquilibrium top = structure.equilibriumAtHeight(paperEq24HeightM(kGridHiPa), s->load_n);
+  const std::shared_ptr<const CellStructure> structure = makeCellStructure(params);
+  const StructureEquilibrium top = structure->equilibriumAtHeight(paperEq24HeightM(kGridHiPa), s->load_n);
   const double mass = (params.ambient_pressure_pa + top.gauge_pressure_pa) * top.eval.volume_m3 /
                       (params.gas.gas_constant_j_kg_k * params.ambient_temperature_k);
   const TimeSeries inflow = paperShapedInflow(mass, 1.0, 5.5, 0.01);

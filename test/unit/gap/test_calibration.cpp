@@ -103,6 +103,19 @@ TEST(GapCalibrationCatalog, DefaultsFollowTheRunsAndValveParametersNeedValveDriv
                                           {"inlet_area_m2", "valve_cmd and p_supply_gauge_pa", "flow-metered"});
 }
 
+// A table structure carries the FE's film in its tables: the pillow's film and gusset are not
+// its parameters, the plate's mass is.
+TEST(GapCalibrationCatalog, ATableCellCalibratesNoPillowFilm) {
+  const auto metered = rigRuns({}, 1, false, 0.0);
+  nb::CellParams table;
+  table.structure_type = "fold_table";
+  table.structure_table_file = "unused.yaml";
+  EXPECT_EQ(nb::defaultCalibrationParams(metered, table),
+            (std::vector<std::string>{"dead_volume_m3", "plate_mass_kg"}));
+  expectThrowsWith<std::invalid_argument>([&] { nb::checkCalibrationParams({"gusset_height_m"}, metered, table); },
+                                          {"gusset_height_m", "pillow", "fold_table"});
+}
+
 TEST(GapCalibrationStage, AStifferFilmIsCalibratedAndNothingElseMoves) {
   const gs::PreparedRuns prepared = gs::prepareRuns(rigRuns({{"film_stiffness_scale", 1.15}}, 5));
   nb::DiagnosisOptions options;

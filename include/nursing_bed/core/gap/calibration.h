@@ -36,9 +36,9 @@ struct CalibrationParamDef {
   bool log_scale = false;
   /// Only runs driven through the model's own valves (no flow meter) tell it.
   bool valve_driven_only = false;
-  /// The structure it belongs to: "pillow" (every structure but a bellows: the film and gusset
-  /// of the pillow, the loading plate), "bellows", "airway" (a cell with a series airway), or
-  /// empty (any structure).
+  /// The structure it belongs to: a structure type ("pillow": its film and gusset; "bellows"),
+  /// "plate" (every structure but a bellows: the loading plate), "airway" (a cell with a series
+  /// airway), or empty (any structure).
   std::string structure;
 };
 
