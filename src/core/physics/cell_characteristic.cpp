@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <map>
 #include <mutex>
 
@@ -14,7 +15,12 @@ CellCharacteristic::CellCharacteristic(const CellParams& params, double height_m
     : params_(params), structure_(makeCellStructure(params)), height_step_m_(height_step_m), load_step_n_(load_step_n) {
   heights_ = static_cast<int>(std::lround(height_max_m / height_step_m)) + 1;
   loads_ = static_cast<int>(std::lround(load_max_n / load_step_n)) + 1;
-  for (int b = 0; b < structure_->branchCount(); ++b) tables_.push_back(tabulate(b));
+  // A fold's two branches are tabulated side by side (a structure is immutable, so its solvers
+  // may run in two threads): on the FE fold table each takes seconds, and a bed waits for them.
+  std::vector<std::future<Table>> branches;
+  for (int b = 0; b < structure_->branchCount(); ++b)
+    branches.push_back(std::async(std::launch::async, [this, b] { return tabulate(b); }));
+  for (auto& branch : branches) tables_.push_back(branch.get());
 }
 
 namespace {

@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 
@@ -83,15 +86,42 @@ double CellParams::reliefOpening(double gauge_pressure_pa) const {
       0.0, 1.0);
 }
 
-std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params) {
+namespace {
+
+std::shared_ptr<const CellStructure> buildTableStructure(const CellParams& params) {
   if (params.structure_type == "table")
     return std::make_shared<TabulatedStructure>(TabulatedStructure::load(params.structure_table_file),
                                                 params.structure.film_relaxation_time_s,
                                                 params.structure.dead_volume_m3, params.structure.fold_fraction);
-  if (params.structure_type == "fold_table")
-    return std::make_shared<FoldTableStructure>(FoldTableStructure::load(params.structure_table_file),
-                                                params.structure.film_relaxation_time_s,
-                                                params.structure.dead_volume_m3, params.structure.fold_fraction);
+  return std::make_shared<FoldTableStructure>(FoldTableStructure::load(params.structure_table_file),
+                                              params.structure.film_relaxation_time_s, params.structure.dead_volume_m3,
+                                              params.structure.fold_fraction);
+}
+
+}  // namespace
+
+std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params) {
+  if (params.structure_type == "table" || params.structure_type == "fold_table") {
+    // A table is read once per process: a bed's cells (and each cell's plant, controller and
+    // observer) share one immutable structure, as reading the file took ~20 ms per copy.
+    static std::mutex mutex;
+    static std::map<std::string, std::shared_ptr<const CellStructure>> cache;
+    // The file's time and size are part of the key: a table rewritten in place is read again.
+    std::error_code ec;
+    const auto written = std::filesystem::last_write_time(params.structure_table_file, ec);
+    const auto size = std::filesystem::file_size(params.structure_table_file, ec);
+    std::ostringstream key;
+    key.precision(17);
+    key << params.structure_type << '\n'
+        << params.structure_table_file << '\n'
+        << written.time_since_epoch().count() << ' ' << size << '\n'
+        << params.structure.film_relaxation_time_s << ' ' << params.structure.dead_volume_m3 << ' '
+        << params.structure.fold_fraction;
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& entry = cache[key.str()];
+    if (!entry) entry = buildTableStructure(params);
+    return entry;
+  }
   if (params.structure_type == "bellows") return std::make_shared<BellowsStructure>(params.bellows);
   return std::make_shared<PillowStructure>(params.structure);
 }
