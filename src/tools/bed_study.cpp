@@ -16,6 +16,7 @@
 #include <map>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,8 @@
 #include "nursing_bed/core/bed/posture_plans.h"
 #include "nursing_bed/core/bed/tissue_load.h"
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/io/package_path.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/units.h"
 #include "tool_cli.h"
 
@@ -41,11 +44,11 @@ constexpr int kMeterEvery = 25;       // body steps per tissue-load sample (2 Hz
 // The bed: cells, body and the running plan, stepped together in simulated time.
 class Bed {
  public:
-  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+  Bed(const nb::BedGrid& grid, const nb::PlanConfig& config, const nb::CellParams& cell,
       const nb::PatientParams& patient = nb::PatientParams{})
       : grid_(grid), config_(config), body_(patient, grid) {
     nb::AirbagCellParams p;
-    p.cell.supply_pressure_pa = supply_pa;
+    p.cell = cell;
     for (int i = 0; i < grid.cells(); ++i) {
       cells_.push_back(std::make_unique<nb::AirbagCell>(p));
       cells_.back()->resetToHeight(config.nominal_height_m, kPlateWeightN);
@@ -206,9 +209,9 @@ Json regionDoses(const nb::TissueLoadMeter& meter) {
 }
 
 /// 1. Flat bed: peaks after settling.
-Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, const nb::CellParams& cell,
              const nb::PatientParams& patient) {
-  Bed bed(grid, config, supply_pa, patient);
+  Bed bed(grid, config, cell, patient);
   bed.start({"flat", {}, {}});
   bed.run(15.0);
   const nb::BodyState& s = bed.body();
@@ -230,9 +233,9 @@ Json flatBed(const nb::BedGrid& grid, const nb::PlanConfig& config, double suppl
 /// carry it, of the time the highest point pressure over that cell exceeds 32 mmHg (a location
 /// relieved while its cell is low counts as relieved even when the region's other cells carry
 /// more). The flat bed is the reference.
-Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa, double period_s,
+Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, const nb::CellParams& cell, double period_s,
                   const std::string& plan) {
-  Bed bed(grid, config, supply_pa);
+  Bed bed(grid, config, cell);
   bed.start({"flat", {{"height_m", "0.12"}}, {}});
   bed.run(15.0);
   if (plan != "flat") bed.start({"alternating", {{"pattern", plan}, {"period_s", std::to_string(period_s)}}, {}});
@@ -273,11 +276,11 @@ Json shareAbove32(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
 }
 
 /// 3. Lateral turn: body roll at the end of the ramp (+ 10 s) per requested angle.
-Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, const nb::CellParams& cell,
                   const nb::PatientParams& patient) {
   Json turns = Json::array();
   for (int angle = 5; angle <= 30; angle += 5) {
-    Bed bed(grid, config, supply_pa, patient);
+    Bed bed(grid, config, cell, patient);
     bed.start({"flat", {}, {}});
     bed.run(10.0);
     const double ramp = std::max(config.turn_ramp_s, angle / config.max_tilt_rate_deg_s);
@@ -294,7 +297,7 @@ Json lateralTurns(const nb::BedGrid& grid, const nb::PlanConfig& config, double 
 }
 
 /// 4. CPR from every plan: time until every cell is below 10 mm.
-Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa) {
+Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, const nb::CellParams& cell) {
   const std::vector<std::pair<std::string, nb::PlanRequest>> from = {
       {"flat", {"flat", {}, {}}},
       {"max_inflate", {"max_inflate", {}, {}}},
@@ -303,7 +306,7 @@ Json cprTimes(const nb::BedGrid& grid, const nb::PlanConfig& config, double supp
   };
   Json seconds_from = Json::object();
   for (const auto& [label, request] : from) {
-    Bed bed(grid, config, supply_pa);
+    Bed bed(grid, config, cell);
     bed.start(request);
     bed.run(label == "lateral_turn_30" ? 40.0 : 15.0);
     bed.start({"cpr", {}, {}});
@@ -360,10 +363,10 @@ void traceLine(std::ostream& out, const Bed& bed, std::string phase, const std::
 /// above 32 mmHg, the dose per hour, the lowest margin; the body's mean contact area. With
 /// `trace`, a traceLine() each second of the measured time. `plan_args` are added to the plan's
 /// request (the plan refuses what it does not know).
-Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, double supply_pa,
+Json supportRow(const nb::BedGrid& grid, const nb::PlanConfig& config, const nb::CellParams& cell,
                 const nb::PatientParams& patient, const std::string& name, double warmup_s, double duration_s,
                 const std::map<std::string, std::string>& plan_args, std::ostream* trace = nullptr) {
-  Bed bed(grid, config, supply_pa, patient);
+  Bed bed(grid, config, cell, patient);
   bed.start({"flat", {}, {}});
   bed.run(15.0);
   nb::PlanRequest request = comparablePlans().at(name);
@@ -402,7 +405,7 @@ struct SupportOptions {
 };
 
 /// The support table of `o.plans` into OUT_DIR/bed_study_support.json; the exit code.
-int supportTable(const SupportOptions& o, const std::string& out_dir, double supply_pa) {
+int supportTable(const SupportOptions& o, const std::string& out_dir, const nb::CellParams& cell) {
   nb::PatientParams patient = o.body;
   patient.articulated = o.articulated;
   Json study;
@@ -422,8 +425,8 @@ int supportTable(const SupportOptions& o, const std::string& out_dir, double sup
   }
   try {
     for (const std::string& name : o.plans)
-      study["plans"][name] = supportRow(nb::BedGrid{}, nb::PlanConfig{}, supply_pa, patient, name, o.warmup_s,
-                                        o.duration_s, o.plan_args, trace.is_open() ? &trace : nullptr);
+      study["plans"][name] = supportRow(nb::BedGrid{}, nb::PlanConfig{}, cell, patient, name, o.warmup_s, o.duration_s,
+                                        o.plan_args, trace.is_open() ? &trace : nullptr);
   } catch (const std::runtime_error& e) {  // the plan refused its request (e.g. a bad --plan-args key)
     std::cerr << "bed_study: " << e.what() << "\n";
     return 2;
@@ -447,9 +450,11 @@ bool keyValues(const std::vector<std::string>& items, std::map<std::string, std:
 }
 
 constexpr const char* kSynopsis =
-    "usage: bed_study --out DIR [--period S] [--articulated] [--plans LIST [--duration S] [--warmup S]\n"
+    "usage: bed_study --out DIR [--params FILE] [--supply PA] [--period S] [--articulated] [--plans LIST [--duration "
+    "S] [--warmup S]\n"
     "                 [--mass-kg M] [--height-m H] [--plan-args K=V,...] [--trace CSV]]\n"
-    "Simulates the default patient on the 20 x 9 bed under every plan (several minutes) and writes\n"
+    "Simulates the default patient on the 20 x 9 bed of the default cells (--params) under every plan (several "
+    "minutes) and writes\n"
     "DIR/bed_study.json; with --articulated, the articulated patient on the flat bed and in the\n"
     "lateral turns only (DIR/bed_study_articulated.json). With --plans (comma-separated: flat,\n"
     "alternating_1in2, alternating_1in3, lateral_turn_30, adaptive, adaptive_turn_30: adaptive with\n"
@@ -457,12 +462,51 @@ constexpr const char* kSynopsis =
     "the articulated patient with --articulated, for a body of --mass-kg and --height-m (default\n"
     "70 kg, 1.70 m); --trace, with one plan, a CSV of its region peaks and cell targets each second.";
 
+/// The whole study (or, articulated, the flat bed and the turns) into out_dir; the exit code.
+int wholeStudy(const std::string& out_dir, const nb::CellParams& cell, bool articulated, double period_s) {
+  const nb::BedGrid grid;
+  const nb::PlanConfig config;
+  Json study;
+  if (articulated) {
+    nb::PatientParams patient;
+    patient.articulated = true;
+    study["flat"] = flatBed(grid, config, cell, patient);
+    study["lateral_turn"] = lateralTurns(grid, config, cell, patient);
+    std::ofstream(std::filesystem::path(out_dir) / "bed_study_articulated.json") << study.dump(2) << "\n";
+    std::cout << "wrote " << out_dir << "/bed_study_articulated.json\n";
+    return 0;
+  }
+  study["flat"] = flatBed(grid, config, cell, nb::PatientParams{});
+  Json& share = study["share_above_32mmhg"];
+  for (const std::string plan : {"flat", "1in2", "1in3"})
+    share[plan] = shareAbove32(grid, config, cell, period_s, plan);
+  study["lateral_turn"] = lateralTurns(grid, config, cell, nb::PatientParams{});
+  study["cpr_seconds"] = cprTimes(grid, config, cell);
+  std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << study.dump(2) << "\n";
+  std::cout << "wrote " << out_dir << "/bed_study.json\n";
+  return 0;
+}
+
+/// The cells' parameters: `path` with the bed's supply; false (the reason printed) when invalid.
+bool loadCell(const std::string& path, double supply_pa, nb::CellParams* cell) {
+  try {
+    *cell = nb::loadCellParamsYaml(path);
+    cell->supply_pressure_pa = supply_pa;
+    if (const std::string error = cell->validate(); !error.empty()) throw std::invalid_argument(error);
+  } catch (const std::exception& e) {
+    std::cerr << "bed_study: --params " << path << ": " << e.what() << "\n";
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string out_dir;
   double period_s = 600.0;
-  const double supply_pa = 30000.0;
+  std::string params_path = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
+  double supply_pa = 30000.0;
   CLI::App app(kSynopsis, "bed_study");
   tools::configureApp(app);
   app.add_option("--out", out_dir, "output directory (created)")->type_name("DIR")->required();
@@ -496,8 +540,16 @@ int main(int argc, char** argv) {
   nb::PatientParams body;
   app.add_option("--mass-kg", body.mass_kg, "support table: the patient's mass [kg]")->type_name("M");
   app.add_option("--height-m", body.height_m, "support table: the patient's stature [m]")->type_name("H");
+  app.add_option("--params", params_path, "the cells' parameter file (default the package's default cell)")
+      ->type_name("FILE")
+      ->check(CLI::ExistingFile);
+  app.add_option("--supply", supply_pa, "the bed's supply pressure, gauge [Pa] (default 30000, as sim.launch)")
+      ->type_name("PA")
+      ->check(tools::positiveNumber());
   const int parsed = tools::parseCommandLine(app, argc, argv);
   if (parsed != tools::kRun) return parsed;
+  nb::CellParams cell;
+  if (!loadCell(params_path, supply_pa, &cell)) return 2;
   if (!trace_path.empty() && plans.size() != 1) {
     std::cerr << "bed_study: --trace needs exactly one plan in --plans\n";
     return 2;
@@ -510,27 +562,7 @@ int main(int argc, char** argv) {
   }
 
   std::filesystem::create_directories(out_dir);
-  const nb::BedGrid grid;
-  const nb::PlanConfig config;
-  Json study;
   if (!plans.empty())
-    return supportTable({plans, duration_s, warmup_s, body, articulated, plan_args, trace_path}, out_dir, supply_pa);
-  if (articulated) {
-    nb::PatientParams patient;
-    patient.articulated = true;
-    study["flat"] = flatBed(grid, config, supply_pa, patient);
-    study["lateral_turn"] = lateralTurns(grid, config, supply_pa, patient);
-    std::ofstream(std::filesystem::path(out_dir) / "bed_study_articulated.json") << study.dump(2) << "\n";
-    std::cout << "wrote " << out_dir << "/bed_study_articulated.json\n";
-    return 0;
-  }
-  study["flat"] = flatBed(grid, config, supply_pa, nb::PatientParams{});
-  Json& share = study["share_above_32mmhg"];
-  for (const std::string plan : {"flat", "1in2", "1in3"})
-    share[plan] = shareAbove32(grid, config, supply_pa, period_s, plan);
-  study["lateral_turn"] = lateralTurns(grid, config, supply_pa, nb::PatientParams{});
-  study["cpr_seconds"] = cprTimes(grid, config, supply_pa);
-  std::ofstream(std::filesystem::path(out_dir) / "bed_study.json") << study.dump(2) << "\n";
-  std::cout << "wrote " << out_dir << "/bed_study.json\n";
-  return 0;
+    return supportTable({plans, duration_s, warmup_s, body, articulated, plan_args, trace_path}, out_dir, cell);
+  return wholeStudy(out_dir, cell, articulated, period_s);
 }

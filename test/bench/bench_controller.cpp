@@ -10,6 +10,7 @@
 #include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "tool_cli.h"
 
@@ -49,10 +50,11 @@ int main(int argc, char** argv) {
       "--seeds runs, settled within the larger of 1 mm and three noise sds.",
       "bench_controller"};
   nb::tools::configureApp(app);
-  std::string params_path;
+  std::string params_path = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
   double height_noise_m = 0.0, pressure_noise_pa = 20.0;
   int seeds = 3;
-  app.add_option("--params", params_path, "the cell's parameter file (default the built-in cell)")
+  app.add_option("--params", params_path,
+                 "the cell's parameter file (default the package's default cell, config/airbag_tpu_double_100.yaml)")
       ->check(CLI::ExistingFile);
   app.add_option("--height-noise", height_noise_m, "sd of the height readings' noise [m] (default 0)")
       ->check(CLI::Range(0.0, 0.01));
@@ -63,7 +65,7 @@ int main(int argc, char** argv) {
   if (const int parsed = nb::tools::parseCommandLine(app, argc, argv); parsed != nb::tools::kRun) return parsed;
   nb::AirbagCellParams params;
   try {
-    if (!params_path.empty()) params.cell = nb::loadCellParamsYaml(params_path);
+    params.cell = nb::loadCellParamsYaml(params_path);
   } catch (const std::exception& e) {
     return nb::tools::reportMistake(app, app.get_name(), e.what());
   }

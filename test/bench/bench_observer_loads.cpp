@@ -6,7 +6,7 @@
 // with the terminal's imperfections: pressure noise and ADC step, on/off valves pulse-width
 // modulated per bus cycle (sigma-delta, as ModbusTerminal does), valve dead time, readings a bus
 // cycle old; the terminal reports the pulses it drove (CellReadings::inlet_driven) and the
-// supply pressure (the plant's line starts empty, unlike a running bed's). Prints per
+// supply pressure (the plant's line starts empty, unlike a running bed's; the bed's 30 kPa). Prints per
 // load the RMS and worst height error (truth minus estimate) and the final estimates; the last
 // line is over every load.
 //
@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "nursing_bed/core/control/airbag_cell.h"
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "tool_cli.h"
 
@@ -42,7 +43,7 @@ struct Options {
   double trace_s = 0.0;                   ///< > 0: print truth and estimate at this interval [s]
   double noise_pa = 10.0, adc_pa = 12.2;  ///< the terminal's pressure noise sd and ADC step [Pa]
   std::vector<double> loads{0.6, 2.0, 5.0, 10.6, 15.6, 20.6, 26.0, 31.0, 37.0};
-  nb::CellParams cell;  ///< the cell's parameters (--params; default the built-in cell)
+  nb::CellParams cell;  ///< the cell's parameters (--params)
 };
 
 /// kRun when the bench should run, else its exit code (help printed, or a mistake named).
@@ -54,7 +55,7 @@ int parse(int argc, char** argv, Options* o) {
       "bench_observer_loads"};
   nb::tools::configureApp(app);
   bool no_pwm = false, duty_only = false, no_weight_bound = false, no_noise = false, no_read_delay = false;
-  std::string params_path;
+  std::string params_path = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
   app.add_flag("--no-pwm", no_pwm, "valve openings as they are, not pulse-width modulated per bus cycle");
   app.add_flag("--duty-only", duty_only, "the terminal does not report its pulses (the observer takes the duty)");
   app.add_flag("--no-weight-bound", no_weight_bound, "the observer without the plate's weight bound");
@@ -73,7 +74,11 @@ int parse(int argc, char** argv, Options* o) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
   app.add_option("--noise", o->noise_pa, "the terminal's pressure noise sd [Pa]")->check(CLI::Range(0.0, 1000.0));
   app.add_option("--adc", o->adc_pa, "the terminal's ADC step [Pa]")->check(CLI::Range(0.0, 1000.0));
-  app.add_option("--params", params_path, "the cell's parameter file (default the built-in cell)")
+  double supply_pa = 30000.0;
+  app.add_option("--supply", supply_pa, "the bed's supply pressure, gauge [Pa] (real_bed.launch: 30000)")
+      ->check(CLI::Range(1000.0, 100000.0));
+  app.add_option("--params", params_path,
+                 "the cell's parameter file (default the package's default cell, config/airbag_tpu_double_100.yaml)")
       ->check(CLI::ExistingFile);
   const int parsed = nb::tools::parseCommandLine(app, argc, argv);
   if (parsed != nb::tools::kRun) return parsed;
@@ -82,9 +87,9 @@ int parse(int argc, char** argv, Options* o) {
   o->weight_bound = !no_weight_bound;
   o->sensor_noise = !no_noise;
   o->read_delay = !no_read_delay;
-  if (params_path.empty()) return nb::tools::kRun;
   try {
     o->cell = nb::loadCellParamsYaml(params_path);
+    o->cell.supply_pressure_pa = supply_pa;
   } catch (const std::exception& e) {
     return nb::tools::reportMistake(app, app.get_name(), e.what());
   }

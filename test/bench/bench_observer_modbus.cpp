@@ -20,6 +20,7 @@
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
+#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/basic_effects.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/rig/rig_emulator.h"
@@ -51,7 +52,8 @@ struct Options {
   double stiffness_n_m = 0.0;  ///< the load grows by this per metre of plate above 0.1 m [N/m]
   double supply_pa = -1.0;     ///< < 0: the cell's default supply pressure [Pa]
   std::string trace_path;
-  std::string params_path;  ///< the cell's parameter file; empty: the built-in cell
+  std::string params_path =
+      nb::findPackageFile("config/airbag_tpu_double_100.yaml");  ///< the cell's parameter file, rig and cell
 };
 
 /// kRun when the bench should run, else its exit code (help printed, or a mistake named).
@@ -99,7 +101,9 @@ int parse(int argc, char** argv, Options* o) {
       ->check(range(0.0, 1e4));
   app.add_option("--supply", o->supply_pa, "the supply's gauge pressure, rig and cell [Pa] (real_bed.launch: 30000)")
       ->check(range(0.0, 1e5));
-  app.add_option("--params", o->params_path, "the cell's parameter file, rig and cell (default the built-in cell)")
+  app.add_option("--params", o->params_path,
+                 "the cell's parameter file, rig and cell (default the package's default cell, "
+                 "config/airbag_tpu_double_100.yaml)")
       ->check(CLI::ExistingFile);
   app.add_option("--trace", o->trace_path,
                  "every period as CSV: the emulator's gas beside the observer's, the pressure read, the "
@@ -181,7 +185,7 @@ int main(int argc, char** argv) {
   if (const int parsed = parse(argc, argv, &o); parsed != nb::tools::kRun) return parsed;
   nb::AirbagCellParams params;
   try {
-    if (!o.params_path.empty()) params.cell = nb::loadCellParamsYaml(o.params_path);
+    params.cell = nb::loadCellParamsYaml(o.params_path);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_observer_modbus: %s\n", e.what());
     return nb::tools::kExitBadArguments;
