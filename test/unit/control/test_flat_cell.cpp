@@ -23,6 +23,11 @@ constexpr double kNearM = 0.002;  // "at its target": within 2 mm
 // The lowest the plate may go: the folded films and the bed compress ~0.5 mm under 1000 N at
 // rest and ~1.6 mm as a plate carrying it lands; -5 to -12 mm went through them.
 constexpr double kBedM = -0.002;
+// On the FE fold table the squeezed bag's gas bulges out beside the plate and hardly cushions a
+// landing (18 kPa under 1000 N against the pillow's 37): the 102 kg a 1000 N load moves, put on
+// at once at 100 mm, lands at 1.3 m/s (on the pillow 0.85 m/s) and presses the films and bed
+// 2.0-2.1 mm (the pillow 1.6 mm).
+constexpr double kFoldTableBedM = -0.0025;
 
 /// Extremes of the gas and the plate over a run.
 struct Extremes {
@@ -98,7 +103,7 @@ nb::AirbagCellParams cellParams(const std::string& file) {
 }
 
 struct CprCase {
-  const char* cell_file;  // a file in config/; "" = the default cell
+  const char* cell_file;  // a file in config/; "" = the built-in cell (the reduced pillow)
   double load_n;
 };
 
@@ -140,13 +145,14 @@ INSTANTIATE_TEST_SUITE_P(FlatCell, CprCycles,
                                            CprCase{kFoldTable, 10.6}, CprCase{kFoldTable, 20.6},
                                            CprCase{kFoldTable, 40.0}),
                          [](const ::testing::TestParamInfo<CprCase>& info) {
-                           const std::string cell = info.param.cell_file[0] ? "FoldTable" : "Default";
+                           const std::string cell = info.param.cell_file[0] ? "FoldTable" : "Pillow";
                            return cell + std::to_string(static_cast<int>(std::lround(info.param.load_n * 10))) + "dN";
                          });
 
 struct LoadStep {
   double load_n;
-  double ramp_s;  // 0: the whole load at once
+  double ramp_s;               // 0: the whole load at once
+  const char* cell_file = "";  // a file in config/; "" = the built-in cell (the reduced pillow)
 };
 
 class LoadSteps : public ::testing::TestWithParam<LoadStep> {};
@@ -154,7 +160,7 @@ class LoadSteps : public ::testing::TestWithParam<LoadStep> {};
 TEST_P(LoadSteps, KeepTheGasAndPlatePhysicalAndTheCellRecovers) {
   const LoadStep step = GetParam();
   const double normal_load = 10.6;
-  Rig rig;
+  Rig rig(cellParams(step.cell_file));
   rig.cell().resetToHeight(kTargetM, normal_load);
   rig.run(2.0);
   rig.extremes() = Extremes{};
@@ -175,13 +181,13 @@ TEST_P(LoadSteps, KeepTheGasAndPlatePhysicalAndTheCellRecovers) {
   const Extremes& e = rig.extremes();
   const double relief = rig.cell().params().safety.relief_pressure_pa;
   std::printf(
-      "load step to %6.1f N in %3.0f ms: peak %.1f kPa (relief %.0f), gas %.1f-%.1f K, plate %.2f-%.1f mm "
+      "%s load step to %6.1f N in %3.0f ms: peak %.1f kPa (relief %.0f), gas %.1f-%.1f K, plate %.2f-%.1f mm "
       "(%d periods beyond the film's limits), back at %.0f mm after %.2f s\n",
-      step.load_n, step.ramp_s * 1e3, loaded.p_max_pa * 1e-3, relief * 1e-3, e.t_min_k, e.t_max_k, e.h_min_m * 1e3,
-      e.h_max_m * 1e3, e.outside_limits, kTargetM * 1e3, back_s);
+      step.cell_file, step.load_n, step.ramp_s * 1e3, loaded.p_max_pa * 1e-3, relief * 1e-3, e.t_min_k, e.t_max_k,
+      e.h_min_m * 1e3, e.h_max_m * 1e3, e.outside_limits, kTargetM * 1e3, back_s);
   EXPECT_GE(e.t_min_k, 230.0);
   EXPECT_LE(e.t_max_k, 400.0);
-  EXPECT_GE(e.h_min_m, kBedM);
+  EXPECT_GE(e.h_min_m, step.cell_file[0] ? kFoldTableBedM : kBedM);
   EXPECT_EQ(e.outside_limits, 0);
   EXPECT_GT(e.mass_min_kg, 0.0);
   if (step.ramp_s >= 0.05) {
@@ -192,7 +198,10 @@ TEST_P(LoadSteps, KeepTheGasAndPlatePhysicalAndTheCellRecovers) {
 
 INSTANTIATE_TEST_SUITE_P(FlatCell, LoadSteps,
                          ::testing::Values(LoadStep{100.0, 0.0}, LoadStep{100.0, 0.05}, LoadStep{300.0, 0.0},
-                                           LoadStep{300.0, 0.05}, LoadStep{1000.0, 0.0}, LoadStep{1000.0, 0.05}));
+                                           LoadStep{300.0, 0.05}, LoadStep{1000.0, 0.0}, LoadStep{1000.0, 0.05},
+                                           LoadStep{100.0, 0.0, kFoldTable}, LoadStep{100.0, 0.05, kFoldTable},
+                                           LoadStep{300.0, 0.0, kFoldTable}, LoadStep{300.0, 0.05, kFoldTable},
+                                           LoadStep{1000.0, 0.0, kFoldTable}, LoadStep{1000.0, 0.05, kFoldTable}));
 
 TEST(FlatCell, PoundingWithTheLargestLoadLeavesTheCellWhole) {
   // The largest accepted load put on and taken off ten times, 0.3 s each: every landing on the
