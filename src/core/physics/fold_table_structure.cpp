@@ -155,8 +155,9 @@ std::array<double, kMaxShapeDofs> FoldTableStructure::relaxedShape(double height
   // g(1) <= 0, so a root lies between s and the end the flow heads for.
   auto rate = [&](double s) { return foldRate(s, q[0] * kShapeUnitPa, height_m); };
   double s = std::clamp(q[1], 0.0, 1.0);
+  // A fold at rest (its flow below 1e-9 per fold time) stays: the controller asks every period.
   const double g0 = rate(s);
-  if (g0 == 0.0) return q;
+  if (std::fabs(g0) < 1e-9) return q;
   const double direction = g0 > 0.0 ? 1.0 : -1.0;
   double from = s, to = s;
   for (int i = 0; i < 40; ++i) {  // steps of 1/40: two roots closer than that are a snap setting in
@@ -164,7 +165,7 @@ std::array<double, kMaxShapeDofs> FoldTableStructure::relaxedShape(double height
     if (to == from || direction * rate(to) <= 0.0) break;
     from = to;
   }
-  for (int i = 0; i < 50 && std::fabs(to - from) > 1e-12; ++i) {  // the root between them
+  for (int i = 0; i < 50 && std::fabs(to - from) > 1e-9; ++i) {  // the root between them
     const double mid = 0.5 * (from + to);
     (direction * rate(mid) > 0.0 ? from : to) = mid;
   }
