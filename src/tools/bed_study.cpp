@@ -26,7 +26,6 @@
 #include "nursing_bed/core/bed/posture_plans.h"
 #include "nursing_bed/core/bed/tissue_load.h"
 #include "nursing_bed/core/control/airbag_cell.h"
-#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/physics/units.h"
 #include "tool_cli.h"
@@ -505,7 +504,7 @@ bool loadCell(const std::string& path, double supply_pa, nb::CellParams* cell) {
 int main(int argc, char** argv) {
   std::string out_dir;
   double period_s = 600.0;
-  std::string params_path = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
+  std::string params_path = nb::defaultCellParamsFile();
   double supply_pa = 30000.0;
   CLI::App app(kSynopsis, "bed_study");
   tools::configureApp(app);

@@ -89,7 +89,7 @@ void checkOptions(Options* o) {
   if (o->inflow != "valve" && o->inflow != "paper_curve")
     throw tools::UsageError("--inflow: expected 'valve' or 'paper_curve', got '" + o->inflow + "'");
   o->paper_curve = o->inflow == "paper_curve";
-  if (o->params_file.empty()) o->params_file = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
+  if (o->params_file.empty()) o->params_file = nb::defaultCellParamsFile();
 }
 
 std::string loadTag(double load_n) {

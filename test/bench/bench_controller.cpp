@@ -10,7 +10,6 @@
 #include <string>
 
 #include "nursing_bed/core/control/airbag_cell.h"
-#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "tool_cli.h"
 
@@ -50,7 +49,7 @@ int main(int argc, char** argv) {
       "--seeds runs, settled within the larger of 1 mm and three noise sds.",
       "bench_controller"};
   nb::tools::configureApp(app);
-  std::string params_path = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
+  std::string params_path = nb::defaultCellParamsFile();
   double height_noise_m = 0.0, pressure_noise_pa = 20.0;
   int seeds = 3;
   app.add_option("--params", params_path,

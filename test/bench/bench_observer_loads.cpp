@@ -22,7 +22,6 @@
 #include <vector>
 
 #include "nursing_bed/core/control/airbag_cell.h"
-#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "tool_cli.h"
 
@@ -55,7 +54,7 @@ int parse(int argc, char** argv, Options* o) {
       "bench_observer_loads"};
   nb::tools::configureApp(app);
   bool no_pwm = false, duty_only = false, no_weight_bound = false, no_noise = false, no_read_delay = false;
-  std::string params_path = nb::findPackageFile("config/airbag_tpu_double_100.yaml");
+  std::string params_path = nb::defaultCellParamsFile();
   app.add_flag("--no-pwm", no_pwm, "valve openings as they are, not pulse-width modulated per bus cycle");
   app.add_flag("--duty-only", duty_only, "the terminal does not report its pulses (the observer takes the duty)");
   app.add_flag("--no-weight-bound", no_weight_bound, "the observer without the plate's weight bound");

@@ -20,7 +20,6 @@
 
 #include "nursing_bed/core/control/airbag_cell.h"
 #include "nursing_bed/core/hardware/modbus_tcp_hardware.h"
-#include "nursing_bed/core/io/package_path.h"
 #include "nursing_bed/core/physics/basic_effects.h"
 #include "nursing_bed/core/physics/cell_params_io.h"
 #include "nursing_bed/core/rig/rig_emulator.h"
@@ -52,8 +51,7 @@ struct Options {
   double stiffness_n_m = 0.0;  ///< the load grows by this per metre of plate above 0.1 m [N/m]
   double supply_pa = -1.0;     ///< < 0: the cell's default supply pressure [Pa]
   std::string trace_path;
-  std::string params_path =
-      nb::findPackageFile("config/airbag_tpu_double_100.yaml");  ///< the cell's parameter file, rig and cell
+  std::string params_path = nb::defaultCellParamsFile();  ///< the cell's parameter file, rig and cell
 };
 
 /// kRun when the bench should run, else its exit code (help printed, or a mistake named).

@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "nursing_bed/core/io/package_path.h"
+#include "nursing_bed/core/physics/cell_params_io.h"
 
 namespace nursing_bed {
 namespace {
@@ -388,7 +389,7 @@ std::vector<RunData> readDataset(const std::string& dir, std::vector<RunData> ex
 
 std::string resolveAirbagParamsFile(const std::string& airbag, const std::string& dataset_dir) {
   const fs::path config = findPackageFile("config");
-  if (airbag.empty()) return (config / "airbag_tpu_double_100.yaml").string();
+  if (airbag.empty()) return defaultCellParamsFile();
   std::vector<fs::path> tried;
   tried.push_back(fs::path(airbag));
   if (!dataset_dir.empty() && fs::path(airbag).is_relative()) tried.push_back(fs::path(dataset_dir) / airbag);

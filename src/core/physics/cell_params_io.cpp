@@ -9,7 +9,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "nursing_bed/core/io/package_path.h"
+
 namespace nursing_bed {
+
+std::string defaultCellParamsFile() { return findPackageFile("config/airbag_tpu_double_100.yaml"); }
+
 namespace {
 
 #define NB_FIELD(key, desc, expr) realField<CellParams>(key, desc, [](CellParams& p) -> double& { return expr; })

@@ -50,7 +50,7 @@ class WeightBound {
     double length_s = 0.0;  ///< 0: off
     bool cumulative = true;
     double held_s = 0.0;  ///< the condition has held this long [s]
-    double sum_pa = 0.0;  ///< readings summed since the first window
+    double sum_pa = 0.0;  ///< readings summed since the first window (cumulative) or this one
     long count = 0;
     bool mean(double gauge_pressure_pa, bool holds, double dt_s, const ReadingNoise& noise, double* mean_pa,
               double* se_pa);

@@ -103,9 +103,10 @@ struct CellInputs {
   double flow_gauge_pressure_pa = std::numeric_limits<double>::quiet_NaN();
 };
 
-/// The structure `params` select: the pillow model of params.structure, or the table of
-/// params.structure_table_file (structure_type "table"). Throws std::invalid_argument /
-/// std::runtime_error for a table that cannot be read.
+/// The structure `params` select: the pillow model of params.structure, a bellows, or the table
+/// of params.structure_table_file ("table", "fold_table"; read once per process and shared while
+/// the file and the numbers are the same). Throws std::invalid_argument / std::runtime_error for
+/// a table that cannot be read.
 std::shared_ptr<const CellStructure> makeCellStructure(const CellParams& params);
 
 /**

@@ -15,6 +15,10 @@ using CellParamField = ParamField<CellParams>;
 /// Every scalar parameter of a cell, in documentation order.
 const ParamTable<CellParams>& cellParamFields();
 
+/// The package's default cell: config/airbag_tpu_double_100.yaml in the package folder
+/// (findPackageFile). The one place that names it; the tools, benches and the gap default to it.
+std::string defaultCellParamsFile();
+
 /**
  * Reads a YAML file of cell parameters (layout: config/airbag_tpu_double_100.yaml) on top of
  * `defaults`. Keys that are absent keep their default. Throws std::runtime_error naming the
