@@ -174,6 +174,10 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
   s.predicted_error_m = predictedError();
   s.lowest = target_m_ <= params_.min_height_m + params_.height_tolerance_m;
 
+  // A fold snapping: gas taken or given before it lands would stop it half way and drop the
+  // plate back (the fold closes again); the error is corrected on the side it lands.
+  const bool snap = snapping(s);
+  if (snap) landing_.stop();
   if (landing_.active()) {
     if (const auto cmd = land(s)) return *cmd;
   }
@@ -189,11 +193,12 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
                                                                    : false;
       if (!hand_over) return command(s, direction, *opening);
       move_.stop();
+      if (snap) return ValveOpenings{};
       landing_.start();
       if (const auto cmd = land(s)) return *cmd;
     }
   }
-  return fineCorrection(s);
+  return snap ? ValveOpenings{} : fineCorrection(s);
 }
 
 void HeightController::predictRest(Period* s) {
@@ -220,6 +225,30 @@ void HeightController::predictRest(Period* s) {
   s->invariant = characteristic_->invariant(gauge_pressure_pa, s->volume_m3);
   resting_height_m_ = characteristic_->restingHeight(s->invariant, load_.load(), branch_);
   in_flight_shift_m_ = in_flight_.empty() ? 0.0 : inFlightRestShift(gauge_pressure_pa, s->volume_m3, s->invariant);
+  // The fold's side is the film's relaxed one once the plate rests where that side puts it.
+  if (s->resting && std::fabs(height_m - resting_height_m_) < params_.height_tolerance_m) settled_branch_ = branch_;
+}
+
+bool HeightController::snapping(const Period& s) {
+  // The film's relaxed fold is on another side than the one the plate last rested on (the fold
+  // is switching), or that side has no rest between the plate and where the gas would rest it
+  // there (the plate is crossing a snap's gap).
+  const double load = load_.load();
+  const double rest = characteristic_->restingHeight(s.invariant, load, settled_branch_);
+  bool snap = branch_ != settled_branch_ ||
+              (!s.resting && characteristic_->gapBetween(s.height_m, rest, load, settled_branch_));
+  // Half way to the rest on the fold's new side the fold has passed its unstable middle: from
+  // there the controller may brake the plate onto the target without stopping the snap.
+  if (snap && snap_time_s_ == 0.0) snap_from_m_ = s.height_m;
+  // Only a snap that sets in while the plate holds or tracks its target: a move through the
+  // fold keeps its own braking (its landing), which the snap's overshoot needs.
+  if (std::fabs(target_m_ - snap_from_m_) > params_.move_threshold_m) snap = false;
+  const double to = characteristic_->restingHeight(s.invariant, load, branch_);
+  if (snap && std::fabs(s.height_m - snap_from_m_) > 0.5 * std::fabs(to - snap_from_m_)) snap = false;
+  // A snap is let run for kSnapTimeS at most: a fold that never lands is corrected anyway.
+  constexpr double kSnapTimeS = 0.5;
+  snap_time_s_ = snap ? snap_time_s_ + s.dt_s : 0.0;
+  return snap && snap_time_s_ <= kSnapTimeS;
 }
 
 ValveOpenings HeightController::command(const Period& s, int direction, double opening) const {

@@ -153,6 +153,20 @@ double CellCharacteristic::restInvariant(double height_m, double load_n, int bra
   return at(table(branch).invariant, h, load_n);
 }
 
+bool CellCharacteristic::gapBetween(double height_a_m, double height_b_m, double load_n, int branch) const {
+  const Table& t = table(branch);
+  const double y = std::clamp(load_n / load_step_n_, 0.0, loads_ - 1.0);
+  const int j = std::min(static_cast<int>(y), loads_ - 2);
+  const int from = static_cast<int>(std::floor(std::min(height_a_m, height_b_m) / height_step_m_));
+  const int to = static_cast<int>(std::ceil(std::max(height_a_m, height_b_m) / height_step_m_));
+  for (int jj : {j, j + 1}) {
+    const double* k = &t.invariant[jj * heights_];
+    for (int a = std::max(from, 0); a < std::min(to, t.reachable[jj] - 1); ++a)
+      if (!(k[a + 1] > k[a])) return true;
+  }
+  return false;
+}
+
 double CellCharacteristic::restingHeight(double adiabatic_invariant, double load_n, int branch) const {
   // At a fixed load the table's interpolant is piecewise linear in the height, with the height
   // nodes as knots, and the invariant of the equilibria never falls with height: the first knot

@@ -88,6 +88,38 @@ TEST(HeightController, OnTheFoldTableCellTheStepLandsNearTheFlowLimit) {
   EXPECT_NEAR(r.final_m, 0.10, 1e-3);
 }
 
+// A slow ramp through the fold (1 mm/s in 0.1 mm steps, as the bed's rate-limited turns move a
+// cell) on the bed's 30 kPa supply: under 10-22 N the rising fold snaps open near 105-110 mm.
+// Braked or corrected before it landed, the snap stopped half way, the fold closed again and
+// the plate fell 5-7 mm below its setpoint and overshot 4-5 mm after; let run, it stays the
+// closed cell's own 2-3 mm jump.
+TEST(HeightController, OnTheFoldTableCellASlowRampPassesTheSnapOnce) {
+  nb::AirbagCellParams params;
+  params.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml");
+  params.cell.supply_pressure_pa = 30000.0;
+  for (double load : {10.6, 14.0, 18.0, 22.0}) {
+    SCOPED_TRACE(testing::Message() << load << " N");
+    nb::AirbagCell cell{params};
+    cell.resetToHeight(0.09, load);
+    ASSERT_EQ(cell.requestHeight(0.09, 0.0), "");
+    double t = 0.0;
+    for (; t < 3.0; t += 0.02) cell.advanceTo(t);
+    double below = 0.0, above = 0.0, setpoint = 0.09;
+    for (int k = 0; k < 1650; ++k, t += 0.02) {  // 30 s of ramp, 3 s on the last setpoint
+      if (k % 5 == 0) {
+        setpoint = std::min(0.12, 0.09 + 1e-3 * k * 0.02);
+        ASSERT_EQ(cell.requestHeight(setpoint, t), "");
+      }
+      cell.advanceTo(t);
+      below = std::min(below, cell.variables().height_m - setpoint);
+      above = std::max(above, cell.variables().height_m - setpoint);
+    }
+    EXPECT_GT(below, -3.5e-3);
+    EXPECT_LT(above, 3.5e-3);
+    EXPECT_NEAR(cell.variables().height_m, 0.12, 1e-3);
+  }
+}
+
 // Height readings with 0.5 mm of noise: the landing's speed is tracked on the force balance
 // (PlateTracker), so the noise does not reach the valves as chatter or a swing.
 TEST(HeightController, ALandingOnNoisyHeightReadingsStaysNearTheFlowLimit) {

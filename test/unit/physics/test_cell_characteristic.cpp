@@ -109,4 +109,17 @@ TEST(CellCharacteristic, AFoldedCellHasARisingAndAFallingBranchAndKeepsItsSide) 
   EXPECT_EQ(c->relaxedAt(0.03, 500.0, &shape).branch, 0);
 }
 
+// Under 14 N the rising fold has no closed rest between about 105 and 107 mm (its invariant
+// dips there: the plate snaps over it); the pillow has none at the bed's heights.
+TEST(CellCharacteristic, GapBetweenFindsTheFoldsSnapAndNothingElse) {
+  const auto c = nb::CellCharacteristic::shared(
+      nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml"));
+  EXPECT_TRUE(c->gapBetween(0.104, 0.108, 14.0, 0));
+  EXPECT_TRUE(c->gapBetween(0.108, 0.104, 14.0, 0));  // either order
+  EXPECT_FALSE(c->gapBetween(0.095, 0.103, 14.0, 0));
+  EXPECT_FALSE(c->gapBetween(0.110, 0.130, 14.0, 0));
+  EXPECT_FALSE(c->gapBetween(0.100, 0.110, 14.0, 1));  // the open side rises through it
+  for (double load : {0.6, 10.6, 20.6, 30.0}) EXPECT_FALSE(characteristic().gapBetween(0.02, 0.15, load));
+}
+
 }  // namespace

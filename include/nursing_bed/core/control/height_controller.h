@@ -163,6 +163,8 @@ class HeightController {
   bool landingTakesOver(const Period& s, int direction) const;
   /// The landing's valve: its gas within one period; nothing once it has landed (or cannot).
   std::optional<ValveOpenings> land(const Period& s);
+  /// Whether a snap of the fold is under way (and not yet overdue); counts its time.
+  bool snapping(const Period& s);
   /// Outside moves: the proportional approach with active damping, or the hold on target.
   ValveOpenings fineCorrection(const Period& s);
   /// The change of the rest height the commands in flight will still make [m].
@@ -189,6 +191,9 @@ class HeightController {
   std::shared_ptr<const CellCharacteristic> characteristic_;
   bool has_target_ = false;
   double target_m_ = 0.0;
+  int settled_branch_ = 0;    ///< the fold's side where the plate last rested on its gas
+  double snap_time_s_ = 0.0;  ///< how long the present snap has run [s]
+  double snap_from_m_ = 0.0;  ///< plate height where it began [m]
   double integral_m_ = 0.0;
   PlateLoadEstimator load_;
   double resting_height_m_ = 0.0;

@@ -56,6 +56,9 @@ class CellCharacteristic {
   /// Height [m] where the cell comes to rest if the valves close now: the gas keeps its
   /// adiabatic invariant K = p_abs V^gamma while the plate settles under `load_n` on `branch`.
   double restingHeight(double adiabatic_invariant, double load_n, int branch = 0) const;
+  /// Whether a snap's gap on `branch` lies between the two heights under `load_n`: a closed cell
+  /// that moves between them passes it as a snap, not as a swing about its rest.
+  bool gapBetween(double height_a_m, double height_b_m, double load_n, int branch = 0) const;
   /// The invariant of the rest at `height_m` (clamped to the branch's reach) under `load_n`:
   /// restingHeight's inverse, non-decreasing in the height.
   double restInvariant(double height_m, double load_n, int branch = 0) const;
