@@ -276,7 +276,7 @@ void AirbagCell::stepSimulated() {
     observe(readings);
     return;
   }
-  // The valve holds over the period: its end flow stands for the period.
+  // The simulated meter reads the period's mean flow (it totalises): exact for the period.
   addTotals(period, readings.inflow_kg_s.value);
   time_s_ = sim_->time();
   observe(readings);

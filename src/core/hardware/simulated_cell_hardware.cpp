@@ -76,6 +76,7 @@ void SimulatedCellHardware::stepPeriod() {
     valve_line_.pop_front();
   }
   const double start_s = model_->time();
+  const double metered_start_kg = model_->meteredInletMassKg();
   bool solved = true;
   try {
     model_->advance(period, plantInputs());
@@ -86,12 +87,16 @@ void SimulatedCellHardware::stepPeriod() {
     resetAfterFault(start_s + period);
     return;
   }
-  // The valve holds over the period: its end flow stands for the period.
-  metered_inlet_mass_kg_ += model_->measure().inflow_kg_s * period;
+  // The meter totalises: the gas it counted over the period, however the flow changed in it
+  // (a fold snapping open mid-period draws more through the inlet than the end flow says).
+  const double metered_kg = model_->meteredInletMassKg() - metered_start_kg;
+  metered_inlet_mass_kg_ += metered_kg;
   inlet_opening_s_ += acting_.inlet * period;
   vent_opening_s_ += acting_.vent * period;
-  // Read at the period's end: what is reported with this time is the state at this time.
+  // Read at the period's end: what is reported with this time is the state at this time; the
+  // flow as the period's mean, what the totalised count gives a reader of one period.
   sense();
+  if (std::isfinite(measurement_.inflow_kg_s)) measurement_.inflow_kg_s = metered_kg / period;
 }
 
 bool SimulatedCellHardware::plantValid() const {

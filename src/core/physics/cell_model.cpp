@@ -168,6 +168,7 @@ void CellModel::reset(double load_n) {
   state_[kEnergy] = mass * params_.gas.cv() * params_.ambient_temperature_k;
   state_[kRegulator] = 0.0;
   time_ = 0.0;
+  metered_inlet_mass_kg_ = 0.0;
   last_inputs_ = CellInputs{};
   last_inputs_.load_n = load_n;
   refreshVariables(last_inputs_);
@@ -792,10 +793,12 @@ double CellModel::acceptSubstep(double h, double err, const StateVector& next, c
     dx = next - state_;
     rate_before = rate_at_state_;
   }
+  const double metered_before = measure().inflow_kg_s;
   state_ = next;
   state_[kMass] = std::max(state_[kMass], 1e-12);
   time_ += h;
   refreshVariables(in);
+  metered_inlet_mass_kg_ += 0.5 * h * (metered_before + measure().inflow_kg_s);
   jacobian_tracks_ = may_keep && jacobianTracksStep(h, dx, rate_before);
   if (++substeps_ > substep_budget_ && substep_budget_ > 0)
     throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +

@@ -164,6 +164,10 @@ class CellModel {
   const CellVariables& variables() const { return vars_; }
   /// What the sensors report (true values unless an effect changes them).
   Readings measure() const;
+  /// The flow meter's reading integrated over time since the last reset (trapezoids on the
+  /// integration's sub-steps): the gas a totalising meter counted, however the flow changed
+  /// between two reads [kg].
+  double meteredInletMassKg() const { return metered_inlet_mass_kg_; }
   const StateVector& state() const { return state_; }
   /// Replaces the state (size must match); variables are recomputed. `keep_jacobian`: the new
   /// state is near the old one (an observer's correction), so the Jacobian and step size are
@@ -244,6 +248,7 @@ class CellModel {
   StateVector scale_;       // typical magnitude of each state (FD increments, tolerances)
   double substep_s_ = 0.0;  // last accepted sub-step size
   long substeps_ = 0;
+  double metered_inlet_mass_kg_ = 0.0;  ///< meteredInletMassKg()
   long substep_budget_ = 0;
   StateVector rate_at_state_;         // dx/dt at (time_, state_, last_inputs_), kept with vars_
   StateVector effect_part_at_state_;  // what the effects add to it (with effects only)
