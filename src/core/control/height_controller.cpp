@@ -234,17 +234,20 @@ bool HeightController::snapping(const Period& s) {
   // is switching), or that side has no rest between the plate and where the gas would rest it
   // there (the plate is crossing a snap's gap).
   const double load = load_.load();
+  const bool switching = branch_ != settled_branch_;
   const double rest = characteristic_->restingHeight(s.invariant, load, settled_branch_);
-  bool snap = branch_ != settled_branch_ ||
-              (!s.resting && characteristic_->gapBetween(s.height_m, rest, load, settled_branch_));
+  if (!switching && (s.resting || !characteristic_->gapBetween(s.height_m, rest, load, settled_branch_))) {
+    snap_time_s_ = 0.0;
+    return false;
+  }
+  if (snap_time_s_ == 0.0) snap_from_m_ = s.height_m;
   // Half way to the rest on the fold's new side the fold has passed its unstable middle: from
   // there the controller may brake the plate onto the target without stopping the snap.
-  if (snap && snap_time_s_ == 0.0) snap_from_m_ = s.height_m;
+  const double to = switching ? characteristic_->restingHeight(s.invariant, load, branch_) : rest;
   // Only a snap that sets in while the plate holds or tracks its target: a move through the
   // fold keeps its own braking (its landing), which the snap's overshoot needs.
-  if (std::fabs(target_m_ - snap_from_m_) > params_.move_threshold_m) snap = false;
-  const double to = characteristic_->restingHeight(s.invariant, load, branch_);
-  if (snap && std::fabs(s.height_m - snap_from_m_) > 0.5 * std::fabs(to - snap_from_m_)) snap = false;
+  const bool snap = std::fabs(target_m_ - snap_from_m_) <= params_.move_threshold_m &&
+                    std::fabs(s.height_m - snap_from_m_) <= 0.5 * std::fabs(to - snap_from_m_);
   // A snap is let run for kSnapTimeS at most: a fold that never lands is corrected anyway.
   constexpr double kSnapTimeS = 0.5;
   snap_time_s_ = snap ? snap_time_s_ + s.dt_s : 0.0;

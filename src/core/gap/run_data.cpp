@@ -388,8 +388,8 @@ std::vector<RunData> readDataset(const std::string& dir, std::vector<RunData> ex
 }
 
 std::string resolveAirbagParamsFile(const std::string& airbag, const std::string& dataset_dir) {
-  const fs::path config = findPackageFile("config");
   if (airbag.empty()) return defaultCellParamsFile();
+  const fs::path config = findPackageFile("config");
   std::vector<fs::path> tried;
   tried.push_back(fs::path(airbag));
   if (!dataset_dir.empty() && fs::path(airbag).is_relative()) tried.push_back(fs::path(dataset_dir) / airbag);

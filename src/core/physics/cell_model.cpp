@@ -793,12 +793,12 @@ double CellModel::acceptSubstep(double h, double err, const StateVector& next, c
     dx = next - state_;
     rate_before = rate_at_state_;
   }
-  const double metered_before = measure().inflow_kg_s;
+  const double metered_before = metered_flow_at_state_;
   state_ = next;
   state_[kMass] = std::max(state_[kMass], 1e-12);
   time_ += h;
   refreshVariables(in);
-  metered_inlet_mass_kg_ += 0.5 * h * (metered_before + measure().inflow_kg_s);
+  metered_inlet_mass_kg_ += 0.5 * h * (metered_before + metered_flow_at_state_);
   jacobian_tracks_ = may_keep && jacobianTracksStep(h, dx, rate_before);
   if (++substeps_ > substep_budget_ && substep_budget_ > 0)
     throw std::runtime_error("CellModel::step: more than " + std::to_string(substep_budget_) +
@@ -852,6 +852,7 @@ void CellModel::setState(double time_s, const StateVector& state, bool keep_jaco
 
 void CellModel::refreshVariables(const CellInputs& in) {
   rate_at_state_ = rateAndEffectPart(time_, state_, in, &vars_, effects_.empty() ? nullptr : &effect_part_at_state_);
+  metered_flow_at_state_ = effects_.empty() ? vars_.metered_inflow_kg_s : measure().inflow_kg_s;
 }
 
 bool CellModel::sameInputs(const CellInputs& a, const CellInputs& b) {

@@ -249,6 +249,7 @@ class CellModel {
   double substep_s_ = 0.0;  // last accepted sub-step size
   long substeps_ = 0;
   double metered_inlet_mass_kg_ = 0.0;  ///< meteredInletMassKg()
+  double metered_flow_at_state_ = 0.0;  ///< the meter's reading at (time_, state_), kept with vars_
   long substep_budget_ = 0;
   StateVector rate_at_state_;         // dx/dt at (time_, state_, last_inputs_), kept with vars_
   StateVector effect_part_at_state_;  // what the effects add to it (with effects only)
