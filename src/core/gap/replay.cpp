@@ -453,21 +453,30 @@ bool zeroWithinNoise(const RunData& run, std::size_t begin, std::size_t end) {
 bool ventsThroughUnmeteredValve(const RunData& run) {
   const std::size_t n = run.size();
   if (run.valve_cmd.size() != n) return false;
-  std::vector<double> q;
-  for (std::size_t i = 1; i < n; ++i)
-    if (run.valve_cmd[i] < 0.0 && run.valve_cmd[i - 1] < 0.0 && std::isfinite(run.mdot_in_kg_s[i]))
-      q.push_back(run.mdot_in_kg_s[i]);
-  if (q.size() < 5) return false;
-  // Venting through the metered inlet shows as a clearly negative flow.
-  double mean = 0.0, peak = 0.0;
-  for (double x : q) {
-    mean += x / q.size();
-    peak = std::max(peak, std::fabs(x));
+  // Venting intervals whose predecessor vented too (a lagging meter carries the inflow into a
+  // vent's first interval); a controller that vents in single pulses: every venting interval.
+  auto venting = [&](bool after_vent) {
+    std::vector<std::size_t> idx;
+    for (std::size_t i = 1; i < n; ++i)
+      if (run.valve_cmd[i] < 0.0 && (!after_vent || run.valve_cmd[i - 1] < 0.0) && std::isfinite(run.mdot_in_kg_s[i]))
+        idx.push_back(i);
+    return idx;
+  };
+  std::vector<std::size_t> idx = venting(true);
+  if (idx.size() < 5) idx = venting(false);
+  if (idx.empty()) return false;
+  // Venting through the metered inlet reads a clearly negative flow, in proportion to the vent's
+  // opening: beyond 1 % of the peak inflow per unit of mean opening and beyond the meter's noise.
+  double flow = 0.0, opening = 0.0;
+  for (std::size_t i : idx) {
+    flow += run.mdot_in_kg_s[i];
+    opening += -run.valve_cmd[i];
   }
   double inflow_peak = 0.0;
   for (double x : run.mdot_in_kg_s)
     if (std::isfinite(x)) inflow_peak = std::max(inflow_peak, x);
-  return mean > -0.01 * inflow_peak;
+  const double noise = 3.0 * estimateNoise(run.mdot_in_kg_s) * std::sqrt(static_cast<double>(idx.size()));
+  return flow > -std::max(0.01 * inflow_peak * opening, noise);
 }
 
 int zeroClosedInletFlow(RunData* run) {

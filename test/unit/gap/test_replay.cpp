@@ -178,6 +178,28 @@ TEST(GapReplay, AnUnmeteredVentValveIsRecognisedAndReplayed) {
   EXPECT_NEAR(vented.h_m[at(38.0)], metered.h_m[at(38.0)], 0.01);
 }
 
+TEST(GapReplay, AValveOfItsOwnIsRecognisedWhenTheCellVentsInSinglePulses) {
+  // A controller trimming a cell near its target vents in pulses of a few ms, one interval each
+  // and never two in a row; the meter reads 0 then (valve of its own) or the pulse's outflow.
+  const double dt = 0.02, inflow_kg_s = 1.5e-3, vent_full_kg_s = -1.5e-3;
+  auto pulsedRun = [&](bool metered_vent) {
+    nb::RunData run;
+    for (int i = 0; i <= 200; ++i) {
+      const bool inflating = i > 10 && i <= 60;
+      const bool pulse = i > 80 && i % 20 == 0;  // 6 isolated vent pulses, 10-40 % open
+      const double cmd = inflating ? 1.0 : pulse ? -0.1 * (1 + (i / 20) % 4) : 0.0;
+      run.t_s.push_back(i * dt);
+      run.valve_cmd.push_back(cmd);
+      run.mdot_in_kg_s.push_back(inflating ? inflow_kg_s : pulse && metered_vent ? -cmd * vent_full_kg_s : 0.0);
+      run.p_gauge_pa.push_back(0.0);
+      run.h_m.push_back(0.1);
+    }
+    return run;
+  };
+  EXPECT_TRUE(nb::ventsThroughUnmeteredValve(pulsedRun(false)));
+  EXPECT_FALSE(nb::ventsThroughUnmeteredValve(pulsedRun(true)));
+}
+
 TEST(GapReplay, IntervalMeanFlowPutsEachPulseInItsOwnInterval) {
   // A bed's cell reports the mean flow since its previous message; a valve pulse of a few ms
   // shows as one sample. Replayed as interval means, the pulse's gas is in by the sample that

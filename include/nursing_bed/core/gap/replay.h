@@ -111,8 +111,10 @@ double quantisationStep(const std::vector<double>& signal);
 std::vector<double> meterNoise(const RunData& run, const std::vector<double>& flow, std::size_t w);
 
 /// Whether the run vents through a valve of its own that the inlet's meter does not see (a
-/// bed's cell): valve_cmd < 0 (venting) while the metered flow stays near zero (its mean above
-/// -1 % of the peak inflow). The replay then opens the model's vent valve by -valve_cmd.
+/// bed's cell): valve_cmd < 0 (venting) while the metered flow stays near zero (above -1 % of the
+/// peak inflow per unit of mean vent opening, or within 3 standard errors of the meter's noise),
+/// judged on runs of venting intervals, or on single pulses where the controller vents only in
+/// those. The replay then opens the model's vent valve by -valve_cmd.
 bool ventsThroughUnmeteredValve(const RunData& run);
 
 /**
