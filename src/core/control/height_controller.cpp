@@ -193,12 +193,12 @@ ValveOpenings HeightController::update(double dt_s, double gauge_pressure_pa, do
                                                                    : false;
       if (!hand_over) return command(s, direction, *opening);
       move_.stop();
-      if (snap) return ValveOpenings{};
+      if (snap) return snapNudge(s);
       landing_.start();
       if (const auto cmd = land(s)) return *cmd;
     }
   }
-  return snap ? ValveOpenings{} : fineCorrection(s);
+  return snap ? snapNudge(s) : fineCorrection(s);
 }
 
 void HeightController::predictRest(Period* s) {
@@ -236,8 +236,9 @@ bool HeightController::snapping(const Period& s) {
   const double load = load_.load();
   const bool switching = branch_ != settled_branch_;
   const double rest = characteristic_->restingHeight(s.invariant, load, settled_branch_);
-  if (!switching && (s.resting || !characteristic_->gapBetween(s.height_m, rest, load, settled_branch_))) {
-    snap_time_s_ = 0.0;
+  if (!switching && (std::fabs(rest - s.height_m) <= params_.height_tolerance_m ||
+                     !characteristic_->gapBetween(s.height_m, rest, load, settled_branch_))) {
+    snap_time_s_ = snap_stalled_s_ = 0.0;
     return false;
   }
   if (snap_time_s_ == 0.0) snap_from_m_ = s.height_m;
@@ -248,10 +249,23 @@ bool HeightController::snapping(const Period& s) {
   // fold keeps its own braking (its landing), which the snap's overshoot needs.
   const bool snap = std::fabs(target_m_ - snap_from_m_) <= params_.move_threshold_m &&
                     std::fabs(s.height_m - snap_from_m_) <= 0.5 * std::fabs(to - snap_from_m_);
-  // A snap is let run for kSnapTimeS at most: a fold that never lands is corrected anyway.
-  constexpr double kSnapTimeS = 0.5;
+  // A snap is let run for kSnapTimeS at most (a stalled one is tipped on: snapNudge), and a
+  // fold that never lands is corrected anyway.
+  constexpr double kSnapTimeS = 2.0;
   snap_time_s_ = snap ? snap_time_s_ + s.dt_s : 0.0;
+  snap_direction_ = to > snap_from_m_ ? 1 : -1;
   return snap && snap_time_s_ <= kSnapTimeS;
+}
+
+ValveOpenings HeightController::snapNudge(const Period& s) {
+  // A fold near its unstable middle can creep for seconds with the plate standing still, and
+  // gas taken against the snap's direction folds it back (the plate drops by the whole snap):
+  // a short pulse along it tips the fold over instead.
+  constexpr double kStallS = 0.2, kNudgeOpening = 0.1;
+  snap_stalled_s_ = s.resting ? snap_stalled_s_ + s.dt_s : 0.0;
+  if (snap_stalled_s_ < kStallS) return ValveOpenings{};
+  snap_stalled_s_ = 0.0;
+  return command(s, snap_direction_, kNudgeOpening);
 }
 
 ValveOpenings HeightController::command(const Period& s, int direction, double opening) const {

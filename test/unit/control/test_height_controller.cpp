@@ -120,6 +120,35 @@ TEST(HeightController, OnTheFoldTableCellASlowRampPassesTheSnapOnce) {
   }
 }
 
+// Under 13.3 N the closed fold has no rest between about 104.5 and 107.5 mm. A cell resting
+// just below that gap and asked 1.2 mm up snaps open: taking gas back while the fold opens
+// closes it again and drops the plate 3-5 mm below where it stood, then overshoots; a fold that
+// stalls half open is tipped on along its snap. The cell passes the gap once and lands on its
+// open side.
+TEST(HeightController, ATargetInTheFoldsGapSnapsItOpenOnce) {
+  nb::AirbagCellParams params;
+  params.cell = nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml");
+  params.cell.supply_pressure_pa = 30000.0;
+  nb::AirbagCell cell{params};
+  cell.resetToHeight(0.1043, 13.3);
+  ASSERT_EQ(cell.requestHeight(0.1043, 0.0), "");
+  double t = 0.0;
+  for (; t < 3.0; t += 0.02) cell.advanceTo(t);
+  const double start = cell.variables().height_m, target = 0.10552;
+  ASSERT_LT(start, target - 1e-3);
+  ASSERT_EQ(cell.requestHeight(target, t), "");
+  double lowest = start, highest = start;
+  for (int k = 0; k < 150; ++k, t += 0.02) {
+    cell.advanceTo(t);
+    lowest = std::min(lowest, cell.variables().height_m);
+    highest = std::max(highest, cell.variables().height_m);
+  }
+  EXPECT_GT(lowest, start - 0.5e-3);
+  EXPECT_LT(highest, target + 2.5e-3);
+  EXPECT_NEAR(cell.variables().height_m, target, 0.5e-3);
+  EXPECT_GT(cell.variables().shape[1], 0.9);  // on the fold's open side
+}
+
 // Height readings with 0.5 mm of noise: the landing's speed is tracked on the force balance
 // (PlateTracker), so the noise does not reach the valves as chatter or a swing.
 TEST(HeightController, ALandingOnNoisyHeightReadingsStaysNearTheFlowLimit) {

@@ -165,6 +165,8 @@ class HeightController {
   std::optional<ValveOpenings> land(const Period& s);
   /// Whether a snap of the fold is under way (and not yet overdue); counts its time.
   bool snapping(const Period& s);
+  /// During a snap: nothing, or a short pulse that pushes a stalled fold on to its new side.
+  ValveOpenings snapNudge(const Period& s);
   /// Outside moves: the proportional approach with active damping, or the hold on target.
   ValveOpenings fineCorrection(const Period& s);
   /// The change of the rest height the commands in flight will still make [m].
@@ -191,9 +193,11 @@ class HeightController {
   std::shared_ptr<const CellCharacteristic> characteristic_;
   bool has_target_ = false;
   double target_m_ = 0.0;
-  int settled_branch_ = 0;    ///< the fold's side where the plate last rested on its gas
-  double snap_time_s_ = 0.0;  ///< how long the present snap has run [s]
-  double snap_from_m_ = 0.0;  ///< plate height where it began [m]
+  int settled_branch_ = 0;       ///< the fold's side where the plate last rested on its gas
+  double snap_time_s_ = 0.0;     ///< how long the present snap has run [s]
+  double snap_from_m_ = 0.0;     ///< plate height where it began [m]
+  int snap_direction_ = 0;       ///< +1 the snap lifts the plate, -1 drops it
+  double snap_stalled_s_ = 0.0;  ///< how long its plate has stood still [s]
   double integral_m_ = 0.0;
   PlateLoadEstimator load_;
   double resting_height_m_ = 0.0;
