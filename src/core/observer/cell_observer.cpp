@@ -319,16 +319,20 @@ void CellObserver::fuseHeight(double height_m) {
 
 void CellObserver::updateLoad(double gauge_pressure_pa, bool lifted, double dt_s) {
   // Lifted: the plate's force balance, p A_eff less the guide's damping (its inertia is a
-  // bounce the filter averages out). Down, the bed carries what the gas does not: unseen.
+  // bounce the filter averages out). Down, the bed carries what the gas does not, unseen, but
+  // the load holds the plate down against the flat cell's gas: it is at least that force (its
+  // mean over the filter: a landing's impact rings for a few ms).
   const double cap = std::pow(3.0 * params_.initial_load_sd_n, 2);
+  const double w = std::min(1.0, dt_s / params_.load_filter_time_s);
   if (!lifted) {
     load_var_n2_ = std::min(cap, load_var_n2_ + std::pow(params_.initial_load_sd_n, 2) * dt_s);
+    const double pushed = model_.structure().evaluate(0.0, &x_[CellModel::kShape]).plateForce(gauge_pressure_pa);
+    if (pushed > load_n_) load_n_ += (pushed - load_n_) * w;
     return;
   }
   const double area = vars_.structure.effective_area_m2;
   const double raw =
       vars_.structure.plateForce(gauge_pressure_pa) - model_.params().plate_damping_n_s_m * x_[CellModel::kVelocity];
-  const double w = std::min(1.0, dt_s / params_.load_filter_time_s);
   load_n_ += (raw - load_n_) * w;
   load_n_ = std::max(load_n_, model_.params().plate_mass_kg * kGravity);
   // The filtered reading's noise, and the area's error through the height's.

@@ -723,3 +723,39 @@ TEST(CellObserver, DoubtsTheVentGasCountedWhileThePlateRingsUntilTheCellIsFoundF
       << "plate at " << plant.variables().height_m << " m, " << plant.variables().gauge_pressure_pa << " Pa";
   EXPECT_EQ(observer.estimate().count_doubt_m, 0.0);
 }
+
+namespace {
+
+/// The fold-table cell's observer, flat under 15.6 N with both valves shut, reading `reading_pa`
+/// for `for_s`, after a spike of `spike_pa` over its first `spike_s`: its load estimate then.
+double flatCellLoad(double reading_pa, double for_s, double spike_pa = 0.0, double spike_s = 0.0) {
+  nb::CellObserver observer(
+      nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml"),
+      nb::CellObserverParams{});
+  observer.reset(15.6);
+  nb::Readings z;
+  for (double t = 0.0; t < for_s; t += observer.params().period_s) {
+    z.gauge_pressure_pa = t < spike_s ? spike_pa : reading_pa;
+    observer.step(nb::ObserverInputs{}, z);
+    EXPECT_NEAR(observer.estimate().height_m, 0.0, 1e-3) << "the count keeps the plate down";
+  }
+  return observer.estimate().load_n;
+}
+
+}  // namespace
+
+TEST(CellObserver, APlateDownIsHeldThereByAtLeastItsGassForce) {
+  // Gas that holds 25 kPa under a plate the count has down pushes it up with the flat cell's
+  // force, F(0, p) = 216 N on the fold-table cell: only a load that large keeps it there, and
+  // the load estimate says so (the monitor's load test then finds the count wrong).
+  nb::CellModel model(
+      nb::loadCellParamsYaml(std::string(NURSING_BED_SOURCE_DIR) + "/config/airbag_tpu_double_100_fe3d.yaml"));
+  const auto rest = model.structure().restShape();
+  const auto shape = model.structure().relaxedShape(0.0, 25000.0, rest.data());  // the film at the gas's pressure
+  const double pushed_n = model.structure().evaluate(0.0, shape.data()).plateForce(25000.0);
+  EXPECT_GT(pushed_n, 200.0);
+  EXPECT_NEAR(flatCellLoad(25000.0, 2.0), pushed_n, 0.05 * pushed_n);
+  // A flat cell at ambient keeps its load guess; a landing's 10 ms spike hardly moves it.
+  EXPECT_NEAR(flatCellLoad(0.0, 2.0), 15.6, 0.1);
+  EXPECT_LT(flatCellLoad(0.0, 0.5, 25000.0, 0.01), 25.0);
+}

@@ -106,7 +106,9 @@ struct CellEstimate {
  *    while expectFlat, anything below) is flat: mass and energy are the flat cell's (the rest
  *    volume's air at the mean pressure), which ends the drift of a mass that is otherwise only
  *    integrated.
- *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered.
+ *  - Load: p A_eff(h) less the guide's damping while the plate is lifted, filtered; while it
+ *    is down, at least the flat cell's plate force at the pressure read (the load holds the
+ *    plate down against the gas), filtered the same way.
  *  - Reading noise: measured from the readings while both valves are shut and the plate has
  *    settled (ReadingNoise), the configured pressure_noise_pa until then; it sets the flows'
  *    noise bias near ambient, the measurements' variances and the weight bound's error.
