@@ -482,9 +482,18 @@ bool CellObserver::checkReanchor(const Readings& readings) {
 bool CellObserver::countAllowsFlat() {
   // A light plate venting reads flat a few mm up: its vent's flow takes a few Pa of the 20 that
   // carry it. The count follows the vent at the pressure read, so the test waits until the count
-  // holds less than kFlatCountM; at most kCountDrainWaitS, as the count of a cell emptied
-  // behind its back (a flat cell read at ambient) drains nothing through the vent.
+  // holds less gas above the flat cell's than kFlatCountM of the plate's travel does (gas, not
+  // height: where V(h) is flat near flat, an FE table's slack bag near ambient, a few
+  // micrograms put the count millimetres up); at most kCountDrainWaitS, as the count of a cell
+  // emptied behind its back (a flat cell read at ambient) drains nothing through the vent.
   if (!(applied_.valves.vent > 0.0) || x_[CellModel::kHeight] <= kFlatCountM) return true;
+  const double* shape = &x_[CellModel::kShape];
+  const double area =
+      std::max(vars_.structure.effective_area_m2,
+               model_.structure().evaluate(x_[CellModel::kHeight] + kFlatCountM, shape).effective_area_m2);
+  const double count_m3 =
+      (gamma_ - 1.0) * x_[CellModel::kEnergy] / (model_.params().ambient_pressure_pa + last_pressure_pa_);
+  if (count_m3 - model_.structure().evaluate(0.0, shape).volume_m3 <= kFlatCountM * area) return true;
   if (flat_claimed_s_ < 0.0) flat_claimed_s_ = time_;
   return time_ - flat_claimed_s_ >= kCountDrainWaitS;
 }
