@@ -394,15 +394,16 @@ TEST(CellFaults, AHealthyCellOnASlowRampIsNeverFlagged) {
   }
 }
 
-TEST(CellFaults, ABodyLoadingOrUnloadingAHeldCellQuicklyIsNotFlagged) {
-  // A patient lifting a leg, dropping an arm or rolling: a held cell's load steps within
-  // 0-0.2 s. The plate moves along its gas's isentrope as fast as its gas spring rings, so the
-  // pressure alone cannot tell such a step from a fault; the cell must not be flagged (a flag
-  // re-verifies it by venting it flat under the patient) and must get back to its height.
-  const std::pair<double, double> steps[] = {{10.0, 40.0}, {40.0, 5.0}, {40.0, 80.0}, {10.0, 80.0}, {40.0, 25.0}};
+namespace {
+/// A patient lifting a leg, dropping an arm or rolling: a held cell's load steps within
+/// 0-0.2 s. The plate moves along its gas's isentrope as fast as its gas spring rings, so the
+/// pressure alone cannot tell such a step from a fault; the cell must not be flagged (a flag
+/// re-verifies it by venting it flat under the patient) and must get back to its height.
+void expectBodyStepsUnflagged(const std::vector<std::pair<double, double>>& steps,
+                              const nb::ConsistencyMonitorParams& monitor, const nb::CellParams& model) {
   for (const auto& [from_n, to_n] : steps)
     for (const double ramp_s : {0.0, 0.05, 0.2}) {
-      FaultyCell c(0.10, from_n, rowsOn());
+      FaultyCell c(0.10, from_n, monitor, model);
       ASSERT_EQ(c.cell->requestHeight(0.10, 0.0), "");
       ASSERT_LT(c.runTo(6.0), 0.0);
       const double t0 = c.t;
@@ -417,6 +418,19 @@ TEST(CellFaults, ABodyLoadingOrUnloadingAHeldCellQuicklyIsNotFlagged) {
       EXPECT_EQ(reason, "") << what;
       EXPECT_NEAR(c.plant->variables().height_m, 0.10, 0.003) << what;
     }
+}
+}  // namespace
+
+TEST(CellFaults, ABodyLoadingOrUnloadingAHeldCellQuicklyIsNotFlagged) {
+  expectBodyStepsUnflagged({{10.0, 40.0}, {40.0, 5.0}, {40.0, 80.0}, {10.0, 80.0}, {40.0, 25.0}}, rowsOn(),
+                           nb::CellParams{});
+}
+
+TEST(CellFaults, OnTheFoldTableCellABodyLoadingOrUnloadingAHeldCellIsNotFlagged) {
+  // Near its top this cell is stiff under a light plate: 35 N stepping off moves its pressure
+  // 1.2 kPa in the first reading, and on (the jump test waits for the next). Steps to 80 N are
+  // left out: the 8 kg plate swings 86-103 mm there (doc/cell_geometry.md, "Not yet").
+  expectBodyStepsUnflagged({{10.0, 40.0}, {40.0, 5.0}, {40.0, 25.0}}, nb::ConsistencyMonitorParams{}, foldTableCell());
 }
 
 TEST(CellFaults, OnTheFoldTableCellAHealthyCellMovedOrRampedIsNeverFlagged) {

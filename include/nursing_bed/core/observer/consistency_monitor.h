@@ -33,9 +33,11 @@ struct ConsistencyMonitorParams {
   double min_drift_pa = 150.0;  ///< least innovation the CUSUM counts [Pa]
   /// The CUSUM of the innovation beyond the drift that is a persistent inconsistency [Pa s].
   double cusum_threshold_pa_s = 60.0;
-  /// A settled plate's pressure cannot move this much between two readings: the gas spring
-  /// and the plate's inertia spread even a patient dropping onto it over several readings,
-  /// while a sensor that jumps (an offset, a terminal serving another image) does it at once [Pa].
+  /// A settled plate's pressure moving this much between two readings and staying there on
+  /// the next is a sensor (an offset, a terminal serving another image): the gas spring and the
+  /// plate's inertia spread a load's step over several readings, and on a stiff cell under a
+  /// light plate (an FE table's near its top) a step's first reading can move this much, but
+  /// the next moves on [Pa].
   double jump_pa = 1200.0;
   /// A weight bound that moves the estimate more than this showed it wrong [m].
   double surprise_m = 0.006;
@@ -118,6 +120,26 @@ struct ConsistencySample {
   double flat_pressure_pa = 0.0;
 };
 
+/// One job: the sensor's own signature in its raw readings, whatever the plate does: the same
+/// reading for frozen_s (a live sensor's noise and ADC step change it every few readings), or a
+/// jump of more than jump_pa under a settled plate that the next reading holds (a load's step
+/// keeps the plate moving over a quarter of its gas-spring period).
+class SensorSignatureCheck {
+ public:
+  /// One reading; `settled`: both valves shut settle_s before it. Returns a non-empty reason
+  /// for a frozen or jumped sensor.
+  std::string update(double reading_pa, bool settled, double noise_sd_pa, double dt_s,
+                     const ConsistencyMonitorParams& params);
+  void restart();
+
+ private:
+  double last_pa_ = 0.0;  ///< the last reading [Pa]
+  bool have_last_ = false;
+  double same_for_s_ = 0.0;                       ///< the raw reading unchanged this long [s]
+  bool jump_pending_ = false;                     ///< the last reading jumped (judged on this one)
+  double jump_from_pa_ = 0.0, jump_to_pa_ = 0.0;  ///< that jump's readings [Pa]
+};
+
 /// One job: whether a valve that was counted to pass gas moved the pressure at all. A valve
 /// stuck shut passes nothing, so the readings stay within their noise where a working one
 /// moves them by hundreds of pascals (even a light plate, which takes the gas up at once,
@@ -193,10 +215,10 @@ class ValveProgressCheck {
 
 /**
  * Eight tests:
- *  - frozen: the raw reading unchanged for frozen_s;
- *  - jump: a settled plate's reading moves more than jump_pa from one reading to the next (a
- *    controller reacts to the first reading of a jump at once, so a test over time would see
- *    only its response);
+ *  - frozen: the raw reading unchanged for frozen_s (SensorSignatureCheck);
+ *  - jump: a settled plate's reading moves more than jump_pa from one reading to the next and
+ *    the next reading stays there (SensorSignatureCheck; the controller's answer to the jump
+ *    acts only after the valves' dead time, so a test over longer would see only its response);
  *  - innovation: while both valves are shut and the plate settled, the pressure predicted is
  *    the hold's running mean (nothing moves gas, so a plate held by a steady load keeps its
  *    pressure); a two-sided CUSUM of the reading's departure from it beyond the noise
@@ -235,20 +257,15 @@ class ConsistencyMonitor {
   double cusum() const;
 
  private:
-  bool frozen(double gauge_pressure_pa, double dt_s);
-  /// The jump test on this reading against the last (before frozen() takes it).
-  bool jumped(const ConsistencySample& sample) const;
   bool innovation(const ConsistencySample& sample, double dt_s);
   /// The landed test: the readings' running mean over landed_time_s flat under a lifted estimate.
   bool landed(const ConsistencySample& sample, double dt_s);
 
   ConsistencyMonitorParams params_;
+  SensorSignatureCheck sensor_;
   ValveResponseCheck response_;
   ValveProgressCheck progress_;
   std::string reason_;
-  double last_reading_pa_ = 0.0;
-  bool have_reading_ = false;
-  double same_for_s_ = 0.0;    ///< the raw reading unchanged this long [s]
   double shut_for_s_ = 0.0;    ///< both valves shut this long [s]
   double reference_pa_ = 0.0;  ///< the hold's running mean (valid once the plate settled)
   bool have_reference_ = false;
