@@ -253,6 +253,7 @@ bool HeightController::snapping(const Period& s) {
   // fold that never lands is corrected anyway.
   constexpr double kSnapTimeS = 2.0;
   snap_time_s_ = snap ? snap_time_s_ + s.dt_s : 0.0;
+  if (!snap) snap_stalled_s_ = 0.0;  // each snap's stall is timed from its own start
   snap_direction_ = to > snap_from_m_ ? 1 : -1;
   return snap && snap_time_s_ <= kSnapTimeS;
 }
