@@ -96,15 +96,14 @@ std::string SensorSignatureCheck::update(double reading_pa, bool settled, double
   // again; a sensor's offset (or a terminal serving another image) stays where it jumped. The
   // controller's answer to the jump acts only after the valves' dead time.
   constexpr double kHoldFraction = 0.25;  // of the jump: "stayed"
-  std::ostringstream why;
+  // The reason is formatted only when there is one: this runs every reading of every cell.
+  bool held = false;
   if (jump_pending_) {
     const double tolerance = std::max(3.0 * noise_sd_pa, kHoldFraction * std::fabs(jump_to_pa_ - jump_from_pa_));
-    if (std::fabs(reading_pa - jump_to_pa_) <= tolerance)
-      why << "pressure jumped from " << jump_from_pa_ << " to " << jump_to_pa_
-          << " Pa in one reading under a settled plate and stayed there";
+    held = std::fabs(reading_pa - jump_to_pa_) <= tolerance;
     jump_pending_ = false;
   }
-  if (why.tellp() == 0 && settled && have_last_ && std::fabs(reading_pa - last_pa_) > params.jump_pa) {
+  if (!held && settled && have_last_ && std::fabs(reading_pa - last_pa_) > params.jump_pa) {
     jump_pending_ = true;
     jump_from_pa_ = last_pa_;
     jump_to_pa_ = reading_pa;
@@ -112,8 +111,13 @@ std::string SensorSignatureCheck::update(double reading_pa, bool settled, double
   same_for_s_ = have_last_ && reading_pa == last_pa_ ? same_for_s_ + dt_s : 0.0;
   last_pa_ = reading_pa;
   have_last_ = true;
-  if (why.tellp() == 0 && params.frozen_s > 0.0 && same_for_s_ >= params.frozen_s)
-    why << "pressure reading frozen at " << reading_pa << " Pa for " << same_for_s_ << " s";
+  const bool frozen = params.frozen_s > 0.0 && same_for_s_ >= params.frozen_s;
+  if (!held && !frozen) return "";
+  std::ostringstream why;
+  if (held)
+    why << "pressure jumped from " << jump_from_pa_ << " to " << jump_to_pa_
+        << " Pa in one reading under a settled plate and stayed there";
+  else why << "pressure reading frozen at " << reading_pa << " Pa for " << same_for_s_ << " s";
   return why.str();
 }
 
