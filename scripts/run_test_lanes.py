@@ -3,7 +3,8 @@
 longest lane rather than the sum of all tests.
 
   background lane (nice 19): the gtest executables, then the gap blind check; CPU-bound, and at
-      nice 19 they take only the CPU the rostests leave.
+      nice 19 they take only the CPU the rostests leave (but the real-time gtests, REAL_TIME_GTESTS,
+      run in the rostest lanes).
   rostest lanes: the light rostests (beds of fewer than --heavy-cells cells) --lanes at a time;
       those that launch the rig emulator (real_bed.launch) one at a time among themselves;
       then the heavy rostests alone, since their timing claims need the CPU.
@@ -24,6 +25,10 @@ import threading
 import time
 
 PREFIX = "_run_tests_nursing_bed_"
+# Gtests that time exchanges over loopback sockets against the wall clock (the Modbus driver
+# and the rig emulator's server): at nice 19 beside the rostests their threads starve for tens
+# of ms, so they run in the rostest lanes, one at a time with the emulator's rostests.
+REAL_TIME_GTESTS = {"gtest_test_rig"}
 
 
 def test_targets(build):
@@ -168,6 +173,10 @@ def main():
         targets = [t for t in targets if re.search(args.only, t)]
     background, light, heavy, emulator = [], [], [], set()
     for t in targets:
+        if t[len(PREFIX):] in REAL_TIME_GTESTS:
+            light.append(t)
+            emulator.add(t)
+            continue
         if not t.startswith(PREFIX + "rostest_"):
             background.append(t)
             continue
@@ -188,7 +197,7 @@ def main():
     os.makedirs(logdir, exist_ok=True)
     runner = Runner(args.build, logdir)
     runner.total = len(targets)
-    print("run_tests: %d targets: %d in the background lane, %d light rostests in %d lanes, %d heavy alone"
+    print("run_tests: %d targets: %d in the background lane, %d light rostests and real-time gtests in %d lanes, %d heavy alone"
           % (len(targets), len(background), len(light), args.lanes, len(heavy)), flush=True)
 
     bg_rcs = []
