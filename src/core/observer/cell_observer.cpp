@@ -113,6 +113,7 @@ void CellObserver::reset(double load_n) {
   pulse_.reset();
   still_s_ = 0.0;
   count_doubt_kg_ = 0.0;
+  count_noise_kg2_ = 0.0;
   since_edge_s_ = 0.0;
   flat_claimed_s_ = -1.0;
   reading_noise_.interrupt();
@@ -151,9 +152,15 @@ void CellObserver::integrateFlows(const CellInputs& in, double dt_s, double puls
   CellVariables v;
   const Vector dx = model_.rate(time_, x_, in, &v);
   const Eigen::Vector2d at_reading = gasRates(dx, v);
-  const Eigen::Vector2d gas = pulse_factor * (at_reading - noiseBias(in, at_reading));
+  const FlowNoise noise = flowNoise(in, at_reading);
+  const Eigen::Vector2d gas = pulse_factor * (at_reading - noise.bias);
   x_[CellModel::kMass] += gas[0] * dt_s;
   x_[CellModel::kEnergy] += gas[1] * dt_s;
+  // Each period's reading mean carries its own noise: the count walks by it (white, so no
+  // filter of the readings shortens the walk; only the flat cell or a height measures it off).
+  const Eigen::Vector2d walk = pulse_factor * dt_s * noise.sd;
+  p_ += walk * walk.transpose();
+  count_noise_kg2_ += walk[0] * walk[0];
   x_[CellModel::kRegulator] += dx[CellModel::kRegulator] * dt_s;
   for (int i = CellModel::kShape + model_.structure().shapeDofs(); i < x_.size(); ++i) x_[i] += dx[i] * dt_s;
   vars_.inflow_kg_s = v.inflow_kg_s;
@@ -165,25 +172,28 @@ Eigen::Vector2d CellObserver::gasRates(const Vector& dx, const CellVariables& v)
   return {dx[CellModel::kMass], dx[CellModel::kEnergy] + v.pressure_pa * v.volume_rate_m3_s};
 }
 
-Eigen::Vector2d CellObserver::noiseBias(const CellInputs& in, const Eigen::Vector2d& at_reading) {
+CellObserver::FlowNoise CellObserver::flowNoise(const CellInputs& in, const Eigen::Vector2d& at_reading) {
   // Near ambient the flows are taken at the mean of two readings (sd s = noise / sqrt 2). The
   // orifice law is curved there (its cubic band, then the square root), so flows at noisy
   // readings are biased by f'' s^2 / 2: about half a percent for a light plate venting at
-  // 40 Pa under 10 Pa of noise, always the same way. Two sigma points estimate it. Smoothing
-  // the readings instead lagged the step a valve edge makes on a light plate (77 to 44 Pa
-  // within one sample): each vent opening then counted 0.3 % of the cell's gas too much.
+  // 40 Pa under 10 Pa of noise, always the same way. Two sigma points estimate it, and their
+  // spread the flows' scatter f' s: a third of a light plate's 30 Pa vent flow at 10 Pa of
+  // noise. Smoothing the readings instead lagged the step a valve edge makes on a light plate
+  // (77 to 44 Pa within one sample): each vent opening then counted 0.3 % of the gas too much.
   const double p = in.flow_gauge_pressure_pa;
   const double s = pressureNoise() / std::sqrt(2.0);
-  if (!std::isfinite(p) || std::fabs(p) > kCurvedFlowBands * model_.params().orifice_linear_band_pa)
-    return Eigen::Vector2d::Zero();
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (const double side : {-1.0, 1.0}) {
+  FlowNoise noise;
+  if (!std::isfinite(p) || std::fabs(p) > kCurvedFlowBands * model_.params().orifice_linear_band_pa) return noise;
+  Eigen::Vector2d side_rates[2];
+  for (int k = 0; k < 2; ++k) {
     CellInputs shifted = in;
-    shifted.flow_gauge_pressure_pa = p + side * s;
+    shifted.flow_gauge_pressure_pa = p + (k == 0 ? -s : s);
     CellVariables v;
-    mean += 0.5 * gasRates(model_.rate(time_, x_, shifted, &v), v);
+    side_rates[k] = gasRates(model_.rate(time_, x_, shifted, &v), v);
   }
-  return mean - at_reading;
+  noise.bias = 0.5 * (side_rates[0] + side_rates[1]) - at_reading;
+  noise.sd = 0.5 * (side_rates[1] - side_rates[0]).cwiseAbs();
+  return noise;
 }
 
 void CellObserver::propagateCovariance(double dt_s) {
@@ -204,7 +214,7 @@ void CellObserver::propagateCovariance(double dt_s) {
 double CellObserver::flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s) {
   // The flows' pressure is the mean over the period. Near ambient it is taken as it comes (a
   // light plate's pressure steps by tens of Pa within one sample at each valve edge; smoothed,
-  // the flow after the edge took the pressure before it) and noiseBias corrects the noise's
+  // the flow after the edge took the pressure before it) and flowNoise corrects the noise's
   // bias. Away from ambient, a reading within three sds of the smoothed one is smoothed over
   // kFlowPressureFilterS: there a valve pulse's small swing is averaged whichever reading it
   // falls on; a larger move (a lift-off) is taken as it comes.
@@ -371,7 +381,7 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   const double pa = model_.params().ambient_pressure_pa;
   if (!lifted) measureFlat(p_new);
   if (std::isfinite(readings.height_m)) {
-    count_doubt_kg_ = 0.0;  // the height is measured
+    count_doubt_kg_ = count_noise_kg2_ = 0.0;  // the height is measured
     const double v = model_.structure().evaluate(readings.height_m, &x_[CellModel::kShape]).volume_m3;
     const double sd = (pa + p_new) * vars_.structure.effective_area_m2 * params_.height_noise_m / (gamma_ - 1.0);
     measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
@@ -404,7 +414,7 @@ void CellObserver::measureFlat(double gauge_pressure_pa) {
   const double pa = model_.params().ambient_pressure_pa;
   const double u = (pa + gauge_pressure_pa) * flat.volume_m3 / (gamma_ - 1.0);
   measureEnergy(u, std::pow(pressureNoise() * flat.volume_m3 / (gamma_ - 1.0), 2));
-  count_doubt_kg_ = 0.0;  // the flat cell's gas is measured
+  count_doubt_kg_ = count_noise_kg2_ = 0.0;  // the flat cell's gas is measured
 }
 
 void CellObserver::doubtVentCount(double vent_kg, double flow_gauge_pressure_pa) {
@@ -558,7 +568,7 @@ void CellObserver::anchorFlat(double gauge_pressure_pa) {
   p_(0, 0) = std::pow(1e-4 * x_[CellModel::kMass], 2);
   p_(1, 1) = std::pow(1e-4 * x_[CellModel::kEnergy], 2);
   ++reanchors_;
-  count_doubt_kg_ = 0.0;
+  count_doubt_kg_ = count_noise_kg2_ = 0.0;
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
@@ -580,10 +590,12 @@ CellEstimate CellObserver::estimate() const {
   // At the pressure, the volume (and the height over dV/dh) goes with the gas.
   const double m = x_[CellModel::kMass];
   e.count_doubt_m = x_[CellModel::kHeight] > 0.0 && m > 0.0
-                        ? count_doubt_kg_ / m * vars_.structure.volume_m3 / std::max(volume_slope_m2_, 1e-5)
+                        ? countDoubtKg() / m * vars_.structure.volume_m3 / std::max(volume_slope_m2_, 1e-5)
                         : 0.0;
   return e;
 }
+
+double CellObserver::countDoubtKg() const { return count_doubt_kg_ + 2.0 * std::sqrt(count_noise_kg2_); }
 
 void ObserverErrorStats::add(double error_m) {
   sum_sq_m2 += error_m * error_m;

@@ -220,11 +220,20 @@ TEST(CellFaults, HealthyFillsUnderThePlateAloneAreNotFlaggedByTheBoundWhileLifti
     EXPECT_NEAR(c.plant->variables().height_m, to_m, 0.002) << "to " << to_m;
   }
   // A ramp at the bed's 20 mm/s: the pressure follows the rising plate, so each window is
-  // judged on its own readings, never on older, lower ones.
+  // judged on its own readings, never on older, lower ones. Near the bag's top the vents'
+  // counts above (30-100 Pa readings under 10 Pa of noise) may be 3 mm off: the height may be
+  // said unverified there, for that doubt only, and no fault is raised.
+  const double flag_doubt_m = nb::GasVerifierParams{}.flag_doubt_m;
   for (double h = 0.10; h <= 0.13 + 1e-9; h += 0.001) {
     ASSERT_EQ(c.cell->requestHeight(h, c.t), "");
     double worst = 0.0;
-    EXPECT_LT(c.runTo(c.t + 0.05, &worst), 0.0) << "ramp at " << h;
+    for (const double end = c.t + 0.05; c.t < end - 1e-9;) {
+      c.runTo(c.t + 0.005, &worst);
+      ASSERT_EQ(c.cell->faults(), 0) << "ramp at " << h;
+      if (c.cell->heightUnverified()) {
+        ASSERT_GT(c.cell->observer()->estimate().count_doubt_m, flag_doubt_m) << "ramp at " << h;
+      }
+    }
     EXPECT_LT(worst, 0.006) << "ramp at " << h;
   }
   EXPECT_EQ(c.cell->observer()->estimate().weight_bounds, 0) << "a right count bounded";

@@ -177,12 +177,20 @@ class CellObserver {
   void integrateFlows(const CellInputs& in, double dt_s, double pulse_factor);
   /// The gas's (dm/dt, dU/dt less the work) from a model rate and its variables.
   static Eigen::Vector2d gasRates(const Vector& dx, const CellVariables& v);
-  /// What the readings' noise adds on average to the gas's rates through the flows' curvature
-  /// in pressure near ambient (to take off the rates at the readings).
-  Eigen::Vector2d noiseBias(const CellInputs& in, const Eigen::Vector2d& at_reading);
+  /// What the readings' noise does to the gas's rates near ambient: adds on average through
+  /// the flows' curvature in pressure (`bias`, to take off the rates at the readings), and
+  /// scatters them by the slope times the noise of the period's reading mean (`sd`).
+  struct FlowNoise {
+    Eigen::Vector2d bias = Eigen::Vector2d::Zero();
+    Eigen::Vector2d sd = Eigen::Vector2d::Zero();
+  };
+  FlowNoise flowNoise(const CellInputs& in, const Eigen::Vector2d& at_reading);
+  /// The gas the count may be off by since it was last measured: the vent doubts summed and
+  /// two sds of the readings' noise on the flows (a random walk) [kg].
+  double countDoubtKg() const;
   void propagateCovariance(double dt_s);
   /// The cell pressure the flows of the period see: the readings' mean; away from ambient
-  /// smoothed within the noise (see noiseBias for near ambient).
+  /// smoothed within the noise (see flowNoise for near ambient).
   double flowPressure(double old_pressure_pa, double new_pressure_pa, double dt_s);
   /// The energy after the volume change at the new pressure, along the isentrope (trapezoid),
   /// from the gas's volume `v0_m3` at the old one.
@@ -245,6 +253,7 @@ class CellObserver {
   ReadingNoise reading_noise_;    ///< kept over resets: the sensor's, not the gas's
   double still_s_ = 0.0;          ///< both valves shut this long, for the noise [s]
   double count_doubt_kg_ = 0.0;   ///< gas the vent count may be off by since found flat [kg]
+  double count_noise_kg2_ = 0.0;  ///< the readings' noise's variance on the count since then [kg^2]
   double since_edge_s_ = 0.0;     ///< since the valves' openings last changed [s]
   double flat_claimed_s_ = -1.0;  ///< when the flat test first held under this vent (-1: not yet) [s]
 };
