@@ -263,10 +263,13 @@ bool CellObserver::invertVolume(double gauge_pressure_pa, double dt_s) {
   const int nq = structure.shapeDofs();
   const double target =
       (gamma_ - 1.0) * x_[CellModel::kEnergy] / (model_.params().ambient_pressure_pa + gauge_pressure_pa);
-  double shape[kMaxShapeDofs];
-  for (int i = 0; i < nq; ++i) shape[i] = x_[CellModel::kShape + i];
+  // The shape each trial height would take over the period from the last one: a fold snaps
+  // at its own rate, not at the first reading past its pressure (a vent's dip that recovers
+  // within the fold's time leaves it where it was, in the cell as here).
+  double start[kMaxShapeDofs], shape[kMaxShapeDofs];
+  for (int i = 0; i < nq; ++i) start[i] = shape[i] = x_[CellModel::kShape + i];
   auto volume_at = [&](double h) {
-    const auto q = structure.relaxedShape(h, gauge_pressure_pa, shape);
+    const auto q = structure.shapeAfter(h, gauge_pressure_pa, start, dt_s);
     for (int i = 0; i < nq; ++i) shape[i] = q[i];
     return structure.evaluate(h, shape).volume_m3;
   };

@@ -173,6 +173,22 @@ std::array<double, kMaxShapeDofs> FoldTableStructure::relaxedShape(double height
   return q;
 }
 
+std::array<double, kMaxShapeDofs> FoldTableStructure::shapeAfter(double height_m, double gauge_pressure_pa,
+                                                                 const double* initial_shape, double dt_s) const {
+  std::array<double, kMaxShapeDofs> q = relaxedShape(height_m, gauge_pressure_pa, initial_shape);
+  const double s0 = std::clamp(initial_shape[1], 0.0, 1.0);
+  const double rest = q[1];
+  const int steps = std::max(1, static_cast<int>(std::ceil(dt_s / (0.2 * data_.fold_time_s))));
+  const double h = dt_s / steps;
+  double s = s0;
+  for (int i = 0; i < steps; ++i) {
+    const double mid = std::clamp(s + 0.5 * h * foldRate(s, q[0] * kShapeUnitPa, height_m), 0.0, 1.0);
+    s = std::clamp(s + h * foldRate(mid, q[0] * kShapeUnitPa, height_m), 0.0, 1.0);
+  }
+  q[1] = std::clamp(s, std::min(s0, rest), std::max(s0, rest));
+  return q;
+}
+
 void FoldTableStructure::enterBranch(int branch, double* shape) const { shape[1] = branch == 0 ? 0.0 : 1.0; }
 
 int FoldTableStructure::branchOf(const double* shape) const { return shape[1] >= 0.5 ? 1 : 0; }

@@ -115,6 +115,22 @@ TEST(FoldTableStructure, TheFoldOpensAboveItsPressureAndClosesOnlyBelowTheLowerO
   EXPECT_GT(s.foldRate(0.7, 7e3, 0.05), 0.0);
 }
 
+TEST(FoldTableStructure, OverAPeriodTheFoldMovesAtItsOwnRate) {
+  // A dip below close_pa shorter than the fold's time (0.02 s) leaves an open fold mostly open;
+  // a long one closes it where relaxedShape does; the film relaxes either way.
+  const FoldTableStructure s(syntheticFold(), 2e-3, 5e-6);
+  const double open[kMaxShapeDofs] = {0.4, 1.0};
+  const auto relaxed = s.relaxedShape(0.05, 3e3, open);
+  EXPECT_LT(relaxed[1], 0.01);
+  const auto period = s.shapeAfter(0.05, 3e3, open, 0.002);
+  EXPECT_GT(period[1], 0.5);
+  EXPECT_LT(period[1], 1.0);
+  EXPECT_NEAR(period[0], relaxed[0], 1e-9);
+  EXPECT_NEAR(s.shapeAfter(0.05, 3e3, open, 1.0)[1], relaxed[1], 1e-3);
+  // Between the snap pressures an open fold stays open, over any time.
+  EXPECT_NEAR(s.shapeAfter(0.05, 7e3, open, 1.0)[1], 1.0, 1e-3);
+}
+
 TEST(FoldTableStructure, ARunningCellKeepsItsBranchBetweenTheSnapPressures) {
   const std::string file = writeFold(tmpDir() + "/fold.yaml", syntheticFold());
   const double load = 40.0;  // folded: h = 0.1 (1 - 4000 / p); open: h = 0.15 (1 - 4000 / p)

@@ -99,6 +99,13 @@ class CellStructure {
   /// whose coordinates have a closed-form or bistable balance may solve it itself.
   virtual std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
                                                          const double* initial_shape = nullptr) const;
+  /// The shape `dt_s` after `initial_shape` at height h and pressure p: each coordinate as far
+  /// towards relaxedShape as its own equation moves it in that time. By default the film
+  /// relaxes within a period; a structure with a slower coordinate (a fold) integrates it.
+  virtual std::array<double, kMaxShapeDofs> shapeAfter(double height_m, double gauge_pressure_pa,
+                                                       const double* initial_shape, double /*dt_s*/) const {
+    return relaxedShape(height_m, gauge_pressure_pa, initial_shape);
+  }
   /// Height and shape at which pressure p and the structure's own plate force carry the load
   /// (plate at rest): the cell's
   /// h(p, load) characteristic (the paper's section 5 relation, from our model). Not converged

@@ -59,6 +59,10 @@ class FoldTableStructure : public CellStructure {
   /// pressures), found by a bracketed search rather than a Newton step across the cubic.
   std::array<double, kMaxShapeDofs> relaxedShape(double height_m, double gauge_pressure_pa,
                                                  const double* initial_shape = nullptr) const override;
+  /// The film relaxed as relaxedShape's; the fold moved by ds/dt = foldRate over dt_s
+  /// (midpoint steps of a fifth of fold_time_s), never past the state relaxedShape reaches.
+  std::array<double, kMaxShapeDofs> shapeAfter(double height_m, double gauge_pressure_pa, const double* initial_shape,
+                                               double dt_s) const override;
   /// Branch 0 enters the fold shut (s = 0), branch 1 open (s = 1); branchOf reads s >= 1/2 as open.
   int branchCount() const override { return 2; }
   void enterBranch(int branch, double* shape) const override;
