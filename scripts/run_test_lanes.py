@@ -197,8 +197,9 @@ def main():
     os.makedirs(logdir, exist_ok=True)
     runner = Runner(args.build, logdir)
     runner.total = len(targets)
-    print("run_tests: %d targets: %d in the background lane, %d light rostests and real-time gtests in %d lanes, %d heavy alone"
-          % (len(targets), len(background), len(light), args.lanes, len(heavy)), flush=True)
+    print("run_tests: %d targets: %d in the background lane, %d light rostests and real-time gtests "
+          "in %d lanes, %d heavy alone" % (len(targets), len(background), len(light), args.lanes, len(heavy)),
+          flush=True)
 
     bg_rcs = []
     bg = threading.Thread(target=lambda: bg_rcs.extend(runner.run(t, nice=True) for t in background))

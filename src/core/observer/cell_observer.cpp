@@ -112,8 +112,7 @@ void CellObserver::reset(double load_n) {
   weight_bound_.reset();
   pulse_.reset();
   still_s_ = 0.0;
-  count_doubt_kg_ = 0.0;
-  count_noise_kg2_ = 0.0;
+  clearCountDoubt();
   since_edge_s_ = 0.0;
   flat_claimed_s_ = -1.0;
   reading_noise_.interrupt();
@@ -384,7 +383,7 @@ ObserverEvents CellObserver::step(const ObserverInputs& inputs, const Readings& 
   const double pa = model_.params().ambient_pressure_pa;
   if (!lifted) measureFlat(p_new);
   if (std::isfinite(readings.height_m)) {
-    count_doubt_kg_ = count_noise_kg2_ = 0.0;  // the height is measured
+    clearCountDoubt();  // the height is measured
     const double v = model_.structure().evaluate(readings.height_m, &x_[CellModel::kShape]).volume_m3;
     const double sd = (pa + p_new) * vars_.structure.effective_area_m2 * params_.height_noise_m / (gamma_ - 1.0);
     measureEnergy((pa + p_new) * v / (gamma_ - 1.0), sd * sd);
@@ -417,7 +416,7 @@ void CellObserver::measureFlat(double gauge_pressure_pa) {
   const double pa = model_.params().ambient_pressure_pa;
   const double u = (pa + gauge_pressure_pa) * flat.volume_m3 / (gamma_ - 1.0);
   measureEnergy(u, std::pow(pressureNoise() * flat.volume_m3 / (gamma_ - 1.0), 2));
-  count_doubt_kg_ = count_noise_kg2_ = 0.0;  // the flat cell's gas is measured
+  clearCountDoubt();  // the flat cell's gas is measured
 }
 
 void CellObserver::doubtVentCount(double vent_kg, double flow_gauge_pressure_pa) {
@@ -571,7 +570,7 @@ void CellObserver::anchorFlat(double gauge_pressure_pa) {
   p_(0, 0) = std::pow(1e-4 * x_[CellModel::kMass], 2);
   p_(1, 1) = std::pow(1e-4 * x_[CellModel::kEnergy], 2);
   ++reanchors_;
-  count_doubt_kg_ = count_noise_kg2_ = 0.0;
+  clearCountDoubt();
   refresh(modelInputs(applied_, last_pressure_pa_));
 }
 
@@ -597,6 +596,8 @@ CellEstimate CellObserver::estimate() const {
                         : 0.0;
   return e;
 }
+
+void CellObserver::clearCountDoubt() { count_doubt_kg_ = count_noise_kg2_ = 0.0; }
 
 double CellObserver::countDoubtKg() const { return count_doubt_kg_ + 2.0 * std::sqrt(count_noise_kg2_); }
 

@@ -188,6 +188,8 @@ class CellObserver {
   /// The gas the count may be off by since it was last measured: the vent doubts summed and
   /// two sds of the readings' noise on the flows (a random walk) [kg].
   double countDoubtKg() const;
+  /// The gas is measured (found flat, a height read): the count's doubt starts again.
+  void clearCountDoubt();
   void propagateCovariance(double dt_s);
   /// The cell pressure the flows of the period see: the readings' mean; away from ambient
   /// smoothed within the noise (see flowNoise for near ambient).
