@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -30,6 +31,9 @@ Status ConsistencyMonitorParams::validate() const {
   positive("response_sds", response_sds);
   nonNegative("response_silent_sum_pa", response_silent_sum_pa);
   positive("response_single_pa", response_single_pa);
+  nonNegative("response_steady_s", response_steady_s);
+  positive("response_steady_sds", response_steady_sds);
+  positive("response_steady_single_pa", response_steady_single_pa);
   errors.addIf(response_silent_pulses < 1, "response_silent_pulses must be >= 1, got ", response_silent_pulses);
   nonNegative("response_window_s", response_window_s);
   nonNegative("response_min_period_s", response_min_period_s);
@@ -188,9 +192,59 @@ void ConsistencyMonitor::clear() {
   interrupt();
 }
 
+void SteadyReadings::add(double reading_pa, double dt_s) {
+  p_[next_] = reading_pa;
+  dt_[next_] = dt_s;
+  next_ = (next_ + 1) % kReadings;
+  count_ = std::min(kReadings, count_ + 1);
+}
+
+bool SteadyReadings::within(double span_s, double range_pa) const {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo, seen_s = 0.0;
+  for (int i = 1; i <= count_ && seen_s < span_s; ++i) {
+    const int k = (next_ + kReadings - i) % kReadings;
+    lo = std::min(lo, p_[k]);
+    hi = std::max(hi, p_[k]);
+    seen_s += dt_[k];
+  }
+  return seen_s >= span_s && hi - lo <= range_pa;
+}
+
+void SteadyReadings::clear() {
+  count_ = 0;
+  next_ = 0;
+}
+
+void QuarterSwingSum::start(double plate_period_s) {
+  quarter_s_ = 0.25 * plate_period_s;
+  count_ = 0;
+  next_ = 0;
+  largest_pa_ = 0.0;
+}
+
+void QuarterSwingSum::add(double step_pa, double dt_s) {
+  step_pa_[next_] = step_pa;
+  dt_s_[next_] = dt_s;
+  next_ = (next_ + 1) % kSteps;
+  count_ = std::min(kSteps, count_ + 1);
+  // The steps of the last quarter swing, the newest always (a step spans its own period).
+  double sum_pa = 0.0, span_s = 0.0;
+  for (int i = 1; i <= count_; ++i) {
+    const int k = (next_ + kSteps - i) % kSteps;
+    if (i > 1 && span_s + dt_s_[k] > quarter_s_) break;
+    sum_pa += step_pa_[k];
+    span_s += dt_s_[k];
+  }
+  largest_pa_ = std::max(largest_pa_, std::fabs(sum_pa));
+}
+
 std::string ValveResponseCheck::update(const ConsistencySample& sample, double dt_s,
                                        const ConsistencyMonitorParams& params) {
   const double p = sample.gauge_pressure_pa;
+  // Whether the readings before this one were steady, asked where a pulse may start.
+  const bool steady_before = params.response_steady_s > 0.0 && sample.counted_step_pa != 0.0 &&
+                             steady_.within(params.response_steady_s, params.response_steady_sds * sample.noise_sd_pa);
+  steady_.add(p, dt_s);
   for (int i = kRecent - 1; i > 0; --i) recent_[i] = recent_[i - 1];
   recent_[0] = p;
   double recent_pa = 0.0;
@@ -201,11 +255,13 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
     best_pa_ = std::max(best_pa_, direction_ * (recent_pa - baseline_pa_));
     if (direction == direction_) {
       counted_pa_ += sample.counted_step_pa;
+      quarter_.add(sample.counted_step_pa, dt_s);
       after_s_ = 0.0;
       open_s_ += dt_s;
       return judgeOpenInlet(sample.noise_sd_pa, params);
     }
     after_s_ += dt_s;
+    quarter_.add(0.0, dt_s);  // a gap in the pulse: its steps before it count as older
     // Judged once the window after the counted flow has passed, or when the other valve opens.
     if (direction == 0 && after_s_ < params.response_window_s) return why;
     why = judge(sample.noise_sd_pa, params);
@@ -217,7 +273,10 @@ std::string ValveResponseCheck::update(const ConsistencySample& sample, double d
     for (const double r : pre_) baseline_pa_ += r / kPre;
     direction_ = direction;
     slow_enough_ = sample.plate_period_s >= params.response_min_period_s;
+    steady_start_ = steady_before;
     counted_pa_ = sample.counted_step_pa;
+    quarter_.start(sample.plate_period_s);
+    quarter_.add(sample.counted_step_pa, dt_s);
     best_pa_ = direction * (recent_pa - baseline_pa_);
     after_s_ = 0.0;
     open_s_ = 0.0;
@@ -245,19 +304,19 @@ std::string ValveResponseCheck::judge(double noise_sd_pa, const ConsistencyMonit
   if (!judgeable(needed_pa, params)) return "";
   const int v = direction_ > 0 ? 0 : 1;
   if (best_pa_ >= needed_pa) {
-    silent_[v] = 0;
-    silent_pa_[v] = 0.0;
+    silent_[v] = SilentRun{};
     return "";
   }
   // A run counts only vent pulses with room for their whole step: near ambient a plate under a
   // body's part can settle with it and hold the pressure while its vent works.
-  if (direction_ < 0 && baseline_pa_ < 2.0 * counted_pa && counted_pa < params.response_single_pa) return "";
-  silent_pa_[v] += counted_pa;
-  ++silent_[v];
-  const bool run = params.response_silent_sum_pa > 0.0 && silent_[v] >= params.response_silent_pulses &&
-                   silent_pa_[v] >= params.response_silent_sum_pa;
-  if (!run && counted_pa < params.response_single_pa) return "";
-  return stuckShut(silent_pa_[v], silent_[v], needed_pa);
+  const bool alone = aloneShowsStuck(counted_pa, params);
+  if (direction_ < 0 && baseline_pa_ < 2.0 * counted_pa && !alone) return "";
+  silent_[v].worth_pa += counted_pa;
+  ++silent_[v].pulses;
+  const bool run = params.response_silent_sum_pa > 0.0 && silent_[v].pulses >= params.response_silent_pulses &&
+                   silent_[v].worth_pa >= params.response_silent_sum_pa;
+  if (!run && !alone) return "";
+  return stuckShut(silent_[v].worth_pa, silent_[v].pulses, needed_pa);
 }
 
 std::string ValveResponseCheck::judgeOpenInlet(double noise_sd_pa, const ConsistencyMonitorParams& params) const {
@@ -266,7 +325,7 @@ std::string ValveResponseCheck::judgeOpenInlet(double noise_sd_pa, const Consist
   // window has passed. A working inlet has moved the pressure by then (its gas lifts the plate
   // and the load on it). Vents keep the end's judgement: a body's part can settle with the plate.
   const double needed_pa = params.response_sds * noise_sd_pa;
-  if (direction_ <= 0 || open_s_ < params.response_window_s || counted_pa_ < params.response_single_pa ||
+  if (direction_ <= 0 || open_s_ < params.response_window_s || !aloneShowsStuck(counted_pa_, params) ||
       !judgeable(needed_pa, params) || best_pa_ >= needed_pa) {
     return "";
   }
@@ -276,18 +335,27 @@ std::string ValveResponseCheck::judgeOpenInlet(double noise_sd_pa, const Consist
 std::string ValveResponseCheck::stuckShut(double worth_pa, int pulses, double needed_pa) const {
   std::ostringstream why;
   why << "the " << (direction_ > 0 ? "inlet" : "vent") << " was counted to pass gas worth " << worth_pa
-      << " Pa at fixed volume over " << pulses << " pulse(s), none moving the pressure " << needed_pa
-      << " Pa its way: a valve that does not open";
+      << " Pa at fixed volume over " << pulses << " pulse(s), none moving the pressure " << needed_pa << " Pa its way";
+  if (steady_start_) why << " from steady readings (" << quarter_.largestPa() << " Pa of it within a quarter swing)";
+  why << ": a valve that does not open";
   return why.str();
 }
 
+bool ValveResponseCheck::aloneShowsStuck(double counted_pa, const ConsistencyMonitorParams& params) const {
+  if (counted_pa >= params.response_single_pa) return true;
+  const double quick_pa = quarter_.largestPa();
+  return steady_start_ && quick_pa >= params.response_steady_single_pa &&
+         (direction_ > 0 || baseline_pa_ >= 2.0 * quick_pa);
+}
+
 void ValveResponseCheck::restart() {
-  silent_.fill(0);
-  silent_pa_.fill(0.0);
+  silent_.fill(SilentRun{});
   direction_ = 0;
   pre_count_ = 0;
   pre_next_ = 0;
   recent_.fill(0.0);
+  steady_.clear();
+  steady_start_ = false;
 }
 
 std::string ValveProgressCheck::update(const ConsistencySample& sample, double dt_s,

@@ -58,6 +58,17 @@ struct ConsistencyMonitorParams {
   int response_silent_pulses = 3;  ///< that many at least [-]
   /// One silent pulse this large is a valve stuck shut on its own [Pa].
   double response_single_pa = 3000.0;
+  /// Readings this steady before a pulse (their range over response_steady_s within
+  /// response_steady_sds reading sds) show a plate at rest under a load that is not changing:
+  /// a valve's gas must then move the pressure at fixed volume before the plate, with the mass
+  /// or stiffness on it, takes it up, and no load change can hide it. A body's part shifting,
+  /// a neighbour moving or a ring left by an earlier pulse moves the readings by hundreds of
+  /// pascals; 0: off [s].
+  double response_steady_s = 0.3;
+  double response_steady_sds = 6.0;  ///< that range, in reading sds [-]
+  /// One silent pulse from steady readings counted this much within a quarter of the plate's
+  /// swing (faster than the plate can take it up) is a valve stuck shut on its own [Pa].
+  double response_steady_single_pa = 1000.0;
   /// After the pulse's counted flow ends, the response is awaited this long [s].
   double response_window_s = 0.1;
   /// Pulses are judged only where the plate swings on its gas spring at least this slowly:
@@ -140,6 +151,40 @@ class SensorSignatureCheck {
   double jump_from_pa_ = 0.0, jump_to_pa_ = 0.0;  ///< that jump's readings [Pa]
 };
 
+/// One job: whether the readings over a recent span lay within a band (a plate at rest under a
+/// load that is not changing).
+class SteadyReadings {
+ public:
+  void add(double reading_pa, double dt_s);
+  /// Whether readings cover the last `span_s` and lay within `range_pa` of each other there.
+  bool within(double span_s, double range_pa) const;
+  void clear();
+
+ private:
+  static constexpr int kReadings = 512;  ///< 0.5 s at 1 kHz
+  std::array<double, kReadings> p_{}, dt_{};
+  int next_ = 0, count_ = 0;
+};
+
+/// One job: the largest fixed-volume step a pulse counted within a quarter of the plate's swing
+/// on its gas spring. Gas counted faster than the plate can move shows in the pressure; a slow
+/// flow (a long, partly open vent) the plate takes up as it comes, its pressure held by the load.
+class QuarterSwingSum {
+ public:
+  /// A pulse begins on a plate swinging with `plate_period_s`.
+  void start(double plate_period_s);
+  /// One period of the pulse, its counted step (either sign) [Pa].
+  void add(double step_pa, double dt_s);
+  double largestPa() const { return largest_pa_; }  ///< the largest |sum| so far [Pa]
+
+ private:
+  static constexpr int kSteps = 64;
+  std::array<double, kSteps> step_pa_{}, dt_s_{};
+  int next_ = 0, count_ = 0;
+  double quarter_s_ = 0.0;
+  double largest_pa_ = 0.0;
+};
+
 /// One job: whether a valve that was counted to pass gas moved the pressure at all. A valve
 /// stuck shut passes nothing, so the readings stay within their noise where a working one
 /// moves them by hundreds of pascals (even a light plate, which takes the gas up at once,
@@ -158,17 +203,22 @@ class ValveResponseCheck {
   std::array<double, kPre> pre_{};   ///< the last readings (ring)
   int pre_count_ = 0, pre_next_ = 0;
   std::array<double, kRecent> recent_{};
-  int direction_ = 0;         ///< the pulse under way: +1 inlet, -1 vent, 0 none
-  double baseline_pa_ = 0.0;  ///< mean reading before the pulse
-  double counted_pa_ = 0.0;   ///< the pulse's fixed-volume change so far
-  double best_pa_ = 0.0;      ///< largest move of the recent mean in its direction
-  double after_s_ = 0.0;      ///< time since its counted flow ended
-  double open_s_ = 0.0;       ///< time its valve has been counted open
-  bool slow_enough_ = false;  ///< its plate swings slowly enough to show the gas
-  /// The counted change of the judged pulses in a row without a response, summed per valve:
-  /// [0] inlet, [1] vent [Pa].
-  std::array<double, 2> silent_pa_{};
-  std::array<int, 2> silent_{};  ///< how many they were
+  int direction_ = 0;          ///< the pulse under way: +1 inlet, -1 vent, 0 none
+  double baseline_pa_ = 0.0;   ///< mean reading before the pulse
+  double counted_pa_ = 0.0;    ///< the pulse's fixed-volume change so far
+  double best_pa_ = 0.0;       ///< largest move of the recent mean in its direction
+  double after_s_ = 0.0;       ///< time since its counted flow ended
+  double open_s_ = 0.0;        ///< time its valve has been counted open
+  bool slow_enough_ = false;   ///< its plate swings slowly enough to show the gas
+  SteadyReadings steady_;      ///< the readings before each pulse
+  bool steady_start_ = false;  ///< the pulse under way began on steady readings
+  QuarterSwingSum quarter_;    ///< the pulse's gas counted within a quarter swing
+  /// One valve's judged pulses in a row without a response.
+  struct SilentRun {
+    double worth_pa = 0.0;  ///< their counted change summed [Pa]
+    int pulses = 0;         ///< how many they were
+  };
+  std::array<SilentRun, 2> silent_{};  ///< [0] inlet, [1] vent
   /// Whether the pulse so far can show its valve working: worth response_min_pa, on a plate
   /// slow enough, a vent with room above ambient, and readings not held against it.
   bool judgeable(double needed_pa, const ConsistencyMonitorParams& params) const;
@@ -180,6 +230,10 @@ class ValveResponseCheck {
   std::string judgeOpenInlet(double noise_sd_pa, const ConsistencyMonitorParams& params) const;
   /// The reason given for a valve stuck shut.
   std::string stuckShut(double worth_pa, int pulses, double needed_pa) const;
+  /// Whether the silent pulse, worth `counted_pa`, shows its valve stuck shut alone: worth
+  /// response_single_pa, or from steady readings response_steady_single_pa within a quarter swing
+  /// (a vent with room above ambient for it).
+  bool aloneShowsStuck(double counted_pa, const ConsistencyMonitorParams& params) const;
 };
 
 /// One job: failure to reach target. Each valve's counted opening time is summed over its
@@ -227,7 +281,8 @@ class ValveProgressCheck {
  *  - surprise: a correction of the observer's that does not prove the gas (a weight bound)
  *    larger than surprise_m: the estimate was that far wrong.
  *  - response: a valve's pulses, each counted to move the pressure by response_min_pa at fixed
- *    volume, none moving the readings by response_sds: one worth response_single_pa, or
+ *    volume, none moving the readings by response_sds: one worth response_single_pa (or, after
+ *    steady readings, response_steady_single_pa within a quarter of the plate's swing), or
  *    response_silent_pulses or more worth response_silent_sum_pa in all (ValveResponseCheck):
  *    a valve stuck shut;
  *  - load: the observer's load estimate above max_load_n (gas passing a shut valve);
