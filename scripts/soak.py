@@ -187,17 +187,28 @@ def terminal_cells(cells, n_cells):
     return [c for c in range(n_cells) if c // 60 in terminals]
 
 
+def call_service(name, service_type, *request, wait_s=10.0):
+    """The service's reply, or None with the reason printed: a bed manager that died is a finding
+    of the soak (it respawns within seconds), not the end of it."""
+    try:
+        rospy.wait_for_service(name, timeout=wait_s)
+        return rospy.ServiceProxy(name, service_type)(*request)
+    except (rospy.ROSException, rospy.ServiceException) as e:
+        print("soak: %s unavailable for %.0f s (%s): skipped" % (name, wait_s, e))
+        return None
+
+
 def call_posture(plan, keys, values):
-    reply = rospy.ServiceProxy("/bed_manager/set_posture", SetPosture)(plan, keys, values, [])
-    if not reply.success:
+    reply = call_service("/bed_manager/set_posture", SetPosture, plan, keys, values, [])
+    if reply is not None and not reply.success:
         print("soak: %s refused: %s" % (plan, reply.message))
 
 
 def inject(fault, cells, valve="", value=0.0):
-    reply = rospy.ServiceProxy("/rig_emulator/inject_fault", InjectRigFault)(fault, cells, 0, valve, value, 0.0, False)
-    if not reply.success:
+    reply = call_service("/rig_emulator/inject_fault", InjectRigFault, fault, cells, 0, valve, value, 0.0, False)
+    if reply is not None and not reply.success:
         print("soak: %s refused: %s" % (fault, reply.message))
-    return reply.success
+    return reply is not None and reply.success
 
 
 def summarise(score, injections, recoveries, wall_s, faulted_until):
