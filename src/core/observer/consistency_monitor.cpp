@@ -241,15 +241,16 @@ void QuarterSwingSum::add(double step_pa, double dt_s) {
 std::string ValveResponseCheck::update(const ConsistencySample& sample, double dt_s,
                                        const ConsistencyMonitorParams& params) {
   const double p = sample.gauge_pressure_pa;
-  // Whether the readings before this one were steady, asked where a pulse may start.
-  const bool steady_before = params.response_steady_s > 0.0 && sample.counted_step_pa != 0.0 &&
+  const int direction = sample.counted_step_pa > 0.0 ? 1 : (sample.counted_step_pa < 0.0 ? -1 : 0);
+  // Whether the readings before this one were steady, asked only where a pulse may start (not
+  // on each period of one under way).
+  const bool steady_before = params.response_steady_s > 0.0 && direction != 0 && direction != direction_ &&
                              steady_.within(params.response_steady_s, params.response_steady_sds * sample.noise_sd_pa);
   steady_.add(p, dt_s);
   for (int i = kRecent - 1; i > 0; --i) recent_[i] = recent_[i - 1];
   recent_[0] = p;
   double recent_pa = 0.0;
   for (const double r : recent_) recent_pa += r / kRecent;
-  const int direction = sample.counted_step_pa > 0.0 ? 1 : (sample.counted_step_pa < 0.0 ? -1 : 0);
   std::string why;
   if (direction_ != 0) {
     best_pa_ = std::max(best_pa_, direction_ * (recent_pa - baseline_pa_));
