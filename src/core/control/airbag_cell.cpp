@@ -35,6 +35,9 @@ namespace {
 
 /// Gas counted this long after a communication or sensor fault is doubtful in full [s].
 constexpr double kUnsureCountS = 0.5;
+/// A real-time period longer than this many control periods ran late: its gas is doubtful in
+/// full. Two missed ticks, not a tick's jitter [-].
+constexpr double kLatePeriods = 3.0;
 
 CellHardwarePtr simulatedHardware(const AirbagCellParams& p, const std::vector<CellEffectPtr>& effects) {
   HardwareConfig c;
@@ -296,7 +299,7 @@ void AirbagCell::stepReal(double now_s) {
     // the last command over the period it acted, then with the valves shut.
     const CellEstimate before = observer_->estimate();
     observer_->predict(linkDownInputs(readings), period);
-    doubtUnsureCount(before, false);
+    doubtUnsureCount(before, false, period);
     valves_ = ValveOpenings{};
     controller_.noteWritten(valves_, period);  // nothing sent: nothing in flight once the link is back
     measurement_.gauge_pressure_pa = readings.gauge_pressure_pa.value;
@@ -394,7 +397,7 @@ void AirbagCell::observe(const CellReadings& readings, double dt_s) {
   ObserverEvents events;
   if (coasting) observer_->coast(in, dt_s);
   else events = observer_->step(in, z, dt_s);
-  doubtUnsureCount(before, events.reanchored);
+  doubtUnsureCount(before, events.reanchored, dt_s);
   gas_.note(events);
   if (use_estimate_) {
     const CellEstimate e = observer_->estimate();
@@ -429,12 +432,15 @@ void AirbagCell::notePressureSample(const StampedReading& pressure) {
   if (pressure.present()) last_pressure_stamp_s_ = pressure.stamp_s;
 }
 
-void AirbagCell::doubtUnsureCount(const CellEstimate& before, bool reanchored) {
+void AirbagCell::doubtUnsureCount(const CellEstimate& before, bool reanchored, double dt_s) {
   // Over a lost or lossy link (and stale readings) the count follows a record of the valves
   // that a dropped write or a tripped watchdog can leave wrong, while the checks after it only
-  // show that the cell kept its gas: what was counted meanwhile is the count's doubt.
+  // show that the cell kept its gas: what was counted meanwhile is the count's doubt. So is
+  // the gas of a period that ran late (a starved thread): its valves acted for all of it, but
+  // their flows are taken at its end's reading, through a swing of the plate it never saw.
   if (faults_ & (kFaultCommunication | kFaultSensor)) unsure_count_until_s_ = time_s_ + kUnsureCountS;
-  if (time_s_ < unsure_count_until_s_ && !reanchored)
+  const bool late = dt_s > kLatePeriods * params_.control_period_s;
+  if ((late || time_s_ < unsure_count_until_s_) && !reanchored)
     observer_->doubtCount(std::fabs(observer_->estimate().mass_kg - before.mass_kg));
 }
 

@@ -635,6 +635,34 @@ TEST(AirbagOnHardware, GasCountedOverALostLinkIsTheCountsDoubt) {
   EXPECT_NEAR(rig.plant->variables().height_m, 0.10, 0.003);
 }
 
+TEST(AirbagOnHardware, GasCountedOverLatePeriodsIsTheCountsDoubt) {
+  // A starved thread: for 1.2 s of a fill the cell's periods come 60 ms apart instead of 10.
+  // The valves act for all of each period and the count takes its flows at the period's end:
+  // what was counted then is the count's doubt (here it leaves the count millimetres off).
+  double doubt_m[2] = {0.0, 0.0};
+  bool flagged[2] = {false, false};
+  double error_m[2] = {0.0, 0.0};
+  for (int late = 0; late < 2; ++late) {
+    CuttableCell rig(0.06, 15.6, 0.06);
+    rig.runTo(1.0);
+    ASSERT_EQ(rig.cell->requestHeight(0.10, rig.t), "");
+    if (late == 1)
+      for (int k = 0; k < 20; ++k) rig.cell->advanceTo(rig.t += 0.06);
+    rig.runTo(6.0);
+    const nb::CellEstimate e = rig.cell->observer()->estimate();
+    doubt_m[late] = e.count_doubt_m;
+    flagged[late] = rig.cell->heightUnverified();
+    error_m[late] = std::fabs(e.height_m - rig.plant->variables().height_m);
+  }
+  std::cout << "[airbag] count doubt after a fill: " << 1e3 * doubt_m[0] << " mm on time, " << 1e3 * doubt_m[1]
+            << " mm with 20 periods 60 ms late (estimate off by " << 1e3 * error_m[0] << " / " << 1e3 * error_m[1]
+            << " mm)\n";
+  EXPECT_LT(doubt_m[0], 0.0005) << "a fill on time: its few vent edges' doubt only";
+  EXPECT_FALSE(flagged[0]);
+  EXPECT_GT(doubt_m[1], 0.003) << "the late periods' gas, as height";
+  EXPECT_TRUE(flagged[1]) << "beyond flag_doubt_m: flagged";
+}
+
 namespace {
 
 /// A driver over a link that loses most of its replies (holdSamples()): down for a period,

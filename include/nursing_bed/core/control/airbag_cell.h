@@ -198,8 +198,9 @@ class AirbagCell {
   /// Real hardware: read, observe, control and write once at `now_s`.
   void stepReal(double now_s);
   /// The gas the observer counted since `before`, while the link or readings were unsure
-  /// (unsure_count_until_s_), goes to its count's doubt.
-  void doubtUnsureCount(const CellEstimate& before, bool reanchored);
+  /// (unsure_count_until_s_) or over a period `dt_s` that ran late (kLatePeriods), goes to its
+  /// count's doubt.
+  void doubtUnsureCount(const CellEstimate& before, bool reanchored, double dt_s);
   /// Sets fresh_pressure_pa_: the reading, or NaN where its stamp says the driver repeated it
   /// after missing its bus cycles (older than a period, or over an unsure link).
   void notePressureSample(const StampedReading& pressure);
