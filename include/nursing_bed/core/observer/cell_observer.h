@@ -77,8 +77,10 @@ struct CellEstimate {
   int reanchors = 0;               ///< how often the mass was re-anchored on a flat cell
   int weight_bounds = 0;           ///< how often the plate's weight bounded the height
   double pressure_noise_pa = 0.0;  ///< the readings' sd as measured (ReadingNoise) [Pa]
-  /// The height the vent gas counted since the cell was last found flat may be off by
-  /// (CellObserverParams::vent_count_doubt); 0 on a flat cell or with a height sensor [m].
+  /// The height the gas counted since the cell was last found flat may be off by: the vent
+  /// edges' doubt (CellObserverParams::vent_count_doubt), the readings' noise near ambient and
+  /// what doubtCount() added (an unsure link, a late period); 0 on a flat cell or with a
+  /// height sensor [m].
   double count_doubt_m = 0.0;
 };
 
