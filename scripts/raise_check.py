@@ -81,7 +81,11 @@ def main():
     add_bed_arguments(parser)
     args, launch_args = parser.parse_known_args()
     results = []
-    with emulated_bed(args, launch_args, "raise_check", 20.0) as score:
+    with emulated_bed(args, launch_args, "raise_check", 20.0) as score, \
+            open(args.trace or "/dev/null", "w") as trace:
+        if args.trace:
+            score.trace = trace
+            trace.write("t_s,cell,truth_m,estimate_m,target_m,flagged\n")
         score.recording = True
         listeners = listen_to_states(args.rows, args.cols) if args.listen else []
         with busy_loops(args.busy):
@@ -89,6 +93,8 @@ def main():
                 results.append(hold_flat(score, height, hold))
         for s in listeners:
             s.unregister()
+        with score.lock:
+            score.trace = None  # the truth's callbacks outlive the file
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"steps": results, "listen": args.listen, "busy": args.busy, "launch_args": launch_args}, f, indent=2)

@@ -80,6 +80,8 @@ ModbusTerminal::ModbusTerminal(const TerminalMap& map, double pwm_period_s)
   commands_.assign(map_.cells.size(), ValveOpenings{});
   pwm_.assign(2 * map_.cells.size(), PwmChannel{});
   driven_.assign(map_.cells.size(), Driven{});
+  // A second of cycles: more than the longest period a cell integrates (AirbagCell: 0.5 s).
+  cycles_.assign(map_.cells.size(), BusSampleRing(static_cast<std::size_t>(std::ceil(1.0 / map_.cycle_s)) + 1));
   thread_ = std::thread(&ModbusTerminal::run, this);
   scheduling_ = scheduleRealtime(thread_, map_.realtime_priority);
 }
@@ -146,11 +148,16 @@ void ModbusTerminal::takeDriven(std::size_t slot, double now_s, CellReadings* r)
   if (!d.started) return;
   const Clock::time_point t = Clock::now();
   const double tail_s = std::max(0.0, std::chrono::duration<double>(std::min(t, outputsHeldUntil()) - d.since).count());
-  for (int k = 0; k < 2; ++k) d.integral_s[k] += d.opening[k] * tail_s;
+  for (int k = 0; k < 2; ++k) {
+    d.integral_s[k] += d.opening[k] * tail_s;
+    d.total_s[k] += d.opening[k] * tail_s;
+  }
   d.since = t;
   const double span_s = callerSpan(d, now_s, t);
+  r->bus_samples = cycles_.at(slot).between(d.from, d.total_at_from_s[0], d.total_at_from_s[1], t, now_s);
   d.from = t;
   d.from_caller_s = now_s;
+  std::copy_n(d.total_s, 2, d.total_at_from_s);
   if (!(span_s > 1e-4)) return;  // nothing to average over: kept for the next read
   StampedReading* out[2] = {&r->inlet_driven, &r->vent_driven};
   for (int k = 0; k < 2; ++k) {
@@ -272,6 +279,7 @@ void ModbusTerminal::advanceDriven(Clock::time_point t, bool shut) {
     const double held_s = std::max(0.0, std::chrono::duration<double>(t - d.since).count());
     for (int k = 0; k < 2; ++k) {
       d.integral_s[k] += d.opening[k] * held_s;
+      d.total_s[k] += d.opening[k] * held_s;
       d.opening[k] = shut ? 0.0
                      : out[k]->kind == ValveOutput::kCoil
                          ? (applied_coils_[out[k]->address] ? 1.0 : 0.0)
@@ -298,7 +306,19 @@ bool ModbusTerminal::readInputs() {
   inputs_.swap(buffer);
   last_read_ = replied;
   have_read_ = true;
+  keepCycle(replied);
   return true;
+}
+
+void ModbusTerminal::keepCycle(Clock::time_point t) {
+  const Clock::time_point held_until = std::min(t, outputsHeldUntil());
+  for (std::size_t s = 0; s < map_.cells.size(); ++s) {
+    const Driven& d = driven_[s];
+    const double p = value(map_.cells[s].pressure_pa);
+    if (!d.started || !std::isfinite(p)) continue;
+    const double held_s = std::max(0.0, std::chrono::duration<double>(held_until - d.since).count());
+    cycles_[s].push(t, p, d.total_s[0] + d.opening[0] * held_s, d.total_s[1] + d.opening[1] * held_s);
+  }
 }
 
 void ModbusTerminal::fillOutputs() {

@@ -655,3 +655,36 @@ TEST(RigFaults, RandomCellsAreDrawnReproduciblyBySeed) {
   r.random_cells = 0;
   EXPECT_EQ(nb::rigFaultCells(r, served, &a), served) << "no cells named: every cell";
 }
+
+TEST_F(ModbusLoopback, ALateReadGetsTheBusCyclesItSpannedWithTheirPressuresAndOnTime) {
+  // A read 100 ms after the one before (a starved cell thread) is handed the bus cycles in
+  // between: each with its pressure, stamped on the caller's clock, their spans tiling the
+  // interval, their on-time the driven record's.
+  cells_[0]->write({1.0, 0.0, false}, 0.0);
+  ASSERT_TRUE(waitFor([this] { return truth(0).inlet_opening > 0.0; }, 1.0));
+  cells_[0]->read(5.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  cells_[0]->write({}, 0.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));
+  const nb::CellReadings r = cells_[0]->read(5.1);
+  ASSERT_GE(r.bus_samples.size(), 10u) << "a cycle every 5 ms";
+  double spans_s = 0.0, inlet_s = 0.0, last_s = 5.0;
+  double lowest_pa = 1e9, highest_pa = -1e9;
+  for (const nb::BusSample& s : r.bus_samples) {
+    EXPECT_GT(s.stamp_s, last_s);
+    EXPECT_LE(s.stamp_s, 5.1);
+    EXPECT_NEAR(s.stamp_s - s.span_s, last_s, 1e-3) << "the spans tile the interval";
+    lowest_pa = std::min(lowest_pa, s.gauge_pressure_pa);
+    highest_pa = std::max(highest_pa, s.gauge_pressure_pa);
+    spans_s += s.span_s;
+    inlet_s += s.inlet * s.span_s;
+    last_s = s.stamp_s;
+  }
+  EXPECT_GT(highest_pa, lowest_pa) << "each cycle its own reading, through the fill";
+  EXPECT_GT(spans_s, 0.08);
+  EXPECT_NEAR(r.gauge_pressure_pa.value, r.bus_samples.back().gauge_pressure_pa, 1e-9) << "the latest cycle's";
+  // The read's mean is over its caller's 100 ms; the cycles' on-time up to the last one.
+  EXPECT_NEAR(inlet_s, r.inlet_driven.value * 0.1, 0.01);
+  EXPECT_GT(inlet_s, 0.025) << "open for the first 40 ms, and a PWM frame more";
+  EXPECT_TRUE(r.bus_samples.back().inlet < 1e-9) << "shut by the end";
+}

@@ -207,6 +207,9 @@ class AirbagCell {
   /// Turns readings into measurement_ (the observer's height where there is no sensor); the
   /// observer's events go to the gas check.
   void observe(const CellReadings& readings, double dt_s = 0.0);
+  /// observe() over the period from `from_s` to `now_s`; one that came late, in the steps the
+  /// driver's bus samples give (busSampleSteps) where they cover it.
+  void observePeriod(const CellReadings& readings, double from_s, double now_s);
   void onLink(const CellReadings& readings);
   /// The consistency monitor on this period's readings (`before`: the estimate before the
   /// observer's step); an inconsistency suspects the gas and flags the cell.

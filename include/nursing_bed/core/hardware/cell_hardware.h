@@ -29,6 +29,17 @@ struct StampedReading {
 /// Communication state of the cell's link (bus, terminal).
 enum class LinkState : std::uint8_t { kOk = 0, kDown = 1 };
 
+/// One bus cycle's reading of a cell's pressure, with the mean openings its valves were driven
+/// at over the interval before it (from the previous sample, or the previous read). A driver
+/// that samples faster than the cell's period hands these out, so that a period that came late
+/// (a starved thread) can still count its gas at the pressures it passed through.
+struct BusSample {
+  double stamp_s = 0.0;            ///< when the pressure was read, on the caller's clock [s]
+  double span_s = 0.0;             ///< the interval the openings are a mean over, ending at stamp_s [s]
+  double gauge_pressure_pa = 0.0;  ///< cell gauge pressure [Pa]
+  double inlet = 0.0, vent = 0.0;  ///< the valves' mean driven openings over span_s, [0, 1]
+};
+
 /// Everything the hardware reports for one cell. A reading the hardware lacks stays NaN;
 /// pressure is always there while the link is up.
 struct CellReadings {
@@ -46,6 +57,10 @@ struct CellReadings {
   /// a driver may still know them: a terminal holds its outputs as last written until its own
   /// watchdog shuts them, so the gas kept flowing for that long (absent: taken as shut).
   StampedReading inlet_driven, vent_driven;
+  /// The bus cycles since the previous read(), oldest first, where the driver samples between
+  /// reads (empty otherwise). Their spans tile the interval from the previous read to the last
+  /// sample; the caller's own interval is what inlet_driven / vent_driven are a mean over.
+  std::vector<BusSample> bus_samples;
   LinkState link = LinkState::kOk;
   std::string link_error;  ///< why the link is down (empty while up)
   /// The device failed and was reset since the last read(): the cell is in its reset state

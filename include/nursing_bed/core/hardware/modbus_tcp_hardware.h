@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "nursing_bed/core/hardware/bus_sample_ring.h"
 #include "nursing_bed/core/hardware/cell_hardware.h"
 #include "nursing_bed/core/hardware/register_map.h"
 #include "nursing_bed/core/hardware/thread_priority.h"
@@ -147,7 +148,9 @@ class ModbusTerminal {
   /// time integral since the slot's last readings() (mutable: readings() hands it out).
   struct Driven {
     double opening[2] = {0.0, 0.0};
-    double integral_s[2] = {0.0, 0.0};  ///< on-time not yet handed out [s]
+    double integral_s[2] = {0.0, 0.0};       ///< on-time not yet handed out [s]
+    double total_s[2] = {0.0, 0.0};          ///< on-time since the record started, up to `since` [s]
+    double total_at_from_s[2] = {0.0, 0.0};  ///< total_s at the last read [s]
     Clock::time_point since, from;
     double from_caller_s = std::numeric_limits<double>::quiet_NaN();  ///< the last read's now_s
     bool started = false;
@@ -156,6 +159,9 @@ class ModbusTerminal {
   /// that did not advance, or the first read) the real time since then.
   static double callerSpan(const Driven& d, double now_s, Clock::time_point t);
   mutable std::vector<Driven> driven_;
+  std::vector<BusSampleRing> cycles_;  ///< by slot: each bus cycle's pressure and on-time totals
+  /// Each slot's cycle read at t (the just-read inputs) into cycles_. Called with mutex_ held.
+  void keepCycle(Clock::time_point t);
   Clock::time_point last_read_;
   bool have_read_ = false;
   bool up_ = false;
