@@ -16,8 +16,12 @@ std::vector<BusSample> BusSampleRing::between(Clock::time_point from, double inl
   std::vector<BusSample> out;
   Clock::time_point last = from;
   double on_s[2] = {inlet_from_s, vent_from_s};
-  for (const Cycle& c : cycles_) {
-    if (c.t <= from || c.t > to) continue;
+  // The cycles are in time order: start at the first after `from` (a read comes every period,
+  // the ring holds a second of cycles).
+  const auto first = std::upper_bound(cycles_.begin(), cycles_.end(), from,
+                                      [](Clock::time_point t, const Cycle& c) { return t < c.t; });
+  for (auto it = first; it != cycles_.end() && it->t <= to; ++it) {
+    const Cycle& c = *it;
     const double span_s = std::chrono::duration<double>(c.t - last).count();
     if (!(span_s > 0.0)) continue;  // the same instant as the one before: nothing to average
     BusSample s;
