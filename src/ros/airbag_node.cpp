@@ -216,6 +216,11 @@ void AirbagNode::reportGasSearch() {
     ROS_WARN("%s: readings inconsistent with the observer (%s): finding its gas again, flagged until then",
              layout_.link_name.c_str(), cell_->monitor()->reason().c_str());
   inconsistent_ = inconsistent;
+  if (cell_->monitor() && cell_->monitor()->progress().failures() != doubts_) {
+    doubts_ = cell_->monitor()->progress().failures();
+    ROS_WARN("%s: %s; its counted gas doubted, the height reported unverified until found flat",
+             layout_.link_name.c_str(), cell_->monitor()->progress().lastFailure().c_str());
+  }
   const bool anchoring = cell_->anchoringGas();
   if (anchoring != anchoring_gas_) {
     ROS_DEBUG("%s: %s", layout_.link_name.c_str(),

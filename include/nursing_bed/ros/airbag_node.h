@@ -135,6 +135,7 @@ class AirbagNode {
   CellSnapshot snapshot_;
   bool finding_gas_ = false;    ///< the cell was venting to find its gas at the last update
   bool inconsistent_ = false;   ///< the cell's FAULT_INCONSISTENT at the last report
+  int doubts_ = 0;              ///< the monitor's failures to reach target at the last report
   bool anchoring_gas_ = false;  ///< the cell was venting flat to re-anchor its gas at the last update
   bool gas_search_warned_ = false;
   double gas_search_start_s_ = 0.0;

@@ -473,13 +473,18 @@ void AirbagCell::doubtUnsureCount(const CellEstimate& before, bool reanchored, d
     observer_->doubtCount(std::fabs(observer_->estimate().mass_kg - before.mass_kg));
 }
 
+int AirbagCell::countedDirection(const ObserverEvents& events) const {
+  // One valve at a time (a step that also re-anchored the mass is no count of the valves).
+  const ValveOpenings& v = observer_->appliedInputs().valves;
+  if (events.reanchored) return 0;
+  return v.inlet > 0.0 && v.vent == 0.0 ? 1 : (v.vent > 0.0 && v.inlet == 0.0 ? -1 : 0);
+}
+
 double AirbagCell::countedStepPa(const ObserverEvents& events, const CellEstimate& before) const {
   // Fixed volume: p = (gamma - 1) U / V with U ~ m, so dp = gamma p dm / m for gas passed
-  // at about the cell's temperature. One valve at a time (a step that also re-anchored the
-  // mass is no count of the valves).
-  const ValveOpenings& v = observer_->appliedInputs().valves;
-  const int direction = v.inlet > 0.0 && v.vent == 0.0 ? 1 : (v.vent > 0.0 && v.inlet == 0.0 ? -1 : 0);
-  if (direction == 0 || events.reanchored || !(before.mass_kg > 0.0)) return 0.0;
+  // at about the cell's temperature.
+  const int direction = countedDirection(events);
+  if (direction == 0 || !(before.mass_kg > 0.0)) return 0.0;
   const double dm_kg = std::fabs(observer_->estimate().mass_kg - before.mass_kg);
   const double p_abs = measurement_.gauge_pressure_pa + params_.cell.ambient_pressure_pa;
   return direction * params_.cell.gas.heat_capacity_ratio * p_abs * dm_kg / before.mass_kg;
@@ -520,6 +525,11 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
   if (events.weight_bounded && !events.reanchored && !gas_.gasUnknown())
     sample.correction_m = observer_->estimate().height_m - height_before_m;
   sample.counted_step_pa = countedStepPa(events, before);
+  if (countedDirection(events) != 0 && before.mass_kg > 0.0) {
+    const double area_m2 = observer_->variables().structure.effective_area_m2;  // dV/dh
+    sample.counted_gas_kg = std::fabs(observer_->estimate().mass_kg - before.mass_kg);
+    if (area_m2 > 0.0) sample.counted_height_m = sample.counted_gas_kg / before.mass_kg * before.volume_m3 / area_m2;
+  }
   sample.load_n = observer_->estimate().load_n;
   sample.plate_period_s = platePeriod();
   // A gas already unproven (a lost link, a reset) is being found: no height to contradict.
@@ -529,6 +539,7 @@ void AirbagCell::monitorStep(const ObserverEvents& events, const CellEstimate& b
     faults_ |= kFaultInconsistent;
     gas_.suspectInconsistent();
   }
+  observer_->doubtCount(monitor_.takeDoubtKg());  // a valve's gas the readings did not bear out
   // Found flat again: the count holds from there and the tests run again, but the fault stays
   // until a hold at height has proved the valves keep the gas.
   if ((faults_ & kFaultInconsistent) && monitor_.inconsistent() && !gas_.gasUnknown()) monitor_.clear();

@@ -40,8 +40,8 @@ Status ConsistencyMonitorParams::validate() const {
   nonNegative("max_load_n", max_load_n);
   nonNegative("landed_height_m", landed_height_m);
   positive("landed_time_s", landed_time_s);
-  nonNegative("progress_inlet_s", progress_inlet_s);
-  nonNegative("progress_vent_s", progress_vent_s);
+  nonNegative("progress_inlet_m", progress_inlet_m);
+  nonNegative("progress_vent_m", progress_vent_m);
   errors.addIf(!(progress_rel > 0.0 && progress_rel < 1.0), "progress_rel must lie in (0, 1), got ", progress_rel);
   positive("progress_min_pa", progress_min_pa);
   positive("progress_window_s", progress_window_s);
@@ -83,14 +83,20 @@ bool ConsistencyMonitor::update(const ConsistencySample& sample, double dt_s) {
         << 1e3 * sample.height_m << " mm: gas left uncounted";
   } else if (const std::string silent = response_.update(sample, dt_s, params_); !silent.empty()) {
     why << silent;
-  } else if (const std::string stalled = progress_.update(sample, dt_s, params_); !stalled.empty()) {
-    why << stalled;
-  } else if (innovation(sample, dt_s)) {
-    why << "pressure " << sample.gauge_pressure_pa << " Pa departs from the hold's " << reference_pa_
-        << " Pa with both valves shut (CUSUM " << cusum() << " Pa s)";
+  } else {
+    progress_.update(sample, dt_s, params_);  // a doubt, not an inconsistency
+    if (innovation(sample, dt_s))
+      why << "pressure " << sample.gauge_pressure_pa << " Pa departs from the hold's " << reference_pa_
+          << " Pa with both valves shut (CUSUM " << cusum() << " Pa s)";
   }
   reason_ = why.str();
   return inconsistent();
+}
+
+double ValveProgressCheck::takeDoubtKg() {
+  const double kg = doubt_kg_;
+  doubt_kg_ = 0.0;
+  return kg;
 }
 
 std::string SensorSignatureCheck::update(double reading_pa, bool settled, double noise_sd_pa, double dt_s,
@@ -361,33 +367,36 @@ void ValveResponseCheck::restart() {
 
 std::string ValveProgressCheck::update(const ConsistencySample& sample, double dt_s,
                                        const ConsistencyMonitorParams& params) {
-  // The readings' mean over about 0.2 s: a few pascals of noise against the tens a working
-  // valve moves the pressure by over its summed time.
-  constexpr double kMeanTimeS = 0.2;
+  // The readings' mean over about half the settling time (kSettleS), so it has caught up with
+  // the pressure by the judgement: 10 readings take a 10 Pa noise to about 3 Pa, against the
+  // tens a working valve moves the pressure by over its summed gas.
+  constexpr double kMeanTimeS = 0.5 * kSettleS;
   const double p = sample.gauge_pressure_pa;
   mean_pa_ = have_mean_ ? mean_pa_ + (p - mean_pa_) * std::min(1.0, dt_s / kMeanTimeS) : p;
   have_mean_ = true;
-  const bool rest = sample.inlet_opening == 0.0 && sample.vent_opening == 0.0;
-  rest_s_ = rest ? rest_s_ + dt_s : 0.0;
   // Either valve moves the pressure: the other's sum ends when it opens. A sum that reached its
   // limit is judged then, on the furthest the pressure went meanwhile: a move up that turns
   // into a ramp down (or back) never rests between the two, and dropped unjudged a valve stuck
   // shut went unseen while the estimate climbed away from its plate.
   std::string why;
-  if (sample.vent_opening > 0.0) why = endWindow(&inlet_, +1, params.progress_inlet_s, params);
-  if (sample.inlet_opening > 0.0 && why.empty()) why = endWindow(&vent_, -1, params.progress_vent_s, params);
+  if (sample.vent_opening > 0.0) why = endWindow(&inlet_, +1, params.progress_inlet_m, params);
+  if (sample.inlet_opening > 0.0 && why.empty()) why = endWindow(&vent_, -1, params.progress_vent_m, params);
   if (!why.empty()) return why;
-  why = step(&inlet_, +1, sample.inlet_opening, params.progress_inlet_s, dt_s, params);
-  if (why.empty()) why = step(&vent_, -1, sample.vent_opening, params.progress_vent_s, dt_s, params);
+  why = step(&inlet_, +1, sample.inlet_opening, sample, params.progress_inlet_m, dt_s, params);
+  if (why.empty()) why = step(&vent_, -1, sample.vent_opening, sample, params.progress_vent_m, dt_s, params);
   return why;
 }
 
-std::string ValveProgressCheck::step(Window* w, int direction, double opening, double limit_s, double dt_s,
-                                     const ConsistencyMonitorParams& params) {
-  if (limit_s <= 0.0) return "";
-  if (opening > 0.0 && !w->active) *w = Window{true, 0.0, 0.0, mean_pa_, 0.0};
+std::string ValveProgressCheck::step(Window* w, int direction, double opening, const ConsistencySample& sample,
+                                     double limit_m, double dt_s, const ConsistencyMonitorParams& params) {
+  if (limit_m <= 0.0) return "";
+  if (opening > 0.0 && !w->active) *w = Window{true, 0.0, 0.0, 0.0, mean_pa_, 0.0, 0.0, 0.0};
   if (!w->active) return "";
   w->open_s += opening * dt_s;
+  if (opening > 0.0) {
+    w->height_m += sample.counted_height_m;
+    w->gas_kg += sample.counted_gas_kg;
+  }
   w->span_s += dt_s;
   // The furthest its way: a fast move's plate still swings when the valves rest, and a
   // pulse moves the pressure at fixed volume before the plate takes it up.
@@ -396,17 +405,19 @@ std::string ValveProgressCheck::step(Window* w, int direction, double opening, d
     w->active = false;  // too slow to tell from a body's load changes
     return "";
   }
-  // Judged once its valve has rested a few of the plate's swings (tens of ms each): a slow
-  // ramp's pulses come every few tenths of a second and never let it settle for long.
-  constexpr double kRestS = 0.1;
-  if (w->open_s < limit_s || rest_s_ < kRestS) return "";
+  // Judged a few of the plate's swings (tens of ms each) after its gas reached the limit, the
+  // valves resting or not (a slow ramp's pulses come every tenth of a second): the mean has
+  // caught up by then, and the furthest it went counts.
+  if (w->height_m < limit_m) return "";
+  w->reached_s += dt_s;
+  if (w->reached_s < kSettleS) return "";
   return judge(w, direction, params);
 }
 
-std::string ValveProgressCheck::endWindow(Window* w, int direction, double limit_s,
+std::string ValveProgressCheck::endWindow(Window* w, int direction, double limit_m,
                                           const ConsistencyMonitorParams& params) {
   if (!w->active) return "";
-  if (limit_s > 0.0 && w->open_s >= limit_s) return judge(w, direction, params);
+  if (limit_m > 0.0 && w->height_m >= limit_m && w->reached_s >= kSettleS) return judge(w, direction, params);
   w->active = false;
   return "";
 }
@@ -417,18 +428,20 @@ std::string ValveProgressCheck::judge(Window* w, int direction, const Consistenc
   const double needed_pa = params.progress_rel * w->start_pa;
   const double moved_pa = w->best_pa;
   if (needed_pa < params.progress_min_pa || moved_pa >= needed_pa) return "";
+  doubt_kg_ += w->gas_kg;
+  ++failures_;
   std::ostringstream why;
   why << "failure to reach target: the " << (direction > 0 ? "inlet" : "vent") << " was counted open " << w->open_s
-      << " s over " << w->span_s << " s but the pressure moved " << moved_pa << " Pa its way from " << w->start_pa
-      << " Pa (less than " << needed_pa << " Pa): a valve that does not open";
-  return why.str();
+      << " s, worth " << 1e3 * w->height_m << " mm, over " << w->span_s << " s but the pressure moved " << moved_pa
+      << " Pa its way from " << w->start_pa << " Pa (less than " << needed_pa << " Pa): a valve that does not open";
+  last_failure_ = why.str();
+  return last_failure_;
 }
 
 void ValveProgressCheck::restart() {
   inlet_ = Window{};
   vent_ = Window{};
   have_mean_ = false;
-  rest_s_ = 0.0;
 }
 
 double ConsistencyMonitor::cusum() const { return std::max(up_pa_s_, down_pa_s_); }

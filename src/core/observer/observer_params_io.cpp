@@ -85,14 +85,14 @@ ParamTable<ConsistencyMonitorParams> makeMonitorFields() {
       field("landed_height_m", "the readings flat under an estimate above this shows gas gone uncounted; 0 = off [m]",
             &M::landed_height_m),
       field("landed_time_s", "the readings flat that long under a lifted estimate is that test [s]", &M::landed_time_s),
-      field("progress_inlet_s",
-            "failure to reach target: the inlet counted open this long over its pulses must raise the pressure; "
-            "0 = off [s]",
-            &M::progress_inlet_s),
-      field("progress_vent_s", "the same for the vent (the pressure must fall); 0 = off [s]", &M::progress_vent_s),
-      field("progress_rel", "the least relative pressure move asked of that valve time [-]", &M::progress_rel),
+      field("progress_inlet_m",
+            "failure to reach target: once the inlet's counted gas is worth this in height, the pressure must have "
+            "risen; else that gas is the count's doubt; 0 = off [m]",
+            &M::progress_inlet_m),
+      field("progress_vent_m", "the same for the vent (the pressure must fall); 0 = off [m]", &M::progress_vent_m),
+      field("progress_rel", "the least relative pressure move asked of that counted gas [-]", &M::progress_rel),
       field("progress_min_pa", "judged only where that move is at least this [Pa]", &M::progress_min_pa),
-      field("progress_window_s", "the valve time is summed over at most this long [s]", &M::progress_window_s),
+      field("progress_window_s", "the valve's gas is summed over at most this long [s]", &M::progress_window_s),
   };
 }
 

@@ -334,15 +334,15 @@ namespace {
 /// The failure-to-reach-target test alone, at the values that suit the model.
 nb::ConsistencyMonitorParams progressCheckOnly() {
   nb::ConsistencyMonitorParams m;
-  m.progress_inlet_s = 0.035;
-  m.progress_vent_s = 0.1;
+  m.progress_inlet_m = 0.005;
+  m.progress_vent_m = 0.004;
   m.response_min_pa = 0.0;
   return m;
 }
 
 /// Ramps the cell's target from `from_m` to `to_m` over 60 s in small steps, as a turn does (the
 /// controller's pulses then are a few hundred pascals each at fixed volume); returns the time to
-/// the first FAULT_INCONSISTENT after the ramp began (-1: none).
+/// the first FAULT_INCONSISTENT or failure to reach target (a doubt) after the ramp began (-1: none).
 double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double from_m, double to_m,
                          const nb::ConsistencyMonitorParams& monitor = {},
                          const nb::CellParams& cell = nb::CellParams{}) {
@@ -356,7 +356,7 @@ double rampedFlagSeconds(double load_n, int stuck_inlet, int stuck_vent, double 
     EXPECT_EQ(c.cell->requestHeight(from_m + (to_m - from_m) * s / 60.0, c.t), "");
     for (const double end = c.t + 0.1; c.t < end - 1e-9;) {
       c.runTo(c.t + 0.005);
-      if (c.cell->faults() & nb::kFaultInconsistent) return c.t - t0;
+      if ((c.cell->faults() & nb::kFaultInconsistent) || c.cell->monitor()->progress().failures() > 0) return c.t - t0;
     }
   }
   return -1.0;
@@ -393,6 +393,30 @@ TEST(CellFaults, AValveStuckShutUnderASlowRampIsFlaggedAsAFailureToReachTarget) 
   EXPECT_GE(rampedFlagSeconds(15.6, 0, -1, 0.07, 0.09, progressCheckOnly()), 0.0);
 }
 
+TEST(CellFaults, AVentStuckShutOnARampDownLeavesNoUnflaggedErrorBeyondSixMillimetres) {
+  // The failure to reach target doubts the vent's counted gas: the estimate that followed the
+  // count down while the plate stayed is reported unverified, not trusted.
+  for (const double load_n : {15.6, 36.0}) {
+    FaultyCell c(0.09, load_n, progressCheckOnly());
+    ASSERT_EQ(c.cell->requestHeight(0.09, 0.0), "");
+    ASSERT_LT(c.runTo(6.0), 0.0);
+    c.hw->stuck_vent = 0;
+    double worst = 0.0;
+    for (double s = 0.0; s <= 60.0; s += 0.1) {
+      ASSERT_EQ(c.cell->requestHeight(0.09 - 0.04 * s / 60.0, c.t), "");
+      c.runTo(c.t + 0.1, &worst);
+    }
+    std::printf(
+        "[faults] vent stuck shut on a 40 mm ramp down under %.1f N: worst unflagged error %.1f mm, "
+        "estimate %.1f mm, plate %.1f mm\n",
+        load_n, 1e3 * worst, 1e3 * c.cell->measurement().height_m, 1e3 * c.plant->variables().height_m);
+    EXPECT_LT(worst, 0.006) << "under " << load_n << " N";
+    EXPECT_GE(c.cell->monitor()->progress().failures(), 1) << "under " << load_n << " N";
+    EXPECT_TRUE(c.cell->heightUnverified()) << "under " << load_n << " N";
+    EXPECT_GT(c.plant->variables().height_m, 0.085) << "the plate stayed";
+  }
+}
+
 TEST(CellFaults, AHealthyCellOnASlowRampIsNeverFlagged) {
   for (const double load_n : {0.6, 5.0, 15.6, 36.0}) {
     for (const auto& monitor : {nb::ConsistencyMonitorParams{}, rowsOn(), progressCheckOnly()}) {
@@ -420,7 +444,8 @@ void expectBodyStepsUnflagged(const std::vector<std::pair<double, double>>& step
       while (c.t < t0 + 8.0) {
         c.plant->setLoad(from_n + std::min(1.0, ramp_s > 0.0 ? (c.t - t0) / ramp_s : 1.0) * (to_n - from_n));
         c.runTo(c.t + 0.005);
-        if (reason.empty() && c.flagged()) reason = c.cell->monitor()->reason() + " ";
+        if (reason.empty() && c.flagged())
+          reason = c.cell->monitor()->reason() + " " + c.cell->monitor()->progress().lastFailure();
       }
       const std::string what =
           std::to_string(from_n) + " -> " + std::to_string(to_n) + " N in " + std::to_string(ramp_s) + " s";

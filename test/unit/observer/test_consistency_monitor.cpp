@@ -76,8 +76,8 @@ TEST(ConsistencyMonitorParams, RefusesBadValuesNamingThem) {
   expectRefused("load_rate_pa_s", &nb::ConsistencyMonitorParams::load_rate_pa_s, -1.0);
   expectRefused("landed_height_m", &nb::ConsistencyMonitorParams::landed_height_m, -0.01);
   expectRefused("landed_time_s", &nb::ConsistencyMonitorParams::landed_time_s, 0.0);
-  expectRefused("progress_inlet_s", &nb::ConsistencyMonitorParams::progress_inlet_s, -0.01);
-  expectRefused("progress_vent_s", &nb::ConsistencyMonitorParams::progress_vent_s, std::nan(""));
+  expectRefused("progress_inlet_m", &nb::ConsistencyMonitorParams::progress_inlet_m, -0.01);
+  expectRefused("progress_vent_m", &nb::ConsistencyMonitorParams::progress_vent_m, std::nan(""));
   expectRefused("progress_rel", &nb::ConsistencyMonitorParams::progress_rel, 0.0);
   expectRefused("progress_rel", &nb::ConsistencyMonitorParams::progress_rel, 1.0);
   expectRefused("progress_min_pa", &nb::ConsistencyMonitorParams::progress_min_pa, 0.0);
@@ -482,8 +482,8 @@ namespace {
 /// `rise_pa` over the move; returns the progress test's verdict ("" none).
 std::string moveUpThenRampDown(double inlet_s, double rise_pa) {
   nb::ConsistencyMonitorParams p;
-  p.progress_inlet_s = 0.035;
-  p.progress_vent_s = 0.1;
+  p.progress_inlet_m = 0.005;
+  p.progress_vent_m = 0.004;
   p.response_min_pa = 0.0;  // the progress test alone
   nb::ValveProgressCheck check;
   Sensor sensor(7);
@@ -494,6 +494,7 @@ std::string moveUpThenRampDown(double inlet_s, double rise_pa) {
   for (int i = 0; i < 2 * pulses && why.empty(); ++i) {
     nb::ConsistencySample s = sample(sensor.read(start_pa + rise_pa * i / (2.0 * pulses)), false);
     s.inlet_opening = i % 2 ? 0.0 : 0.5;
+    s.counted_height_m = 0.1 * s.inlet_opening * kPeriod;  // 0.1 m per second open
     why = check.update(s, kPeriod, p);
   }
   for (int i = 0; i < 40 && why.empty(); ++i) {
@@ -511,4 +512,52 @@ TEST(ValveProgressCheck, AnInletThatMovedNoPressureIsJudgedWhenTheVentTakesOverW
   EXPECT_NE(stuck.find("failure to reach target: the inlet"), std::string::npos) << stuck;
   EXPECT_EQ(moveUpThenRampDown(0.08, 0.08 * 1500.0), "") << "a working inlet raised the pressure 8 %";
   EXPECT_EQ(moveUpThenRampDown(0.02, 0.0), "") << "below the limit the sum is dropped unjudged";
+}
+
+TEST(ConsistencyMonitor, AFailureToReachTargetDoubtsTheValvesGasInsteadOfFlaggingTheCell) {
+  // A vent counted open in pulses (1e-5 kg, 0.2 mm each) at 3 kPa while the pressure stays: a
+  // valve stuck shut, or a load that grew meanwhile. The pressure cannot tell which, so the gas
+  // counted through it is the count's doubt, and the cell is not inconsistent.
+  nb::ConsistencyMonitorParams p;
+  p.response_min_pa = 0.0;  // the progress test alone
+  nb::ConsistencyMonitor monitor(p);
+  Sensor sensor(11);
+  const double held_pa = 3000.0;
+  for (int i = 0; i < 200; ++i) ASSERT_FALSE(monitor.update(sample(sensor.read(held_pa), true), kPeriod));
+  int open_periods = 0;
+  for (int i = 0; i < 80; ++i) {  // a pulse every other period, then a rest
+    nb::ConsistencySample s = sample(sensor.read(held_pa), i % 2 == 1 || i >= 80 - 30);
+    if (!s.valves_shut) {
+      s.vent_opening = 1.0;
+      s.counted_gas_kg = 1e-5;
+      s.counted_height_m = 2e-4;  // 5 mm over the pulses
+      ++open_periods;
+    }
+    ASSERT_FALSE(monitor.update(s, kPeriod)) << monitor.reason();
+  }
+  for (int i = 0; i < 40; ++i) ASSERT_FALSE(monitor.update(sample(sensor.read(held_pa), true), kPeriod));
+  EXPECT_EQ(monitor.progress().failures(), 1);
+  EXPECT_NE(monitor.progress().lastFailure().find("failure to reach target: the vent"), std::string::npos)
+      << monitor.progress().lastFailure();
+  EXPECT_NEAR(monitor.takeDoubtKg(), 1e-5 * open_periods, 1e-12);
+  EXPECT_EQ(monitor.takeDoubtKg(), 0.0) << "taken once";
+  EXPECT_FALSE(monitor.inconsistent());
+
+  // A working vent: the same pulses lowering the pressure 10 % (its mean lags).
+  nb::ConsistencyMonitor working(p);
+  for (int i = 0; i < 200; ++i) working.update(sample(sensor.read(held_pa), true), kPeriod);
+  double now_pa = held_pa;
+  for (int i = 0; i < 80; ++i) {
+    nb::ConsistencySample s = sample(sensor.read(now_pa), i % 2 == 1 || i >= 80 - 30);
+    if (!s.valves_shut) {
+      s.vent_opening = 1.0;
+      s.counted_gas_kg = 1e-5;
+      s.counted_height_m = 2e-4;
+      now_pa -= 0.1 * held_pa / open_periods;
+    }
+    working.update(s, kPeriod);
+  }
+  for (int i = 0; i < 40; ++i) working.update(sample(sensor.read(now_pa), true), kPeriod);
+  EXPECT_EQ(working.progress().failures(), 0) << working.progress().lastFailure();
+  EXPECT_EQ(working.takeDoubtKg(), 0.0);
 }

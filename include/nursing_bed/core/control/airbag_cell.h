@@ -214,6 +214,9 @@ class AirbagCell {
   /// The consistency monitor on this period's readings (`before`: the estimate before the
   /// observer's step); an inconsistency suspects the gas and flags the cell.
   void monitorStep(const ObserverEvents& events, const CellEstimate& before, double dt_s);
+  /// The one valve the observer's last step counted gas through (+1 inlet, -1 vent, 0 none,
+  /// both, or a re-anchor).
+  int countedDirection(const ObserverEvents& events) const;
   /// The fixed-volume pressure change of the gas the observer counted through one valve in
   /// its last step (+ inlet, - vent, 0 none) [Pa].
   double countedStepPa(const ObserverEvents& events, const CellEstimate& before) const;

@@ -86,21 +86,25 @@ struct ConsistencyMonitorParams {
   /// few millimetres a re-anchor corrects after a healthy move; 0: off [m].
   double landed_height_m = 0.015;
   double landed_time_s = 0.2;  ///< that long (the readings' mean over a quarter of it) [s]
-  /// Failure to reach target: an inlet counted open this long in all (its pulses summed, a slow
-  /// ramp's small ones included) must have raised the pressure by progress_rel of where it
-  /// was once the valves have rested 0.1 s: the plate it lifts climbs the structure, whose
-  /// pressure under a steady load rises about 1.3 % per millimetre, while a valve stuck shut
-  /// leaves it where it was; 0: off [s]. Off by default: over the rig emulator it flags too
-  /// few valves stuck shut (doc/real_bed.md); 0.035 s suits the model.
-  double progress_inlet_s = 0.0;
-  /// The same for a vent (the pressure must fall); vents pass less than the supply's inlet; off
-  /// by default, 0.1 s suits the model [s].
-  double progress_vent_s = 0.0;
-  double progress_rel = 0.03;  ///< the least relative rise (fall) asked of that much valve time [-]
+  /// Failure to reach target, a doubt rather than an inconsistency: once the gas counted through
+  /// the inlet over its pulses (a slow ramp's small ones included) would lift the plate this
+  /// much at fixed pressure (V dm / (m dV/dh)), 0.1 s later the pressure must have risen by
+  /// progress_rel of where it was: the plate climbs the structure, whose pressure under a
+  /// steady load rises about 1.3 % per millimetre, while a valve stuck shut leaves it. Under a
+  /// body a load that changes meanwhile can hold the pressure just as well, so the gas counted
+  /// over the sum becomes the count's doubt and the cell is reported unverified until its gas
+  /// is found again; 0: off (the default; 5 mm suits the model) [m].
+  double progress_inlet_m = 0.0;
+  /// The same for the vent (the pressure must fall): an estimate that followed a count down
+  /// while the plate stayed is flagged before it is 6 mm off; 0: off [m].
+  double progress_vent_m = 0.004;
+  /// The least relative rise (fall) asked of that much counted gas: about 40 % of what 4 mm
+  /// along the structure gives, room for a body load still settling from a step [-].
+  double progress_rel = 0.02;
   /// Judged only where progress_rel of the pressure is at least this (a light plate's pressure
   /// hardly moves along the structure) [Pa].
   double progress_min_pa = 15.0;
-  /// The valve's time is summed over at most this long (a body's slow load changes move the
+  /// The valve's gas is summed over at most this long (a body's slow load changes move the
   /// pressure over longer spans) [s].
   double progress_window_s = 60.0;
 
@@ -129,6 +133,11 @@ struct ConsistencySample {
   /// Mean gauge pressure under which the observer takes a cell with its inlet shut for flat
   /// (CellObserver::flatPressure); 0: unknown, the landed test off [Pa].
   double flat_pressure_pa = 0.0;
+  /// The gas the observer counted through the one valve acting in this period (0 with both or
+  /// neither, or where a re-anchor set the gas) [kg], and how far it would move the plate at
+  /// fixed pressure, V dm / (m dV/dh) [m].
+  double counted_gas_kg = 0.0;
+  double counted_height_m = 0.0;
 };
 
 /// One job: the sensor's own signature in its raw readings, whatever the plate does: the same
@@ -236,35 +245,50 @@ class ValveResponseCheck {
   bool aloneShowsStuck(double counted_pa, const ConsistencyMonitorParams& params) const;
 };
 
-/// One job: failure to reach target. Each valve's counted opening time is summed over its
-/// pulses (the other valve's opening ends the sum); once it reaches its limit and the valves
-/// have rested 0.1 s, or the other valve opens, the pressure's mean must have moved its way (at
+/// One job: failure to reach target. The gas counted through each valve is summed over its
+/// pulses (the other valve's opening ends the sum); 0.1 s after it is worth its limit in height
+/// (or when the other valve opens after that), the pressure's mean must have moved its way (at
 /// its furthest) by progress_rel of its mean before the first pulse.
 class ValveProgressCheck {
  public:
   /// One period; returns a non-empty reason when a valve's summed opening did not move the pressure.
   std::string update(const ConsistencySample& sample, double dt_s, const ConsistencyMonitorParams& params);
   void restart();
+  /// The gas counted through the valves of the windows judged failures since the last call [kg].
+  double takeDoubtKg();
+  /// How many windows have been judged failures, and why the last one was.
+  int failures() const { return failures_; }
+  const std::string& lastFailure() const { return last_failure_; }
 
  private:
+  /// A window is judged this long after its gas reached the limit (a few of the plate's swings
+  /// on its gas spring, twice the readings' mean time) [s].
+  static constexpr double kSettleS = 0.1;
   struct Window {
     bool active = false;
-    double open_s = 0.0;    ///< the valve's opening summed over the window [s]
-    double span_s = 0.0;    ///< the window's length [s]
-    double start_pa = 0.0;  ///< the mean pressure before its first pulse [Pa]
-    double best_pa = 0.0;   ///< the furthest the mean moved its way since [Pa]
+    double open_s = 0.0;     ///< the valve's opening summed over the window [s]
+    double height_m = 0.0;   ///< the height its counted gas is worth, summed [m]
+    double span_s = 0.0;     ///< the window's length [s]
+    double start_pa = 0.0;   ///< the mean pressure before its first pulse [Pa]
+    double best_pa = 0.0;    ///< the furthest the mean moved its way since [Pa]
+    double gas_kg = 0.0;     ///< the gas counted through the valve over the window [kg]
+    double reached_s = 0.0;  ///< time since its gas reached the limit [s]
   };
-  /// Sums one valve's opening; judges its window once it has run long enough and settled.
-  std::string step(Window* w, int direction, double opening, double limit_s, double dt_s,
-                   const ConsistencyMonitorParams& params);
-  /// The other valve opened: a window whose sum reached its limit is judged, any other dropped.
-  std::string endWindow(Window* w, int direction, double limit_s, const ConsistencyMonitorParams& params);
+  /// Sums one valve's opening (and the gas counted through it); judges its window once it has
+  /// run long enough and settled.
+  std::string step(Window* w, int direction, double opening, const ConsistencySample& sample, double limit_m,
+                   double dt_s, const ConsistencyMonitorParams& params);
+  /// The other valve opened: a window whose sum reached its limit kSettleS ago is judged, any
+  /// other dropped.
+  std::string endWindow(Window* w, int direction, double limit_m, const ConsistencyMonitorParams& params);
   /// The verdict on a window that reached its limit (the window ends).
   std::string judge(Window* w, int direction, const ConsistencyMonitorParams& params);
   Window inlet_, vent_;
   double mean_pa_ = 0.0;  ///< the readings' running mean [Pa]
   bool have_mean_ = false;
-  double rest_s_ = 0.0;  ///< both valves shut this long [s]
+  double doubt_kg_ = 0.0;  ///< failed windows' gas not yet taken [kg]
+  int failures_ = 0;
+  std::string last_failure_;
 };
 
 /**
@@ -289,7 +313,9 @@ class ValveProgressCheck {
  *  - landed: the readings flat (below the observer's flat pressure) under an estimate
  *    above landed_height_m (gas gone uncounted);
  *  - progress: a valve counted open long enough, over its pulses, without the pressure
- *    moving its way (ValveProgressCheck): failure to reach target, a valve stuck shut.
+ *    moving its way (ValveProgressCheck): failure to reach target, a valve stuck shut, or a
+ *    load that grew meanwhile; the gas counted through it is doubted (takeDoubtKg), the cell
+ *    not made inconsistent.
  * Once inconsistent it stays so until clear() (the cell's gas re-verified).
  */
 class ConsistencyMonitor {
@@ -310,6 +336,9 @@ class ConsistencyMonitor {
   const std::string& reason() const { return reason_; }
   /// The larger of the two CUSUMs now [Pa s].
   double cusum() const;
+  /// Gas whose count the readings did not bear out (the progress test) since the last call [kg].
+  double takeDoubtKg() { return progress_.takeDoubtKg(); }
+  const ValveProgressCheck& progress() const { return progress_; }
 
  private:
   bool innovation(const ConsistencySample& sample, double dt_s);
